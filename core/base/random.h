@@ -1,0 +1,181 @@
+// Counter-based random numbers and the per-pixel noise samplers built on them.
+//
+// No generator state: every random word is a pure function of
+// (seed, stream, frame, x, y, draw), so any pixel of any frame can be produced
+// in any order, on any thread, on any platform, with the same bits.
+#pragma once
+
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+
+#include "core/base/fixed.h"
+#include "core/base/span.h"
+#include "core/base/status.h"
+
+namespace camsim {
+
+// Philox4x32-10 (Salmon, Moraes, Dror, Shaw, SC'11; as in Random123):
+// a 10-round bijection of a 4x32-bit counter under a 2x32-bit key.
+struct Philox4x32 {
+  static constexpr uint32_t kM0 = 0xD2511F53u;  // round multipliers
+  static constexpr uint32_t kM1 = 0xCD9E8D57u;
+  static constexpr uint32_t kW0 = 0x9E3779B9u;  // Weyl key increments
+  static constexpr uint32_t kW1 = 0xBB67AE85u;
+  static constexpr int kRounds = 10;
+
+  static void Generate(const uint32_t counter[4], const uint32_t key[2], uint32_t out[4]) {
+    uint32_t c0 = counter[0], c1 = counter[1], c2 = counter[2], c3 = counter[3];
+    uint32_t k0 = key[0], k1 = key[1];
+    for (int round = 0; round < kRounds; ++round) {
+      if (round > 0) {
+        k0 += kW0;
+        k1 += kW1;
+      }
+      const uint64_t p0 = static_cast<uint64_t>(kM0) * c0;
+      const uint64_t p1 = static_cast<uint64_t>(kM1) * c2;
+      c0 = static_cast<uint32_t>(p1 >> 32) ^ c1 ^ k0;
+      c2 = static_cast<uint32_t>(p0 >> 32) ^ c3 ^ k1;
+      c1 = static_cast<uint32_t>(p1);
+      c3 = static_cast<uint32_t>(p0);
+    }
+    out[0] = c0;
+    out[1] = c1;
+    out[2] = c2;
+    out[3] = c3;
+  }
+};
+
+struct RandomBits {
+  uint32_t v[4];
+};
+
+// 128 random bits for one (pixel, frame, draw) of one (seed, stream):
+//   counter = {x, y, frame, draw}
+//   key     = {lo32(seed), hi32(seed) ^ (stream * 0x9E3779B9 mod 2^32)}
+// The multiplier is odd, so distinct streams of one seed always get distinct keys.
+inline RandomBits DrawBits(uint64_t seed, uint32_t stream, uint32_t frame, uint32_t x, uint32_t y,
+                           uint32_t draw = 0) {
+  const uint32_t counter[4] = {x, y, frame, draw};
+  const uint32_t key[2] = {static_cast<uint32_t>(seed),
+                           static_cast<uint32_t>(seed >> 32) ^ (stream * 0x9E3779B9u)};
+  RandomBits bits;
+  Philox4x32::Generate(counter, key, bits.v);
+  return bits;
+}
+
+// Standard normal variate from 32 uniform bits: Sample(u) approximates the
+// exact quantile InvNormalCdf((u + 0.5) / 2^32) of u's bucket midpoint, so it
+// is non-decreasing in u and exactly antisymmetric: Sample(~u) == -Sample(u).
+// Output in Q15.16 (int32, z * 65536).
+//
+// Table: the top bit of u picks the half; v = the other 31 bits, mirrored in
+// the upper half, counts buckets from the nearer end (|z| decreases with v).
+// v is split dyadically by its leading zeros into 32 segments (segment s
+// covers v in [2^(30-s), 2^(31-s)), i.e. tail probability [2^-(s+2), 2^-(s+1))),
+// and each segment into 64 linear-interpolation intervals (the 6 bits after
+// the leading one index, the remaining 24 interpolate). Entries hold |z| at
+// the interval ends in Q7.24; one rounding to Q16 at the end.
+//   Size: 32 * 65 int32 = 2080 entries = 8320 bytes.
+//   Error vs the exact quantile of the bucket midpoint (measured at 2^22 + u
+//   values incl. every segment's ends): <= 2.2e-5 everywhere (interpolation
+//   <= 1.4e-5 plus the final rounding to 1/65536).
+//   Tail: |z| <= 6.3613 (u = 0 or ~0: the quantile of 2^-33); no clamp needed.
+class GaussianTable {
+ public:
+  static constexpr int kSegments = 32;
+  static constexpr int kIndexBits = 6;
+  static constexpr int kInterpBits = 30 - kIndexBits;  // bits below the index
+  static constexpr int kEntryFracBits = 24;            // entries are Q7.24
+  static constexpr size_t kNodes = (size_t{1} << kIndexBits) + 1;  // per segment
+  static constexpr size_t kEntries = kSegments * kNodes;          // 2080
+
+  // Fills storage[0 .. kEntries) (caller-owned, configure time; uses
+  // detmath::InvNormalCdf) and keeps a pointer to it.
+  [[nodiscard]] Status Build(Span<int32_t> storage);
+
+  // Per pixel: integers only, no loops. Requires a successful Build().
+  int32_t Sample(uint32_t u) const {
+    const uint32_t upper = 0u - (u >> 31);                   // all ones for the upper half
+    const uint32_t v = (u ^ upper) & 0x7FFFFFFFu;            // buckets from the nearer end
+    const int segment = std::countl_zero(v) - 1;             // 0..31 (v == 0 gives 31)
+    const uint32_t w = v << segment;                         // leading one at bit 30
+    const int32_t* node = table_ + static_cast<size_t>(segment) * kNodes +
+                          ((w >> kInterpBits) & ((1u << kIndexBits) - 1));
+    const int64_t frac = w & ((1u << kInterpBits) - 1);
+    const int64_t mag = (static_cast<int64_t>(node[0]) << kInterpBits) +
+                        static_cast<int64_t>(node[1] - node[0]) * frac;  // Q(24+24)
+    const int32_t z = static_cast<int32_t>(RoundShift(mag, kInterpBits + kEntryFracBits - 16));
+    const int32_t negate = static_cast<int32_t>(~upper);     // -1 for the lower half
+    return (z ^ negate) - negate;
+  }
+
+ private:
+  const int32_t* table_ = nullptr;
+};
+
+// Poisson variate with mean lambda = lambda_q8 / 256, in whole counts.
+//
+// lambda < 12 (lambda_q8 < kSmallQ8): exact inverse transform on u: returns
+// the smallest k with u < 2^32 * CDF(k), where p_0 comes from the table and
+// p_k = p_{k-1} * lambda / k in 64-bit integers (rounded, ties up). Each
+// entry stores exp(-lambda) * 2^(32 + n) with n = (lambda_q8 * 369) >> 16
+// (<= lambda * log2(e)), i.e. Q0.32 with an exponent implied by lambda_q8, so
+// p_0 keeps >= 31 significant bits even at lambda = 12 (exp(-12) ~ 2^-17.3).
+// u is compared scaled by the same 2^n. The loop stops once p_k rounds to 0
+// (k <= 46 for every lambda and u) and is capped at kMaxSmallCount anyway.
+// lambda = 0 always gives 0.
+//
+// lambda >= 12: normal approximation with Cornish-Fisher skew correction,
+//   n = lambda + sigma * z + (z^2 - 1) / 6,  sigma = sqrt(lambda - 5/36),
+// in Q32 integers (ISqrt64 for sigma), rounded (ties up), clamped at 0 and
+// saturated at UINT32_MAX. Using lambda - 5/36 instead of lambda under the
+// root removes the variance added by the skew term (1/18) and by rounding to
+// an integer (1/12), so Var(n) = lambda to O(1/lambda). z_q16 is a
+// GaussianTable::Sample() of bits independent of u; any int32 is safe.
+class PoissonTable {
+ public:
+  static constexpr uint32_t kSmallQ8 = 12 * 256;
+  static constexpr size_t kEntries = kSmallQ8;       // 3072 uint32 = 12288 bytes
+  static constexpr uint32_t kMaxSmallCount = 64;
+  static constexpr uint64_t kVarianceCorrection = 596523236;  // round(5/36 * 2^32)
+
+  // Fills storage[0 .. kEntries) (caller-owned, configure time; uses
+  // detmath::Exp) and keeps a pointer to it.
+  [[nodiscard]] Status Build(Span<uint32_t> storage);
+
+  // Per pixel: integers only, bounded time, defined for every input.
+  // Requires a successful Build().
+  uint32_t Sample(uint32_t lambda_q8, uint32_t u, int32_t z_q16) const {
+    return lambda_q8 < kSmallQ8 ? SampleSmall(lambda_q8, u) : SampleLarge(lambda_q8, z_q16);
+  }
+
+ private:
+  uint32_t SampleSmall(uint32_t lambda_q8, uint32_t u) const {
+    const uint32_t n = (lambda_q8 * 369u) >> 16;
+    const uint64_t target = static_cast<uint64_t>(u) << n;
+    uint64_t p = table_[lambda_q8];  // < 2^49 throughout; p * lambda_q8 < 2^61
+    uint64_t cdf = p;
+    uint32_t k = 0;
+    while (target >= cdf && k < kMaxSmallCount) {
+      const uint64_t div = static_cast<uint64_t>(k + 1) << 8;  // (k + 1) * 256
+      p = (p * lambda_q8 + div / 2) / div;
+      if (p == 0) break;
+      ++k;
+      cdf += p;
+    }
+    return k;
+  }
+
+  static uint32_t SampleLarge(uint32_t lambda_q8, int32_t z_q16) {
+    const uint64_t lambda = static_cast<uint64_t>(lambda_q8) << 24;                // Q32, < 2^56
+    const int64_t sigma = ISqrt64(lambda - kVarianceCorrection);                    // Q16, < 2^28
+    const int64_t z = z_q16;
+    const int64_t n = static_cast<int64_t>(lambda) + sigma * z + (z * z - (int64_t{1} << 32)) / 6;  // Q32
+    return SatU32(RoundShift(n, 32));
+  }
+
+  const uint32_t* table_ = nullptr;
+};
+
+}  // namespace camsim

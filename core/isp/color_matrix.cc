@@ -1,0 +1,64 @@
+#include "core/isp/color_matrix.h"
+
+namespace camsim {
+namespace {
+
+using Coefficient = Q<5, ColorMatrixStage::kFracBits, true>;
+using RowSum = Q<7, ColorMatrixStage::kFracBits, true>;  // 3 * 16 < 2^7
+constexpr int32_t kMaxRaw = 16 << ColorMatrixStage::kFracBits;
+constexpr int32_t kOneRaw = 1 << ColorMatrixStage::kFracBits;
+
+}  // namespace
+
+Status ColorMatrixStage::Configure(const ColorMatrixConfig& c, const SensorGeometry& /*geometry*/) {
+  for (double v : c.m)
+    if (!(v >= -kMaxCoefficient && v <= kMaxCoefficient))
+      return InvalidArgument("color_matrix.m", "each coefficient must be in [-16, 16]");
+  int32_t q[9];
+  for (int i = 0; i < 3; ++i) {
+    const double* row = c.m + 3 * i;
+    const int32_t sum = RowSum::FromDouble(row[0] + row[1] + row[2]).raw;
+    int32_t off_diagonal = 0;
+    for (int j = 0; j < 3; ++j) {
+      if (j == i) continue;
+      q[3 * i + j] = Coefficient::FromDouble(row[j]).raw;
+      off_diagonal += q[3 * i + j];
+    }
+    const int32_t diagonal = sum - off_diagonal;
+    if (diagonal < -kMaxRaw || diagonal > kMaxRaw)
+      return InvalidArgument("color_matrix.m",
+                             "a row is not representable: its diagonal leaves [-16, 16] once it takes "
+                             "the row's rounding remainder");
+    q[4 * i] = diagonal;
+  }
+  for (int i = 0; i < 9; ++i) q_[i] = q[i];
+  return Status::Ok();
+}
+
+Result<LineFormat> ColorMatrixStage::Plan(LineFormat in) const {
+  if (in.domain != Domain::kLinear || in.channels != 3)
+    return InvalidArgument("color_matrix", "needs 3-channel linear RGB (after demosaic)");
+  return in;
+}
+
+const char* ColorMatrixStage::IdentityReason() const {
+  for (int i = 0; i < 9; ++i)
+    if (q_[i] != (i % 4 == 0 ? kOneRaw : 0)) return nullptr;
+  return "colour matrix is the identity";
+}
+
+void ColorMatrixStage::ProcessRow(const RowArgs& a) const {
+  const uint32_t* r = a.rows[0].ch[0];
+  const uint32_t* g = a.rows[0].ch[1];
+  const uint32_t* b = a.rows[0].ch[2];
+  for (int i = 0; i < 3; ++i) {
+    const int64_t mr = q_[3 * i], mg = q_[3 * i + 1], mb = q_[3 * i + 2];
+    uint32_t* out = a.out[i];
+    for (int x = 0; x < a.width; ++x) {
+      const int64_t sum = mr * r[x] + mg * g[x] + mb * b[x];
+      out[x] = static_cast<uint32_t>(Clamp64(RoundShift(sum, kFracBits), 0, 65535));
+    }
+  }
+}
+
+}  // namespace camsim

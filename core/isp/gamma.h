@@ -1,0 +1,51 @@
+// Gamma: linear signal -> display encoding through a 65536-entry table.
+//
+//   kSrgb:  IEC 61966-2-1: 12.92 v for v <= 0.0031308, else 1.055 v^(1/2.4) - 0.055
+//   kPower: v^(1/gamma)
+//   kLinear: v (the stage is then left out, and the output stays linear)
+//
+// Formats: in  Linear  Q0.16 (1 channel, mosaic or mono, or 3 channels)
+//          out Encoded Q0.16, same channels
+//          table: uint16_t per input code 0..65535, each entry
+//          round(65535 * curve(i / 65535)) from the double curve (detmath::Pow),
+//          ties up; inputs above 65535 read the last entry.
+// Error against the exact curve: <= 0.5 LSB (one rounding per entry) plus
+// detmath::Pow's error.
+#pragma once
+
+#include "core/pipeline/stage.h"
+
+namespace camsim {
+
+enum class GammaCurve : uint8_t { kLinear, kSrgb, kPower };
+
+struct GammaConfig {
+  GammaCurve curve = GammaCurve::kLinear;
+  double gamma = 2.2;  // kPower: encodes v^(1/gamma); in [0.1, 10]
+};
+
+class GammaStage final : public Stage {
+ public:
+  static constexpr size_t kTableSize = 65536;  // one entry per Q0.16 code
+  static constexpr double kMinGamma = 0.1;
+  static constexpr double kMaxGamma = 10.0;
+
+  Status Configure(const GammaConfig& config, const SensorGeometry& geometry);
+  const char* name() const override { return "gamma"; }
+  Result<LineFormat> Plan(LineFormat in) const override;
+  // "gamma curve is linear" for kLinear.
+  const char* IdentityReason() const override;
+  void CountTables(WorkspaceCounter& counter) const override;
+  Status Init(Arena& tables) override;  // builds the table
+  void ProcessRow(const RowArgs& args) const override;
+
+  // The curve in double, v and result in [0, 1] (what the table samples).
+  double Curve(double v) const;
+  const uint16_t* table() const { return table_; }  // after Init
+
+ private:
+  GammaConfig config_;
+  uint16_t* table_ = nullptr;
+};
+
+}  // namespace camsim

@@ -1,0 +1,141 @@
+#include "core/lens/vignetting.h"
+
+#include "core/pipeline/pipeline.h"
+
+namespace camsim {
+namespace {
+
+constexpr double kMaxGain = 4.0 - 1.0 / 16384.0;  // Q2.14 ceiling
+
+uint64_t Denominator(const SensorGeometry& g) {
+  const uint64_t w = static_cast<uint64_t>(g.width - 1), h = static_cast<uint64_t>(g.height - 1);
+  return w * w + h * h;
+}
+
+double Rho(const SensorGeometry& g, int x, int y) {
+  const uint64_t den = Denominator(g);
+  if (den == 0) return 0.0;
+  const double dx = 2.0 * x - (g.width - 1), dy = 2.0 * y - (g.height - 1);
+  return (dx * dx + dy * dy) / static_cast<double>(den);
+}
+
+double CurveGainOf(const VignettingConfig& c, const SensorGeometry& g, double rho) {
+  if (c.mode == VignettingMode::kCos4) {
+    // r^2 in pixels: rho * ((W-1)^2 + (H-1)^2) / 4.
+    const double r2 = rho * static_cast<double>(Denominator(g)) / 4.0;
+    const double t = 1.0 + r2 / (c.focal_length_px * c.focal_length_px);
+    return 1.0 / (t * t);
+  }
+  if (c.mode == VignettingMode::kTable) {
+    const double pos = rho * (c.table_count - 1);
+    int i = static_cast<int>(pos);
+    if (i >= c.table_count - 1) return c.table[c.table_count - 1];
+    const double f = pos - i;
+    return c.table[i] + (c.table[i + 1] - c.table[i]) * f;
+  }
+  return 1.0;
+}
+
+}  // namespace
+
+double ReferenceVignettingGain(const VignettingConfig& c, const SensorGeometry& g, int x, int y) {
+  return CurveGainOf(c, g, Rho(g, x, y));
+}
+
+double VignettingStage::CurveGain(double rho) const { return CurveGainOf(config_, geometry_, rho); }
+
+Status VignettingStage::Configure(const VignettingConfig& c, const SensorGeometry& g, bool has_mask) {
+  config_ = c;
+  geometry_ = g;
+  switch (c.mode) {
+    case VignettingMode::kOff:
+      break;
+    case VignettingMode::kCos4:
+      if (!(c.focal_length_px >= 1.0 && c.focal_length_px <= 1e6))
+        return InvalidArgument("vignetting.focal_length_px", "must be in [1, 1e6] pixels for cos4");
+      break;
+    case VignettingMode::kTable:
+      if (c.table_count < 2 || c.table_count > VignettingConfig::kMaxTable)
+        return InvalidArgument("vignetting.table", "needs 2 to 64 gains (centre to corner)");
+      for (int i = 0; i < c.table_count; ++i)
+        if (!(c.table[i] >= 0.0 && c.table[i] <= kMaxGain))
+          return InvalidArgument("vignetting.table", "gains must be in [0, 3.9999]");
+      break;
+    case VignettingMode::kMask:
+      if (!has_mask) return InvalidArgument("vignetting.mask", "mode 'mask' needs a mask image");
+      break;
+  }
+  // Index scale: (kCurvePoints - 1) * 2^16 / denominator; denominator < 2^31 for frames < 32768 px.
+  const uint64_t den = Denominator(g);
+  if (den > 0) {
+    Result<UScale> s = UScale::FromDouble((kCurvePoints - 1) * 65536.0 / static_cast<double>(den),
+                                          "sensor.width");
+    if (!s.ok()) return s.status();
+    rho_to_index_ = s.value();
+  }
+  return Status::Ok();
+}
+
+Result<LineFormat> VignettingStage::Plan(LineFormat in) const {
+  if (in.domain != Domain::kPhotons) return InvalidArgument("vignetting", "needs photons input");
+  return in;
+}
+
+const char* VignettingStage::IdentityReason() const {
+  if (config_.mode == VignettingMode::kOff) return "vignetting.mode is off";
+  if (config_.mode == VignettingMode::kTable) {
+    for (int i = 0; i < config_.table_count; ++i)
+      if (config_.table[i] != 1.0) return nullptr;
+    return "vignetting table is flat 1.0";
+  }
+  return nullptr;
+}
+
+void VignettingStage::CountTables(WorkspaceCounter& counter) const {
+  counter.Add<uint16_t>(kCurvePoints + 1);
+  counter.Add<uint32_t>(static_cast<size_t>(geometry_.width));
+}
+
+Status VignettingStage::Init(Arena& tables) {
+  curve_ = tables.Take<uint16_t>(kCurvePoints + 1);
+  dx2_ = tables.Take<uint32_t>(static_cast<size_t>(geometry_.width));
+  if (curve_ == nullptr || dx2_ == nullptr)
+    return Status(StatusCode::kResourceExhausted, "workspace too small for vignetting tables");
+  for (int i = 0; i < kCurvePoints; ++i) {
+    const double gain = CurveGain(static_cast<double>(i) / (kCurvePoints - 1));
+    curve_[i] = static_cast<uint16_t>(Q<2, 14>::FromDouble(gain).raw);
+  }
+  curve_[kCurvePoints] = curve_[kCurvePoints - 1];  // lets rho == 1 interpolate without a branch
+  for (int x = 0; x < geometry_.width; ++x) {
+    const int64_t d = 2 * static_cast<int64_t>(x) - (geometry_.width - 1);
+    dx2_[x] = static_cast<uint32_t>(d * d);
+  }
+  return Status::Ok();
+}
+
+void VignettingStage::ProcessRow(const RowArgs& a) const {
+  const RowIn& in = a.rows[0];
+  // Channels: 3 (colour) or 1 (mosaic); the gain does not depend on colour.
+  int channels = 0;
+  while (channels < kMaxChannels && a.out[channels] != nullptr) ++channels;
+  if (config_.mode == VignettingMode::kMask) {
+    const uint16_t* mask = a.input->vignetting_mask.row(a.y);
+    for (int c = 0; c < channels; ++c)
+      for (int x = 0; x < a.width; ++x)
+        a.out[c][x] = SatU32(RoundShiftU(static_cast<uint64_t>(in.ch[c][x]) * mask[x], kGainFracBits));
+    return;
+  }
+  const int64_t dy = 2 * static_cast<int64_t>(a.y) - (geometry_.height - 1);
+  const uint32_t dy2 = static_cast<uint32_t>(dy * dy);
+  for (int x = 0; x < a.width; ++x) {
+    // Curve position, Q.16: integer part selects the segment, fraction interpolates.
+    const uint32_t pos = rho_to_index_.Apply(dx2_[x] + dy2);
+    const uint32_t i = pos >> 16, f = pos & 0xFFFF;
+    const int64_t g0 = curve_[i], g1 = curve_[i + 1];
+    const uint64_t gain = static_cast<uint64_t>(g0 + RoundShift((g1 - g0) * f, 16));  // Q2.14
+    for (int c = 0; c < channels; ++c)
+      a.out[c][x] = SatU32(RoundShiftU(static_cast<uint64_t>(in.ch[c][x]) * gain, kGainFracBits));
+  }
+}
+
+}  // namespace camsim

@@ -1,0 +1,421 @@
+#include "core/pipeline/pipeline.h"
+
+#include <cstring>
+
+namespace camsim {
+namespace {
+
+constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 32 bits
+constexpr int kMaxWorkers = 64;
+
+constexpr const char* kStageNames[kStageCount] = {
+    "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+
+// Sum of samples per colour for the report.
+void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
+                 StageStats* s) {
+  if (channels == 3) {
+    for (int c = 0; c < 3; ++c) {
+      int64_t sum = 0;
+      for (int x = 0; x < width; ++x) sum += rows[c][x];
+      s->sum[c] += sum;
+      s->count[c] += width;
+    }
+    return;
+  }
+  if (!mosaic) {
+    int64_t sum = 0;
+    for (int x = 0; x < width; ++x) sum += rows[0][x];
+    s->sum[kGreen] += sum;
+    s->count[kGreen] += width;
+    return;
+  }
+  for (int x = 0; x < width; ++x) {
+    const Colour c = CfaColour(cfa, x, y);
+    s->sum[c] += rows[0][x];
+    s->count[c] += 1;
+  }
+}
+
+void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width) {
+  const ptrdiff_t offset = static_cast<ptrdiff_t>(y) * tap.stride;
+  switch (tap.format) {
+    case TapFormat::kU32: {
+      uint32_t* dst = static_cast<uint32_t*>(tap.data) + offset;
+      for (int x = 0; x < width; ++x)
+        for (int c = 0; c < channels; ++c) dst[x * channels + c] = rows[c][x];
+      break;
+    }
+    case TapFormat::kU16: {
+      uint16_t* dst = static_cast<uint16_t*>(tap.data) + offset;
+      for (int x = 0; x < width; ++x)
+        for (int c = 0; c < channels; ++c) {
+          const uint32_t v = rows[c][x];
+          dst[x * channels + c] = static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v);
+        }
+      break;
+    }
+    case TapFormat::kU8: {
+      // Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up.
+      uint8_t* dst = static_cast<uint8_t*>(tap.data) + offset;
+      for (int x = 0; x < width; ++x)
+        for (int c = 0; c < channels; ++c) {
+          const uint32_t v = rows[c][x] > 0xFFFFu ? 0xFFFFu : rows[c][x];
+          dst[x * channels + c] = static_cast<uint8_t>((v * 255u + 32767u) / 65535u);
+        }
+      break;
+    }
+  }
+}
+
+}  // namespace
+
+const char* StageName(StageId id) {
+  const int i = static_cast<int>(id);
+  return i >= 0 && i < kStageCount ? kStageNames[i] : "?";
+}
+
+bool StageFromName(const char* name, StageId* id) {
+  for (int i = 0; i < kStageCount; ++i)
+    if (std::strcmp(name, kStageNames[i]) == 0) {
+      *id = static_cast<StageId>(i);
+      return true;
+    }
+  return false;
+}
+
+const char* DomainName(Domain d) {
+  switch (d) {
+    case Domain::kRadiance: return "radiance Q16.16";
+    case Domain::kPhotons: return "photons Q24.8";
+    case Domain::kDigital: return "digital DN";
+    case Domain::kLinear: return "linear Q0.16";
+    case Domain::kEncoded: return "encoded Q0.16";
+  }
+  return "?";
+}
+
+int DomainFracBits(Domain d) {
+  switch (d) {
+    case Domain::kRadiance: return 16;
+    case Domain::kPhotons: return 8;
+    case Domain::kDigital: return 0;
+    case Domain::kLinear:
+    case Domain::kEncoded: return 16;
+  }
+  return 0;
+}
+
+const char* CfaName(Cfa cfa) {
+  switch (cfa) {
+    case Cfa::kMono: return "Mono";
+    case Cfa::kBayerRG: return "BayerRG";
+    case Cfa::kBayerGR: return "BayerGR";
+    case Cfa::kBayerGB: return "BayerGB";
+    case Cfa::kBayerBG: return "BayerBG";
+  }
+  return "?";
+}
+
+Stage* Pipeline::StageFor(StageId id) {
+  return const_cast<Stage*>(static_cast<const Pipeline*>(this)->StageFor(id));
+}
+
+const Stage* Pipeline::StageFor(StageId id) const {
+  switch (id) {
+    case StageId::kExposure: return &exposure_;
+    case StageId::kVignetting: return &vignetting_;
+    case StageId::kCfa: return &cfa_;
+    case StageId::kSensor: return &sensor_;
+    case StageId::kBlackLevel: return &black_level_;
+    case StageId::kWhiteBalance: return &white_balance_;
+    case StageId::kDemosaic: return &demosaic_;
+    case StageId::kColorMatrix: return &color_matrix_;
+    case StageId::kGamma: return &gamma_;
+    case StageId::kCount: break;
+  }
+  return nullptr;
+}
+
+Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask) {
+  initialised_ = false;
+  config_ = config;
+  const SensorGeometry& g = config.geometry;
+  if (g.width < 1 || g.width > kMaxDimension) return InvalidArgument("sensor.width", "must be in [1, 16384]");
+  if (g.height < 1 || g.height > kMaxDimension) return InvalidArgument("sensor.height", "must be in [1, 16384]");
+  if (g.adc_bits < 8 || g.adc_bits > 16) return InvalidArgument("sensor.adc_bits", "must be 8 to 16");
+  if (workers < 1 || workers > kMaxWorkers) return InvalidArgument("threads", "must be in [1, 64]");
+  if (config.order_count < 1 || config.order_count > kStageCount)
+    return InvalidArgument("pipeline.stages", "must name 1 to all stages");
+  workers_ = workers;
+
+  // Each stage validates its own section.
+  CAMSIM_TRY(exposure_.Configure(config.exposure));
+  CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
+  CAMSIM_TRY(cfa_.Configure(config.cfa, g));
+  CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
+  CAMSIM_TRY(black_level_.Configure(config.black_level, g, config.sensor.black_level_dn));
+  CAMSIM_TRY(white_balance_.Configure(config.white_balance, g));
+  CAMSIM_TRY(demosaic_.Configure(config.demosaic, g));
+  CAMSIM_TRY(color_matrix_.Configure(config.color_matrix, g));
+  CAMSIM_TRY(gamma_.Configure(config.gamma, g));
+
+  // Plan: follow the format through the configured order, leaving out stages
+  // that would change nothing.
+  plan_ = Plan();
+  plan_.input = LineFormat{Domain::kRadiance, 3, false};
+  LineFormat format = plan_.input;
+  bool seen[kStageCount] = {};
+  run_count_ = 0;
+  for (int i = 0; i < config.order_count; ++i) {
+    const StageId id = config.order[i];
+    const int idx = static_cast<int>(id);
+    if (idx < 0 || idx >= kStageCount) return InvalidArgument("pipeline.stages", "unknown stage");
+    if (seen[idx]) return InvalidArgument("pipeline.stages", "a stage is listed twice");
+    seen[idx] = true;
+    PlanEntry& e = plan_.entries[plan_.count++];
+    e.id = id;
+    const Stage* stage = StageFor(id);
+    if (const char* reason = stage->IdentityReason()) {
+      e.runs = false;
+      e.reason = reason;
+      continue;
+    }
+    Result<LineFormat> out = stage->Plan(format);
+    if (!out.ok()) return out.status();
+    e.runs = true;
+    e.out = out.value();
+    format = e.out;
+    run_[run_count_++] = stage;
+  }
+  if (run_count_ == 0) return InvalidArgument("pipeline.stages", "every listed stage was left out");
+  plan_.running = run_count_;
+  plan_.output = format;
+
+  // Rings: the input ring (index 0) and each stage's output ring (index i + 1)
+  // hold as many rows as their consumer reads at once; the last stage's, one.
+  margin_ = 0;
+  for (int i = 0; i < run_count_; ++i)
+    if (run_[i]->RowsAbove() > kMaxContextRows || run_[i]->RowsBelow() > kMaxContextRows)
+      return Status(StatusCode::kOutOfRange, "a stage reads more context rows than kMaxContextRows");
+  for (int i = 0; i < run_count_; ++i)
+    if (run_[i]->Margin() > margin_) margin_ = run_[i]->Margin();
+  input_direct_ = run_[0]->Margin() == 0;
+  for (int j = 0; j <= run_count_; ++j) {
+    const Stage* consumer = j < run_count_ ? run_[j] : nullptr;
+    ring_slots_[j] = consumer ? consumer->RowsAbove() + consumer->RowsBelow() + 1 : 1;
+  }
+  if (input_direct_) ring_slots_[0] = 0;
+
+  WorkspaceCounter tables;
+  for (int i = 0; i < run_count_; ++i) run_[i]->CountTables(tables);
+  table_bytes_ = tables.raw_bytes();
+
+  WorkspaceCounter worker;
+  const size_t pitch = static_cast<size_t>(g.width + 2 * margin_);
+  scratch_bytes_ = 0;
+  int channels_of_ring[kStageCount + 1] = {3};
+  {
+    int r = 1;
+    for (int i = 0; i < plan_.count; ++i)
+      if (plan_.entries[i].runs) channels_of_ring[r++] = plan_.entries[i].out.channels;
+  }
+  for (int j = 0; j <= run_count_; ++j) {
+    worker.Add<uint32_t>(static_cast<size_t>(ring_slots_[j]) * channels_of_ring[j] * pitch);
+    worker.Add<int32_t>(static_cast<size_t>(ring_slots_[j]));  // row tag per slot
+    ring_channels_[j] = channels_of_ring[j];
+  }
+  for (int i = 0; i < run_count_; ++i) {
+    const size_t s = run_[i]->ScratchBytes(g.width);
+    if (s > scratch_bytes_) scratch_bytes_ = s;
+  }
+  worker.AddBytes(scratch_bytes_);
+  worker_bytes_ = worker.raw_bytes();
+  return Status::Ok();
+}
+
+size_t Pipeline::WorkspaceBytes() const {
+  return table_bytes_ + static_cast<size_t>(workers_) * worker_bytes_ + kWorkspaceAlign;
+}
+
+Status Pipeline::Init(Span<uint8_t> workspace) {
+  initialised_ = false;
+  if (workspace.size < WorkspaceBytes())
+    return Status(StatusCode::kResourceExhausted, "workspace smaller than WorkspaceBytes()");
+  Arena arena(workspace);
+  for (int i = 0; i < run_count_; ++i) CAMSIM_TRY(const_cast<Stage*>(run_[i])->Init(arena));
+  workers_base_ = arena.Take<uint8_t>(static_cast<size_t>(workers_) * worker_bytes_);
+  if (workers_base_ == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for line rings");
+  initialised_ = true;
+  return Status::Ok();
+}
+
+Status Pipeline::CheckInput(const FrameInput& input) const {
+  const int w = config_.geometry.width, h = config_.geometry.height;
+  for (int c = 0; c < 3; ++c) {
+    const ImageView<const uint32_t>& v = input.radiance[c];
+    if (v.data == nullptr || v.width != w || v.height != h || v.channels != 1 || v.stride < w)
+      return InvalidArgument("input.radiance", "each colour plane must be sensor-sized, 1 channel");
+  }
+  if (config_.vignetting.mode == VignettingMode::kMask && plan_.count > 0) {
+    const ImageView<const uint16_t>& m = input.vignetting_mask;
+    if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
+      return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
+  }
+  return Status::Ok();
+}
+
+// The state of one ProcessStrip call: where each ring lives and which rows it
+// has produced. Local to the call, so strips on different workers never share it.
+struct Pipeline::StripState {
+  const FrameInput* input;
+  uint32_t frame;
+  int y0, y1;
+  uint8_t* scratch;
+  uint32_t* ring[kStageCount + 1];
+  int32_t* tag[kStageCount + 1];
+  int next[kStageCount + 1];
+  const Tap* taps;
+  int tap_count;
+  WorkerStats* stats;
+  const Clock* clock;
+};
+
+uint32_t* Pipeline::RingRow(const StripState& s, int j, int row, int channel) const {
+  const int slot = row % ring_slots_[j];
+  const size_t pitch = static_cast<size_t>(config_.geometry.width + 2 * margin_);
+  return s.ring[j] + (static_cast<size_t>(slot) * ring_channels_[j] + channel) * pitch + margin_;
+}
+
+void Pipeline::FillMargins(uint32_t* row) const {
+  const int w = config_.geometry.width;
+  for (int m = 1; m <= margin_; ++m) {
+    row[-m] = row[Reflect101(-m, w)];
+    row[w - 1 + m] = row[Reflect101(w - 1 + m, w)];
+  }
+}
+
+// Row pointers of ring j (0 = input) for `row`, which must be available.
+RowIn Pipeline::RowOf(const StripState& s, int j, int row) const {
+  RowIn r;
+  if (j == 0 && input_direct_) {
+    for (int c = 0; c < 3; ++c) r.ch[c] = s.input->radiance[c].row(row);
+    return r;
+  }
+  CAMSIM_DCHECK(s.tag[j][row % ring_slots_[j]] == row);
+  for (int c = 0; c < ring_channels_[j]; ++c) r.ch[c] = RingRow(s, j, row, c);
+  return r;
+}
+
+// Makes ring j hold rows up to `row` (inclusive).
+void Pipeline::Produce(StripState& s, int j, int row) const {
+  if (j == 0) {
+    if (input_direct_) return;
+    for (; s.next[0] <= row; ++s.next[0]) {
+      const int r = s.next[0];
+      for (int c = 0; c < 3; ++c) {
+        uint32_t* dst = RingRow(s, 0, r, c);
+        std::memcpy(dst, s.input->radiance[c].row(r), sizeof(uint32_t) * config_.geometry.width);
+        FillMargins(dst);
+      }
+      s.tag[0][r % ring_slots_[0]] = r;
+    }
+    return;
+  }
+  const int h = config_.geometry.height, w = config_.geometry.width;
+  const Stage* stage = run_[j - 1];
+  const int above = stage->RowsAbove(), below = stage->RowsBelow();
+  for (; s.next[j] <= row; ++s.next[j]) {
+    const int r = s.next[j];
+    // The input rows this row reads, reflected into the frame.
+    int needed = 0;
+    for (int k = -above; k <= below; ++k) {
+      const int src = Reflect101(r + k, h);
+      if (src > needed) needed = src;
+    }
+    Produce(s, j - 1, needed);
+    RowIn rows[2 * kMaxContextRows + 1];
+    for (int k = -above; k <= below; ++k) rows[k + above] = RowOf(s, j - 1, Reflect101(r + k, h));
+
+    const bool in_strip = r >= s.y0 && r < s.y1;
+    StageStats* st = (s.stats != nullptr && in_strip) ? &s.stats->stage[j - 1] : nullptr;
+    RowArgs args;
+    args.y = r;
+    args.width = w;
+    args.frame = s.frame;
+    args.rows = rows;
+    args.input = s.input;
+    args.scratch = s.scratch;
+    args.stats = st;
+    for (int c = 0; c < ring_channels_[j]; ++c) args.out[c] = RingRow(s, j, r, c);
+    const uint64_t t0 = s.clock != nullptr ? s.clock->now(s.clock->context) : 0;
+    stage->ProcessRow(args);
+    if (s.clock != nullptr && st != nullptr) st->ticks += s.clock->now(s.clock->context) - t0;
+    for (int c = 0; c < ring_channels_[j]; ++c) FillMargins(args.out[c]);
+    s.tag[j][r % ring_slots_[j]] = r;
+
+    if (!in_strip) continue;
+    const LineFormat& f = RunningFormat(j - 1);
+    if (st != nullptr) AddRowStats(args.out, f.channels, f.mosaic, config_.geometry.cfa, r, w, st);
+    for (int t = 0; t < s.tap_count; ++t) {
+      const int tap_stage = s.taps[t].stage < 0 ? run_count_ - 1 : s.taps[t].stage;
+      if (tap_stage == j - 1) WriteTapRow(s.taps[t], args.out, f.channels, r, w);
+    }
+  }
+}
+
+const LineFormat& Pipeline::RunningFormat(int i) const {
+  int k = 0;
+  for (int e = 0; e < plan_.count; ++e)
+    if (plan_.entries[e].runs && k++ == i) return plan_.entries[e].out;
+  return plan_.output;
+}
+
+void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int y1, int worker,
+                            const Tap* taps, int tap_count, WorkerStats* stats, const Clock* clock) const {
+  if (!initialised_ || worker < 0 || worker >= workers_) return;
+  const int h = config_.geometry.height;
+  if (y0 < 0) y0 = 0;
+  if (y1 > h) y1 = h;
+  if (y0 >= y1) return;
+
+  StripState s{};
+  s.input = &input;
+  s.frame = frame;
+  s.y0 = y0;
+  s.y1 = y1;
+  s.taps = taps;
+  s.tap_count = tap_count;
+  s.stats = stats;
+  s.clock = clock;
+  // Carve this worker's memory exactly as Configure counted it.
+  Arena arena(Span<uint8_t>{workers_base_ + static_cast<size_t>(worker) * worker_bytes_, worker_bytes_});
+  const size_t pitch = static_cast<size_t>(config_.geometry.width + 2 * margin_);
+  for (int j = 0; j <= run_count_; ++j) {
+    s.ring[j] = arena.Take<uint32_t>(static_cast<size_t>(ring_slots_[j]) * ring_channels_[j] * pitch);
+    s.tag[j] = arena.Take<int32_t>(static_cast<size_t>(ring_slots_[j]));
+    for (int k = 0; k < ring_slots_[j]; ++k) s.tag[j][k] = -1;
+  }
+  s.scratch = arena.Take<uint8_t>(scratch_bytes_);
+
+  // First row each ring must produce: the strip's top minus the context above
+  // of every later stage.
+  int first = y0;
+  for (int j = run_count_; j >= 0; --j) {
+    s.next[j] = first;
+    if (j > 0) {
+      first -= run_[j - 1]->RowsAbove();
+      if (first < 0) first = 0;
+    }
+  }
+  for (int y = y0; y < y1; ++y) Produce(s, run_count_, y);
+}
+
+void Pipeline::ProcessFrame(const FrameInput& input, uint32_t frame, int strip_rows, const Tap* taps,
+                            int tap_count, WorkerStats* stats, const Clock* clock) const {
+  if (strip_rows < 1) strip_rows = height();
+  for (int y = 0; y < height(); y += strip_rows)
+    ProcessStrip(input, frame, y, y + strip_rows, 0, taps, tap_count, stats, clock);
+}
+
+}  // namespace camsim

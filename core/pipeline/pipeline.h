@@ -1,0 +1,184 @@
+// The pipeline: an ordered list of stages from configuration, a planner that
+// leaves out what the scene does not need, and a strip-streaming driver.
+//
+// Streaming: every stage keeps its output rows in a ring of line buffers just
+// deep enough for its consumer's vertical context (RowsAbove + RowsBelow + 1).
+// A strip [y0, y1) of output rows is produced by pulling rows through the chain
+// in order; rows outside the frame are reflected (reflect-101). Each worker has
+// its own rings, so N workers run N strips at once. Because ProcessRow depends
+// only on its input rows, every strip height and worker count gives the same
+// bytes. No frame-sized buffer exists in the core.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "core/aperture/exposure.h"
+#include "core/isp/black_level.h"
+#include "core/isp/color_matrix.h"
+#include "core/isp/demosaic.h"
+#include "core/isp/gamma.h"
+#include "core/isp/white_balance.h"
+#include "core/lens/vignetting.h"
+#include "core/pipeline/stage.h"
+#include "core/sensor/cfa.h"
+#include "core/sensor/emva.h"
+
+namespace camsim {
+
+// The stages in their default order (also the order of the paper's Figure 2
+// for the ones it has). New stages are added here and in Pipeline's members.
+enum class StageId : uint8_t {
+  kExposure,
+  kVignetting,
+  kCfa,
+  kSensor,
+  kBlackLevel,
+  kWhiteBalance,
+  kDemosaic,
+  kColorMatrix,
+  kGamma,
+  kCount
+};
+inline constexpr int kStageCount = static_cast<int>(StageId::kCount);
+// The most rows above or below its own that a stage may read.
+inline constexpr int kMaxContextRows = 64;
+const char* StageName(StageId id);
+// Looks a stage up by its name; false when there is none.
+bool StageFromName(const char* name, StageId* id);
+
+struct FrameInput {
+  ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
+  ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+};
+
+struct PipelineConfig {
+  SensorGeometry geometry;
+  uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
+
+  // Stages in run order; a stage not listed does not run.
+  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
+                                StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
+                                StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
+  int order_count = kStageCount;
+
+  ExposureConfig exposure;
+  VignettingConfig vignetting;
+  CfaConfig cfa;
+  SensorConfig sensor;
+  BlackLevelConfig black_level;
+  WhiteBalanceConfig white_balance;
+  DemosaicConfig demosaic;
+  ColorMatrixConfig color_matrix;
+  GammaConfig gamma;
+};
+
+// The planner's verdict on one configured stage.
+struct PlanEntry {
+  StageId id = StageId::kExposure;
+  bool runs = false;
+  const char* reason = "";  // why it was left out (empty when it runs)
+  LineFormat out;           // its output format (when it runs)
+};
+
+struct Plan {
+  PlanEntry entries[kStageCount];
+  int count = 0;
+  int running = 0;            // entries that run
+  LineFormat input;           // format entering the first stage
+  LineFormat output;          // format leaving the last running stage
+};
+
+// Where a run puts rows of a stage's output: an image in the caller's memory.
+// Samples are converted on the way: kU32 copies; kU16 takes Q0.16 or DN values
+// as they are (saturating); kU8 maps Q0.16 to 0..255 with round(v * 255 / 65535).
+enum class TapFormat : uint8_t { kU8, kU16, kU32 };
+struct Tap {
+  int stage = -1;  // index among the running stages; -1 = the last one
+  TapFormat format = TapFormat::kU16;
+  void* data = nullptr;   // interleaved channels, height rows
+  ptrdiff_t stride = 0;   // in samples
+};
+
+// Per-worker measurements of one ProcessStrip call series.
+struct WorkerStats {
+  StageStats stage[kStageCount];  // indexed by running-stage index
+};
+
+// A monotonic clock the caller may lend for per-stage timing (no clock in the core).
+struct Clock {
+  uint64_t (*now)(void* context) = nullptr;
+  void* context = nullptr;
+};
+
+class Pipeline {
+ public:
+  // Validates every configured stage, plans, and sizes the workspace. The only
+  // step besides Init that can fail.
+  Status Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask);
+  const Plan& plan() const { return plan_; }
+
+  // Workspace: tables shared by all workers + per worker line rings and scratch.
+  size_t WorkspaceBytes() const;
+  size_t TableBytes() const { return table_bytes_; }
+  size_t WorkerBytes() const { return worker_bytes_; }
+
+  // Binds the caller's workspace (WorkspaceBytes() long) and builds tables.
+  Status Init(Span<uint8_t> workspace);
+
+  // Checks that a frame's inputs match the configuration (sizes, required
+  // planes). Call before ProcessStrip: processing itself cannot fail.
+  Status CheckInput(const FrameInput& input) const;
+
+  // Produces output rows [y0, y1) of frame `frame` with worker `worker`
+  // (0 <= worker < workers). Cannot fail. Different workers may run at once on
+  // disjoint strips. Taps receive rows [y0, y1) of their stage's output.
+  // stats, when non-null, accumulates measurements for rows [y0, y1).
+  void ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int y1, int worker,
+                    const Tap* taps, int tap_count, WorkerStats* stats, const Clock* clock) const;
+
+  // Convenience: the whole frame on worker 0 in strips of strip_rows.
+  void ProcessFrame(const FrameInput& input, uint32_t frame, int strip_rows, const Tap* taps,
+                    int tap_count, WorkerStats* stats, const Clock* clock) const;
+
+  int width() const { return config_.geometry.width; }
+  int height() const { return config_.geometry.height; }
+  const PipelineConfig& config() const { return config_; }
+
+ private:
+  struct StripState;
+  uint32_t* RingRow(const StripState& s, int ring, int row, int channel) const;
+  void FillMargins(uint32_t* row) const;
+  RowIn RowOf(const StripState& s, int ring, int row) const;
+  void Produce(StripState& s, int ring, int row) const;
+  const LineFormat& RunningFormat(int i) const;
+  Stage* StageFor(StageId id);
+  const Stage* StageFor(StageId id) const;
+
+  PipelineConfig config_;
+  Plan plan_;
+  int workers_ = 1;
+  int margin_ = 0;
+  bool input_direct_ = true;        // first stage reads the caller's rows directly
+  const Stage* run_[kStageCount] = {};  // running stages, in order
+  int run_count_ = 0;
+  int ring_slots_[kStageCount + 1] = {};     // [0] = input ring, [i + 1] = stage i's output
+  int ring_channels_[kStageCount + 1] = {};
+  size_t scratch_bytes_ = 0;
+  size_t table_bytes_ = 0;
+  size_t worker_bytes_ = 0;
+  uint8_t* workers_base_ = nullptr;
+  bool initialised_ = false;
+
+  ExposureStage exposure_;
+  VignettingStage vignetting_;
+  CfaStage cfa_;
+  SensorStage sensor_;
+  BlackLevelStage black_level_;
+  WhiteBalanceStage white_balance_;
+  DemosaicStage demosaic_;
+  ColorMatrixStage color_matrix_;
+  GammaStage gamma_;
+};
+
+}  // namespace camsim

@@ -1,0 +1,143 @@
+// The stage contract. Every stage of the pipeline is a class derived from Stage:
+//
+//   1. Configure(config, geometry)  validate a plain config struct (identity
+//                                   defaults) and keep it; the only place a
+//                                   config value can be refused.
+//   2. Plan(in) / IdentityReason()  what line format it outputs, and whether it
+//                                   would change nothing (then it is left out).
+//   3. RowsAbove/RowsBelow, Margin, CountTables, ScratchBytes
+//                                   how much context and memory it needs,
+//                                   known before anything runs.
+//   4. Init(tables)                 builds its read-only tables in the caller's
+//                                   workspace; can fail only if that is too small.
+//   5. ProcessRow(args)             produces one output row from a window of
+//                                   input rows. Cannot fail, allocates nothing,
+//                                   is const (safe on many workers at once), and
+//                                   depends only on its inputs and (frame, x, y):
+//                                   never on which rows were processed before.
+//                                   That is what makes every strip height and
+//                                   thread count give the same bytes.
+#pragma once
+
+#include <cstdint>
+
+#include "core/base/check.h"
+#include "core/base/fixed.h"
+#include "core/base/span.h"
+#include "core/base/status.h"
+#include "core/base/workspace.h"
+
+namespace camsim {
+
+inline constexpr int kMaxChannels = 3;
+
+// What the samples of a line mean. All line samples are uint32_t.
+enum class Domain : uint8_t {
+  kRadiance,  // scene-linear radiance, Q16.16 (1.0 = 65536)
+  kPhotons,   // photons per pixel during the exposure, Q24.8
+  kDigital,   // raw sensor output, integer DN in [0, 2^adc_bits - 1]
+  kLinear,    // black-level-corrected linear signal, Q0.16 of full scale (0..65535)
+  kEncoded,   // gamma-encoded display signal, Q0.16 of full scale (0..65535)
+};
+const char* DomainName(Domain d);
+// Fractional bits of a domain's samples (for converting to float in tools).
+int DomainFracBits(Domain d);
+
+// Colour filter arrays by their GenICam PixelFormat names. The name gives the
+// colours of the top-left 2x2 cell in reading order: BayerRG = R G / G B.
+enum class Cfa : uint8_t { kMono, kBayerRG, kBayerGR, kBayerGB, kBayerBG };
+const char* CfaName(Cfa cfa);
+enum Colour : uint8_t { kRed = 0, kGreen = 1, kBlue = 2 };
+// The colour a site samples; for kMono always kGreen (a single "luma" colour).
+constexpr Colour CfaColour(Cfa cfa, int x, int y) {
+  // Index = (y & 1) * 2 + (x & 1).
+  constexpr Colour kRG[4] = {kRed, kGreen, kGreen, kBlue};
+  constexpr Colour kGR[4] = {kGreen, kRed, kBlue, kGreen};
+  constexpr Colour kGB[4] = {kGreen, kBlue, kRed, kGreen};
+  constexpr Colour kBG[4] = {kBlue, kGreen, kGreen, kRed};
+  const int i = (y & 1) * 2 + (x & 1);
+  switch (cfa) {
+    case Cfa::kBayerRG: return kRG[i];
+    case Cfa::kBayerGR: return kGR[i];
+    case Cfa::kBayerGB: return kGB[i];
+    case Cfa::kBayerBG: return kBG[i];
+    case Cfa::kMono: break;
+  }
+  return kGreen;
+}
+
+struct LineFormat {
+  Domain domain = Domain::kRadiance;
+  uint8_t channels = 3;  // 1 or 3; channel c of a 3-channel line is colour c
+  bool mosaic = false;   // 1 channel holding the CFA site colour at each pixel
+};
+
+// What every stage knows about the frame it works on.
+struct SensorGeometry {
+  int width = 0;
+  int height = 0;
+  Cfa cfa = Cfa::kBayerRG;
+  int adc_bits = 12;  // 8..16
+};
+
+// Optional per-pixel inputs besides radiance, provided by the caller per frame.
+struct FrameInput;
+
+// One input row: a pointer per channel. Pointers may be read from -Margin() to
+// width - 1 + Margin(): the driver fills margins by reflection (reflect-101,
+// which keeps the CFA phase).
+struct RowIn {
+  const uint32_t* ch[kMaxChannels] = {};
+};
+
+// Sums gathered while rows are hot, for the run report. Per colour (R, G, B;
+// mono counts as G). aux is stage-specific (the sensor puts electrons there).
+struct StageStats {
+  int64_t sum[3] = {};
+  int64_t count[3] = {};
+  int64_t aux_sum[3] = {};
+  uint64_t ticks = 0;  // time spent, in the caller's clock units
+};
+
+struct RowArgs {
+  int y = 0;
+  int width = 0;
+  uint32_t frame = 0;
+  const RowIn* rows = nullptr;  // rows[0 .. above + below]; rows[above] is row y
+  const FrameInput* input = nullptr;
+  uint32_t* out[kMaxChannels] = {};
+  uint8_t* scratch = nullptr;   // ScratchBytes() of per-worker memory
+  StageStats* stats = nullptr;  // non-null when the stage should add aux stats
+};
+
+class Stage {
+ public:
+  virtual const char* name() const = 0;
+  // The output format for input format `in`, or an error naming why the stage
+  // cannot take it (e.g. demosaic after a mono CFA).
+  virtual Result<LineFormat> Plan(LineFormat in) const = 0;
+  // Why this stage would leave its input unchanged with its current config, or
+  // nullptr when it does real work. Stages that convert domains return nullptr.
+  virtual const char* IdentityReason() const { return nullptr; }
+  virtual int RowsAbove() const { return 0; }
+  virtual int RowsBelow() const { return 0; }
+  virtual int Margin() const { return 0; }  // columns read beyond each edge
+  virtual void CountTables(WorkspaceCounter& /*counter*/) const {}
+  virtual size_t ScratchBytes(int /*width*/) const { return 0; }
+  virtual Status Init(Arena& /*tables*/) { return Status::Ok(); }
+  virtual void ProcessRow(const RowArgs& args) const = 0;
+
+ protected:
+  ~Stage() = default;
+};
+
+// Reflect-101 of an index into [0, n): -1 -> 1, n -> n - 2; any distance.
+constexpr int Reflect101(int i, int n) {
+  if (n <= 1) return 0;
+  const int period = 2 * (n - 1);
+  int r = i % period;
+  if (r < 0) r += period;
+  return r < n ? r : period - r;
+}
+
+}  // namespace camsim

@@ -1,0 +1,88 @@
+// Sensor: the EMVA 1288 linear camera model (replaces the paper's eq. 17).
+//
+// Per pixel with CFA colour c, photons p (mean over the exposure):
+//   mu_e  = p * QE[c] * (1 + prnu * z1) + dark_current * t * 2^((T - T_ref) / T_double)
+//   n     = min(Poisson(mu_e), full_well)               shot noise, saturation
+//   v     = n + dsnu * z2 + dark_noise * z3             offset pattern, read noise
+//   DN    = clamp(round(K * v) + black_level, 0, 2^bits - 1)
+// z1, z2: fixed-pattern normals keyed by (seed, x, y) only, the same every
+// frame; z3 and the Poisson draw: keyed by (seed, frame, x, y). K is the
+// system gain at 0 dB times 10^(gain_db / 20) (the analog gain, which is eq.
+// 7's "ISO" term). Quantisation noise (1/12 DN^2) comes from the rounding, so
+// the temporal variance is sigma_y^2 = K^2 (sigma_d^2 + mu_e) + 1/12.
+//
+// Formats: in  Photons Q24.8, 1 channel (mosaic / mono) or 3 (one sensor per colour)
+//          out Digital DN integer, 1 or 3 channels
+//          QE, PRNU gain: Q0.16 / Q1.16 (64-bit products, rounded ties up)
+//          mean and charge: Q24.8 electrons (uint32, saturating; full well <= 1e6 e-)
+//          v: int64 Q.8; K as UScale, v * K in int64 (|v| < 2^29, mantissa < 2^32)
+//          normals: Q15.16 from GaussianTable; Poisson: PoissonTable (exact
+//          inverse transform below 12 e-, skew-corrected normal above).
+#pragma once
+
+#include "core/base/random.h"
+#include "core/pipeline/stage.h"
+
+namespace camsim {
+
+struct SensorConfig {
+  // Defaults: a typical 1/2.9" global-shutter CMOS industrial camera (order of
+  // magnitude of published EMVA 1288 sheets), 12-bit output.
+  double quantum_efficiency[3] = {0.50, 0.65, 0.55};  // R, G, B (mono uses G), 0..1
+  double full_well_e = 10500.0;         // saturation capacity, electrons
+  double system_gain_dn_per_e = 0.375;  // K at 0 dB, DN per electron
+  double gain_db = 0.0;                 // analog gain, dB (0..48)
+  double dark_noise_e = 2.4;            // sigma_d, temporal dark noise, electrons rms
+  double dark_current_e_per_s = 5.0;    // mean dark current at the reference temperature
+  double temperature_c = 25.0;          // sensor temperature
+  double dark_current_ref_c = 25.0;     // temperature the dark current is given at
+  double dark_current_doubling_c = 7.0; // dark current doubles every this many kelvin
+  double dsnu_e = 1.0;                  // dark signal non-uniformity, electrons rms
+  double prnu_percent = 0.5;            // photo response non-uniformity, % rms
+  double black_level_dn = 64.0;         // offset added to the output, DN
+  bool shot_noise = true;               // Poisson photon/dark-current noise
+};
+
+// Randomness streams (the "channel" part of the counter key).
+inline constexpr uint32_t kStreamSensorTemporal = 1;
+inline constexpr uint32_t kStreamSensorFixedPattern = 2;
+
+class SensorStage final : public Stage {
+ public:
+  Status Configure(const SensorConfig& config, const SensorGeometry& geometry, double exposure_time_us,
+                   uint64_t seed);
+  const char* name() const override { return "sensor"; }
+  Result<LineFormat> Plan(LineFormat in) const override;
+  void CountTables(WorkspaceCounter& counter) const override;
+  Status Init(Arena& tables) override;
+  void ProcessRow(const RowArgs& args) const override;
+
+  // Derived values (for reports and tests).
+  double system_gain() const { return k_; }            // K with analog gain, DN/e-
+  double dark_electrons() const { return dark_e_; }    // mean dark charge per exposure
+  int max_dn() const { return max_dn_; }
+
+ private:
+  SensorConfig config_;
+  SensorGeometry geometry_;
+  uint64_t seed_ = 0;
+  double k_ = 0.0;
+  double dark_e_ = 0.0;
+  uint32_t qe_q16_[3] = {};
+  int64_t prnu_q16_ = 0;     // PRNU sigma, Q.16 of gain
+  int64_t dsnu_q8_ = 0;      // DSNU sigma, Q.8 electrons
+  int64_t read_q8_ = 0;      // dark noise sigma, Q.8 electrons
+  uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
+  uint64_t full_well_q8_ = 0;
+  UScale k_scale_;           // K
+  int64_t black_ = 0;
+  int max_dn_ = 0;
+  GaussianTable gauss_;
+  PoissonTable poisson_;
+};
+
+// Double reference: the mean DN for a mean photon count (no noise, no patterns).
+double ReferenceSensorMeanDn(const SensorConfig& config, const SensorGeometry& g, double exposure_time_us,
+                             Colour colour, double photons);
+
+}  // namespace camsim

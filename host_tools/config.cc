@@ -1,0 +1,542 @@
+#include "host_tools/config.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+namespace camsim::host {
+namespace {
+
+enum class Kind { kNumber, kInteger, kBool, kEnum, kNumberArray, kString, kStringArray };
+
+struct Field {
+  const char* section;
+  const char* key;
+  Kind kind;
+  const char* doc;
+  // Numbers, integers, bools: a reference into the config.
+  std::function<double&(RunConfig&)> number;
+  std::function<int&(RunConfig&)> integer;
+  std::function<bool&(RunConfig&)> boolean;
+  // Enums: names and accessors.
+  std::vector<const char*> choices;
+  std::function<int(const RunConfig&)> get_enum;
+  std::function<void(RunConfig&, int)> set_enum;
+  // Number arrays: storage, count limits and the count's location (may be null).
+  std::function<double*(RunConfig&)> array;
+  int min_count = 0, max_count = 0;
+  std::function<int*(RunConfig&)> count;
+  // Strings and string arrays.
+  std::function<std::string(const RunConfig&)> get_text;
+  std::function<bool(RunConfig&, const std::vector<std::string>&, std::string*)> set_text;
+};
+
+Field Make(const char* section, const char* key, Kind kind, const char* doc) {
+  Field f;
+  f.section = section;
+  f.key = key;
+  f.kind = kind;
+  f.doc = doc;
+  return f;
+}
+
+Field Number(const char* s, const char* k, const char* doc, std::function<double&(RunConfig&)> ref) {
+  Field f = Make(s, k, Kind::kNumber, doc);
+  f.number = std::move(ref);
+  return f;
+}
+Field Integer(const char* s, const char* k, const char* doc, std::function<int&(RunConfig&)> ref) {
+  Field f = Make(s, k, Kind::kInteger, doc);
+  f.integer = std::move(ref);
+  return f;
+}
+Field Bool(const char* s, const char* k, const char* doc, std::function<bool&(RunConfig&)> ref) {
+  Field f = Make(s, k, Kind::kBool, doc);
+  f.boolean = std::move(ref);
+  return f;
+}
+template <typename E>
+Field Enum(const char* s, const char* k, const char* doc, std::vector<const char*> names,
+           std::function<E&(RunConfig&)> ref) {
+  Field f = Make(s, k, Kind::kEnum, doc);
+  f.choices = std::move(names);
+  f.get_enum = [ref](const RunConfig& c) { return static_cast<int>(ref(const_cast<RunConfig&>(c))); };
+  f.set_enum = [ref](RunConfig& c, int v) { ref(c) = static_cast<E>(v); };
+  return f;
+}
+Field Array(const char* s, const char* k, const char* doc, int min_count, int max_count,
+            std::function<double*(RunConfig&)> data, std::function<int*(RunConfig&)> count = nullptr) {
+  Field f = Make(s, k, Kind::kNumberArray, doc);
+  f.array = std::move(data);
+  f.min_count = min_count;
+  f.max_count = max_count;
+  f.count = std::move(count);
+  return f;
+}
+
+// Every configuration key, in the order `config --default` prints them.
+const std::vector<Field>& Fields() {
+  static const std::vector<Field> fields = [] {
+    std::vector<Field> v;
+    // [pipeline]
+    Field stages = Make("pipeline", "stages", Kind::kStringArray,
+                 "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
+                 "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
+    stages.get_text = [](const RunConfig& c) {
+      std::string t = "[";
+      for (int i = 0; i < c.core.order_count; ++i)
+        t += std::string(i ? ", \"" : "\"") + StageName(c.core.order[i]) + "\"";
+      return t + "]";
+    };
+    stages.set_text = [](RunConfig& c, const std::vector<std::string>& names, std::string* err) {
+      if (names.empty() || names.size() > static_cast<size_t>(kStageCount)) {
+        *err = "must list 1 to " + std::to_string(kStageCount) + " stages";
+        return false;
+      }
+      for (size_t i = 0; i < names.size(); ++i)
+        if (!StageFromName(names[i].c_str(), &c.core.order[i])) {
+          *err = "unknown stage '" + names[i] + "'";
+          return false;
+        }
+      c.core.order_count = static_cast<int>(names.size());
+      return true;
+    };
+    v.push_back(stages);
+    Field seed = Make("pipeline", "seed", Kind::kInteger, "keys all randomness with (frame, x, y, channel); 0 .. 2^53");
+    seed.get_text = [](const RunConfig& c) { return std::to_string(c.core.seed); };
+    seed.set_text = nullptr;
+    v.push_back(seed);
+
+    // [sensor]
+    v.push_back(Integer("sensor", "width", "pixels; 0 = the input's width", [](RunConfig& c) -> int& { return c.width; }));
+    v.push_back(Integer("sensor", "height", "pixels; 0 = the input's height", [](RunConfig& c) -> int& { return c.height; }));
+    v.push_back(Enum<SceneFit>("sensor", "scene_fit",
+                               "when the sensor size differs from the input: crop (centre) or scale (area average)",
+                               {"crop", "scale"}, [](RunConfig& c) -> SceneFit& { return c.fit; }));
+    v.push_back(Enum<Cfa>("sensor", "cfa", "colour filter array (GenICam names)",
+                          {"Mono", "BayerRG", "BayerGR", "BayerGB", "BayerBG"},
+                          [](RunConfig& c) -> Cfa& { return c.core.geometry.cfa; }));
+    v.push_back(Integer("sensor", "adc_bits", "ADC resolution, 8 .. 16 bits",
+                        [](RunConfig& c) -> int& { return c.core.geometry.adc_bits; }));
+    v.push_back(Number("sensor", "pixel_pitch_um", "micrometres; 0 = sensor 36 mm wide (the bundled scenes' camera)",
+                       [](RunConfig& c) -> double& { return c.pixel_pitch_um; }));
+    v.push_back(Array("sensor", "quantum_efficiency", "QE for R, G, B (mono uses G), 0 .. 1", 3, 3,
+                      [](RunConfig& c) { return c.core.sensor.quantum_efficiency; }));
+    v.push_back(Number("sensor", "full_well_e", "saturation capacity, electrons (1 .. 1e6)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.full_well_e; }));
+    v.push_back(Number("sensor", "system_gain_dn_per_e", "K at 0 dB gain, DN per electron",
+                       [](RunConfig& c) -> double& { return c.core.sensor.system_gain_dn_per_e; }));
+    v.push_back(Number("sensor", "gain_db", "analog gain, dB (0 .. 48); multiplies K",
+                       [](RunConfig& c) -> double& { return c.core.sensor.gain_db; }));
+    v.push_back(Number("sensor", "dark_noise_e", "temporal dark (read) noise, electrons rms",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dark_noise_e; }));
+    v.push_back(Number("sensor", "dark_current_e_per_s", "mean dark current at dark_current_ref_c, e-/s",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dark_current_e_per_s; }));
+    v.push_back(Number("sensor", "temperature_c", "sensor temperature, degrees C",
+                       [](RunConfig& c) -> double& { return c.core.sensor.temperature_c; }));
+    v.push_back(Number("sensor", "dark_current_ref_c", "temperature at which dark_current_e_per_s holds, degrees C",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dark_current_ref_c; }));
+    v.push_back(Number("sensor", "dark_current_doubling_c", "dark current doubles every this many kelvin",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dark_current_doubling_c; }));
+    v.push_back(Number("sensor", "dsnu_e", "dark signal non-uniformity (offset pattern), electrons rms",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dsnu_e; }));
+    v.push_back(Number("sensor", "prnu_percent", "photo response non-uniformity (gain pattern), % rms",
+                       [](RunConfig& c) -> double& { return c.core.sensor.prnu_percent; }));
+    v.push_back(Number("sensor", "black_level_dn", "offset added to the raw output, DN",
+                       [](RunConfig& c) -> double& { return c.core.sensor.black_level_dn; }));
+    v.push_back(Bool("sensor", "shot_noise", "Poisson noise of photo and dark charge",
+                     [](RunConfig& c) -> bool& { return c.core.sensor.shot_noise; }));
+
+    // [exposure]
+    v.push_back(Number("exposure", "exposure_time_us", "exposure time, microseconds",
+                       [](RunConfig& c) -> double& { return c.core.exposure.exposure_time_us; }));
+    v.push_back(Number("exposure", "f_number", "aperture f-number N (photons go as 1/N^2)",
+                       [](RunConfig& c) -> double& { return c.core.exposure.f_number; }));
+    v.push_back(Number("exposure", "photons_per_radiance_ms",
+                       "calibration: photons per pixel per unit radiance per ms at f/1",
+                       [](RunConfig& c) -> double& { return c.core.exposure.photons_per_radiance_ms; }));
+
+    // [lens]
+    v.push_back(Number("lens", "focal_length_mm", "focal length, mm",
+                       [](RunConfig& c) -> double& { return c.focal_length_mm; }));
+
+    // [vignetting]
+    v.push_back(Enum<VignettingMode>("vignetting", "mode",
+                                     "off, cos4 (natural fall-off from the lens), table (curve below) or mask (image)",
+                                     {"off", "cos4", "table", "mask"},
+                                     [](RunConfig& c) -> VignettingMode& { return c.core.vignetting.mode; }));
+    v.push_back(Number("vignetting", "focal_length_px", "cos4 focal length in pixels; 0 = lens.focal_length_mm / pixel pitch",
+                       [](RunConfig& c) -> double& { return c.core.vignetting.focal_length_px; }));
+    v.push_back(Array("vignetting", "table", "table mode: gains from centre (rho 0) to corner (rho 1), 2 .. 64 values",
+                      0, VignettingConfig::kMaxTable, [](RunConfig& c) { return c.core.vignetting.table; },
+                      [](RunConfig& c) { return &c.core.vignetting.table_count; }));
+    Field mask = Make("vignetting", "mask", Kind::kString, "mask mode: image file (PNG or EXR), gain per pixel, resampled to the sensor");
+    mask.get_text = [](const RunConfig& c) { return "\"" + c.vignetting_mask + "\""; };
+    mask.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.vignetting_mask = s[0];
+      return true;
+    };
+    v.push_back(mask);
+
+    // [cfa]
+    v.push_back(Array("cfa", "mono_weights", "mono sensor: response to R, G, B", 3, 3,
+                      [](RunConfig& c) { return c.core.cfa.mono_weights; }));
+    // [black_level]
+    v.push_back(Number("black_level", "black_level_dn", "subtracted before the ISP, DN; -1 = the sensor's",
+                       [](RunConfig& c) -> double& { return c.core.black_level.black_level_dn; }));
+    // [white_balance]
+    v.push_back(Array("white_balance", "gain", "gains for R, G, B (0 .. 16)", 3, 3,
+                      [](RunConfig& c) { return c.core.white_balance.gain; }));
+    // [demosaic]
+    v.push_back(Enum<DemosaicMethod>("demosaic", "method", "bilinear (the paper's eq. 23-24) or malvar (Malvar-He-Cutler)",
+                                     {"bilinear", "malvar"},
+                                     [](RunConfig& c) -> DemosaicMethod& { return c.core.demosaic.method; }));
+    // [color_matrix]
+    v.push_back(Array("color_matrix", "m", "3x3 row-major matrix applied to linear RGB (-16 .. 16)", 9, 9,
+                      [](RunConfig& c) { return c.core.color_matrix.m; }));
+    // [gamma]
+    v.push_back(Enum<GammaCurve>("gamma", "curve", "linear, srgb or power", {"linear", "srgb", "power"},
+                                 [](RunConfig& c) -> GammaCurve& { return c.core.gamma.curve; }));
+    v.push_back(Number("gamma", "gamma", "power curve: output = input^(1/gamma)",
+                       [](RunConfig& c) -> double& { return c.core.gamma.gamma; }));
+    // [output]
+    v.push_back(Integer("output", "bits", "ISP output PNG depth: 8 or 16", [](RunConfig& c) -> int& { return c.output_bits; }));
+    return v;
+  }();
+  return fields;
+}
+
+const Field* FindField(const std::string& section, const std::string& key) {
+  for (const Field& f : Fields())
+    if (section == f.section && key == f.key) return &f;
+  return nullptr;
+}
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t prev = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cur = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, prev + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      prev = cur;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string Suggest(const std::string& wrong) {
+  std::string best;
+  size_t best_d = 4;  // suggest only close matches
+  for (const std::string& k : ConfigKeys()) {
+    const size_t d = std::min(EditDistance(wrong, k), EditDistance(wrong, k.substr(k.find('.') + 1)));
+    if (d < best_d) {
+      best_d = d;
+      best = k;
+    }
+  }
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+std::string FormatNumber(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  std::string t = s.str();
+  if (t.find_first_of(".eEn") == std::string::npos) t += ".0";  // keep it a TOML float
+  return t;
+}
+
+std::string Where(const toml::node& n, const std::string& source) {
+  return source + ":" + std::to_string(n.source().begin.line);
+}
+
+// Sets one field from a TOML node. *error gets the reason without location.
+bool SetField(const Field& f, const toml::node& n, RunConfig* c, std::string* error) {
+  switch (f.kind) {
+    case Kind::kNumber: {
+      std::optional<double> v = n.value<double>();
+      if (!v || !(n.is_floating_point() || n.is_integer())) {
+        *error = "expects a number";
+        return false;
+      }
+      f.number(*c) = *v;
+      return true;
+    }
+    case Kind::kInteger: {
+      if (!n.is_integer()) {
+        *error = "expects a whole number";
+        return false;
+      }
+      const int64_t v = *n.value<int64_t>();
+      if (std::string(f.key) == "seed") {
+        if (v < 0 || v > (int64_t{1} << 53)) {
+          *error = "must be in [0, 2^53]";
+          return false;
+        }
+        c->core.seed = static_cast<uint64_t>(v);
+        return true;
+      }
+      if (v < -1000000000 || v > 1000000000) {
+        *error = "is out of range";
+        return false;
+      }
+      f.integer(*c) = static_cast<int>(v);
+      return true;
+    }
+    case Kind::kBool:
+      if (!n.is_boolean()) {
+        *error = "expects true or false";
+        return false;
+      }
+      f.boolean(*c) = *n.value<bool>();
+      return true;
+    case Kind::kEnum: {
+      std::optional<std::string> s = n.value<std::string>();
+      if (s)
+        for (size_t i = 0; i < f.choices.size(); ++i)
+          if (*s == f.choices[i]) {
+            f.set_enum(*c, static_cast<int>(i));
+            return true;
+          }
+      *error = "must be one of:";
+      for (const char* ch : f.choices) *error += std::string(" \"") + ch + "\"";
+      return false;
+    }
+    case Kind::kNumberArray: {
+      const toml::array* a = n.as_array();
+      if (a == nullptr) {
+        *error = "expects an array of numbers";
+        return false;
+      }
+      const int count = static_cast<int>(a->size());
+      if (count < f.min_count || count > f.max_count) {
+        *error = f.min_count == f.max_count ? "expects exactly " + std::to_string(f.min_count) + " numbers"
+                                            : "expects " + std::to_string(f.min_count) + " to " +
+                                                  std::to_string(f.max_count) + " numbers";
+        return false;
+      }
+      double* dst = f.array(*c);
+      for (int i = 0; i < count; ++i) {
+        const toml::node& e = (*a)[static_cast<size_t>(i)];
+        if (!(e.is_floating_point() || e.is_integer())) {
+          *error = "element " + std::to_string(i) + " is not a number";
+          return false;
+        }
+        dst[i] = *e.value<double>();
+      }
+      if (f.count) *f.count(*c) = count;
+      return true;
+    }
+    case Kind::kString:
+    case Kind::kStringArray: {
+      std::vector<std::string> items;
+      if (f.kind == Kind::kString) {
+        std::optional<std::string> s = n.value<std::string>();
+        if (!s) {
+          *error = "expects a string";
+          return false;
+        }
+        items.push_back(*s);
+      } else {
+        const toml::array* a = n.as_array();
+        if (a == nullptr) {
+          *error = "expects an array of strings";
+          return false;
+        }
+        for (const toml::node& e : *a) {
+          std::optional<std::string> s = e.value<std::string>();
+          if (!s) {
+            *error = "expects an array of strings";
+            return false;
+          }
+          items.push_back(*s);
+        }
+      }
+      return f.set_text(*c, items, error);
+    }
+  }
+  return false;
+}
+
+std::string ValueText(const Field& f, const RunConfig& c) {
+  RunConfig& m = const_cast<RunConfig&>(c);
+  switch (f.kind) {
+    case Kind::kNumber: return FormatNumber(f.number(m));
+    case Kind::kInteger: return f.integer ? std::to_string(f.integer(m)) : f.get_text(c);
+    case Kind::kBool: return f.boolean(m) ? "true" : "false";
+    case Kind::kEnum: return std::string("\"") + f.choices[static_cast<size_t>(f.get_enum(c))] + "\"";
+    case Kind::kNumberArray: {
+      const int n = f.count ? *f.count(m) : f.max_count;
+      std::string t = "[";
+      for (int i = 0; i < n; ++i) t += (i ? ", " : "") + FormatNumber(f.array(m)[i]);
+      return t + "]";
+    }
+    case Kind::kString:
+    case Kind::kStringArray: return f.get_text(c);
+  }
+  return "";
+}
+
+bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c, Origins* origins,
+                std::string* error) {
+  for (auto&& [section_key, section_node] : root) {
+    const std::string section(section_key.str());
+    const toml::table* t = section_node.as_table();
+    bool known_section = false;
+    for (const Field& f : Fields()) known_section |= section == f.section;
+    if (t == nullptr || !known_section) {
+      *error = Where(section_node, source) + ": unknown section '" + section + "'" + Suggest(section);
+      return false;
+    }
+    for (auto&& [key, node] : *t) {
+      const std::string name = section + "." + std::string(key.str());
+      const Field* f = FindField(section, std::string(key.str()));
+      if (f == nullptr) {
+        *error = Where(node, source) + ": unknown key '" + name + "'" + Suggest(std::string(key.str()));
+        return false;
+      }
+      std::string why;
+      if (!SetField(*f, node, c, &why)) {
+        *error = Where(node, source) + ": " + name + " " + why;
+        return false;
+      }
+      (*origins)[name] = Where(node, source);
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::string> ConfigKeys() {
+  std::vector<std::string> keys;
+  for (const Field& f : Fields()) keys.push_back(std::string(f.section) + "." + f.key);
+  return keys;
+}
+
+bool ParseConfig(const std::string& text, const std::string& source, RunConfig* c, Origins* origins,
+                 std::string* error) {
+  try {
+    toml::table root = toml::parse(text, source);
+    return ApplyTable(root, source, c, origins, error);
+  } catch (const toml::parse_error& e) {
+    *error = source + ":" + std::to_string(e.source().begin.line) + ": " + std::string(e.description());
+    return false;
+  }
+}
+
+bool LoadConfigFile(const std::string& path, RunConfig* c, Origins* origins, std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = path + ": cannot open configuration file";
+    return false;
+  }
+  std::stringstream text;
+  text << in.rdbuf();
+  return ParseConfig(text.str(), path, c, origins, error);
+}
+
+bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins, std::string* error) {
+  const size_t eq = assignment.find('=');
+  const size_t dot = assignment.find('.');
+  if (eq == std::string::npos || dot == std::string::npos || dot > eq) {
+    *error = "--set " + assignment + ": expected section.key=value";
+    return false;
+  }
+  const std::string section = assignment.substr(0, dot), key = assignment.substr(dot + 1, eq - dot - 1);
+  std::string value = assignment.substr(eq + 1);
+  const Field* f = FindField(section, key);
+  if (f == nullptr) {
+    *error = "--set: unknown key '" + section + "." + key + "'" + Suggest(key);
+    return false;
+  }
+  // Bare words for enums and strings are accepted without quotes.
+  const bool bare = !value.empty() && std::isalpha(static_cast<unsigned char>(value[0])) && value != "true" &&
+                    value != "false" && value != "inf" && value != "nan";
+  if (bare && (f->kind == Kind::kEnum || f->kind == Kind::kString)) value = "\"" + value + "\"";
+  RunConfig updated = *c;
+  Origins o;
+  std::string why;
+  if (!ParseConfig("[" + section + "]\n" + key + " = " + value + "\n", "--set", &updated, &o, &why)) {
+    *error = "--set " + assignment + ": " + why.substr(why.find(": ") + 2);
+    return false;
+  }
+  *c = updated;
+  (*origins)[section + "." + key] = "--set";
+  return true;
+}
+
+std::string ConfigToToml(const RunConfig& c, bool annotated) {
+  std::string out;
+  if (annotated)
+    out += "# camsim configuration. Every key is optional; these are the defaults.\n"
+           "# Stage order is [pipeline] stages; stages that would change nothing are left out\n"
+           "# at run time and the report says why.\n";
+  std::string section;
+  for (const Field& f : Fields()) {
+    if (section != f.section) {
+      section = f.section;
+      out += "\n[" + section + "]\n";
+    }
+    if (annotated) out += std::string("# ") + f.doc + "\n";
+    out += std::string(f.key) + " = " + ValueText(f, c) + "\n";
+  }
+  return out;
+}
+
+std::string DefaultConfigToml() { return ConfigToToml(RunConfig{}, true); }
+
+std::string DescribeStatus(const Status& s, const Origins& origins) {
+  std::string field = s.field();
+  std::string where;
+  auto it = origins.find(field);
+  if (it != origins.end()) where = it->second + ": ";
+  else if (!field.empty()) where = "(default value): ";
+  return where + (field.empty() ? "" : field + " ") + s.message();
+}
+
+bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
+                  std::string* error) {
+  PipelineConfig& p = c->core;
+  if (c->width < 0 || c->height < 0) {
+    *error = DescribeStatus(InvalidArgument(c->width < 0 ? "sensor.width" : "sensor.height", "must be >= 0"), origins);
+    return false;
+  }
+  p.geometry.width = c->width > 0 ? c->width : input_width;
+  p.geometry.height = c->height > 0 ? c->height : input_height;
+  if (c->fit == SceneFit::kCrop && (p.geometry.width > input_width || p.geometry.height > input_height)) {
+    *error = DescribeStatus(InvalidArgument("sensor.width", "is larger than the input; use sensor.scene_fit = \"scale\""),
+                            origins);
+    return false;
+  }
+  if (c->output_bits != 8 && c->output_bits != 16) {
+    *error = DescribeStatus(InvalidArgument("output.bits", "must be 8 or 16"), origins);
+    return false;
+  }
+  if (!(c->pixel_pitch_um >= 0.0 && c->pixel_pitch_um <= 1000.0)) {
+    *error = DescribeStatus(InvalidArgument("sensor.pixel_pitch_um", "must be in [0, 1000]"), origins);
+    return false;
+  }
+  if (!(c->focal_length_mm > 0.0 && c->focal_length_mm <= 10000.0)) {
+    *error = DescribeStatus(InvalidArgument("lens.focal_length_mm", "must be in (0, 10000]"), origins);
+    return false;
+  }
+  const double pitch_mm = c->pixel_pitch_um > 0 ? c->pixel_pitch_um / 1000.0 : 36.0 / p.geometry.width;
+  if (p.vignetting.focal_length_px == 0.0) p.vignetting.focal_length_px = c->focal_length_mm / pitch_mm;
+  Pipeline probe;
+  const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
+  if (!s.ok()) {
+    *error = DescribeStatus(s, origins);
+    return false;
+  }
+  return true;
+}
+
+}  // namespace camsim::host

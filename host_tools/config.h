@@ -1,0 +1,61 @@
+// The run configuration: the core's PipelineConfig plus what only the host
+// needs (scene fitting, file paths, output depth), read from TOML.
+//
+// One table of fields (config.cc) drives parsing, --set overrides, range and
+// typo errors (with the file and line), and `camsim config --default`.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+
+namespace camsim::host {
+
+enum class SceneFit { kCrop, kScale };
+
+struct RunConfig {
+  PipelineConfig core;
+  // Sensor size; 0 = the input's size. When it differs from the input, the
+  // scene is centre-cropped (fit = crop; the sensor must not be larger) or
+  // resampled by area averaging (fit = scale; aspect ratio may change).
+  int width = 0;
+  int height = 0;
+  SceneFit fit = SceneFit::kCrop;
+  // Pixel pitch; 0 = the sensor is 36 mm wide (the bundled Blender camera).
+  double pixel_pitch_um = 0.0;
+  double focal_length_mm = 28.0;  // lens focal length (the bundled scenes: 28 mm)
+  std::string vignetting_mask;    // mask image path (vignetting.mode = "mask")
+  int output_bits = 8;            // ISP output PNG depth: 8 or 16
+};
+
+// Where each key was set, for error messages: "file:line" or "--set".
+using Origins = std::map<std::string, std::string>;
+
+// Parses TOML text into *config (starting from its current values). Unknown
+// sections or keys, wrong types and wrong array lengths are errors naming the
+// key and line. Range checks happen in the core (ValidateConfig).
+bool ParseConfig(const std::string& text, const std::string& source_name, RunConfig* config, Origins* origins,
+                 std::string* error);
+bool LoadConfigFile(const std::string& path, RunConfig* config, Origins* origins, std::string* error);
+// Applies one `section.key=value` override (value in TOML syntax; bare words are taken as strings).
+bool ApplyOverride(const std::string& assignment, RunConfig* config, Origins* origins, std::string* error);
+
+// The annotated default configuration (every section and key, with units).
+std::string DefaultConfigToml();
+// The configuration as TOML (same layout, current values).
+std::string ConfigToToml(const RunConfig& config, bool annotated);
+
+// Names every key the parser accepts ("section.key").
+std::vector<std::string> ConfigKeys();
+
+// Fills in derived values (focal length in pixels, sizes) once the input size
+// is known, then runs the core's validation; errors name the key and its origin.
+bool FinishConfig(RunConfig* config, int input_width, int input_height, const Origins& origins, int workers,
+                  std::string* error);
+
+// Text of a core Status, with the origin of its field when known.
+std::string DescribeStatus(const Status& status, const Origins& origins);
+
+}  // namespace camsim::host

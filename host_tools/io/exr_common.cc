@@ -1,0 +1,184 @@
+#include "host_tools/io/exr_common.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputPart.h>
+#include <OpenEXR/ImfPartType.h>
+
+namespace camsim::io::detail {
+
+std::unique_ptr<Imf::MultiPartInputFile> OpenExr(const std::string& path, std::string* error) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (st.type() == std::filesystem::file_type::not_found) {
+    *error = "cannot open '" + path + "': no such file";
+    return nullptr;
+  }
+  if (ec) {
+    *error = "cannot open '" + path + "': " + ec.message();
+    return nullptr;
+  }
+  if (std::filesystem::is_directory(st)) {
+    *error = "'" + path + "' is a directory, not an OpenEXR file";
+    return nullptr;
+  }
+  std::unique_ptr<Imf::MultiPartInputFile> file;
+  CatchExr(path, error, [&] {
+    file = std::make_unique<Imf::MultiPartInputFile>(path.c_str());
+    return true;
+  });
+  return file;
+}
+
+bool IsFlatPart(const Imf::MultiPartInputFile& file, int part) {
+  const Imf::Header& h = file.header(part);
+  return !h.hasType() || (h.type() != Imf::DEEPSCANLINE && h.type() != Imf::DEEPTILE);
+}
+
+bool PartHasChannel(const Imf::MultiPartInputFile& file, int part, const std::string& name) {
+  return IsFlatPart(file, part) && file.header(part).channels().findChannel(name) != nullptr;
+}
+
+std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names) {
+  std::string list;
+  size_t n = 0;
+  for (int p = 0; p < file.parts(); ++p) {
+    if (!IsFlatPart(file, p)) continue;
+    const Imf::ChannelList& channels = file.header(p).channels();
+    for (auto it = channels.begin(); it != channels.end(); ++it, ++n) {
+      if (n == max_names) return list + ", ...";
+      list += (n ? ", " : "") + std::string(it.name());
+    }
+  }
+  return n ? list : "(none)";
+}
+
+std::string ExrExceptionMessage(const std::string& path, const std::exception& e) {
+  if (dynamic_cast<const UnsupportedExr*>(&e) != nullptr) return "'" + path + "': " + e.what();
+  return "'" + path + "' is not a readable OpenEXR file: " + e.what();
+}
+
+namespace {
+
+constexpr float kLargestHalf = 65504.0f;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+float Clean(float v, Sanitize mode, InputSanitizeStats* stats) {
+  switch (mode) {
+    case Sanitize::kNone:
+      return v;
+    case Sanitize::kRadiance:
+      if (std::isnan(v)) {
+        ++stats->nan;
+        return 0.0f;
+      }
+      if (v < 0.0f) {
+        ++(std::isinf(v) ? stats->neg_inf : stats->negative);
+        return 0.0f;
+      }
+      if (std::isinf(v)) {
+        ++stats->pos_inf;
+        return kLargestHalf;
+      }
+      return v;
+    case Sanitize::kDepth:
+      if (std::isnan(v)) {
+        ++stats->nan;
+        return kInf;
+      }
+      if (std::isinf(v)) {
+        ++(v > 0.0f ? stats->pos_inf : stats->neg_inf);
+      } else if (v < 0.0f) {
+        ++stats->negative;
+      }
+      return v;
+    case Sanitize::kMotion:
+      return std::isfinite(v) ? v : 0.0f;
+  }
+  return v;
+}
+
+std::string BoxText(const Imath::Box2i& b) {
+  return "(" + std::to_string(b.min.x) + "," + std::to_string(b.min.y) + ")-(" +
+         std::to_string(b.max.x) + "," + std::to_string(b.max.y) + ")";
+}
+
+}  // namespace
+
+bool DisplaySize(const Imf::Header& header, int* width, int* height) {
+  const Imath::Box2i& d = header.displayWindow();
+  const int64_t w = int64_t{d.max.x} - d.min.x + 1, h = int64_t{d.max.y} - d.min.y + 1;
+  if (w < 1 || h < 1 || w > kMaxDisplayDim || h > kMaxDisplayDim) return false;
+  *width = static_cast<int>(w);
+  *height = static_cast<int>(h);
+  return true;
+}
+
+void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<ChannelRead>& reads) {
+  Imf::InputPart in(file, part);
+  const Imf::Header& header = in.header();
+  const Imath::Box2i disp = header.displayWindow(), data = header.dataWindow();
+  int width = 0, height = 0;
+  if (!DisplaySize(header, &width, &height)) {
+    throw UnsupportedExr("display window " + BoxText(disp) + " is empty or larger than " +
+                         std::to_string(kMaxDisplayDim) + " x " + std::to_string(kMaxDisplayDim));
+  }
+  const int64_t data_width = int64_t{data.max.x} - data.min.x + 1;
+  if (data_width < 1 || data_width > kMaxDataWidth || data.max.y < data.min.y) {
+    throw UnsupportedExr("data window " + BoxText(data) + " is empty or wider than " +
+                         std::to_string(kMaxDataWidth));
+  }
+  for (const ChannelRead& r : reads) {
+    const Imf::Channel* ch = header.channels().findChannel(r.name);
+    if (ch == nullptr) throw UnsupportedExr("no channel '" + r.name + "'");
+    if (ch->xSampling != 1 || ch->ySampling != 1) {
+      throw UnsupportedExr("channel '" + r.name + "' is subsampled, which is not supported");
+    }
+    r.out->width = width;
+    r.out->height = height;
+    r.out->data.assign(static_cast<size_t>(width) * static_cast<size_t>(height),
+                       r.mode == Sanitize::kDepth ? kInf : 0.0f);
+  }
+
+  // The part of the data window inside the display window.
+  const int x0 = std::max(data.min.x, disp.min.x), x1 = std::min(data.max.x, disp.max.x);
+  const int y0 = std::max(data.min.y, disp.min.y), y1 = std::min(data.max.y, disp.max.y);
+  if (x0 > x1 || y0 > y1) return;
+
+  // Read strips of whole data-window rows (about 1M samples per channel, so
+  // OpenEXR's threads get many blocks at once), copy the overlap.
+  const int64_t strip_rows = std::max<int64_t>(16, (int64_t{1} << 20) / data_width);
+  const size_t plane_samples = static_cast<size_t>(data_width * strip_rows);
+  std::vector<float> buffer(plane_samples * reads.size());
+  for (int64_t y = y0; y <= y1; y += strip_rows) {
+    const int64_t y_end = std::min<int64_t>(y1, y + strip_rows - 1);
+    Imf::FrameBuffer fb;
+    for (size_t c = 0; c < reads.size(); ++c) {
+      fb.insert(reads[c].name,
+                Imf::Slice::Make(Imf::FLOAT, buffer.data() + c * plane_samples,
+                                 Imath::V2i(data.min.x, static_cast<int>(y)), data_width,
+                                 y_end - y + 1, sizeof(float), data_width * sizeof(float)));
+    }
+    in.setFrameBuffer(fb);
+    in.readPixels(static_cast<int>(y), static_cast<int>(y_end));
+    for (size_t c = 0; c < reads.size(); ++c) {
+      const ChannelRead& r = reads[c];
+      for (int64_t yy = y; yy <= y_end; ++yy) {
+        const float* src = buffer.data() + c * plane_samples +
+                           static_cast<size_t>((yy - y) * data_width + (x0 - data.min.x));
+        float* dst = r.out->data.data() + static_cast<size_t>((yy - disp.min.y) * width) +
+                     static_cast<size_t>(x0 - disp.min.x);
+        for (int x = 0; x <= x1 - x0; ++x) dst[x] = Clean(src[x], r.mode, r.stats);
+      }
+    }
+  }
+}
+
+}  // namespace camsim::io::detail

@@ -1,0 +1,279 @@
+#include "host_tools/io/image_write.h"
+
+#include <bit>
+#include <cerrno>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <set>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <png.h>
+
+namespace camsim::io {
+namespace {
+
+constexpr int kMaxWriteDim = 1000000;
+
+std::string Quoted(const std::string& path) { return "'" + path + "'"; }
+
+// Runs write_tmp(tmp_path, error) and renames the result onto `path`; see the
+// atomicity rule in image_write.h.
+bool WriteAtomically(const std::string& path,
+                     const std::function<bool(const std::string&, std::string*)>& write_tmp,
+                     std::string* error) {
+  const std::string tmp = path + ".tmp";
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::symlink_status(tmp, ec);
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+    *error = "cannot write " + Quoted(path) + ": temporary path " + Quoted(tmp) +
+             " exists and is not a regular file";
+    return false;
+  }
+  bool ok = false;
+  try {
+    ok = write_tmp(tmp, error);
+  } catch (const std::exception& e) {
+    *error = "cannot write " + Quoted(path) + ": " + e.what();
+  } catch (...) {
+    *error = "cannot write " + Quoted(path) + ": unknown error";
+  }
+  if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) {
+    *error = "cannot write " + Quoted(path) + ": renaming " + Quoted(tmp) +
+             " onto it failed: " + std::strerror(errno);
+    ok = false;
+  }
+  if (!ok) std::filesystem::remove(tmp, ec);
+  return ok;
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+
+// WriteAtomically through a stdio stream: body(file, error) writes the bytes.
+bool WriteViaFile(const std::string& path, const std::function<bool(std::FILE*, std::string*)>& body,
+                  std::string* error) {
+  return WriteAtomically(
+      path,
+      [&](const std::string& tmp, std::string* err) {
+        std::unique_ptr<std::FILE, FileCloser> f(std::fopen(tmp.c_str(), "wb"));
+        if (!f) {
+          *err = "cannot write " + Quoted(path) + ": cannot create " + Quoted(tmp) + ": " +
+                 std::strerror(errno);
+          return false;
+        }
+        if (!body(f.get(), err)) return false;
+        if (std::fclose(f.release()) != 0) {
+          *err = "cannot write " + Quoted(path) + ": " + std::strerror(errno);
+          return false;
+        }
+        return true;
+      },
+      error);
+}
+
+bool Put(std::FILE* f, const void* bytes, size_t n, const std::string& path, std::string* error) {
+  if (std::fwrite(bytes, 1, n, f) == n) return true;
+  *error = "cannot write " + Quoted(path) + ": " + std::strerror(errno);
+  return false;
+}
+
+bool CheckImage(const std::string& path, const void* data, int width, int height, int channels,
+                ptrdiff_t stride_samples, std::string* error) {
+  if (data == nullptr) {
+    *error = "cannot write " + Quoted(path) + ": no pixel data";
+  } else if (width < 1 || height < 1 || width > kMaxWriteDim || height > kMaxWriteDim) {
+    *error = "cannot write " + Quoted(path) + ": bad size " + std::to_string(width) + "x" +
+             std::to_string(height);
+  } else if (stride_samples < ptrdiff_t{width} * channels) {
+    *error = "cannot write " + Quoted(path) + ": stride " + std::to_string(stride_samples) +
+             " is less than width x channels";
+  } else {
+    return true;
+  }
+  return false;
+}
+
+// libpng reports errors through longjmp; the message is kept here.
+struct PngErrorText {
+  char text[256] = "";
+};
+
+void OnPngError(png_structp png, png_const_charp message) {
+  auto* e = static_cast<PngErrorText*>(png_get_error_ptr(png));
+  std::snprintf(e->text, sizeof e->text, "%s", message);
+  png_longjmp(png, 1);
+}
+
+void OnPngWarning(png_structp, png_const_charp) {}
+
+// Encodes the image into `f`. Because of setjmp/longjmp, no object with a
+// destructor lives in this frame.
+bool EncodePng(std::FILE* f, const void* data, int width, int height, int channels, int bit_depth,
+               ptrdiff_t stride_samples, PngErrorText* err) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, err, OnPngError, OnPngWarning);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (info == nullptr) {
+    png_destroy_write_struct(&png, nullptr);
+    std::snprintf(err->text, sizeof err->text, "out of memory");
+    return false;
+  }
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_init_io(png, f);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height),
+               bit_depth, channels == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  if (bit_depth == 16 && std::endian::native == std::endian::little) png_set_swap(png);
+  const size_t row_bytes = static_cast<size_t>(stride_samples) * static_cast<size_t>(bit_depth / 8);
+  for (int y = 0; y < height; ++y) {
+    png_write_row(png, static_cast<png_const_bytep>(data) + static_cast<size_t>(y) * row_bytes);
+  }
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+}  // namespace
+
+bool WritePgm16(const std::string& path, const uint16_t* data, int width, int height,
+                ptrdiff_t stride_samples, int maxval, std::string* error) {
+  if (!CheckImage(path, data, width, height, 1, stride_samples, error)) return false;
+  if (maxval < 1 || maxval > 65535) {
+    *error = "cannot write " + Quoted(path) + ": maxval " + std::to_string(maxval) +
+             " is outside 1..65535";
+    return false;
+  }
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const int v = data[y * stride_samples + x];
+      if (v > maxval) {
+        *error = "cannot write " + Quoted(path) + ": sample (" + std::to_string(x) + "," +
+                 std::to_string(y) + ") = " + std::to_string(v) + " exceeds maxval " +
+                 std::to_string(maxval);
+        return false;
+      }
+    }
+  }
+  return WriteViaFile(
+      path,
+      [&](std::FILE* f, std::string* err) {
+        const std::string header = "P5\n" + std::to_string(width) + " " + std::to_string(height) +
+                                   "\n" + std::to_string(maxval) + "\n";
+        if (!Put(f, header.data(), header.size(), path, err)) return false;
+        const size_t bytes = maxval < 256 ? 1 : 2;
+        std::vector<unsigned char> row(static_cast<size_t>(width) * bytes);
+        for (int y = 0; y < height; ++y) {
+          const uint16_t* src = data + y * stride_samples;
+          for (int x = 0; x < width; ++x) {
+            if (bytes == 1) {
+              row[x] = static_cast<unsigned char>(src[x]);
+            } else {
+              row[2 * x] = static_cast<unsigned char>(src[x] >> 8);
+              row[2 * x + 1] = static_cast<unsigned char>(src[x] & 0xff);
+            }
+          }
+          if (!Put(f, row.data(), row.size(), path, err)) return false;
+        }
+        return true;
+      },
+      error);
+}
+
+bool WritePng(const std::string& path, const void* data, int width, int height, int channels,
+              int bit_depth, ptrdiff_t stride_samples, std::string* error) {
+  if (channels != 1 && channels != 3) {
+    *error = "cannot write " + Quoted(path) + ": PNG channels must be 1 or 3, not " +
+             std::to_string(channels);
+    return false;
+  }
+  if (bit_depth != 8 && bit_depth != 16) {
+    *error = "cannot write " + Quoted(path) + ": PNG bit depth must be 8 or 16, not " +
+             std::to_string(bit_depth);
+    return false;
+  }
+  if (!CheckImage(path, data, width, height, channels, stride_samples, error)) return false;
+  return WriteViaFile(
+      path,
+      [&](std::FILE* f, std::string* err) {
+        PngErrorText png_error;
+        if (EncodePng(f, data, width, height, channels, bit_depth, stride_samples, &png_error)) {
+          return true;
+        }
+        *err = "cannot write " + Quoted(path) + ": libpng: " + png_error.text;
+        return false;
+      },
+      error);
+}
+
+bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height,
+                ptrdiff_t stride_samples, std::string* error) {
+  if (!CheckImage(path, data, width, height, 1, stride_samples, error)) return false;
+  return WriteViaFile(
+      path,
+      [&](std::FILE* f, std::string* err) {
+        std::vector<unsigned char> row(static_cast<size_t>(width) * 2);
+        for (int y = 0; y < height; ++y) {
+          const uint16_t* src = data + y * stride_samples;
+          for (int x = 0; x < width; ++x) {
+            row[2 * x] = static_cast<unsigned char>(src[x] & 0xff);
+            row[2 * x + 1] = static_cast<unsigned char>(src[x] >> 8);
+          }
+          if (!Put(f, row.data(), row.size(), path, err)) return false;
+        }
+        return true;
+      },
+      error);
+}
+
+bool WriteTextFile(const std::string& path, const std::string& text, std::string* error) {
+  return WriteViaFile(
+      path, [&](std::FILE* f, std::string* err) { return Put(f, text.data(), text.size(), path, err); },
+      error);
+}
+
+bool WriteExrFloat(const std::string& path, int width, int height,
+                   const std::vector<ExrChannel>& channels, std::string* error) {
+  if (channels.empty()) {
+    *error = "cannot write " + Quoted(path) + ": no channels";
+    return false;
+  }
+  std::set<std::string> names;
+  for (const ExrChannel& c : channels) {
+    if (c.name.empty() || !names.insert(c.name).second) {
+      *error = "cannot write " + Quoted(path) + ": channel name '" + c.name +
+               "' is empty or repeated";
+      return false;
+    }
+    if (!CheckImage(path, c.data, width, height, 1, c.stride_samples, error)) return false;
+  }
+  return WriteAtomically(
+      path,
+      [&](const std::string& tmp, std::string*) {
+        Imf::Header header(width, height);
+        header.compression() = Imf::ZIP_COMPRESSION;
+        Imf::FrameBuffer fb;
+        for (const ExrChannel& c : channels) {
+          header.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
+          fb.insert(c.name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(c.data)),
+                                       sizeof(float), static_cast<size_t>(c.stride_samples) * sizeof(float)));
+        }
+        Imf::OutputFile file(tmp.c_str(), header);
+        file.setFrameBuffer(fb);
+        file.writePixels(height);
+        return true;
+      },
+      error);
+}
+
+}  // namespace camsim::io

@@ -1,0 +1,455 @@
+#include "host_tools/run.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "hal/clock.h"
+#include "hal/thread_pool.h"
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/io/image_read.h"
+#include "host_tools/io/image_write.h"
+#include "host_tools/io/sequence.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim::host {
+namespace {
+
+std::string Stem(const std::string& path) {
+  std::string name = path.substr(path.find_last_of('/') + 1);
+  const size_t dot = name.find_last_of('.');
+  return dot == std::string::npos ? name : name.substr(0, dot);
+}
+
+std::string JsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') out += '\\';
+    if (static_cast<unsigned char>(ch) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", ch);
+      out += buf;
+      continue;
+    }
+    out += ch;
+  }
+  return out + "\"";
+}
+
+std::string Num(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// Physical unit of a domain's samples, for the report.
+const char* UnitOf(Domain d) {
+  switch (d) {
+    case Domain::kRadiance: return "radiance";
+    case Domain::kPhotons: return "photons";
+    case Domain::kDigital: return "DN";
+    case Domain::kLinear: return "fraction of full scale (linear)";
+    case Domain::kEncoded: return "fraction of full scale (encoded)";
+  }
+  return "";
+}
+
+struct FrameRecord {
+  std::string input;
+  std::vector<std::string> outputs;
+  double wall_ms = 0;
+  io::InputSanitizeStats radiance_stats;
+};
+
+struct Accumulated {
+  WorkerStats stats;  // summed over frames and workers
+  std::vector<FrameRecord> frames;
+};
+
+void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
+  for (int i = 0; i < stages; ++i) {
+    StageStats& t = to->stage[i];
+    const StageStats& f = from.stage[i];
+    for (int c = 0; c < 3; ++c) {
+      t.sum[c] += f.sum[c];
+      t.count[c] += f.count[c];
+      t.aux_sum[c] += f.aux_sum[c];
+    }
+    t.ticks += f.ticks;
+  }
+}
+
+// Writes one tapped image as the file type its domain calls for.
+bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const std::vector<uint32_t>& data, int w,
+                     int h, std::vector<std::string>* written, std::string* error) {
+  std::vector<float> planes[3];
+  std::vector<io::ExrChannel> channels;
+  const char* names[3] = {"R", "G", "B"};
+  const double scale = std::ldexp(1.0, -DomainFracBits(f.domain));
+  for (int c = 0; c < f.channels; ++c) {
+    planes[c].resize(static_cast<size_t>(w) * h);
+    for (size_t i = 0; i < planes[c].size(); ++i)
+      planes[c][i] = static_cast<float>(data[i * f.channels + c] * scale);
+    channels.push_back({f.channels == 1 ? "Y" : names[c], planes[c].data(), w});
+  }
+  const std::string path = path_stem + ".exr";
+  if (!io::WriteExrFloat(path, w, h, channels, error)) return false;
+  written->push_back(path);
+  return true;
+}
+
+std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline& p, int threads,
+                       const Accumulated& acc, const std::string& error) {
+  const Plan& plan = p.plan();
+  std::ostringstream j;
+  j << "{\n  \"camsim_version\": \"0.1.0\",\n";
+  j << "  \"sensor\": {\"width\": " << p.width() << ", \"height\": " << p.height() << ", \"cfa\": "
+    << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << rc.core.geometry.adc_bits << "},\n";
+  j << "  \"threads\": " << threads << ", \"strip_rows\": " << o.strip_rows << ",\n";
+  j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
+    << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
+  j << "  \"stages\": [\n";
+  int running = 0;
+  const size_t frames = acc.frames.size() ? acc.frames.size() : 1;
+  for (int i = 0; i < plan.count; ++i) {
+    const PlanEntry& e = plan.entries[i];
+    j << "    {\"name\": " << JsonString(StageName(e.id)) << ", \"runs\": " << (e.runs ? "true" : "false");
+    if (!e.runs) {
+      j << ", \"left_out_because\": " << JsonString(e.reason) << "}";
+    } else {
+      const StageStats& s = acc.stats.stage[running++];
+      const double unit = std::ldexp(1.0, -DomainFracBits(e.out.domain));
+      j << ", \"output\": " << JsonString(DomainName(e.out.domain)) << ", \"channels\": " << int(e.out.channels)
+        << ", \"mosaic\": " << (e.out.mosaic ? "true" : "false") << ", \"time_ms_per_frame\": "
+        << Num(s.ticks / 1e6 / frames) << ", \"unit\": " << JsonString(UnitOf(e.out.domain)) << ", \"mean\": {";
+      const char* cn[3] = {"R", "G", "B"};
+      bool first = true;
+      for (int c = 0; c < 3; ++c) {
+        if (s.count[c] == 0) continue;
+        j << (first ? "" : ", ") << "\"" << cn[c] << "\": " << Num(s.sum[c] * unit / s.count[c]);
+        first = false;
+      }
+      j << "}";
+      if (e.id == StageId::kSensor) {
+        j << ", \"mean_electrons\": {";
+        first = true;
+        for (int c = 0; c < 3; ++c) {
+          if (s.count[c] == 0) continue;
+          j << (first ? "" : ", ") << "\"" << cn[c] << "\": " << Num(s.aux_sum[c] / 256.0 / s.count[c]);
+          first = false;
+        }
+        j << "}";
+      }
+      j << "}";
+    }
+    j << (i + 1 < plan.count ? ",\n" : "\n");
+  }
+  j << "  ],\n  \"frames\": [\n";
+  for (size_t i = 0; i < acc.frames.size(); ++i) {
+    const FrameRecord& f = acc.frames[i];
+    j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
+      << ", \"sanitised\": {\"nan\": " << f.radiance_stats.nan << ", \"pos_inf\": " << f.radiance_stats.pos_inf
+      << ", \"neg_inf\": " << f.radiance_stats.neg_inf << ", \"negative\": " << f.radiance_stats.negative
+      << "}, \"outputs\": [";
+    for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
+    j << "]}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
+  }
+  j << "  ],\n  \"error\": " << (error.empty() ? "null" : JsonString(error)) << "\n}\n";
+  return j.str();
+}
+
+void PrintPlan(const Pipeline& p, const Accumulated& acc) {
+  const Plan& plan = p.plan();
+  const size_t frames = acc.frames.size() ? acc.frames.size() : 1;
+  std::fprintf(stderr, "plan (%dx%d, workspace %zu bytes: tables %zu + %zu per worker):\n", p.width(), p.height(),
+               p.WorkspaceBytes(), p.TableBytes(), p.WorkerBytes());
+  int running = 0;
+  for (int i = 0; i < plan.count; ++i) {
+    const PlanEntry& e = plan.entries[i];
+    if (!e.runs) {
+      std::fprintf(stderr, "  %-14s left out: %s\n", StageName(e.id), e.reason);
+      continue;
+    }
+    const StageStats& s = acc.stats.stage[running++];
+    const double unit = std::ldexp(1.0, -DomainFracBits(e.out.domain));
+    std::fprintf(stderr, "  %-14s -> %-16s %8.2f ms/frame  mean", StageName(e.id), DomainName(e.out.domain),
+                 s.ticks / 1e6 / frames);
+    const char* cn[3] = {"R", "G", "B"};
+    for (int c = 0; c < 3; ++c)
+      if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.sum[c] * unit / s.count[c]);
+    if (e.id == StageId::kSensor) {
+      std::fprintf(stderr, "  electrons");
+      for (int c = 0; c < 3; ++c)
+        if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.aux_sum[c] / 256.0 / s.count[c]);
+    }
+    std::fprintf(stderr, "\n");
+  }
+}
+
+bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
+  std::vector<std::string> names;
+  std::stringstream ss(list);
+  std::string name;
+  while (std::getline(ss, name, ','))
+    if (!name.empty()) names.push_back(name);
+  // --stages keeps the configured order and runs only the named stages.
+  for (const std::string& n : names) {
+    StageId id;
+    if (!StageFromName(n.c_str(), &id)) {
+      *error = "--stages: unknown stage '" + n + "'";
+      return false;
+    }
+  }
+  PipelineConfig& p = rc->core;
+  StageId kept[kStageCount];
+  int count = 0;
+  for (int i = 0; i < p.order_count; ++i)
+    for (const std::string& n : names)
+      if (n == StageName(p.order[i])) kept[count++] = p.order[i];
+  if (count != static_cast<int>(names.size())) {
+    *error = "--stages: every named stage must be in [pipeline] stages (and named once)";
+    return false;
+  }
+  for (int i = 0; i < count; ++i) p.order[i] = kept[i];
+  p.order_count = count;
+  return true;
+}
+
+}  // namespace
+
+int RunCommand(const RunOptions& o) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  for (const std::string& s : o.overrides)
+    if (!ApplyOverride(s, &rc, &origins, &error)) {
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      return 1;
+    }
+  if (!o.stages.empty() && !SplitStages(o.stages, &rc, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  if (o.threads < 1 || o.threads > 64 || o.strip_rows < 1) {
+    std::fprintf(stderr, "camsim: --threads must be 1..64 and --strip-rows >= 1\n");
+    return 1;
+  }
+  std::vector<std::string> files;
+  if (!io::ExpandInputs(o.inputs, &files, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  if (o.out_dir.empty()) {
+    std::fprintf(stderr, "camsim: --out DIR is required\n");
+    return 1;
+  }
+  mkdir(o.out_dir.c_str(), 0755);
+  struct stat st;
+  if (stat(o.out_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    std::fprintf(stderr, "camsim: cannot create output directory %s\n", o.out_dir.c_str());
+    return 2;
+  }
+
+  Pipeline pipeline;
+  std::vector<uint8_t> workspace;
+  io::FloatPlane mask;
+  CoreInput input;
+  Accumulated acc;
+  hal::ThreadPool pool(o.threads);
+  const Clock clock = hal::NanosecondClock();
+  const bool tty = isatty(2) && !o.quiet && files.size() > 1;
+  int exit_code = 0;
+  int first_w = 0, first_h = 0;
+
+  for (size_t f = 0; f < files.size(); ++f) {
+    io::SceneFrame scene;
+    if (!io::LoadSceneExr(files[f], files.size() == 1 ? o.depth_path : "", &scene, &error)) {
+      error = "frame " + std::to_string(f) + ": " + error;
+      exit_code = 1;
+      break;
+    }
+    if (f == 0) {
+      if (!FinishConfig(&rc, scene.width, scene.height, origins, o.threads, &error)) {
+        exit_code = 1;
+        break;
+      }
+      const Status s = pipeline.Configure(rc.core, o.threads, !rc.vignetting_mask.empty());
+      if (!s.ok()) {
+        error = DescribeStatus(s, origins);
+        exit_code = 1;
+        break;
+      }
+      workspace.assign(pipeline.WorkspaceBytes(), 0);
+      const Status si = pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()});
+      if (!si.ok()) {
+        error = DescribeStatus(si, origins);
+        exit_code = 1;
+        break;
+      }
+      if (!rc.vignetting_mask.empty()) {
+        if (!io::ReadMaskImage(rc.vignetting_mask, &mask, &error)) {
+          exit_code = 1;
+          break;
+        }
+        PrepareMask(mask, pipeline.width(), pipeline.height(), &input);
+      }
+      first_w = scene.width;
+      first_h = scene.height;
+    } else if (scene.width != first_w || scene.height != first_h) {
+      error = files[f] + ": is " + std::to_string(scene.width) + "x" + std::to_string(scene.height) +
+              " but the sequence started at " + std::to_string(first_w) + "x" + std::to_string(first_h);
+      exit_code = 1;
+      break;
+    }
+    PrepareInput(scene, pipeline.width(), pipeline.height(), rc.fit, &input);
+    const FrameInput view = input.View();
+    const Status cs = pipeline.CheckInput(view);
+    if (!cs.ok()) {
+      error = files[f] + ": " + cs.message();
+      exit_code = 1;
+      break;
+    }
+
+    // Taps: the raw sensor output (when the sensor runs before the end), the
+    // final output, and with --dump-stages every running stage.
+    const Plan& plan = pipeline.plan();
+    const int w = pipeline.width(), h = pipeline.height();
+    std::vector<Tap> taps;
+    std::vector<std::vector<uint8_t>> buffers;
+    // Formats of the running stages, in run order.
+    std::vector<LineFormat> formats;
+    int sensor_index = -1;
+    for (int i = 0; i < plan.count; ++i)
+      if (plan.entries[i].runs) {
+        if (plan.entries[i].id == StageId::kSensor) sensor_index = static_cast<int>(formats.size());
+        formats.push_back(plan.entries[i].out);
+      }
+    const LineFormat out_fmt = plan.output;
+    auto add_tap = [&](int stage, TapFormat fmt) {
+      const int channels = formats[static_cast<size_t>(stage)].channels;
+      const size_t bytes = fmt == TapFormat::kU8 ? 1 : (fmt == TapFormat::kU16 ? 2 : 4);
+      buffers.emplace_back(static_cast<size_t>(w) * h * channels * bytes);
+      Tap t;
+      t.stage = stage;
+      t.format = fmt;
+      t.data = buffers.back().data();
+      t.stride = static_cast<ptrdiff_t>(w) * channels;
+      taps.push_back(t);
+    };
+    const bool final_is_image = out_fmt.domain == Domain::kLinear || out_fmt.domain == Domain::kEncoded;
+    const bool final_is_raw = out_fmt.domain == Domain::kDigital;
+    buffers.reserve(2 + formats.size());  // taps point into these buffers
+    add_tap(plan.running - 1, final_is_image ? (rc.output_bits == 8 ? TapFormat::kU8 : TapFormat::kU16)
+                                             : (final_is_raw ? TapFormat::kU16 : TapFormat::kU32));
+    const bool raw_tap = sensor_index >= 0 && sensor_index != plan.running - 1;
+    if (raw_tap) add_tap(sensor_index, TapFormat::kU16);
+    const size_t first_dump = taps.size();
+    if (o.dump_stages)
+      for (int i = 0; i < plan.running; ++i) add_tap(i, TapFormat::kU32);
+
+    // Strips are handed out in order to whichever worker is free; the bytes
+    // do not depend on who takes which.
+    std::vector<WorkerStats> worker_stats(static_cast<size_t>(o.threads));
+    std::atomic<int> next_strip{0};
+    const uint32_t frame_index = o.first_frame + static_cast<uint32_t>(f);
+    const uint64_t t0 = hal::NowNs();
+    pool.Run([&](int worker) {
+      for (;;) {
+        const int y0 = next_strip.fetch_add(1) * o.strip_rows;
+        if (y0 >= h) break;
+        pipeline.ProcessStrip(view, frame_index, y0, y0 + o.strip_rows, worker, taps.data(),
+                              static_cast<int>(taps.size()), &worker_stats[static_cast<size_t>(worker)], &clock);
+      }
+    });
+    FrameRecord rec;
+    rec.wall_ms = (hal::NowNs() - t0) / 1e6;
+    rec.input = scene.source;
+    rec.radiance_stats = scene.radiance_stats;
+    for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
+
+    // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),
+    // <stem>.exr (linear domains), <stem>.<i>_<stage>.exr (--dump-stages).
+    const std::string stem = o.out_dir + "/" + Stem(files[f]);
+    bool ok = true;
+    const int max_dn = (1 << rc.core.geometry.adc_bits) - 1;
+    auto write_raw = [&](const std::vector<uint8_t>& buf) {
+      const uint16_t* px = reinterpret_cast<const uint16_t*>(buf.data());
+      std::ostringstream side;
+      side << "{\"width\": " << w << ", \"height\": " << h << ", \"pixel_format\": "
+           << JsonString(std::string(CfaName(rc.core.geometry.cfa)) + (rc.core.geometry.adc_bits > 8 ? "16" : "8"))
+           << ", \"adc_bits\": " << rc.core.geometry.adc_bits << ", \"black_level_dn\": "
+           << Num(rc.core.sensor.black_level_dn) << ", \"byte_order\": \"little\", \"frame\": " << frame_index
+           << ", \"seed\": " << rc.core.seed << ", \"source\": " << JsonString(scene.source) << "}\n";
+      ok = ok && io::WritePgm16(stem + ".raw.pgm", px, w, h, w, max_dn, &error) &&
+           io::WriteRaw16(stem + ".raw", px, w, h, w, &error) && io::WriteTextFile(stem + ".raw.json", side.str(), &error);
+      if (ok) rec.outputs.insert(rec.outputs.end(), {stem + ".raw.pgm", stem + ".raw", stem + ".raw.json"});
+    };
+    if (final_is_image) {
+      ok = io::WritePng(stem + ".png", buffers[0].data(), w, h, out_fmt.channels, rc.output_bits, w * out_fmt.channels,
+                        &error);
+      if (ok) rec.outputs.push_back(stem + ".png");
+    } else if (final_is_raw) {
+      write_raw(buffers[0]);
+    } else {
+      std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(buffers[0].data()),
+                                 reinterpret_cast<const uint32_t*>(buffers[0].data()) + buffers[0].size() / 4);
+      ok = WriteStageImage(stem, out_fmt, data, w, h, &rec.outputs, &error);
+    }
+    if (ok && raw_tap) write_raw(buffers[1]);
+    if (ok && o.dump_stages) {
+      int r = 0;
+      for (int i = 0; i < plan.count && ok; ++i) {
+        if (!plan.entries[i].runs) continue;
+        const std::vector<uint8_t>& b = buffers[first_dump + static_cast<size_t>(r)];
+        std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(b.data()),
+                                   reinterpret_cast<const uint32_t*>(b.data()) + b.size() / 4);
+        char suffix[64];
+        std::snprintf(suffix, sizeof suffix, ".%d_%s", r, StageName(plan.entries[i].id));
+        ok = WriteStageImage(stem + suffix, plan.entries[i].out, data, w, h, &rec.outputs, &error);
+        ++r;
+      }
+    }
+    acc.frames.push_back(rec);
+    if (!ok) {
+      exit_code = 2;
+      break;
+    }
+    if (tty) {
+      const int done = static_cast<int>(f + 1), total = static_cast<int>(files.size());
+      const int bar = 30 * done / total;
+      std::fprintf(stderr, "\r[%.*s%*s] %d/%d frames", bar, "##############################", 30 - bar, "", done,
+                   total);
+      if (done == total) std::fprintf(stderr, "\n");
+    }
+  }
+
+  if (exit_code != 0) std::fprintf(stderr, "camsim: %s\n", error.c_str());
+  if (!acc.frames.empty() || exit_code == 0) {
+    if (!o.quiet) PrintPlan(pipeline, acc);
+    if (!o.quiet && !acc.frames.empty()) {
+      double total = 0;
+      for (const FrameRecord& r : acc.frames) total += r.wall_ms;
+      std::fprintf(stderr, "%zu frame(s), %.2f ms/frame wall on %d thread(s); outputs in %s\n", acc.frames.size(),
+                   total / acc.frames.size(), o.threads, o.out_dir.c_str());
+    }
+  }
+  if (!o.report_path.empty() && pipeline.plan().count > 0) {
+    std::string werr;
+    if (!io::WriteTextFile(o.report_path, ReportJson(o, rc, pipeline, o.threads, acc, error), &werr)) {
+      std::fprintf(stderr, "camsim: %s\n", werr.c_str());
+      if (exit_code == 0) exit_code = 2;
+    }
+  }
+  return exit_code;
+}
+
+}  // namespace camsim::host

@@ -1,0 +1,29 @@
+// `camsim run`: a sequence of scene frames through the pipeline to files.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "host_tools/config.h"
+
+namespace camsim::host {
+
+struct RunOptions {
+  std::string config_path;             // empty: defaults
+  std::vector<std::string> inputs;     // files, directories or printf patterns
+  std::string depth_path;              // separate depth file (single frame)
+  std::string out_dir;
+  std::vector<std::string> overrides;  // --set section.key=value
+  std::string stages;                  // --stages a,b,c (comma-separated)
+  std::string report_path;             // --report FILE (JSON)
+  int threads = 1;
+  int strip_rows = 16;
+  uint32_t first_frame = 0;            // frame index of the first input (keys noise)
+  bool dump_stages = false;
+  bool quiet = false;
+};
+
+// Returns the process exit code (0 ok, 1 input/config error, 2 output error).
+int RunCommand(const RunOptions& options);
+
+}  // namespace camsim::host

@@ -1,0 +1,33 @@
+// Turns a loaded scene (float planes) into the core's input: fitted to the
+// sensor size and converted to fixed point.
+//
+// Fit: crop takes the centre W x H window (offset floor((in - out) / 2));
+// scale averages the input over each output pixel's footprint (area
+// weighting, exact for integer ratios). Radiance becomes Q16.16 with
+// round-to-nearest and saturation at 65535.99998 (the loader has already
+// replaced NaN/Inf/negatives). A vignetting mask becomes Q2.14 gains the same way.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+#include "host_tools/config.h"
+#include "host_tools/io/exr_scene.h"
+
+namespace camsim::host {
+
+struct CoreInput {
+  int width = 0, height = 0;
+  std::vector<uint32_t> radiance[3];
+  std::vector<uint16_t> mask;
+  FrameInput View() const;
+};
+
+// Resamples a float plane to width x height by the fit rule.
+io::FloatPlane FitPlane(const io::FloatPlane& in, int width, int height, SceneFit fit);
+
+void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit fit, CoreInput* out);
+void PrepareMask(const io::FloatPlane& mask, int width, int height, CoreInput* out);
+
+}  // namespace camsim::host

@@ -1,0 +1,50 @@
+// Shared helpers for the tests: synthetic scenes, running a pipeline into
+// buffers, hashing. Test-only (heap and std:: containers are fine here).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+#include "host_tools/config.h"
+
+namespace camsim::test {
+
+// 64-bit FNV-1a over bytes: the golden hash (simple, stable, documented).
+uint64_t Fnv1a64(const void* data, size_t bytes, uint64_t h = 0xcbf29ce484222325ull);
+std::string Hex64(uint64_t v);
+
+// A scene of three Q16.16 planes.
+struct Scene {
+  int width = 0, height = 0;
+  std::vector<uint32_t> plane[3];
+  FrameInput View() const;
+};
+// Flat field: every pixel has radiance (r, g, b).
+Scene FlatScene(int width, int height, double r, double g, double b);
+// Deterministic textured HDR scene: gradients, edges, a bright spot (up to ~400).
+Scene TexturedScene(int width, int height);
+
+// A configured, initialised pipeline with its workspace.
+struct Built {
+  Pipeline pipeline;
+  std::vector<uint8_t> workspace;
+  Status status;
+};
+// Configures config for `workers` workers and initialises it.
+std::unique_ptr<Built> Build(const PipelineConfig& config, int workers = 1);
+
+// Runs one frame with the given strip height on worker 0 and returns the final
+// stage's output as raw uint32 samples (interleaved channels).
+std::vector<uint32_t> RunFrame(const Built& b, const Scene& scene, uint32_t frame, int strip_rows,
+                               WorkerStats* stats = nullptr);
+// The same with `threads` real threads taking strips from a shared counter.
+std::vector<uint32_t> RunFrameThreads(const Built& b, const Scene& scene, uint32_t frame, int strip_rows,
+                                      int threads);
+
+// The demo configuration (configs/camera.toml) for a frame size.
+PipelineConfig DemoConfig(int width, int height);
+
+}  // namespace camsim::test

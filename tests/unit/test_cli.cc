@@ -1,0 +1,143 @@
+// End to end: the `camsim` command on the bundled scene, and its errors on bad
+// input (clear message, exit code, nothing already written lost).
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+struct Result {
+  int code = -1;
+  std::string err;
+};
+
+std::string TempDir(const std::string& name) {
+  const std::string d = testing::TempDir() + "camsim_cli_" + name + "_" + std::to_string(getpid());
+  std::system(("rm -rf '" + d + "' && mkdir -p '" + d + "'").c_str());
+  return d;
+}
+
+Result Camsim(const std::string& args) {
+  const std::string err_file = testing::TempDir() + "camsim_cli_stderr_" + std::to_string(getpid());
+  const std::string cmd = std::string(CAMSIM_BINARY) + " " + args + " 2>'" + err_file + "' >/dev/null";
+  Result r;
+  const int status = std::system(cmd.c_str());
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream in(err_file);
+  std::stringstream s;
+  s << in.rdbuf();
+  r.err = s.str();
+  return r;
+}
+
+bool Exists(const std::string& p) {
+  struct stat st;
+  return stat(p.c_str(), &st) == 0 && st.st_size > 0;
+}
+
+std::string Slurp(const std::string& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+const std::string kScene = std::string(CAMSIM_SOURCE_DIR) + "/scenes/aisle_0001.exr";
+const std::string kConfig = std::string(CAMSIM_SOURCE_DIR) + "/configs/camera.toml";
+
+TEST(Cli, RunWritesRawRgbAndReport) {
+  const std::string out = TempDir("run");
+  const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out + " --report " + out +
+                          "/report.json --threads 2");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Exists(out + "/aisle_0001.png"));
+  EXPECT_TRUE(Exists(out + "/aisle_0001.raw.pgm"));
+  EXPECT_TRUE(Exists(out + "/aisle_0001.raw.json"));
+  const std::string raw = Slurp(out + "/aisle_0001.raw");
+  EXPECT_EQ(raw.size(), 640u * 480u * 2u);
+  EXPECT_EQ(Slurp(out + "/aisle_0001.raw.pgm").substr(0, 15), "P5\n640 480\n4095");
+  const std::string report = Slurp(out + "/report.json");
+  EXPECT_NE(report.find("\"left_out_because\": \"colour matrix is the identity\""), std::string::npos) << report;
+  EXPECT_NE(report.find("\"mean_electrons\""), std::string::npos);
+  EXPECT_NE(report.find("\"workspace_bytes\""), std::string::npos);
+  EXPECT_NE(report.find("\"error\": null"), std::string::npos);
+}
+
+TEST(Cli, ThreadsAndStripRowsGiveTheSameBytes) {
+  const std::string a = TempDir("same_a"), b = TempDir("same_b");
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + a + " --quiet").code, 0);
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + b +
+                   " --quiet --threads 3 --strip-rows 5")
+                .code,
+            0);
+  EXPECT_EQ(Slurp(a + "/aisle_0001.png"), Slurp(b + "/aisle_0001.png"));
+  EXPECT_EQ(Slurp(a + "/aisle_0001.raw"), Slurp(b + "/aisle_0001.raw"));
+}
+
+TEST(Cli, StagesAndDumpWriteIntermediates) {
+  const std::string out = TempDir("stages");
+  const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
+                          " --stages exposure,vignetting --dump-stages --quiet");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Exists(out + "/aisle_0001.exr"));  // photons as float EXR
+  EXPECT_TRUE(Exists(out + "/aisle_0001.0_exposure.exr"));
+  EXPECT_TRUE(Exists(out + "/aisle_0001.1_vignetting.exr"));
+}
+
+TEST(Cli, ConfigTypoNamesKeyAndLine) {
+  const std::string dir = TempDir("typo");
+  std::ofstream(dir + "/bad.toml") << "[sensor]\nadc_bits = 12\nful_well_e = 100\n";
+  const Result r = Camsim("run --config " + dir + "/bad.toml --input " + kScene + " --out " + dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bad.toml:3"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("did you mean 'sensor.full_well_e'"), std::string::npos) << r.err;
+}
+
+TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
+  const std::string dir = TempDir("range");
+  std::ofstream(dir + "/bad.toml") << "[exposure]\n\nf_number = 0.1\n";
+  const Result r = Camsim("run --config " + dir + "/bad.toml --input " + kScene + " --out " + dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bad.toml:3: exposure.f_number must be in [0.5, 128]"), std::string::npos) << r.err;
+  const Result s = Camsim("run --set sensor.adc_bits=20 --input " + kScene + " --out " + dir);
+  EXPECT_NE(s.err.find("--set: sensor.adc_bits"), std::string::npos) << s.err;
+  const Result nan = Camsim("run --set exposure.f_number=nan --input " + kScene + " --out " + dir);
+  EXPECT_EQ(nan.code, 1);
+  EXPECT_NE(nan.err.find("exposure.f_number"), std::string::npos) << nan.err;
+}
+
+TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
+  const std::string dir = TempDir("badin");
+  // A sequence: a good frame, then a truncated one.
+  std::system(("cp '" + kScene + "' '" + dir + "/seq_0001.exr'").c_str());
+  std::system(("head -c 10000 '" + kScene + "' > '" + dir + "/seq_0002.exr'").c_str());
+  const Result r = Camsim("run --config " + kConfig + " --input " + dir + "/seq_%04d.exr --out " + dir + "/out");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("seq_0002.exr"), std::string::npos) << r.err;
+  EXPECT_TRUE(Exists(dir + "/out/seq_0001.png"));  // frame 1's outputs were kept
+  // Garbage and missing files.
+  std::ofstream(dir + "/garbage.exr") << "this is not an EXR file";
+  EXPECT_EQ(Camsim("run --input " + dir + "/garbage.exr --out " + dir).code, 1);
+  const Result missing = Camsim("run --input " + dir + "/nope.exr --out " + dir);
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("nope.exr"), std::string::npos);
+}
+
+TEST(Cli, ConfigDefaultRoundTrips) {
+  const std::string dir = TempDir("default");
+  const std::string cmd = std::string(CAMSIM_BINARY) + " config --default > '" + dir + "/d.toml'";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const std::string text = Slurp(dir + "/d.toml");
+  EXPECT_NE(text.find("[sensor]"), std::string::npos);
+  EXPECT_NE(text.find("# exposure time, microseconds"), std::string::npos);
+  EXPECT_EQ(Camsim("config --check " + dir + "/d.toml").code, 0);
+}
+
+}  // namespace

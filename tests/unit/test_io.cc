@@ -1,0 +1,617 @@
+// Tests for camsim_io: EXR scene loading, writers, mask readers, input expansion.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <csetjmp>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfMultiPartOutputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfOutputPart.h>
+#include <OpenEXR/ImfPartType.h>
+#include <png.h>
+#include <unistd.h>
+
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/io/image_read.h"
+#include "host_tools/io/image_write.h"
+#include "host_tools/io/sequence.h"
+
+namespace camsim::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+const std::string kAisle = CAMSIM_SOURCE_DIR "/scenes/aisle_0001.exr";
+
+// A fresh directory per test, removed afterwards.
+class IoTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    static int counter = 0;
+    dir_ = fs::path(::testing::TempDir()) /
+           ("camsim_io_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(dir_);
+    ASSERT_TRUE(fs::create_directories(dir_));
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  std::vector<std::string> DirEntries() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+  fs::path dir_;
+};
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+// A channel for WriteTestExr: values cover the data window, row-major.
+struct TestChannel {
+  std::string name;
+  Imf::PixelType type;
+  std::vector<float> values;
+};
+
+// Writes a single-part scanline EXR with the given windows, converting the
+// values to each channel's type.
+void WriteTestExr(const std::string& path, const Imath::Box2i& display, const Imath::Box2i& data,
+                  const std::vector<TestChannel>& channels) {
+  Imf::Header header(display, data);
+  const int w = data.max.x - data.min.x + 1;
+  Imf::FrameBuffer fb;
+  std::vector<std::vector<half>> halves;
+  std::vector<std::vector<uint32_t>> uints;
+  halves.reserve(channels.size());
+  uints.reserve(channels.size());
+  for (const TestChannel& c : channels) {
+    header.channels().insert(c.name, Imf::Channel(c.type));
+    char* base = nullptr;
+    size_t size = 4;
+    if (c.type == Imf::HALF) {
+      halves.emplace_back(c.values.begin(), c.values.end());
+      base = reinterpret_cast<char*>(halves.back().data());
+      size = 2;
+    } else if (c.type == Imf::UINT) {
+      uints.emplace_back(c.values.begin(), c.values.end());
+      base = reinterpret_cast<char*>(uints.back().data());
+    } else {
+      base = reinterpret_cast<char*>(const_cast<float*>(c.values.data()));
+    }
+    fb.insert(c.name, Imf::Slice::Make(c.type, base, data, size, size * static_cast<size_t>(w)));
+  }
+  Imf::OutputFile file(path.c_str(), header);
+  file.setFrameBuffer(fb);
+  file.writePixels(data.max.y - data.min.y + 1);
+}
+
+Imath::Box2i Box(int x0, int y0, int x1, int y1) { return Imath::Box2i({x0, y0}, {x1, y1}); }
+
+// ---- LoadSceneExr ---------------------------------------------------------
+
+TEST(LoadSceneExr, BundledBlenderScene) {
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(kAisle, "", &f, &error)) << error;
+  EXPECT_EQ(f.width, 640);
+  EXPECT_EQ(f.height, 480);
+  EXPECT_EQ(f.layout, "blender-multilayer ViewLayer");
+  EXPECT_EQ(f.source, kAisle);
+  ASSERT_TRUE(f.has_depth);
+  ASSERT_TRUE(f.has_motion);
+  for (const FloatPlane* p : {&f.r, &f.g, &f.b, &f.depth, &f.motion_x, &f.motion_y}) {
+    ASSERT_EQ(p->width, 640);
+    ASSERT_EQ(p->height, 480);
+    ASSERT_EQ(p->data.size(), 640u * 480u);
+  }
+  float sky = 0.0f;  // sky is 1e10 in Blender's Z pass
+  for (int y = 0; y < 20; ++y) {
+    for (int x = 0; x < 640; ++x) sky = std::max(sky, f.depth.at(x, y));
+  }
+  EXPECT_GT(sky, 1e9f);
+  float peak = 0.0f;
+  for (const FloatPlane* p : {&f.r, &f.g, &f.b}) {
+    for (float v : p->data) {
+      ASSERT_TRUE(std::isfinite(v));
+      ASSERT_GE(v, 0.0f);
+      peak = std::max(peak, v);
+    }
+  }
+  EXPECT_GT(peak, 100.0f);  // the emissive lamp, radiance ~400
+  EXPECT_LT(peak, 65504.0f);
+  float max_motion = 0.0f;
+  for (float v : f.motion_x.data) max_motion = std::max(max_motion, std::abs(v));
+  EXPECT_TRUE(std::isfinite(max_motion));
+}
+
+TEST_F(IoTest, FloatRoundTripSanitises) {
+  // 3x2 frame; R, G, B, Z with planted bad values.
+  const std::vector<float> r = {kNaN, 1.0f, -kInf, 0.25f, 2.0f, 1e6f};
+  const std::vector<float> g = {-1.0f, 0.5f, 0.0f, -0.0f, kInf, 3.0f};
+  const std::vector<float> b = {kInf, kInf, 0.125f, 400.0f, -2.0f, kNaN};
+  const std::vector<float> z = {kNaN, -1.0f, 0.0f, 1e10f, kInf, -kInf};
+  const std::string path = Path("rgbz.exr");
+  std::string error;
+  ASSERT_TRUE(WriteExrFloat(path, 3, 2,
+                            {{"R", r.data(), 3}, {"G", g.data(), 3}, {"B", b.data(), 3},
+                             {"Z", z.data(), 3}},
+                            &error))
+      << error;
+  SceneFrame f;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "rgb+z");
+  EXPECT_FALSE(f.has_motion);
+  EXPECT_EQ(f.r.data, (std::vector<float>{0.0f, 1.0f, 0.0f, 0.25f, 2.0f, 1e6f}));
+  EXPECT_EQ(f.g.data, (std::vector<float>{0.0f, 0.5f, 0.0f, 0.0f, 65504.0f, 3.0f}));
+  EXPECT_EQ(f.b.data, (std::vector<float>{65504.0f, 65504.0f, 0.125f, 400.0f, 0.0f, 0.0f}));
+  EXPECT_EQ(f.radiance_stats.nan, 2u);
+  EXPECT_EQ(f.radiance_stats.pos_inf, 3u);
+  EXPECT_EQ(f.radiance_stats.neg_inf, 1u);
+  EXPECT_EQ(f.radiance_stats.negative, 2u);  // -1 and -2; -0.0 is not negative
+  ASSERT_TRUE(f.has_depth);
+  EXPECT_EQ(f.depth.data, (std::vector<float>{kInf, -1.0f, 0.0f, 1e10f, kInf, -kInf}));
+  EXPECT_EQ(f.depth_stats.nan, 1u);
+  EXPECT_EQ(f.depth_stats.pos_inf, 1u);
+  EXPECT_EQ(f.depth_stats.neg_inf, 1u);
+  EXPECT_EQ(f.depth_stats.negative, 1u);
+}
+
+TEST_F(IoTest, HalfChannelsAndUintDepth) {
+  const std::string path = Path("half.exr");
+  WriteTestExr(path, Box(0, 0, 1, 0), Box(0, 0, 1, 0),
+               {{"R", Imf::HALF, {0.5f, 1000.0f}},
+                {"G", Imf::HALF, {2.0f, 0.0f}},
+                {"B", Imf::HALF, {0.25f, 65504.0f}},
+                {"A", Imf::HALF, {1.0f, 1.0f}},
+                {"Z", Imf::UINT, {7.0f, 12.0f}}});
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "rgba+z");
+  EXPECT_EQ(f.r.data, (std::vector<float>{0.5f, 1000.0f}));
+  EXPECT_EQ(f.g.data, (std::vector<float>{2.0f, 0.0f}));
+  EXPECT_EQ(f.b.data, (std::vector<float>{0.25f, 65504.0f}));
+  EXPECT_EQ(f.depth.data, (std::vector<float>{7.0f, 12.0f}));
+}
+
+TEST_F(IoTest, LuminanceOnly) {
+  const std::string path = Path("y.exr");
+  WriteTestExr(path, Box(0, 0, 2, 0), Box(0, 0, 2, 0), {{"Y", Imf::HALF, {0.5f, -1.0f, 3.0f}}});
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "y");
+  const std::vector<float> want = {0.5f, 0.0f, 3.0f};
+  EXPECT_EQ(f.r.data, want);
+  EXPECT_EQ(f.g.data, want);
+  EXPECT_EQ(f.b.data, want);
+  EXPECT_EQ(f.radiance_stats.negative, 1u);
+  EXPECT_FALSE(f.has_depth);
+}
+
+TEST_F(IoTest, SeparateDepthFile) {
+  const std::string colour = Path("rgb.exr"), depth = Path("depth.exr"), sole = Path("sole.exr"),
+                    small = Path("small.exr");
+  const std::vector<float> ones(6, 1.0f);
+  WriteTestExr(colour, Box(0, 0, 2, 1), Box(0, 0, 2, 1),
+               {{"R", Imf::FLOAT, ones}, {"G", Imf::FLOAT, ones}, {"B", Imf::FLOAT, ones},
+                {"Z", Imf::FLOAT, std::vector<float>(6, 99.0f)}});
+  WriteTestExr(depth, Box(0, 0, 2, 1), Box(0, 0, 2, 1),
+               {{"R", Imf::FLOAT, std::vector<float>(6, 5.0f)},
+                {"Z", Imf::FLOAT, {1, 2, 3, 4, kNaN, 6}}});
+  WriteTestExr(sole, Box(0, 0, 2, 1), Box(0, 0, 2, 1),
+               {{"distance", Imf::HALF, {8, 8, 8, 8, 8, 8}}});
+  WriteTestExr(small, Box(0, 0, 1, 1), Box(0, 0, 1, 1), {{"Z", Imf::FLOAT, {1, 1, 1, 1}}});
+
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(colour, depth, &f, &error)) << error;
+  EXPECT_EQ(f.layout, "rgb + separate depth");  // the colour file's own Z is not used
+  EXPECT_EQ(f.source, colour + " + " + depth);
+  ASSERT_TRUE(f.has_depth);
+  EXPECT_EQ(f.depth.data, (std::vector<float>{1, 2, 3, 4, kInf, 6}));
+  EXPECT_EQ(f.depth_stats.nan, 1u);
+
+  ASSERT_TRUE(LoadSceneExr(colour, sole, &f, &error)) << error;
+  EXPECT_EQ(f.depth.data, std::vector<float>(6, 8.0f));
+
+  SceneFrame untouched;
+  EXPECT_FALSE(LoadSceneExr(colour, small, &untouched, &error));
+  EXPECT_NE(error.find("2x2"), std::string::npos) << error;
+  EXPECT_NE(error.find("3x2"), std::string::npos) << error;
+  EXPECT_NE(error.find(small), std::string::npos) << error;
+  EXPECT_EQ(untouched.width, 0);
+
+  EXPECT_FALSE(LoadSceneExr(colour, Path("missing_depth.exr"), &f, &error));
+  EXPECT_NE(error.find("missing_depth.exr"), std::string::npos) << error;
+}
+
+TEST_F(IoTest, DataWindowInsideDisplayWindow) {
+  // Display window 4x3 at origin (10,20); data window 2x2 at (11,21).
+  const std::string path = Path("window.exr");
+  WriteTestExr(path, Box(10, 20, 13, 22), Box(11, 21, 12, 22),
+               {{"R", Imf::HALF, {1, 2, 3, 4}},
+                {"G", Imf::HALF, {1, 2, 3, 4}},
+                {"B", Imf::HALF, {1, 2, 3, 4}},
+                {"Z", Imf::FLOAT, {5, 6, 7, 8}}});
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  ASSERT_EQ(f.width, 4);
+  ASSERT_EQ(f.height, 3);
+  EXPECT_EQ(f.r.data, (std::vector<float>{0, 0, 0, 0, 0, 1, 2, 0, 0, 3, 4, 0}));
+  EXPECT_EQ(f.b.data, f.r.data);
+  EXPECT_EQ(f.depth.data, (std::vector<float>{kInf, kInf, kInf, kInf, kInf, 5, 6, kInf, kInf, 7,
+                                              8, kInf}));
+  EXPECT_EQ(f.depth_stats.pos_inf, 0u);  // filled pixels are not counted
+}
+
+TEST_F(IoTest, DataOutsideDisplayWindowIsDropped) {
+  // Display 2x2 at (0,0); data 3x3 at (-1,-1), so one row and column are dropped.
+  const std::string path = Path("overscan.exr");
+  const std::vector<float> v = {kNaN, kNaN, kNaN, kNaN, 1, 2, kNaN, 3, 4};
+  WriteTestExr(path, Box(0, 0, 1, 1), Box(-1, -1, 1, 1),
+               {{"R", Imf::FLOAT, v}, {"G", Imf::FLOAT, v}, {"B", Imf::FLOAT, v}});
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.r.data, (std::vector<float>{1, 2, 3, 4}));
+  EXPECT_EQ(f.radiance_stats.nan, 0u);  // the NaNs were all outside
+}
+
+TEST_F(IoTest, TallDataWindowReadInSeveralStrips) {
+  // 4096 wide: the reader takes 256 rows per strip, so this needs three strips;
+  // the data window sticks out 5 rows above and below.
+  const int w = 4096, h = 600;
+  std::vector<float> v;
+  for (int y = -5; y < h + 5; ++y) {
+    for (int x = 0; x < w; ++x) v.push_back(static_cast<float>(y * w + x));
+  }
+  const std::string path = Path("tall.exr");
+  WriteTestExr(path, Box(0, 0, w - 1, h - 1), Box(0, -5, w - 1, h + 4), {{"Y", Imf::FLOAT, v}});
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  ASSERT_EQ(f.g.data.size(), static_cast<size_t>(w * h));
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) ASSERT_EQ(f.g.at(x, y), static_cast<float>(y * w + x)) << x << "," << y;
+  }
+  EXPECT_EQ(f.radiance_stats.negative, 0u);  // the negative rows above were dropped
+}
+
+TEST_F(IoTest, MultiPartFile) {
+  const std::string path = Path("multi.exr");
+  {
+    std::vector<Imf::Header> headers(2, Imf::Header(2, 1));
+    headers[0].setName("depth");
+    headers[0].setType(Imf::SCANLINEIMAGE);
+    headers[0].channels().insert("Z", Imf::Channel(Imf::FLOAT));
+    headers[1].setName("beauty");
+    headers[1].setType(Imf::SCANLINEIMAGE);
+    for (const char* c : {"R", "G", "B"}) headers[1].channels().insert(c, Imf::Channel(Imf::FLOAT));
+    Imf::MultiPartOutputFile file(path.c_str(), headers.data(), 2);
+    float z[2] = {3, 4}, rgb[2] = {0.5f, 0.75f};
+    Imf::FrameBuffer fb0, fb1;
+    fb0.insert("Z", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(z), 4, 8));
+    for (const char* c : {"R", "G", "B"}) {
+      fb1.insert(c, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(rgb), 4, 8));
+    }
+    Imf::OutputPart p0(file, 0), p1(file, 1);
+    p0.setFrameBuffer(fb0);
+    p0.writePixels(1);
+    p1.setFrameBuffer(fb1);
+    p1.writePixels(1);
+  }
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "rgb+z (multi-part, colour in part 1)");
+  EXPECT_EQ(f.g.data, (std::vector<float>{0.5f, 0.75f}));
+  EXPECT_EQ(f.depth.data, (std::vector<float>{3, 4}));
+}
+
+TEST_F(IoTest, LoadErrors) {
+  SceneFrame f;
+  std::string error;
+  const std::string missing = Path("nope.exr");
+  EXPECT_FALSE(LoadSceneExr(missing, "", &f, &error));
+  EXPECT_NE(error.find(missing), std::string::npos) << error;
+
+  const std::string garbage = Path("garbage.exr");
+  WriteBytes(garbage, std::string(5000, 'x'));
+  EXPECT_FALSE(LoadSceneExr(garbage, "", &f, &error));
+  EXPECT_NE(error.find(garbage), std::string::npos) << error;
+  EXPECT_NE(error.find("not a readable OpenEXR file"), std::string::npos) << error;
+
+  const std::string truncated = Path("truncated.exr");
+  WriteBytes(truncated, ReadBytes(kAisle).substr(0, 10000));
+  EXPECT_FALSE(LoadSceneExr(truncated, "", &f, &error));
+  EXPECT_NE(error.find(truncated), std::string::npos) << error;
+  EXPECT_NE(error.find("not a readable OpenEXR file"), std::string::npos) << error;
+
+  const std::string alpha = Path("alpha.exr");
+  WriteTestExr(alpha, Box(0, 0, 0, 0), Box(0, 0, 0, 0), {{"A", Imf::HALF, {1.0f}}});
+  EXPECT_FALSE(LoadSceneExr(alpha, "", &f, &error));
+  EXPECT_NE(error.find(alpha), std::string::npos) << error;
+  EXPECT_NE(error.find("channels present: A"), std::string::npos) << error;
+
+  const std::string huge = Path("huge.exr");  // 20000 x 1 display window, 1 pixel of data
+  const std::vector<float> one = {1.0f};
+  WriteTestExr(huge, Box(0, 0, 19999, 0), Box(0, 0, 0, 0),
+               {{"R", Imf::HALF, one}, {"G", Imf::HALF, one}, {"B", Imf::HALF, one}});
+  EXPECT_FALSE(LoadSceneExr(huge, "", &f, &error));
+  EXPECT_NE(error.find(huge), std::string::npos) << error;
+  EXPECT_NE(error.find("16384"), std::string::npos) << error;
+
+  EXPECT_FALSE(LoadSceneExr(dir_.string(), "", &f, &error));
+  EXPECT_NE(error.find("directory"), std::string::npos) << error;
+  EXPECT_EQ(f.width, 0);  // never touched by a failed load
+}
+
+// ---- Writers --------------------------------------------------------------
+
+TEST_F(IoTest, Pgm16HeaderAndBigEndianSamples) {
+  // 2x2 image inside rows of 3 samples.
+  const uint16_t data[] = {0x0102, 0x0fff, 0xdead, 0x0000, 0x0a0b, 0xbeef};
+  const std::string path = Path("a.pgm");
+  std::string error;
+  ASSERT_TRUE(WritePgm16(path, data, 2, 2, 3, 4095, &error)) << error;
+  EXPECT_EQ(ReadBytes(path), std::string("P5\n2 2\n4095\n\x01\x02\x0f\xff\x00\x00\x0a\x0b", 20));
+
+  const uint16_t bytes[] = {0, 7, 255};
+  ASSERT_TRUE(WritePgm16(path, bytes, 3, 1, 3, 255, &error)) << error;
+  EXPECT_EQ(ReadBytes(path), std::string("P5\n3 1\n255\n\x00\x07\xff", 14));
+
+  EXPECT_FALSE(WritePgm16(path, data, 2, 2, 3, 255, &error));  // 0x0102 > 255
+  EXPECT_NE(error.find("maxval"), std::string::npos) << error;
+  EXPECT_EQ(DirEntries(), std::vector<std::string>{"a.pgm"});
+}
+
+TEST_F(IoTest, Raw16LittleEndian) {
+  const uint16_t data[] = {0x0102, 0xffff, 0x1234, 0xabcd};
+  const std::string path = Path("a.raw");
+  std::string error;
+  ASSERT_TRUE(WriteRaw16(path, data, 1, 2, 2, &error)) << error;  // column 0 only
+  EXPECT_EQ(ReadBytes(path), std::string("\x02\x01\x34\x12", 4));
+}
+
+TEST_F(IoTest, TextFile) {
+  const std::string path = Path("r.json");
+  std::string error;
+  ASSERT_TRUE(WriteTextFile(path, "{\"a\": 1}\n", &error)) << error;
+  ASSERT_TRUE(WriteTextFile(path, "{}", &error)) << error;
+  EXPECT_EQ(ReadBytes(path), "{}");
+  EXPECT_EQ(DirEntries(), std::vector<std::string>{"r.json"});
+}
+
+struct RawPng {
+  png_uint_32 width = 0, height = 0;
+  int bit_depth = 0, color_type = 0;
+  std::vector<unsigned char> bytes;  // rows as stored (16-bit big-endian)
+};
+
+// Reads a PNG with libpng, no transforms. No destructors in this frame (setjmp).
+bool ReadRawPng(const char* path, RawPng* out) {
+  std::FILE* f = std::fopen(path, "rb");
+  if (f == nullptr) return false;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png_create_info_struct(png);
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    std::fclose(f);
+    return false;
+  }
+  png_init_io(png, f);
+  png_read_png(png, info, PNG_TRANSFORM_IDENTITY, nullptr);
+  out->width = png_get_image_width(png, info);
+  out->height = png_get_image_height(png, info);
+  out->bit_depth = png_get_bit_depth(png, info);
+  out->color_type = png_get_color_type(png, info);
+  const size_t row_bytes = png_get_rowbytes(png, info);
+  png_bytepp rows = png_get_rows(png, info);
+  out->bytes.clear();
+  for (png_uint_32 y = 0; y < out->height; ++y) {
+    out->bytes.insert(out->bytes.end(), rows[y], rows[y] + row_bytes);
+  }
+  png_destroy_read_struct(&png, &info, nullptr);
+  std::fclose(f);
+  return true;
+}
+
+TEST_F(IoTest, PngRoundTrip8And16Bit) {
+  const std::string path = Path("p.png");
+  std::string error;
+  for (int channels : {1, 3}) {
+    const int w = 3, h = 2, stride = w * channels + 2;  // padded rows
+    std::vector<uint8_t> d8(static_cast<size_t>(stride * h));
+    std::vector<uint16_t> d16(d8.size());
+    for (size_t i = 0; i < d8.size(); ++i) {
+      d8[i] = static_cast<uint8_t>(i * 37 + 5);
+      d16[i] = static_cast<uint16_t>(i * 4099 + 1);
+    }
+    for (int bits : {8, 16}) {
+      const void* data = bits == 8 ? static_cast<const void*>(d8.data()) : d16.data();
+      ASSERT_TRUE(WritePng(path, data, w, h, channels, bits, stride, &error)) << error;
+      RawPng png;
+      ASSERT_TRUE(ReadRawPng(path.c_str(), &png));
+      EXPECT_EQ(png.width, 3u);
+      EXPECT_EQ(png.height, 2u);
+      EXPECT_EQ(png.bit_depth, bits);
+      EXPECT_EQ(png.color_type, channels == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB);
+      std::vector<unsigned char> want;
+      for (int y = 0; y < h; ++y) {
+        for (int s = 0; s < w * channels; ++s) {
+          const size_t i = static_cast<size_t>(y * stride + s);
+          if (bits == 8) {
+            want.push_back(d8[i]);
+          } else {
+            want.push_back(static_cast<unsigned char>(d16[i] >> 8));
+            want.push_back(static_cast<unsigned char>(d16[i] & 0xff));
+          }
+        }
+      }
+      EXPECT_EQ(png.bytes, want) << channels << " channels, " << bits << " bits";
+    }
+  }
+  const uint8_t one[2] = {};
+  EXPECT_FALSE(WritePng(path, one, 1, 1, 2, 8, 2, &error));
+  EXPECT_NE(error.find("channels"), std::string::npos) << error;
+}
+
+TEST_F(IoTest, AtomicWriteIntoMissingDirectoryLeavesNothing) {
+  const std::string path = Path("no_such_dir/out.pgm");
+  const uint16_t data[] = {1, 2};
+  std::string error;
+  EXPECT_FALSE(WritePgm16(path, data, 2, 1, 2, 255, &error));
+  EXPECT_NE(error.find(path), std::string::npos) << error;
+  const float f[] = {1, 2};
+  EXPECT_FALSE(WriteExrFloat(Path("no_such_dir/out.exr"), 2, 1, {{"Y", f, 2}}, &error));
+  EXPECT_NE(error.find("out.exr"), std::string::npos) << error;
+  EXPECT_TRUE(DirEntries().empty());
+}
+
+TEST_F(IoTest, FailedWriteKeepsExistingFile) {
+  const std::string path = Path("keep.png");
+  const uint8_t first[] = {10, 20}, second[] = {30, 40};
+  std::string error;
+  ASSERT_TRUE(WritePng(path, first, 2, 1, 1, 8, 2, &error)) << error;
+  const std::string before = ReadBytes(path);
+  // A directory where the temporary file would go makes the next write fail.
+  fs::create_directory(path + ".tmp");
+  EXPECT_FALSE(WritePng(path, second, 2, 1, 1, 8, 2, &error));
+  EXPECT_NE(error.find(path), std::string::npos) << error;
+  EXPECT_EQ(ReadBytes(path), before);
+  EXPECT_TRUE(fs::is_directory(path + ".tmp"));  // not ours to remove
+  fs::remove(path + ".tmp");
+
+  // Target is an existing directory: the rename fails, the temp file is removed.
+  const std::string target_dir = Path("adir");
+  fs::create_directory(target_dir);
+  EXPECT_FALSE(WriteTextFile(target_dir, "x", &error));
+  EXPECT_NE(error.find(target_dir), std::string::npos) << error;
+  EXPECT_TRUE(fs::is_directory(target_dir));
+  EXPECT_EQ(DirEntries(), (std::vector<std::string>{"adir", "keep.png"}));
+}
+
+TEST_F(IoTest, WriteExrFloatRejectsBadChannels) {
+  const float f[] = {1, 2};
+  std::string error;
+  EXPECT_FALSE(WriteExrFloat(Path("x.exr"), 2, 1, {{"Y", f, 2}, {"Y", f, 2}}, &error));
+  EXPECT_NE(error.find("'Y'"), std::string::npos) << error;
+  EXPECT_FALSE(WriteExrFloat(Path("x.exr"), 2, 1, {{"Y", f, 1}}, &error));  // stride < width
+  EXPECT_NE(error.find("stride"), std::string::npos) << error;
+  EXPECT_TRUE(DirEntries().empty());
+}
+
+// ---- Mask readers ---------------------------------------------------------
+
+TEST_F(IoTest, ReadPngNormalises) {
+  const std::string gray = Path("g.png"), rgb = Path("c.png");
+  const uint8_t g8[] = {0, 51, 255, 0};
+  const uint16_t c16[] = {65535, 0, 0, 0, 65535, 65535};  // mean 1/3 and 2/3
+  std::string error;
+  ASSERT_TRUE(WritePng(gray, g8, 3, 1, 1, 8, 4, &error)) << error;
+  ASSERT_TRUE(WritePng(rgb, c16, 2, 1, 3, 16, 6, &error)) << error;
+  FloatPlane p;
+  ASSERT_TRUE(ReadPng(gray, &p, &error)) << error;
+  EXPECT_EQ(p.width, 3);
+  EXPECT_EQ(p.height, 1);
+  EXPECT_FLOAT_EQ(p.at(0, 0), 0.0f);
+  EXPECT_FLOAT_EQ(p.at(1, 0), 0.2f);
+  EXPECT_FLOAT_EQ(p.at(2, 0), 1.0f);
+  ASSERT_TRUE(ReadMaskImage(rgb, &p, &error)) << error;
+  ASSERT_EQ(p.data.size(), 2u);
+  EXPECT_FLOAT_EQ(p.at(0, 0), 1.0f / 3.0f);
+  EXPECT_FLOAT_EQ(p.at(1, 0), 2.0f / 3.0f);
+
+  const std::string bad = Path("bad.png");
+  WriteBytes(bad, "not a png at all");
+  EXPECT_FALSE(ReadPng(bad, &p, &error));
+  EXPECT_NE(error.find(bad), std::string::npos) << error;
+  EXPECT_EQ(p.data.size(), 2u);  // unchanged
+}
+
+TEST_F(IoTest, ReadMaskImageExr) {
+  const std::string path = Path("mask.EXR");
+  WriteTestExr(path, Box(0, 0, 1, 0), Box(0, 0, 1, 0),
+               {{"R", Imf::FLOAT, {0.5f, 0.25f}}, {"B", Imf::FLOAT, {9, 9}}});
+  FloatPlane p;
+  std::string error;
+  ASSERT_TRUE(ReadMaskImage(path, &p, &error)) << error;
+  EXPECT_EQ(p.data, (std::vector<float>{0.5f, 0.25f}));
+
+  const std::string other = Path("other.exr");
+  WriteTestExr(other, Box(0, 0, 0, 0), Box(0, 0, 0, 0),
+               {{"b", Imf::HALF, {2}}, {"a", Imf::FLOAT, {-3}}});
+  ASSERT_TRUE(ReadMaskImage(other, &p, &error)) << error;
+  EXPECT_EQ(p.data, std::vector<float>{-3.0f});  // first channel by name, as stored
+
+  EXPECT_FALSE(ReadMaskImage(Path("mask.tiff"), &p, &error));
+  EXPECT_NE(error.find("mask.tiff"), std::string::npos) << error;
+}
+
+// ---- ExpandInputs ---------------------------------------------------------
+
+TEST_F(IoTest, ExpandDirectory) {
+  for (const char* n : {"b.exr", "a.exr", "c.EXR", "notes.txt"}) WriteBytes(Path(n), "x");
+  std::vector<std::string> files;
+  std::string error;
+  ASSERT_TRUE(ExpandInputs({dir_.string()}, &files, &error)) << error;
+  EXPECT_EQ(files, (std::vector<std::string>{Path("a.exr"), Path("b.exr"), Path("c.EXR")}));
+}
+
+TEST_F(IoTest, ExpandPatternAndFiles) {
+  for (const char* n : {"f_0001.exr", "f_0002.exr", "f_0003.exr", "f_0005.exr", "s0.exr", "s1.exr"}) {
+    WriteBytes(Path(n), "x");
+  }
+  std::vector<std::string> files;
+  std::string error;
+  ASSERT_TRUE(ExpandInputs({Path("f_%04d.exr"), Path("s%d.exr"), Path("f_0005.exr")}, &files,
+                           &error))
+      << error;
+  EXPECT_EQ(files, (std::vector<std::string>{Path("f_0001.exr"), Path("f_0002.exr"),
+                                             Path("f_0003.exr"), Path("s0.exr"), Path("s1.exr"),
+                                             Path("f_0005.exr")}));
+}
+
+TEST_F(IoTest, ExpandErrors) {
+  std::vector<std::string> files = {"keep"};
+  std::string error;
+  const std::string missing = Path("missing.exr");
+  EXPECT_FALSE(ExpandInputs({missing}, &files, &error));
+  EXPECT_NE(error.find(missing), std::string::npos) << error;
+  const std::string pattern = Path("g_%03d.exr");
+  EXPECT_FALSE(ExpandInputs({pattern}, &files, &error));
+  EXPECT_NE(error.find(pattern), std::string::npos) << error;
+  EXPECT_FALSE(ExpandInputs({dir_.string()}, &files, &error));  // empty directory
+  EXPECT_NE(error.find("no .exr"), std::string::npos) << error;
+  EXPECT_FALSE(ExpandInputs({}, &files, &error));
+  EXPECT_EQ(files, std::vector<std::string>{"keep"});
+}
+
+}  // namespace
+}  // namespace camsim::io

@@ -1,0 +1,196 @@
+// The streaming driver and planner: strip-height and thread-count invariance,
+// what the planner leaves out, workspace accounting, no heap while processing.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "tests/support/test_support.h"
+
+// Counts heap allocations in this test binary (for the no-heap test). GCC sees
+// malloc/free behind replaced new/delete and warns; the pairing is correct.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+namespace {
+std::atomic<long> g_allocations{0};
+}
+void* operator new(size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, size_t) noexcept { std::free(p); }
+void operator delete[](void* p, size_t) noexcept { std::free(p); }
+
+namespace camsim {
+namespace {
+
+using test::Build;
+using test::DemoConfig;
+using test::RunFrame;
+
+const PlanEntry* Find(const Plan& p, StageId id) {
+  for (int i = 0; i < p.count; ++i)
+    if (p.entries[i].id == id) return &p.entries[i];
+  return nullptr;
+}
+
+TEST(Pipeline, StripHeightDoesNotChangeOutput) {
+  // Odd sizes so that strips end mid-Bayer-cell and rows reflect at both edges.
+  for (DemosaicMethod method : {DemosaicMethod::kBilinear, DemosaicMethod::kMalvar}) {
+    PipelineConfig c = DemoConfig(67, 53);
+    c.demosaic.method = method;
+    auto b = Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    const test::Scene scene = test::TexturedScene(67, 53);
+    const std::vector<uint32_t> whole = RunFrame(*b, scene, 3, 53);
+    for (int rows : {1, 2, 7, 64}) {
+      EXPECT_EQ(RunFrame(*b, scene, 3, rows), whole) << "strip rows " << rows;
+    }
+    for (uint32_t v : whole) ASSERT_NE(v, 0xDEADBEEFu) << "an output pixel was never written";
+  }
+}
+
+TEST(Pipeline, ThreadCountDoesNotChangeOutput) {
+  PipelineConfig c = DemoConfig(96, 80);
+  const test::Scene scene = test::TexturedScene(96, 80);
+  auto one = Build(c, 1);
+  ASSERT_TRUE(one->status.ok());
+  const std::vector<uint32_t> reference = RunFrame(*one, scene, 0, 80);
+  for (int threads : {2, 3, 4}) {
+    auto b = Build(c, threads);
+    ASSERT_TRUE(b->status.ok());
+    EXPECT_EQ(test::RunFrameThreads(*b, scene, 0, 5, threads), reference) << threads << " threads";
+  }
+}
+
+TEST(Pipeline, NoiseIsKeyedByFrameAndSeed) {
+  PipelineConfig c = DemoConfig(32, 32);
+  const test::Scene scene = test::FlatScene(32, 32, 0.3, 0.3, 0.3);
+  auto b = Build(c);
+  ASSERT_TRUE(b->status.ok());
+  const auto f0 = RunFrame(*b, scene, 0, 32);
+  EXPECT_EQ(RunFrame(*b, scene, 0, 32), f0);
+  EXPECT_NE(RunFrame(*b, scene, 1, 32), f0);
+  c.seed = 2;
+  auto b2 = Build(c);
+  EXPECT_NE(RunFrame(*b2, scene, 0, 32), f0);
+}
+
+TEST(Pipeline, PlannerLeavesOutIdentityStagesAndSaysWhy) {
+  PipelineConfig c;  // all defaults: identity vignetting, WB, CCM, gamma
+  c.geometry.width = 16;
+  c.geometry.height = 8;
+  auto b = Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const Plan& p = b->pipeline.plan();
+  EXPECT_EQ(p.count, kStageCount);
+  EXPECT_FALSE(Find(p, StageId::kVignetting)->runs);
+  EXPECT_STREQ(Find(p, StageId::kVignetting)->reason, "vignetting.mode is off");
+  EXPECT_FALSE(Find(p, StageId::kWhiteBalance)->runs);
+  EXPECT_FALSE(Find(p, StageId::kColorMatrix)->runs);
+  EXPECT_FALSE(Find(p, StageId::kGamma)->runs);
+  EXPECT_TRUE(Find(p, StageId::kSensor)->runs);
+  EXPECT_TRUE(Find(p, StageId::kDemosaic)->runs);
+  EXPECT_EQ(p.running, 5);
+  EXPECT_EQ(p.output.domain, Domain::kLinear);
+  EXPECT_EQ(p.output.channels, 3);
+}
+
+TEST(Pipeline, StageSubsetsChainOrFailClearly) {
+  PipelineConfig c = DemoConfig(16, 16);
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kDemosaic;  // demosaic needs a mosaic, not RGB photons
+  c.order_count = 2;
+  auto b = Build(c);
+  ASSERT_FALSE(b->status.ok());
+  EXPECT_STREQ(b->status.field(), "demosaic");
+
+  c.order[1] = StageId::kVignetting;
+  auto ok = Build(c);
+  ASSERT_TRUE(ok->status.ok());
+  EXPECT_EQ(ok->pipeline.plan().output.domain, Domain::kPhotons);
+
+  c.order[1] = StageId::kExposure;  // listed twice
+  EXPECT_FALSE(Build(c)->status.ok());
+}
+
+TEST(Pipeline, MonoSensorSkipsNothingItNeedsAndRefusesDemosaic) {
+  PipelineConfig c = DemoConfig(16, 16);
+  c.geometry.cfa = Cfa::kMono;
+  auto b = Build(c);
+  ASSERT_FALSE(b->status.ok());  // demosaic of a mono sensor is a configuration error
+  c.order_count = 4;             // exposure, vignetting, cfa, sensor
+  auto raw = Build(c);
+  ASSERT_TRUE(raw->status.ok()) << raw->status.message();
+  EXPECT_EQ(raw->pipeline.plan().output.channels, 1);
+  EXPECT_FALSE(raw->pipeline.plan().output.mosaic);
+}
+
+TEST(Pipeline, WorkspaceTooSmallIsAConfigurationError) {
+  PipelineConfig c = DemoConfig(64, 32);
+  Pipeline p;
+  ASSERT_TRUE(p.Configure(c, 2, false).ok());
+  std::vector<uint8_t> ws(p.WorkspaceBytes() - 1);
+  const Status s = p.Init(Span<uint8_t>{ws.data(), ws.size()});
+  EXPECT_EQ(s.code(), StatusCode::kResourceExhausted);
+  // Any alignment of the caller's buffer works when it is WorkspaceBytes() long.
+  std::vector<uint8_t> big(p.WorkspaceBytes() + 7);
+  for (size_t skew = 0; skew < 4; ++skew)
+    EXPECT_TRUE(p.Init(Span<uint8_t>{big.data() + skew, p.WorkspaceBytes()}).ok());
+}
+
+TEST(Pipeline, WorkspaceGrowsWithWidthNotHeight) {
+  PipelineConfig a = DemoConfig(640, 480), b = DemoConfig(640, 4800);
+  Pipeline pa, pb;
+  ASSERT_TRUE(pa.Configure(a, 1, false).ok());
+  ASSERT_TRUE(pb.Configure(b, 1, false).ok());
+  EXPECT_EQ(pa.WorkerBytes(), pb.WorkerBytes());  // line rings, no frame buffers
+}
+
+TEST(Pipeline, NoHeapAllocationWhileProcessing) {
+  PipelineConfig c = DemoConfig(128, 64);
+  auto b = Build(c);
+  ASSERT_TRUE(b->status.ok());
+  const test::Scene scene = test::TexturedScene(128, 64);
+  std::vector<uint32_t> out(128 * 64 * 3);
+  Tap t;
+  t.format = TapFormat::kU32;
+  t.data = out.data();
+  t.stride = 128 * 3;
+  WorkerStats stats;
+  const FrameInput in = scene.View();
+  const long before = g_allocations.load();
+  for (uint32_t frame = 0; frame < 3; ++frame) b->pipeline.ProcessFrame(in, frame, 7, &t, 1, &stats, nullptr);
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_GT(stats.stage[0].count[0], 0);  // the work did happen
+}
+
+TEST(Pipeline, CheckInputRejectsWrongSizes) {
+  PipelineConfig c = DemoConfig(32, 16);
+  auto b = Build(c);
+  const test::Scene wrong = test::FlatScene(31, 16, 1, 1, 1);
+  EXPECT_FALSE(b->pipeline.CheckInput(wrong.View()).ok());
+  const test::Scene right = test::FlatScene(32, 16, 1, 1, 1);
+  EXPECT_TRUE(b->pipeline.CheckInput(right.View()).ok());
+}
+
+TEST(Pipeline, TinyFramesWork) {
+  for (auto [w, h] : {std::pair{1, 1}, {1, 7}, {7, 1}, {2, 2}, {3, 5}}) {
+    PipelineConfig c = DemoConfig(64, 64);
+    c.geometry.width = w;
+    c.geometry.height = h;
+    auto b = Build(c);
+    ASSERT_TRUE(b->status.ok()) << w << "x" << h << ": " << b->status.message();
+    const test::Scene scene = test::TexturedScene(w, h);
+    const auto whole = RunFrame(*b, scene, 0, h);
+    EXPECT_EQ(RunFrame(*b, scene, 0, 1), whole);
+    for (uint32_t v : whole) EXPECT_LE(v, 65535u);
+  }
+}
+
+}  // namespace
+}  // namespace camsim

@@ -1,0 +1,255 @@
+// The sensor path (exposure, CFA, EMVA 1288 sensor): statistics on flat fields
+// follow the model, fixed patterns measure as configured, saturation, Bayer
+// phases, and each stage against its double reference.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/aperture/exposure.h"
+#include "core/lens/vignetting.h"
+#include "core/sensor/emva.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+// Exposure giving exactly 1000 photons per unit radiance: c = 1000 /ms, 1 ms, f/1.
+PipelineConfig SensorOnly(int w, int h, Cfa cfa) {
+  PipelineConfig c;
+  c.geometry = {w, h, cfa, 12};
+  c.exposure.exposure_time_us = 1000.0;
+  c.exposure.f_number = 1.0;
+  c.exposure.photons_per_radiance_ms = 1000.0;
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kCfa;
+  c.order[2] = StageId::kSensor;
+  c.order_count = 3;
+  return c;
+}
+
+SensorConfig Noiseless() {
+  SensorConfig s;
+  s.shot_noise = false;
+  s.dark_noise_e = 0;
+  s.dsnu_e = 0;
+  s.prnu_percent = 0;
+  s.dark_current_e_per_s = 0;
+  return s;
+}
+
+struct Moments {
+  double mean = 0, var = 0;
+};
+Moments Of(const std::vector<double>& v) {
+  Moments m;
+  for (double x : v) m.mean += x;
+  m.mean /= v.size();
+  for (double x : v) m.var += (x - m.mean) * (x - m.mean);
+  m.var /= (v.size() - 1);
+  return m;
+}
+
+std::vector<double> AsDouble(const std::vector<uint32_t>& v) { return std::vector<double>(v.begin(), v.end()); }
+
+TEST(Sensor, PhotonTransferFollowsEmva1288) {
+  constexpr int kSize = 128;  // 16384 pixels: variance known to ~1.1 % (1 sigma)
+  PipelineConfig c = SensorOnly(kSize, kSize, Cfa::kMono);
+  c.sensor.dsnu_e = 0;
+  c.sensor.prnu_percent = 0;
+  c.sensor.dark_current_e_per_s = 0;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const double K = c.sensor.system_gain_dn_per_e, qe = c.sensor.quantum_efficiency[kGreen];
+  const double sd = c.sensor.dark_noise_e, bl = c.sensor.black_level_dn;
+  for (double radiance : {0.01, 0.5, 2.0, 8.0}) {
+    const test::Scene s = test::FlatScene(kSize, kSize, radiance, radiance, radiance);
+    const auto a = test::RunFrame(*b, s, 10, 16), bb = test::RunFrame(*b, s, 11, 16);
+    std::vector<double> diff(a.size());
+    for (size_t i = 0; i < a.size(); ++i) diff[i] = double(a[i]) - double(bb[i]);
+    const double mu_e = 1000.0 * radiance * qe;
+    const Moments ma = Of(AsDouble(a));
+    const double temporal_var = Of(diff).var / 2.0;
+    const double expected_var = K * K * (sd * sd + mu_e) + 1.0 / 12.0;
+    EXPECT_NEAR(ma.mean - bl, K * mu_e, 0.02 * K * mu_e + 0.05) << "radiance " << radiance;
+    // 5 % covers 4 sigma of the variance estimate.
+    EXPECT_NEAR(temporal_var, expected_var, 0.05 * expected_var) << "radiance " << radiance;
+  }
+}
+
+TEST(Sensor, DsnuAndPrnuMeasureAsConfigured) {
+  constexpr int kSize = 96, kFrames = 16;
+  PipelineConfig c = SensorOnly(kSize, kSize, Cfa::kMono);
+  c.sensor.dsnu_e = 8.0;
+  c.sensor.prnu_percent = 2.0;
+  c.sensor.dark_noise_e = 2.0;
+  c.sensor.dark_current_e_per_s = 0;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok());
+  const double K = c.sensor.system_gain_dn_per_e, qe = c.sensor.quantum_efficiency[kGreen];
+  // EMVA 1288: spatial variance of the frame average minus the temporal share.
+  auto spatial_var = [&](double radiance, double* mean) {
+    const test::Scene s = test::FlatScene(kSize, kSize, radiance, radiance, radiance);
+    std::vector<double> avg(kSize * kSize, 0.0);
+    std::vector<uint32_t> f0, f1;
+    for (int f = 0; f < kFrames; ++f) {
+      const auto img = test::RunFrame(*b, s, static_cast<uint32_t>(f), 32);
+      if (f == 0) f0 = img;
+      if (f == 1) f1 = img;
+      for (size_t i = 0; i < img.size(); ++i) avg[i] += img[i] / double(kFrames);
+    }
+    std::vector<double> diff(f0.size());
+    for (size_t i = 0; i < f0.size(); ++i) diff[i] = double(f0[i]) - double(f1[i]);
+    const double temporal = Of(diff).var / 2.0;
+    const Moments m = Of(avg);
+    *mean = m.mean;
+    return m.var - temporal / kFrames;
+  };
+  double dark_mean = 0, bright_mean = 0;
+  const double dsnu_dn = std::sqrt(spatial_var(0.0, &dark_mean));
+  EXPECT_NEAR(dsnu_dn / K, 8.0, 0.8);  // 10 %: 9216 pixels
+  const double mu_e = 1000.0 * 6.0 * qe;
+  const double bright_spatial = spatial_var(6.0, &bright_mean);
+  const double prnu = std::sqrt(bright_spatial - dsnu_dn * dsnu_dn) / (bright_mean - dark_mean);
+  EXPECT_NEAR(prnu, 0.02, 0.002);
+  EXPECT_NEAR((bright_mean - dark_mean) / K, mu_e, 0.01 * mu_e);
+}
+
+TEST(Sensor, FixedPatternsAreTheSameEveryFrame) {
+  PipelineConfig c = SensorOnly(32, 32, Cfa::kMono);
+  c.sensor = Noiseless();
+  c.sensor.dsnu_e = 5.0;
+  c.sensor.prnu_percent = 3.0;
+  auto b = test::Build(c);
+  const test::Scene s = test::FlatScene(32, 32, 2.0, 2.0, 2.0);
+  const auto f0 = test::RunFrame(*b, s, 0, 32);
+  EXPECT_EQ(test::RunFrame(*b, s, 7, 32), f0);   // no temporal noise: identical
+  EXPECT_NE(f0[0], f0[1] + 0 * f0[2]);           // but not flat (a pattern exists)
+  const Moments m = Of(AsDouble(f0));
+  EXPECT_GT(m.var, 1.0);
+}
+
+TEST(Sensor, SaturatesAtFullWellAndAdcMax) {
+  PipelineConfig c = SensorOnly(16, 16, Cfa::kBayerRG);
+  c.sensor = Noiseless();
+  auto b = test::Build(c);
+  const test::Scene s = test::FlatScene(16, 16, 1000.0, 1000.0, 1000.0);  // 1e6 photons
+  // K * full well = 0.375 * 10500 = 3937.5 -> 3938 (ties up), + black level 64.
+  for (uint32_t v : test::RunFrame(*b, s, 0, 16)) ASSERT_EQ(v, 4002u);
+  c.sensor.shot_noise = true;  // Poisson of a huge mean is still clipped at the full well
+  auto noisy = test::Build(c);
+  for (uint32_t v : test::RunFrame(*noisy, s, 0, 16)) ASSERT_EQ(v, 4002u);
+  c.sensor.gain_db = 12.0;  // K * 3.98: past the ADC's 4095
+  auto gained = test::Build(c);
+  for (uint32_t v : test::RunFrame(*gained, s, 0, 16)) ASSERT_EQ(v, 4095u);
+}
+
+TEST(Sensor, BayerPhasePutsEachColourOnItsSites) {
+  for (Cfa cfa : {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG}) {
+    for (int colour = 0; colour < 3; ++colour) {
+      PipelineConfig c = SensorOnly(8, 6, cfa);
+      c.sensor = Noiseless();
+      c.sensor.black_level_dn = 0;
+      auto b = test::Build(c);
+      ASSERT_TRUE(b->status.ok());
+      const double rgb[3] = {colour == 0 ? 1.0 : 0.0, colour == 1 ? 1.0 : 0.0, colour == 2 ? 1.0 : 0.0};
+      const auto out = test::RunFrame(*b, test::FlatScene(8, 6, rgb[0], rgb[1], rgb[2]), 0, 6);
+      for (int y = 0; y < 6; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const uint32_t v = out[y * 8 + x];
+          if (CfaColour(cfa, x, y) == colour) {
+            EXPECT_GT(v, 100u) << CfaName(cfa) << " " << x << "," << y;
+          } else {
+            EXPECT_EQ(v, 0u) << CfaName(cfa) << " " << x << "," << y;
+          }
+        }
+    }
+  }
+  // The names: BayerRG starts R G / G B; BayerBG is the paper's eq. 20-22 (blue at 0,0).
+  EXPECT_EQ(CfaColour(Cfa::kBayerRG, 0, 0), kRed);
+  EXPECT_EQ(CfaColour(Cfa::kBayerRG, 1, 1), kBlue);
+  EXPECT_EQ(CfaColour(Cfa::kBayerBG, 0, 0), kBlue);
+  EXPECT_EQ(CfaColour(Cfa::kBayerBG, 1, 1), kRed);
+  EXPECT_EQ(CfaColour(Cfa::kBayerGR, 1, 0), kRed);
+  EXPECT_EQ(CfaColour(Cfa::kBayerGB, 0, 1), kRed);
+}
+
+// Bounds of each stage against its double reference (stated, then measured).
+constexpr double kExposureMaxErrorPhotons = 0.5 / 256 + 1e-6;  // one Q24.8 rounding (+ factor rounding)
+constexpr double kSensorMaxErrorDn = 0.5 + 0.01;                // one final rounding (+ Q.8 charge)
+
+TEST(Sensor, ExposureMatchesReference) {
+  ExposureConfig e;
+  e.exposure_time_us = 12345.0;
+  e.f_number = 4.0;
+  ExposureStage st;
+  ASSERT_TRUE(st.Configure(e).ok());
+  double worst = 0;
+  for (double r : {0.0, 1e-4, 0.01, 0.18, 1.0, 3.14159, 400.0}) {
+    const uint32_t in = Q<16, 16>::FromDouble(r).raw;
+    const double fixed = st.factor().Apply(in) / 256.0;
+    const double ref = ReferenceExposure(e, in / 65536.0);
+    worst = std::max(worst, std::abs(fixed - ref) / std::max(1.0, ref * 1e-6));
+    EXPECT_NEAR(fixed, ref, kExposureMaxErrorPhotons + ref * 1e-9) << r;
+  }
+  RecordProperty("exposure_max_error_photons", std::to_string(worst));
+}
+
+TEST(Sensor, NoiselessSensorMatchesReference) {
+  PipelineConfig c = SensorOnly(64, 1, Cfa::kBayerGB);
+  c.sensor = Noiseless();
+  c.sensor.dark_current_e_per_s = 50.0;
+  c.sensor.temperature_c = 39.0;  // two doublings
+  c.sensor.gain_db = 6.0;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok());
+  test::Scene s = test::FlatScene(64, 1, 0, 0, 0);
+  for (int x = 0; x < 64; ++x)
+    for (int ch = 0; ch < 3; ++ch) s.plane[ch][x] = static_cast<uint32_t>((x * 977 + ch * 31) * 61);
+  const auto out = test::RunFrame(*b, s, 0, 1);
+  double worst = 0;
+  for (int x = 0; x < 64; ++x) {
+    const Colour col = CfaColour(c.geometry.cfa, x, 0);
+    const double photons = ReferenceExposure(c.exposure, s.plane[col][x] / 65536.0);
+    const double ref = ReferenceSensorMeanDn(c.sensor, c.geometry, c.exposure.exposure_time_us, col, photons);
+    worst = std::max(worst, std::abs(out[x] - ref));
+    EXPECT_NEAR(out[x], ref, kSensorMaxErrorDn) << x;
+  }
+  RecordProperty("sensor_max_error_dn", std::to_string(worst));
+}
+
+TEST(Sensor, VignettingMatchesReference) {
+  for (VignettingMode mode : {VignettingMode::kCos4, VignettingMode::kTable}) {
+    PipelineConfig c;
+    c.geometry = {97, 61, Cfa::kBayerRG, 12};
+    c.vignetting.mode = mode;
+    c.vignetting.focal_length_px = 60.0;  // strong fall-off: corner gain ~0.4
+    const double table[5] = {1.0, 0.95, 0.8, 0.6, 0.3};
+    for (int i = 0; i < 5; ++i) c.vignetting.table[i] = table[i];
+    c.vignetting.table_count = 5;
+    c.exposure.exposure_time_us = 1000.0;
+    c.exposure.f_number = 1.0;
+    c.exposure.photons_per_radiance_ms = 1000.0;
+    c.order[0] = StageId::kExposure;
+    c.order[1] = StageId::kVignetting;
+    c.order_count = 2;
+    auto b = test::Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    const test::Scene s = test::FlatScene(97, 61, 10.0, 10.0, 10.0);  // 10 000 photons
+    const auto out = test::RunFrame(*b, s, 0, 61);
+    double worst = 0;
+    for (int y = 0; y < 61; ++y)
+      for (int x = 0; x < 97; ++x) {
+        const double ref = 10000.0 * ReferenceVignettingGain(c.vignetting, c.geometry, x, y);
+        const double got = out[(y * 97 + x) * 3] / 256.0;
+        worst = std::max(worst, std::abs(got - ref));
+      }
+    // Gain quantised to Q2.14 and the 257-point curve: relative 1e-4 of 10 000 photons.
+    EXPECT_LT(worst, 1.0) << int(mode);
+    // Corners are exactly the curve's end point, the centre exactly 1.
+    EXPECT_NEAR(out[0] / 256.0, 10000.0 * ReferenceVignettingGain(c.vignetting, c.geometry, 0, 0), 1.0);
+    EXPECT_EQ(out[(30 * 97 + 48) * 3], 10000u * 256u);
+  }
+}
+
+}  // namespace
+}  // namespace camsim
