@@ -4,13 +4,14 @@ namespace camsim {
 namespace {
 
 using Coefficient = Q<5, ColorMatrixStage::kFracBits, true>;
-using RowSum = Q<7, ColorMatrixStage::kFracBits, true>;  // 3 * 16 < 2^7
+using RowSum = Q<7, ColorMatrixStage::kFracBits, true>;  // 3 * 16 < 2^7; 7 + 24 + sign = 32 bits
 constexpr int32_t kMaxRaw = 16 << ColorMatrixStage::kFracBits;
 constexpr int32_t kOneRaw = 1 << ColorMatrixStage::kFracBits;
 
 }  // namespace
 
-Status ColorMatrixStage::Configure(const ColorMatrixConfig& c, const SensorGeometry& /*geometry*/) {
+Status ColorMatrixStage::Configure(const ColorMatrixConfig& c, const SensorGeometry& geometry) {
+  mono_ = geometry.cfa == Cfa::kMono;
   for (double v : c.m)
     if (!(v >= -kMaxCoefficient && v <= kMaxCoefficient))
       return InvalidArgument("color_matrix.m", "each coefficient must be in [-16, 16]");
@@ -42,6 +43,7 @@ Result<LineFormat> ColorMatrixStage::Plan(LineFormat in) const {
 }
 
 const char* ColorMatrixStage::IdentityReason() const {
+  if (mono_) return "sensor.cfa is Mono: there is no colour to correct";
   for (int i = 0; i < 9; ++i)
     if (q_[i] != (i % 4 == 0 ? kOneRaw : 0)) return nullptr;
   return "colour matrix is the identity";

@@ -90,6 +90,10 @@ Status DemosaicStage::Configure(const DemosaicConfig& c, const SensorGeometry& g
   return Status::Ok();
 }
 
+const char* DemosaicStage::IdentityReason() const {
+  return cfa_ == Cfa::kMono ? "sensor.cfa is Mono: there is no mosaic to interpolate" : nullptr;
+}
+
 Result<LineFormat> DemosaicStage::Plan(LineFormat in) const {
   if (cfa_ == Cfa::kMono)
     return InvalidArgument("demosaic", "demosaic needs a Bayer mosaic; the CFA is mono");

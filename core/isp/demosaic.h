@@ -38,7 +38,9 @@ class DemosaicStage final : public Stage {
   const char* name() const override { return "demosaic"; }
   // Refuses anything but a 1-channel linear Bayer mosaic (e.g. a mono CFA).
   Result<LineFormat> Plan(LineFormat in) const override;
-  // Never identity: it changes 1 channel into 3.
+  // Left out only for a mono sensor (nothing to interpolate); otherwise it
+  // changes 1 channel into 3.
+  const char* IdentityReason() const override;
   int RowsAbove() const override { return radius_; }
   int RowsBelow() const override { return radius_; }
   int Margin() const override { return radius_; }

@@ -30,11 +30,11 @@ constexpr double kWhiteBalanceMaxErr = 0.5 + 1e-3;
 // Demosaic: exact integer sums and one rounding, for both methods.
 constexpr double kBilinearMaxErr = 0.5;
 constexpr double kMalvarMaxErr = 0.5;
-// Colour matrix against the quantised (Q5.14) coefficients it uses: one rounding.
+// Colour matrix against the quantised (Q5.24) coefficients it uses: one rounding.
 constexpr double kColorMatrixMaxErr = 0.5;
 // ... and against the configured doubles: plus each row's coefficient rounding
-// (row sum and two off-diagonals, 2^-15 each) on samples up to 65535.
-constexpr double kColorMatrixConfigMaxErr = 0.5 + 3.0 * 65535.0 / 32768.0;
+// (row sum and two off-diagonals, 2^-25 each) on samples up to 65535.
+constexpr double kColorMatrixConfigMaxErr = 0.5 + 3.0 * 65535.0 / 33554432.0;
 // Gamma: one rounding per table entry, plus a margin for the curve's double
 // evaluation (detmath::Pow and libm's pow are within an ulp, ~1e-11 LSB).
 constexpr double kGammaMaxErr = 0.5 + 1e-4;
@@ -480,7 +480,7 @@ ColorMatrixConfig Matrix(std::initializer_list<double> m) {
 // The coefficients the stage uses, as doubles.
 std::vector<double> Quantised(const ColorMatrixStage& stage) {
   std::vector<double> q(9);
-  for (int i = 0; i < 9; ++i) q[i] = stage.coefficient(i) / 16384.0;
+  for (int i = 0; i < 9; ++i) q[i] = std::ldexp(static_cast<double>(stage.coefficient(i)), -ColorMatrixStage::kFracBits);
   return q;
 }
 
@@ -494,7 +494,7 @@ TEST(IspColorMatrix, IdentityGivesTheInput) {
 }
 
 TEST(IspColorMatrix, ExactSmallCase) {
-  // Coefficients on the Q.14 grid: exact products, one rounding (ties up).
+  // Coefficients on the Q.24 grid: exact products, one rounding (ties up).
   ColorMatrixStage stage;
   ASSERT_TRUE(stage.Configure(Matrix({0.5, 0.25, 0.25, -0.5, 2.0, -0.5, 0, 0, 1}), Geometry(2, 1)).ok());
   EXPECT_EQ(stage.IdentityReason(), nullptr);
@@ -509,7 +509,7 @@ TEST(IspColorMatrix, ExactSmallCase) {
 }
 
 TEST(IspColorMatrix, WhitePreservingRowsKeepGreyExactly) {
-  // Rows summing to 1 whose coefficients are not on the Q.14 grid: the
+  // Rows summing to 1 whose coefficients are not on the Q.24 grid: the
   // diagonal takes each row's rounding remainder, so grey stays grey.
   ColorMatrixStage stage;
   ASSERT_TRUE(
@@ -548,8 +548,8 @@ TEST(IspColorMatrix, Validation) {
   ExpectInvalid(stage.Configure(Matrix({1, 0, 16.5, 0, 1, 0, 0, 0, 1}), g), "color_matrix.m");
   ExpectInvalid(stage.Configure(Matrix({1, 0, 0, 0, 1, 0, 0, 0, -16.01}), g), "color_matrix.m");
   // In range, but the diagonal 16 cannot take the row's rounding remainder:
-  // the off-diagonals round to 0, the row sum to 16 + 2^-14.
-  ExpectInvalid(stage.Configure(Matrix({16, 0.00002, 0.00002, 0, 1, 0, 0, 0, 1}), g), "color_matrix.m");
+  // the off-diagonals (2e-8 < 2^-25) round to 0, the row sum to 16 + 2^-24.
+  ExpectInvalid(stage.Configure(Matrix({16, 2e-8, 2e-8, 0, 1, 0, 0, 0, 1}), g), "color_matrix.m");
   EXPECT_TRUE(stage.Configure(Matrix({16, -16, 16, 0, 1, 0, 0, 0, 1}), g).ok());
   EXPECT_FALSE(stage.Plan(LineFormat{Domain::kLinear, 1, true}).ok());
 }

@@ -118,16 +118,23 @@ TEST(Pipeline, StageSubsetsChainOrFailClearly) {
   EXPECT_FALSE(Build(c)->status.ok());
 }
 
-TEST(Pipeline, MonoSensorSkipsNothingItNeedsAndRefusesDemosaic) {
+TEST(Pipeline, MonoSensorLeavesOutDemosaicAndColourMatrix) {
   PipelineConfig c = DemoConfig(16, 16);
   c.geometry.cfa = Cfa::kMono;
+  c.color_matrix.m[1] = 0.1;  // not the identity: left out for being mono, not for being identity
+  c.color_matrix.m[0] = 0.9;
   auto b = Build(c);
-  ASSERT_FALSE(b->status.ok());  // demosaic of a mono sensor is a configuration error
-  c.order_count = 4;             // exposure, vignetting, cfa, sensor
-  auto raw = Build(c);
-  ASSERT_TRUE(raw->status.ok()) << raw->status.message();
-  EXPECT_EQ(raw->pipeline.plan().output.channels, 1);
-  EXPECT_FALSE(raw->pipeline.plan().output.mosaic);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const Plan& p = b->pipeline.plan();
+  EXPECT_FALSE(Find(p, StageId::kDemosaic)->runs);
+  EXPECT_STREQ(Find(p, StageId::kDemosaic)->reason, "sensor.cfa is Mono: there is no mosaic to interpolate");
+  EXPECT_FALSE(Find(p, StageId::kColorMatrix)->runs);
+  EXPECT_TRUE(Find(p, StageId::kGamma)->runs);
+  EXPECT_EQ(p.output.channels, 1);
+  EXPECT_FALSE(p.output.mosaic);
+  const test::Scene s = test::FlatScene(16, 16, 0.5, 0.5, 0.5);
+  const auto out = RunFrame(*b, s, 0, 16);
+  EXPECT_EQ(out.size(), 16u * 16u);
 }
 
 TEST(Pipeline, WorkspaceTooSmallIsAConfigurationError) {

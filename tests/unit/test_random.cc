@@ -1,0 +1,288 @@
+#include "core/base/random.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "core/base/detmath.h"
+
+namespace camsim {
+namespace {
+
+// FNV-1a 64 over the little-endian bytes of 32-bit words (platform independent).
+class Fnv1a {
+ public:
+  void Add(uint32_t w) {
+    for (int i = 0; i < 4; ++i) {
+      h_ ^= (w >> (8 * i)) & 0xFFu;
+      h_ *= 0x100000001B3ull;
+    }
+  }
+  uint64_t value() const { return h_; }
+
+ private:
+  uint64_t h_ = 0xCBF29CE484222325ull;
+};
+
+// Known-answer vectors from Random123's kat_vectors (philox4x32 10):
+// counter (4 words), key (2 words) -> output (4 words).
+TEST(PhiloxTest, Random123KnownAnswers) {
+  struct Kat {
+    uint32_t ctr[4], key[2], out[4];
+  };
+  const Kat kats[] = {
+      {{0x00000000, 0x00000000, 0x00000000, 0x00000000}, {0x00000000, 0x00000000},
+       {0x6627e8d5, 0xe169c58d, 0xbc57ac4c, 0x9b00dbd8}},
+      {{0xffffffff, 0xffffffff, 0xffffffff, 0xffffffff}, {0xffffffff, 0xffffffff},
+       {0x408f276d, 0x41c83b0e, 0xa20bc7c6, 0x6d5451fd}},
+      {{0x243f6a88, 0x85a308d3, 0x13198a2e, 0x03707344}, {0xa4093822, 0x299f31d0},
+       {0xd16cfe09, 0x94fdcceb, 0x5001e420, 0x24126ea1}},
+  };
+  for (const Kat& k : kats) {
+    uint32_t out[4];
+    Philox4x32::Generate(k.ctr, k.key, out);
+    for (int i = 0; i < 4; ++i) EXPECT_EQ(out[i], k.out[i]) << "word " << i;
+  }
+}
+
+TEST(DrawBitsTest, KeyingIsAsDocumented) {
+  const uint64_t seed = 0x0123456789ABCDEFull;
+  const uint32_t stream = 7;
+  const uint32_t ctr[4] = {100, 200, 3, 1};  // x, y, frame, draw
+  const uint32_t key[2] = {0x89ABCDEFu, 0x01234567u ^ (7u * 0x9E3779B9u)};
+  uint32_t expect[4];
+  Philox4x32::Generate(ctr, key, expect);
+  const RandomBits b = DrawBits(seed, stream, /*frame=*/3, /*x=*/100, /*y=*/200, /*draw=*/1);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(b.v[i], expect[i]);
+  // Literal guard: any change to the keying or the counter layout shows here.
+  EXPECT_EQ(b.v[0], 0u);
+  EXPECT_EQ(b.v[1], 0u);
+  EXPECT_EQ(b.v[2], 0u);
+  EXPECT_EQ(b.v[3], 0u);
+}
+
+TEST(DrawBitsTest, DeterministicAndSensitiveToEveryInput) {
+  auto same = [](RandomBits a, RandomBits b) {
+    return a.v[0] == b.v[0] && a.v[1] == b.v[1] && a.v[2] == b.v[2] && a.v[3] == b.v[3];
+  };
+  const RandomBits base = DrawBits(42, 1, 2, 3, 4, 5);
+  EXPECT_TRUE(same(base, DrawBits(42, 1, 2, 3, 4, 5)));
+  EXPECT_FALSE(same(base, DrawBits(43, 1, 2, 3, 4, 5)));
+  EXPECT_FALSE(same(base, DrawBits(42 | (1ull << 40), 1, 2, 3, 4, 5)));  // high seed word
+  EXPECT_FALSE(same(base, DrawBits(42, 2, 2, 3, 4, 5)));
+  EXPECT_FALSE(same(base, DrawBits(42, 1, 3, 3, 4, 5)));
+  EXPECT_FALSE(same(base, DrawBits(42, 1, 2, 4, 4, 5)));
+  EXPECT_FALSE(same(base, DrawBits(42, 1, 2, 3, 5, 5)));
+  EXPECT_FALSE(same(base, DrawBits(42, 1, 2, 3, 4, 6)));
+  EXPECT_FALSE(same(DrawBits(42, 1, 0, 3, 4), DrawBits(42, 1, 0, 4, 3)));  // x and y not interchangeable
+}
+
+class GaussianTest : public ::testing::Test {
+ protected:
+  void SetUp() override { ASSERT_TRUE(table_.Build({storage_.data(), storage_.size()}).ok()); }
+  std::vector<int32_t> storage_ = std::vector<int32_t>(GaussianTable::kEntries);
+  GaussianTable table_;
+};
+
+TEST(GaussianTableTest, BuildNeedsStorage) {
+  std::vector<int32_t> small(GaussianTable::kEntries - 1);
+  GaussianTable t;
+  EXPECT_EQ(t.Build({small.data(), small.size()}).code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(t.Build({nullptr, GaussianTable::kEntries}).code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(GaussianTable::kEntries * sizeof(int32_t), 8320u);
+}
+
+// The documented bound: |Sample(u) - InvNormalCdf((u + 0.5) / 2^32)| <= 2.5e-5
+// (measured 2.03e-5), checked on a stride through all u plus every segment's
+// ends and the extreme tails.
+TEST_F(GaussianTest, MatchesExactQuantileOfBucketMidpoint) {
+  double worst = 0.0;
+  auto check = [&](uint32_t u) {
+    const double exact = detmath::InvNormalCdf((static_cast<double>(u) + 0.5) * 0x1p-32);
+    worst = std::max(worst, std::fabs(table_.Sample(u) / 65536.0 - exact));
+  };
+  for (uint64_t u = 0; u < (uint64_t{1} << 32); u += 65521) check(static_cast<uint32_t>(u));
+  for (int s = 0; s < 31; ++s) {
+    for (int d = -2; d <= 2; ++d) {
+      const uint32_t v = (1u << (30 - s)) + static_cast<uint32_t>(d);
+      check(v);
+      check(~v);
+    }
+  }
+  for (uint32_t u = 0; u < 512; ++u) {
+    check(u);
+    check(~u);
+  }
+  EXPECT_LE(worst, 2.5e-5);
+}
+
+TEST_F(GaussianTest, ExactProperties) {
+  EXPECT_EQ(table_.Sample(0), -415364);  // quantile of 2^-33: -6.33795
+  EXPECT_EQ(table_.Sample(0xFFFFFFFFu), 415364);
+  EXPECT_EQ(table_.Sample(0x7FFFFFFFu), 0);
+  EXPECT_EQ(table_.Sample(0x80000000u), 0);
+  // Antisymmetric and non-decreasing (sampled, plus across every segment boundary).
+  for (uint64_t u = 0; u + 1 < (uint64_t{1} << 32); u += 9973) {
+    const uint32_t a = static_cast<uint32_t>(u);
+    ASSERT_EQ(table_.Sample(~a), -table_.Sample(a)) << a;
+    ASSERT_LE(table_.Sample(a), table_.Sample(a + 1)) << a;
+  }
+  for (int s = 0; s < 31; ++s) {
+    const uint32_t b = 1u << (30 - s);
+    ASSERT_LE(table_.Sample(b - 1), table_.Sample(b)) << s;
+    ASSERT_LE(table_.Sample(~b), table_.Sample(~b + 1)) << s;
+  }
+}
+
+TEST_F(GaussianTest, MomentsOverConsecutiveCounters) {
+  constexpr int kN = 1 << 20;
+  double sum = 0, sum2 = 0, sum3 = 0, sum4 = 0;
+  int negative = 0;
+  for (uint32_t x = 0; x < kN; ++x) {
+    const double z = table_.Sample(DrawBits(2024, 1, 0, x, 0).v[0]) / 65536.0;
+    sum += z;
+    sum2 += z * z;
+    sum3 += z * z * z;
+    sum4 += z * z * z * z;
+    negative += z < 0;
+  }
+  const double n = kN;
+  // Standard errors for N(0,1): mean 1/sqrt(n), variance sqrt(2/n), third
+  // moment sqrt(15/n), fourth moment sqrt(96/n), sign fraction 0.5/sqrt(n).
+  EXPECT_LE(std::fabs(sum / n), 4.0 / std::sqrt(n));
+  EXPECT_LE(std::fabs(sum2 / n - 1.0), 4.0 * std::sqrt(2.0 / n));
+  EXPECT_LE(std::fabs(sum3 / n), 4.0 * std::sqrt(15.0 / n));
+  EXPECT_LE(std::fabs(sum4 / n - 3.0), 4.0 * std::sqrt(96.0 / n));
+  EXPECT_LE(std::fabs(negative / n - 0.5), 4.0 * 0.5 / std::sqrt(n));
+}
+
+// Bit-exactness guard. To regenerate after an intended change, run the test
+// and copy the "Which is" value from the failure message.
+TEST_F(GaussianTest, GoldenHash) {
+  Fnv1a h;
+  for (uint32_t x = 0; x < 4096; ++x) {
+    const RandomBits b = DrawBits(0xC0FFEEull, 3, 0, x, 0);
+    for (uint32_t w : b.v) h.Add(static_cast<uint32_t>(table_.Sample(w)));
+  }
+  EXPECT_EQ(h.value(), 0ull);
+}
+
+class PoissonTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(gauss_.Build({gstorage_.data(), gstorage_.size()}).ok());
+    ASSERT_TRUE(table_.Build({storage_.data(), storage_.size()}).ok());
+  }
+  uint32_t Draw(uint32_t lambda_q8, uint32_t x, uint32_t y) const {
+    const RandomBits b = DrawBits(77, 2, 0, x, y);
+    return table_.Sample(lambda_q8, b.v[0], gauss_.Sample(b.v[1]));
+  }
+  std::vector<int32_t> gstorage_ = std::vector<int32_t>(GaussianTable::kEntries);
+  std::vector<uint32_t> storage_ = std::vector<uint32_t>(PoissonTable::kEntries);
+  GaussianTable gauss_;
+  PoissonTable table_;
+};
+
+TEST(PoissonTableTest, BuildNeedsStorage) {
+  std::vector<uint32_t> small(PoissonTable::kEntries - 1);
+  PoissonTable t;
+  EXPECT_EQ(t.Build({small.data(), small.size()}).code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(PoissonTable::kEntries * sizeof(uint32_t), 12288u);
+}
+
+TEST_F(PoissonTest, ZeroMeanIsAlwaysZero) {
+  for (uint64_t u = 0; u < (uint64_t{1} << 32); u += 12345677) {
+    EXPECT_EQ(table_.Sample(0, static_cast<uint32_t>(u), 0), 0u);
+  }
+  EXPECT_EQ(table_.Sample(0, 0xFFFFFFFFu, 0), 0u);
+  EXPECT_EQ(table_.Sample(0, 0xFFFFFFFFu, INT32_MAX), 0u);
+}
+
+// P(0) is exact up to table rounding: Sample(q, u) == 0 exactly for
+// u < ceil(table[q] / 2^n), and that threshold is exp(-lambda) * 2^32 +- 1.
+TEST_F(PoissonTest, ProbabilityOfZeroIsExact) {
+  for (uint32_t q : {1u, 3u, 128u, 256u, 768u, 2000u, 3069u, 3071u}) {
+    const uint32_t n = (q * 369u) >> 16;
+    const uint64_t threshold = (uint64_t{storage_[q]} + (uint64_t{1} << n) - 1) >> n;
+    ASSERT_GT(threshold, 0u);
+    EXPECT_EQ(table_.Sample(q, static_cast<uint32_t>(threshold - 1), 0), 0u) << q;
+    EXPECT_EQ(table_.Sample(q, static_cast<uint32_t>(threshold), 0), 1u) << q;
+    EXPECT_NEAR(static_cast<double>(threshold), std::exp(-q / 256.0) * 0x1p32, 1.0) << q;
+  }
+}
+
+TEST_F(PoissonTest, SmallMeansAreMonotoneInUAndBounded) {
+  uint32_t max_k = 0;
+  for (uint32_t q = 0; q < PoissonTable::kSmallQ8; ++q) {
+    max_k = std::max(max_k, table_.Sample(q, 0xFFFFFFFFu, 0));
+  }
+  EXPECT_EQ(max_k, 43u);  // the loop cap never binds
+  EXPECT_LT(max_k, PoissonTable::kMaxSmallCount);
+  for (uint32_t q : {5u, 1000u, 3071u}) {
+    uint32_t prev = 0;
+    for (uint64_t u = 0; u < (uint64_t{1} << 32); u += 65537) {
+      const uint32_t k = table_.Sample(q, static_cast<uint32_t>(u), 0);
+      ASSERT_GE(k, prev) << q << " " << u;
+      prev = k;
+    }
+  }
+}
+
+TEST_F(PoissonTest, LargeMeansSaturateAndNeverOverflow) {
+  // lambda = 2^24 - 1/256: round(lambda + (0 - 1)/6) = 2^24.
+  EXPECT_EQ(table_.Sample(0xFFFFFFFFu, 0, 0), 16777216u);
+  // Extreme z: n = lambda + sigma z + (z^2 - 1)/6 with z = +-32768.
+  EXPECT_EQ(table_.Sample(0xFFFFFFFFu, 0, INT32_MAX), 329951913u);
+  EXPECT_EQ(table_.Sample(0xFFFFFFFFu, 0, INT32_MIN), 61516459u);
+  EXPECT_EQ(table_.Sample(PoissonTable::kSmallQ8, 0, INT32_MIN), 0u);
+  // Clamped at 0: lambda = 12, z = -5.5 gives 12 - 5.5 * 3.44 + 29.25/6 = -2.07.
+  EXPECT_EQ(table_.Sample(PoissonTable::kSmallQ8, 0, -5 * 65536 - 32768), 0u);
+  // Non-decreasing in z over the table's range.
+  for (uint32_t q : {PoissonTable::kSmallQ8, 10240u, 0xFFFFFFFFu}) {
+    uint32_t prev = 0;
+    for (int32_t z = -415364; z <= 415364; z += 97) {
+      const uint32_t n = table_.Sample(q, 0, z);
+      ASSERT_GE(n, prev) << q << " " << z;
+      prev = n;
+    }
+  }
+}
+
+// Mean, variance and P(0) over 2^20 draws for each lambda, within 5 standard
+// errors: mean sqrt(lambda/N), variance sqrt((2 lambda^2 + lambda)/N), P(0)
+// sqrt(p(1-p)/N). lambda is the Q24.8 value actually used.
+TEST_F(PoissonTest, MomentsMatchPoisson) {
+  constexpr int kN = 1 << 20;
+  for (const double lambda_in : {0.0, 0.01, 0.5, 3.0, 11.99, 12.0, 40.0, 1000.0, 1e5, 1e6}) {
+    const uint32_t q = static_cast<uint32_t>(lambda_in * 256.0 + 0.5);
+    const double lambda = q / 256.0;
+    double sum = 0, sum2 = 0;
+    int zeros = 0;
+    for (uint32_t i = 0; i < kN; ++i) {
+      const double k = Draw(q, i & 1023, i >> 10);
+      sum += k;
+      sum2 += k * k;
+      zeros += k == 0;
+    }
+    const double mean = sum / kN;
+    const double var = sum2 / kN - mean * mean;
+    EXPECT_LE(std::fabs(mean - lambda), 5.0 * std::sqrt(lambda / kN)) << lambda;
+    EXPECT_LE(std::fabs(var - lambda), 5.0 * std::sqrt((2 * lambda * lambda + lambda) / kN)) << lambda;
+    if (lambda < 12.0) {
+      const double p0 = std::exp(-lambda);
+      EXPECT_LE(std::fabs(zeros / double{kN} - p0), 5.0 * std::sqrt(p0 * (1 - p0) / kN) + 1e-12) << lambda;
+    }
+  }
+}
+
+TEST_F(PoissonTest, GoldenHash) {
+  const uint32_t lambdas[] = {0, 3, 128, 768, 3069, 3072, 10240, 256000, 25600000, 0xFFFFFFFFu};
+  Fnv1a h;
+  for (uint32_t x = 0; x < 4096; ++x) h.Add(Draw(lambdas[x % 10], x, 1));
+  EXPECT_EQ(h.value(), 0ull);  // regenerate as for the Gaussian hash
+}
+
+}  // namespace
+}  // namespace camsim
