@@ -5,6 +5,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
+#include <algorithm>
+#include <cmath>
+
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/io/image_write.h"
 
 #include "host_tools/config.h"
 #include "host_tools/run.h"
@@ -18,7 +24,9 @@ const char kUsage[] =
     "             [--first-frame N] [--dump-stages] [--quiet]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "  camsim config --default          print the annotated default configuration\n"
-    "  camsim config --check FILE       parse and validate a configuration\n";
+    "  camsim config --check FILE       parse and validate a configuration\n"
+    "  camsim preview --input EXR --out PNG [--scale S]\n"
+    "      the ideal (perfect-camera) view of a scene: sRGB of radiance * S, clipped\n";
 
 bool ParseInt(const char* s, long lo, long hi, long* out) {
   char* end = nullptr;
@@ -95,11 +103,52 @@ int Config(int argc, char** argv) {
   return 1;
 }
 
+// The "before" picture: what a perfect camera would show (no noise, no lens,
+// no mosaic): sRGB encoding of radiance * scale, clipped to [0, 1].
+int Preview(int argc, char** argv) {
+  std::string input, output;
+  double scale = 1.0;
+  for (int i = 2; i + 1 < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--input") input = argv[i + 1];
+    else if (a == "--out") output = argv[i + 1];
+    else if (a == "--scale") scale = std::atof(argv[i + 1]);
+    else {
+      std::fprintf(stderr, "camsim: unknown option '%s'\n%s", a.c_str(), kUsage);
+      return 1;
+    }
+  }
+  if (input.empty() || output.empty() || !(scale > 0)) {
+    std::fputs(kUsage, stderr);
+    return 1;
+  }
+  camsim::io::SceneFrame scene;
+  std::string error;
+  if (!camsim::io::LoadSceneExr(input, "", &scene, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  std::vector<uint8_t> rgb(static_cast<size_t>(scene.width) * scene.height * 3);
+  const camsim::io::FloatPlane* planes[3] = {&scene.r, &scene.g, &scene.b};
+  for (size_t i = 0; i < rgb.size() / 3; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double v = std::min(1.0, std::max(0.0, planes[c]->data[i] * scale));
+      const double e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1 / 2.4) - 0.055;
+      rgb[i * 3 + c] = static_cast<uint8_t>(std::lround(e * 255.0));
+    }
+  if (!camsim::io::WritePng(output, rgb.data(), scene.width, scene.height, 3, 8, scene.width * 3, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 2;
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "run") == 0) return Run(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "config") == 0) return Config(argc, argv);
+  if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
   std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
   return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;
 }

@@ -1,6 +1,7 @@
 #include "host_tools/config.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -244,11 +245,11 @@ std::string Suggest(const std::string& wrong) {
   return best.empty() ? "" : " (did you mean '" + best + "'?)";
 }
 
+// Shortest text that reads back as the same double.
 std::string FormatNumber(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  std::string t = s.str();
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  std::string t(buf, r.ptr);
   if (t.find_first_of(".eEn") == std::string::npos) t += ".0";  // keep it a TOML float
   return t;
 }

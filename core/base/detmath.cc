@@ -31,7 +31,7 @@ constexpr DD TwoSum(double a, double b) {
   return {s, (a - (s - bb)) + (b - bb)};
 }
 
-constexpr DD Split(double a) {  // Veltkamp: a = hi + lo with 26-bit halves (|a| < 2^995)
+constexpr DD Split(double a) {       // Veltkamp: a = hi + lo with 26-bit halves (|a| < 2^995)
   const double c = 134217729.0 * a;  // 2^27 + 1
   const double hi = c - (c - a);
   return {hi, a - hi};
@@ -113,7 +113,8 @@ constexpr Series<15> kAtanhSeries = [] {
 constexpr Series<22> kFactorials = InverseFactorials<22>();
 constexpr Series<10> kSinSeries = [] {
   Series<10> s{};
-  for (int j = 0; j < 10; ++j) s.c[j] = (j % 2) ? Neg(kFactorials.c[2 * j + 1]) : kFactorials.c[2 * j + 1];
+  for (int j = 0; j < 10; ++j)
+    s.c[j] = (j % 2) ? Neg(kFactorials.c[2 * j + 1]) : kFactorials.c[2 * j + 1];
   return s;
 }();
 constexpr Series<11> kCosSeries = [] {
@@ -149,13 +150,13 @@ constexpr DD kInvLn2 = {0x1.71547652b82fep+0, 0x1.777d0ffda0d24p-56};
 constexpr DD kPi = {0x1.921fb54442d18p+1, 0x1.1a62633145c07p-53};
 constexpr DD kPiO2 = {0x1.921fb54442d18p+0, 0x1.1a62633145c07p-54};
 constexpr DD kPiO4 = {0x1.921fb54442d18p-1, 0x1.1a62633145c07p-55};
-constexpr DD kAtanHalf = {0x1.dac670561bb4fp-2, 0x1.a2b7f222f65e2p-56};      // atan(1/2)
+constexpr DD kAtanHalf = {0x1.dac670561bb4fp-2, 0x1.a2b7f222f65e2p-56};         // atan(1/2)
 constexpr DD kAtanThreeHalves = {0x1.f730bd281f69bp-1, 0x1.007887af0cbbdp-56};  // atan(3/2)
 constexpr DD kTwoOverSqrtPi = {0x1.20dd750429b6dp+0, 0x1.1ae3a914fed80p-56};
 constexpr double kSqrt2 = 0x1.6a09e667f3bcdp+0;
 constexpr double kInvSqrt2 = 0x1.6a09e667f3bcdp-1;
-constexpr double kSqrt2Pi = 0x1.40d931ff62706p+1;     // sqrt(2 pi)
-constexpr double kInvSqrtPi = 0x1.20dd750429b6dp-1;   // 1/sqrt(pi)
+constexpr double kSqrt2Pi = 0x1.40d931ff62706p+1;    // sqrt(2 pi)
+constexpr double kInvSqrtPi = 0x1.20dd750429b6dp-1;  // 1/sqrt(pi)
 
 // 2^k for k in [-1022, 1023], built from its bits.
 double Pow2(int k) { return std::bit_cast<double>(static_cast<uint64_t>(k + 1023) << 52); }
@@ -233,12 +234,11 @@ DD LogDD(double x) {
 // 2/pi in binary: bit i (i = 1, 2, ...) after the point is bit 31 - (i-1)%32
 // of word (i-1)/32. Enough for the largest double plus a 192-bit window.
 constexpr uint32_t kTwoOverPi[40] = {
-    0xA2F9836E, 0x4E441529, 0xFC2757D1, 0xF534DDC0, 0xDB629599, 0x3C439041, 0xFE5163AB,
-    0xDEBBC561, 0xB7246E3A, 0x424DD2E0, 0x06492EEA, 0x09D1921C, 0xFE1DEB1C, 0xB129A73E,
-    0xE88235F5, 0x2EBB4484, 0xE99C7026, 0xB45F7E41, 0x3991D639, 0x835339F4, 0x9C845F8B,
-    0xBDF9283B, 0x1FF897FF, 0xDE05980F, 0xEF2F118B, 0x5A0A6D1F, 0x6D367ECF, 0x27CB09B7,
-    0x4F463F66, 0x9E5FEA2D, 0x7527BAC7, 0xEBE5F17B, 0x3D0739F7, 0x8A5292EA, 0x6BFB5FB1,
-    0x1F8D5D08, 0x56033046, 0xFC7B6BAB, 0xF0CFBC20, 0x9AF4361D};
+    0xA2F9836E, 0x4E441529, 0xFC2757D1, 0xF534DDC0, 0xDB629599, 0x3C439041, 0xFE5163AB, 0xDEBBC561,
+    0xB7246E3A, 0x424DD2E0, 0x06492EEA, 0x09D1921C, 0xFE1DEB1C, 0xB129A73E, 0xE88235F5, 0x2EBB4484,
+    0xE99C7026, 0xB45F7E41, 0x3991D639, 0x835339F4, 0x9C845F8B, 0xBDF9283B, 0x1FF897FF, 0xDE05980F,
+    0xEF2F118B, 0x5A0A6D1F, 0x6D367ECF, 0x27CB09B7, 0x4F463F66, 0x9E5FEA2D, 0x7527BAC7, 0xEBE5F17B,
+    0x3D0739F7, 0x8A5292EA, 0x6BFB5FB1, 0x1F8D5D08, 0x56033046, 0xFC7B6BAB, 0xF0CFBC20, 0x9AF4361D};
 
 // 64 bits of the little-endian limb array f starting at bit pos.
 uint64_t Bits64(const uint32_t* f, int pos) {
@@ -300,8 +300,9 @@ Reduced ReduceLarge(double ax) {
   const int lz = std::countl_zero(fh);
   const uint64_t top = lz == 0 ? fh : (fh << lz) | (fl >> (64 - lz));
   const uint64_t rest = fl << lz;
-  const DD frac = FastTwoSum(static_cast<double>(top & ~0x7FFull),
-                             static_cast<double>(top & 0x7FF) + static_cast<double>(rest) * 0x1p-64);
+  const DD frac =
+      FastTwoSum(static_cast<double>(top & ~0x7FFull),
+                 static_cast<double>(top & 0x7FF) + static_cast<double>(rest) * 0x1p-64);
   const double scale = 0x1p-64 * Pow2(-lz);
   DD r = Mul(DD{frac.hi * scale, frac.lo * scale}, kPiO2);
   return {q, negative ? Neg(r) : r};
@@ -348,19 +349,21 @@ DD AtanDD(DD t) {
 // 1 - erf(z) keeps full precision too.
 DD ErfDD(double z) { return Mul(Mul(kTwoOverSqrtPi, z), Horner(kErfSeries, TwoProd(z, z))); }
 
-// erfcx(z) = exp(z^2) erfc(z) for z >= 0.45: 1 - erf below 1.5, else the even part of Laplace's continued
-// fraction, 60 levels evaluated bottom-up (truncation < 1e-18 at z = 1.5).
+// erfcx(z) = exp(z^2) erfc(z) for z >= 0.45: 1 - erf below 1.5, else the even
+// part of Laplace's continued fraction, 60 levels evaluated bottom-up
+// (truncation < 1e-18 at z = 1.5).
 double Erfcx(double z) {
   if (z < 1.5) return ExpDD(TwoProd(z, z)) * Round(Add(DD{1.0, 0.0}, Neg(ErfDD(z))));
   const double z2 = z * z;
   double t = 0.0;
-  for (int n = 60; n >= 1; --n) t = ((2.0 * n - 1.0) * (2.0 * n) / 4.0) / (z2 + (4.0 * n + 1.0) / 2.0 - t);
+  for (int n = 60; n >= 1; --n)
+    t = ((2.0 * n - 1.0) * (2.0 * n) / 4.0) / (z2 + (4.0 * n + 1.0) / 2.0 - t);
   return kInvSqrtPi * z / (z2 + 0.5 - t);
 }
 
 // Acklam's rational approximation of the quantile for p in (0, 0.5].
 double AcklamLower(double p) {
-  constexpr double a[6] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+  constexpr double a[6] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
                            1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
   constexpr double b[5] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
                            6.680131188771972e+01, -1.328068155288572e+01};
@@ -381,12 +384,12 @@ double AcklamLower(double p) {
 
 // Quantile for p in (0, 0.5]: Acklam, then one Halley step
 // x -= u / (1 + x u / 2) with u = (Phi(x) - p) / phi(x), evaluated without
-// cancellation: near the centre from Erf and the exact 0.5 - p, in the tail as
+// cancellation: near the centre from erf and the exact 0.5 - p, in the tail as
 // sqrt(2 pi) (erfcx(-x/sqrt2)/2 - exp(x^2/2 + log p)).
 double LowerQuantile(double p) {
   const double x = AcklamLower(p);
-  const DD half_x2 = TwoProd(x, x);
-  const DD t{0.5 * half_x2.hi, 0.5 * half_x2.lo};  // x^2 / 2
+  const DD x2 = TwoProd(x, x);
+  const DD t{0.5 * x2.hi, 0.5 * x2.lo};  // x^2 / 2, exact
   double u;
   if (p >= 0.25) {
     u = kSqrt2Pi * ExpDD(t) * (0.5 * Round(ErfDD(x * kInvSqrt2)) + (0.5 - p));
@@ -444,10 +447,18 @@ double Sin(double x) {
   const Reduced red = ReducePiO2(x < 0.0 ? -x : x);
   double s = 0.0;
   switch (red.q) {
-    case 0: s = SinKernel(red.r); break;
-    case 1: s = CosKernel(red.r); break;
-    case 2: s = -SinKernel(red.r); break;
-    default: s = -CosKernel(red.r); break;
+    case 0:
+      s = SinKernel(red.r);
+      break;
+    case 1:
+      s = CosKernel(red.r);
+      break;
+    case 2:
+      s = -SinKernel(red.r);
+      break;
+    default:
+      s = -CosKernel(red.r);
+      break;
   }
   return x < 0.0 ? -s : s;
 }
@@ -456,10 +467,14 @@ double Cos(double x) {
   if (x - x != 0.0) return kNaN;
   const Reduced red = ReducePiO2(x < 0.0 ? -x : x);
   switch (red.q) {
-    case 0: return CosKernel(red.r);
-    case 1: return -SinKernel(red.r);
-    case 2: return -CosKernel(red.r);
-    default: return SinKernel(red.r);
+    case 0:
+      return CosKernel(red.r);
+    case 1:
+      return -SinKernel(red.r);
+    case 2:
+      return -CosKernel(red.r);
+    default:
+      return SinKernel(red.r);
   }
 }
 

@@ -13,9 +13,11 @@ Status GaussianTable::Build(Span<int32_t> storage) {
     for (size_t i = 0; i < kNodes; ++i) {
       // Interval end i of the segment as a (possibly fractional) v, exact;
       // the last segment holds v = 0 alone.
-      const double v = segment == kSegments - 1 ? 0.0 : (0x1p30 + static_cast<double>(i) * 0x1p24) * scale;
+      const double v =
+          segment == kSegments - 1 ? 0.0 : (0x1p30 + static_cast<double>(i) * 0x1p24) * scale;
       const double z = -detmath::InvNormalCdf((v + 0.5) * 0x1p-32);
-      storage[static_cast<size_t>(segment) * kNodes + i] = Q<7, kEntryFracBits, true>::FromDouble(z).raw;
+      storage[static_cast<size_t>(segment) * kNodes + i] =
+          Q<7, kEntryFracBits, true>::FromDouble(z).raw;
     }
   }
   table_ = storage.data;

@@ -85,10 +85,10 @@ class GaussianTable {
  public:
   static constexpr int kSegments = 32;
   static constexpr int kIndexBits = 6;
-  static constexpr int kInterpBits = 30 - kIndexBits;  // bits below the index
-  static constexpr int kEntryFracBits = 24;            // entries are Q7.24
+  static constexpr int kInterpBits = 30 - kIndexBits;              // bits below the index
+  static constexpr int kEntryFracBits = 24;                        // entries are Q7.24
   static constexpr size_t kNodes = (size_t{1} << kIndexBits) + 1;  // per segment
-  static constexpr size_t kEntries = kSegments * kNodes;          // 2080
+  static constexpr size_t kEntries = kSegments * kNodes;           // 2080
 
   // Fills storage[0 .. kEntries) (caller-owned, configure time; uses
   // detmath::InvNormalCdf) and keeps a pointer to it.
@@ -96,17 +96,17 @@ class GaussianTable {
 
   // Per pixel: integers only, no loops. Requires a successful Build().
   int32_t Sample(uint32_t u) const {
-    const uint32_t upper = 0u - (u >> 31);                   // all ones for the upper half
-    const uint32_t v = (u ^ upper) & 0x7FFFFFFFu;            // buckets from the nearer end
-    const int segment = std::countl_zero(v) - 1;             // 0..31 (v == 0 gives 31)
-    const uint32_t w = v << segment;                         // leading one at bit 30
+    const uint32_t upper = 0u - (u >> 31);         // all ones for the upper half
+    const uint32_t v = (u ^ upper) & 0x7FFFFFFFu;  // buckets from the nearer end
+    const int segment = std::countl_zero(v) - 1;   // 0..31 (v == 0 gives 31)
+    const uint32_t w = v << segment;               // leading one at bit 30
     const int32_t* node = table_ + static_cast<size_t>(segment) * kNodes +
                           ((w >> kInterpBits) & ((1u << kIndexBits) - 1));
     const int64_t frac = w & ((1u << kInterpBits) - 1);
     const int64_t mag = (static_cast<int64_t>(node[0]) << kInterpBits) +
                         static_cast<int64_t>(node[1] - node[0]) * frac;  // Q(24+24)
     const int32_t z = static_cast<int32_t>(RoundShift(mag, kInterpBits + kEntryFracBits - 16));
-    const int32_t negate = static_cast<int32_t>(~upper);     // -1 for the lower half
+    const int32_t negate = static_cast<int32_t>(~upper);  // -1 for the lower half
     return (z ^ negate) - negate;
   }
 
@@ -136,7 +136,7 @@ class GaussianTable {
 class PoissonTable {
  public:
   static constexpr uint32_t kSmallQ8 = 12 * 256;
-  static constexpr size_t kEntries = kSmallQ8;       // 3072 uint32 = 12288 bytes
+  static constexpr size_t kEntries = kSmallQ8;  // 3072 uint32 = 12288 bytes
   static constexpr uint32_t kMaxSmallCount = 64;
   static constexpr uint64_t kVarianceCorrection = 596523236;  // round(5/36 * 2^32)
 
@@ -168,10 +168,11 @@ class PoissonTable {
   }
 
   static uint32_t SampleLarge(uint32_t lambda_q8, int32_t z_q16) {
-    const uint64_t lambda = static_cast<uint64_t>(lambda_q8) << 24;                // Q32, < 2^56
-    const int64_t sigma = ISqrt64(lambda - kVarianceCorrection);                    // Q16, < 2^28
+    const uint64_t lambda = static_cast<uint64_t>(lambda_q8) << 24;  // Q32, < 2^56
+    const int64_t sigma = ISqrt64(lambda - kVarianceCorrection);     // Q16, < 2^28
     const int64_t z = z_q16;
-    const int64_t n = static_cast<int64_t>(lambda) + sigma * z + (z * z - (int64_t{1} << 32)) / 6;  // Q32
+    const int64_t n =
+        static_cast<int64_t>(lambda) + sigma * z + (z * z - (int64_t{1} << 32)) / 6;  // Q32
     return SatU32(RoundShift(n, 32));
   }
 

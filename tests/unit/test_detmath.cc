@@ -1,5 +1,3 @@
-#include "core/base/detmath.h"
-
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -8,6 +6,8 @@
 #include <limits>
 #include <numbers>
 #include <random>
+
+#include "core/base/detmath.h"
 
 namespace camsim::detmath {
 namespace {
@@ -46,9 +46,11 @@ void CheckAccuracy(F f, Ref ref, RefL ref_long, Sweep s, int n = 20000) {
                                  : s.lo + t * (s.hi - s.lo);
     const double got = f(x);
     const double r = ref(x);
-    if (std::fabs(r) < std::numeric_limits<double>::min()) continue;  // subnormal results: see below
+    if (std::fabs(r) < std::numeric_limits<double>::min())
+      continue;  // subnormal results: see below
     worst = std::max(worst, UlpDiff(got, r));
-    if (kPreciseLongDouble) worst_long = std::max(worst_long, UlpDiff(got, ref_long(static_cast<long double>(x))));
+    if (kPreciseLongDouble)
+      worst_long = std::max(worst_long, UlpDiff(got, ref_long(static_cast<long double>(x))));
   }
   EXPECT_LE(worst, 1.0) << "vs libm over [" << s.lo << ", " << s.hi << "]";
   EXPECT_LE(worst_long, 0.501) << "vs long double over [" << s.lo << ", " << s.hi << "]";
@@ -90,7 +92,8 @@ TEST(DetMathTest, SinCosAccuracy) {
   auto srefl = [](long double x) { return std::sin(x); };
   auto cref = [](double x) { return std::cos(x); };
   auto crefl = [](long double x) { return std::cos(x); };
-  for (const Sweep s : {Sweep{-10.0, 10.0, false}, Sweep{1e-10, 1e6, true}, Sweep{1e6, 1e300, true}}) {
+  for (const Sweep s :
+       {Sweep{-10.0, 10.0, false}, Sweep{1e-10, 1e6, true}, Sweep{1e6, 1e300, true}}) {
     CheckAccuracy(Sin, sref, srefl, s);
     CheckAccuracy(Cos, cref, crefl, s);
   }
@@ -113,7 +116,8 @@ TEST(DetMathTest, Atan2Accuracy) {
     const double got = Atan2(y, x);
     worst = std::max(worst, UlpDiff(got, std::atan2(y, x)));
     if (kPreciseLongDouble) {
-      worst_long = std::max(worst_long, UlpDiff(got, std::atan2(static_cast<long double>(y), static_cast<long double>(x))));
+      worst_long = std::max(worst_long, UlpDiff(got, std::atan2(static_cast<long double>(y),
+                                                                static_cast<long double>(x))));
     }
   }
   EXPECT_LE(worst, 1.0);
@@ -137,7 +141,8 @@ TEST(DetMathTest, PowAccuracy) {
     const double got = Pow(x, y);
     worst = std::max(worst, UlpDiff(got, r));
     if (kPreciseLongDouble) {
-      worst_long = std::max(worst_long, UlpDiff(got, std::pow(static_cast<long double>(x), static_cast<long double>(y))));
+      worst_long = std::max(worst_long, UlpDiff(got, std::pow(static_cast<long double>(x),
+                                                              static_cast<long double>(y))));
     }
   }
   EXPECT_LE(worst, 1.0);
@@ -149,7 +154,8 @@ TEST(DetMathTest, SubnormalResultsWithinOneUlp) {
     const double r = std::exp(x);
     const double ulp = 0x1p-1074;
     EXPECT_LE(std::fabs(Exp(x) - r), ulp) << x;
-    EXPECT_LE(std::fabs(Exp2(x * 1.4426950408889634) - std::exp2(x * 1.4426950408889634)), ulp) << x;
+    EXPECT_LE(std::fabs(Exp2(x * 1.4426950408889634) - std::exp2(x * 1.4426950408889634)), ulp)
+        << x;
   }
 }
 
@@ -177,7 +183,9 @@ TEST(DetMathTest, ExactResults) {
     const double p2 = std::ldexp(1.0, k);
     ASSERT_EQ(Exp2(static_cast<double>(k)), p2) << k;
     ASSERT_EQ(Log2(p2), static_cast<double>(k)) << k;
-    if (k >= -1022) ASSERT_EQ(Pow(2.0, static_cast<double>(k)), p2) << k;
+    if (k >= -1022) {
+      ASSERT_EQ(Pow(2.0, static_cast<double>(k)), p2) << k;
+    }
   }
   EXPECT_EQ(Pow(2.0, 10.0), 1024.0);
   double ten = 1.0;
@@ -260,10 +268,12 @@ TEST(DetMathTest, InvNormalCdfKnownValues) {
     double p, z;
   };
   const Case cases[] = {
-      {0x1p-40, -0x1.c30d8560989abp+2},  {1e-300, -0x1.286074064c26ep+5}, {1e-10, -0x1.97203597a2155p+2},
-      {1e-5, -0x1.10f3f8843a3d9p+2},     {0.001, -0x1.8b8cbb7204471p+1},  {0.025, -0x1.f5c0331eeff85p+0},
-      {0.1, -0x1.4813c36e26d32p+0},      {0.25, -0x1.5956b87528a49p-1},   {0.4, -0x1.036d6c4a04b59p-2},
-      {0.975, 0x1.f5c0331eeff83p+0},     {0.999, 0x1.8b8cbb7204470p+1},   {1.0 - 0x1p-40, 0x1.c30d8560989abp+2},
+      {0x1p-40, -0x1.c30d8560989abp+2}, {1e-300, -0x1.286074064c26ep+5},
+      {1e-10, -0x1.97203597a2155p+2},   {1e-5, -0x1.10f3f8843a3d9p+2},
+      {0.001, -0x1.8b8cbb7204471p+1},   {0.025, -0x1.f5c0331eeff85p+0},
+      {0.1, -0x1.4813c36e26d32p+0},     {0.25, -0x1.5956b87528a49p-1},
+      {0.4, -0x1.036d6c4a04b59p-2},     {0.975, 0x1.f5c0331eeff83p+0},
+      {0.999, 0x1.8b8cbb7204470p+1},    {1.0 - 0x1p-40, 0x1.c30d8560989abp+2},
   };
   for (const Case& c : cases) EXPECT_NEAR(InvNormalCdf(c.p), c.z, 1e-15 * std::fabs(c.z)) << c.p;
   EXPECT_EQ(InvNormalCdf(0.5), 0.0);
@@ -284,9 +294,15 @@ TEST(DetMathTest, InvNormalCdfResidual) {
   for (int i = 0; i < 30000; ++i) {
     double p;
     switch (i % 3) {
-      case 0: p = std::exp2(-1.0 - 39.0 * uni(gen)); break;         // lower tail
-      case 1: p = 1.0 - std::exp2(-1.0 - 39.0 * uni(gen)); break;   // upper tail
-      default: p = 0.5 + (uni(gen) - 0.5) * 0x1p-20; break;         // centre
+      case 0:
+        p = std::exp2(-1.0 - 39.0 * uni(gen));
+        break;  // lower tail
+      case 1:
+        p = 1.0 - std::exp2(-1.0 - 39.0 * uni(gen));
+        break;  // upper tail
+      default:
+        p = 0.5 + (uni(gen) - 0.5) * 0x1p-20;
+        break;  // centre
     }
     const double z = InvNormalCdf(p);
     const double phi = std::exp(-0.5 * z * z) / std::sqrt(2.0 * std::numbers::pi);

@@ -1,0 +1,107 @@
+// Frame-time benchmarks (Google Benchmark) on the bundled scenes.
+//
+//   ./build/release/bench/camsim_bench                    all
+//   ./build/release/bench/camsim_bench --benchmark_filter=Pipeline/1920
+//
+// Pipeline/W/H/threads: the demo camera (configs/camera.toml) end to end,
+// raw Bayer and RGB8 written to memory. Prefix/W/H/k: the pipeline cut after
+// its k-th stage, so consecutive rows give each stage's share.
+#include <benchmark/benchmark.h>
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "hal/thread_pool.h"
+#include "host_tools/config.h"
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim {
+namespace {
+
+const host::CoreInput& Scene(int width) {
+  static std::map<int, std::unique_ptr<host::CoreInput>> cache;
+  auto& slot = cache[width];
+  if (!slot) {
+    const std::string name = width == 1920 ? "aisle1080_0001.exr" : "aisle_0001.exr";
+    io::SceneFrame frame;
+    std::string error;
+    if (!io::LoadSceneExr(std::string(CAMSIM_SOURCE_DIR "/scenes/") + name, "", &frame, &error)) std::abort();
+    slot = std::make_unique<host::CoreInput>();
+    host::PrepareInput(frame, frame.width, frame.height, host::SceneFit::kCrop, slot.get());
+  }
+  return *slot;
+}
+
+PipelineConfig Demo(int w, int h) {
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  if (!host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error) ||
+      !host::FinishConfig(&rc, w, h, origins, 1, &error))
+    std::abort();
+  return rc.core;
+}
+
+void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads) {
+  const int w = config.geometry.width, h = config.geometry.height;
+  Pipeline p;
+  if (!p.Configure(config, threads, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  const FrameInput in = Scene(w).View();
+  const LineFormat f = p.plan().output;
+  std::vector<uint8_t> out(static_cast<size_t>(w) * h * f.channels * 4);
+  Tap tap;
+  tap.format = f.domain == Domain::kEncoded || f.domain == Domain::kLinear ? TapFormat::kU8 : TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = static_cast<ptrdiff_t>(w) * f.channels;
+  hal::ThreadPool pool(threads);
+  constexpr int kStripRows = 16;
+  uint32_t frame = 0;
+  for (auto _ : state) {
+    std::atomic<int> next{0};
+    pool.Run([&](int worker) {
+      for (int y0; (y0 = next.fetch_add(1) * kStripRows) < h;)
+        p.ProcessStrip(in, frame, y0, y0 + kStripRows, worker, &tap, 1, nullptr, nullptr);
+    });
+    ++frame;
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["workspace_KiB"] = static_cast<double>(p.WorkspaceBytes()) / 1024.0;
+  state.SetLabel(std::to_string(p.plan().running) + " stages");
+}
+
+void BM_Pipeline(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  RunPipeline(state, Demo(w, h), static_cast<int>(state.range(2)));
+}
+BENCHMARK(BM_Pipeline)
+    ->Args({640, 480, 1})
+    ->Args({640, 480, 2})
+    ->Args({1920, 1080, 1})
+    ->Args({1920, 1080, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+void BM_Prefix(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = Demo(w, h);
+  c.order_count = static_cast<int>(state.range(2));
+  state.SetLabel(StageName(c.order[c.order_count - 1]));
+  RunPipeline(state, c, 1);
+}
+BENCHMARK(BM_Prefix)
+    ->ArgsProduct({{640}, {480}, {1, 2, 3, 4, 5, 6, 7, 9}})
+    ->ArgsProduct({{1920}, {1080}, {1, 2, 3, 4, 5, 6, 7, 9}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace camsim
+
+BENCHMARK_MAIN();
