@@ -81,6 +81,20 @@ TEST(Cli, ThreadsAndStripRowsGiveTheSameBytes) {
   EXPECT_EQ(Slurp(a + "/aisle_0001.raw"), Slurp(b + "/aisle_0001.raw"));
 }
 
+TEST(Cli, SixteenBitOutputAndMonoSensor) {
+  const std::string out = TempDir("sixteen");
+  const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
+                          " --quiet --set output.bits=16 --set sensor.cfa=Mono --set sensor.width=320"
+                          " --set sensor.height=240 --set sensor.scene_fit=scale");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string png = Slurp(out + "/aisle_0001.png");
+  ASSERT_GT(png.size(), 26u);
+  // IHDR: width and height (big-endian) at 16, bit depth at 24, colour type at 25 (0 = grey).
+  EXPECT_EQ(static_cast<unsigned char>(png[18]) * 256 + static_cast<unsigned char>(png[19]), 320);
+  EXPECT_EQ(static_cast<unsigned char>(png[24]), 16);
+  EXPECT_EQ(static_cast<unsigned char>(png[25]), 0);
+}
+
 TEST(Cli, StagesAndDumpWriteIntermediates) {
   const std::string out = TempDir("stages");
   const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +

@@ -251,5 +251,35 @@ TEST(Sensor, VignettingMatchesReference) {
   }
 }
 
+TEST(Sensor, VignettingMaskMultipliesEachPixel) {
+  PipelineConfig c;
+  c.geometry = {8, 4, Cfa::kBayerRG, 12};
+  c.vignetting.mode = VignettingMode::kMask;
+  c.exposure.exposure_time_us = 1000.0;
+  c.exposure.f_number = 1.0;
+  c.exposure.photons_per_radiance_ms = 1000.0;
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kVignetting;
+  c.order_count = 2;
+  Pipeline p;
+  ASSERT_FALSE(p.Configure(c, 1, false).ok());  // mask mode without a mask
+  ASSERT_TRUE(p.Configure(c, 1, true).ok());
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  ASSERT_TRUE(p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok());
+  test::Scene s = test::FlatScene(8, 4, 1.0, 1.0, 1.0);  // 1000 photons = 256000 in Q24.8
+  std::vector<uint16_t> mask(32);
+  for (int i = 0; i < 32; ++i) mask[i] = static_cast<uint16_t>(i * 512);  // Q2.14: i / 32
+  FrameInput in = s.View();
+  in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), 8, 4);
+  ASSERT_TRUE(p.CheckInput(in).ok());
+  std::vector<uint32_t> out(32 * 3);
+  Tap t;
+  t.format = TapFormat::kU32;
+  t.data = out.data();
+  t.stride = 8 * 3;
+  p.ProcessFrame(in, 0, 4, &t, 1, nullptr, nullptr);
+  for (int i = 0; i < 32; ++i) EXPECT_EQ(out[i * 3 + 1], 256000u * i / 32) << i;  // exact: i/32 is dyadic
+}
+
 }  // namespace
 }  // namespace camsim

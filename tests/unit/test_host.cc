@@ -1,0 +1,85 @@
+// Host-side glue: configuration parsing and overrides, scene fitting and the
+// conversion to the core's fixed-point input.
+#include <gtest/gtest.h>
+
+#include "host_tools/config.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim::host {
+namespace {
+
+TEST(Config, DefaultTextParsesBackToTheDefaults) {
+  RunConfig parsed;
+  parsed.core.exposure.f_number = 99;  // must be overwritten by the text
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ParseConfig(DefaultConfigToml(), "default", &parsed, &origins, &error)) << error;
+  EXPECT_EQ(ConfigToToml(parsed, false), ConfigToToml(RunConfig{}, false));
+  EXPECT_EQ(origins.size(), ConfigKeys().size());  // every key is printed
+}
+
+TEST(Config, OverridesAcceptBareWordsAndNameTheirOrigin) {
+  RunConfig c;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyOverride("sensor.cfa=BayerBG", &c, &origins, &error)) << error;
+  EXPECT_EQ(c.core.geometry.cfa, Cfa::kBayerBG);
+  ASSERT_TRUE(ApplyOverride("white_balance.gain=[2, 1, 1.5]", &c, &origins, &error)) << error;
+  EXPECT_EQ(c.core.white_balance.gain[2], 1.5);
+  ASSERT_TRUE(ApplyOverride("pipeline.stages=[\"exposure\", \"cfa\", \"sensor\"]", &c, &origins, &error));
+  EXPECT_EQ(c.core.order_count, 3);
+  EXPECT_EQ(origins["sensor.cfa"], "--set");
+  EXPECT_FALSE(ApplyOverride("sensor.cfa=BayerXY", &c, &origins, &error));
+  EXPECT_NE(error.find("must be one of"), std::string::npos) << error;
+  EXPECT_FALSE(ApplyOverride("white_balance.gain=[1, 2]", &c, &origins, &error));
+  EXPECT_NE(error.find("exactly 3"), std::string::npos) << error;
+  EXPECT_FALSE(ApplyOverride("nonsense", &c, &origins, &error));
+  EXPECT_EQ(c.core.geometry.cfa, Cfa::kBayerBG);  // failed overrides change nothing
+}
+
+TEST(Config, ErrorsNameKeyAndLine) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  EXPECT_FALSE(ParseConfig("[sensor]\n\nadc_bits = \"twelve\"\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:3: sensor.adc_bits expects a whole number");
+  EXPECT_FALSE(ParseConfig("[sensr]\nx = 1\n", "f.toml", &c, &o, &error));
+  EXPECT_NE(error.find("unknown section 'sensr'"), std::string::npos) << error;
+  EXPECT_FALSE(ParseConfig("[sensor\n", "f.toml", &c, &o, &error));  // TOML syntax error
+  EXPECT_EQ(error.rfind("f.toml:1:", 0), 0u) << error;
+  // Range errors come from the core and carry the line of the key.
+  ASSERT_TRUE(ParseConfig("[sensor]\nfull_well_e = -5\n", "f.toml", &c, &o, &error));
+  EXPECT_FALSE(FinishConfig(&c, 64, 64, o, 1, &error));
+  EXPECT_EQ(error, "f.toml:2: sensor.full_well_e must be in [1, 1e6] electrons");
+}
+
+TEST(SceneInput, CropTakesTheCentreAndScaleAverages) {
+  io::FloatPlane in;
+  in.width = 4;
+  in.height = 2;
+  in.data = {0, 1, 2, 3, 4, 5, 6, 7};
+  const io::FloatPlane crop = FitPlane(in, 2, 2, SceneFit::kCrop);
+  EXPECT_EQ(crop.data, (std::vector<float>{1, 2, 5, 6}));
+  const io::FloatPlane half = FitPlane(in, 2, 1, SceneFit::kScale);
+  EXPECT_EQ(half.data, (std::vector<float>{2.5f, 4.5f}));  // means of 2x2 blocks
+  const io::FloatPlane up = FitPlane(in, 8, 4, SceneFit::kScale);
+  EXPECT_EQ(up.data[0], 0.0f);
+  EXPECT_EQ(up.data[7], 3.0f);
+  EXPECT_EQ(up.data[31], 7.0f);
+}
+
+TEST(SceneInput, RadianceBecomesRoundedSaturatedQ16) {
+  io::SceneFrame s;
+  s.width = 4;
+  s.height = 1;
+  s.r.width = s.g.width = s.b.width = 4;
+  s.r.height = s.g.height = s.b.height = 1;
+  s.r.data = {0.0f, 1.0f, 0.5f / 65536.0f, 1e9f};
+  s.g.data = s.b.data = s.r.data;
+  CoreInput in;
+  PrepareInput(s, 4, 1, SceneFit::kCrop, &in);
+  EXPECT_EQ(in.radiance[0], (std::vector<uint32_t>{0u, 65536u, 1u, 0xFFFFFFFFu}));  // ties up, saturate
+}
+
+}  // namespace
+}  // namespace camsim::host
