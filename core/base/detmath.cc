@@ -73,16 +73,21 @@ constexpr DD Div(DD a, DD b) {
 
 constexpr double Round(DD a) { return a.hi + a.lo; }
 
-// Power series sum_i c[i] z^i by Horner's rule.
+// Power series sum_i c[i] z^i.
 template <int N>
 struct Series {
   DD c[N];
 };
 
-template <int N>
+// Horner's rule: the terms i >= kDD in plain double (each use picks kDD so
+// that their rounding stays below 2^-70 of the result), then the first kDD
+// terms in double-double.
+template <int kDD, int N>
 constexpr DD Horner(const Series<N>& s, DD z) {
-  DD acc = s.c[N - 1];
-  for (int i = N - 2; i >= 0; --i) acc = Add(Mul(acc, z), s.c[i]);
+  double tail = 0.0;
+  for (int i = N - 1; i >= kDD; --i) tail = tail * z.hi + s.c[i].hi;
+  DD acc{tail, 0.0};
+  for (int i = kDD - 1; i >= 0; --i) acc = Add(Mul(acc, z), s.c[i]);
   return acc;
 }
 
@@ -161,7 +166,7 @@ constexpr double kInvSqrtPi = 0x1.20dd750429b6dp-1;  // 1/sqrt(pi)
 // 2^k for k in [-1022, 1023], built from its bits.
 double Pow2(int k) { return std::bit_cast<double>(static_cast<uint64_t>(k + 1023) << 52); }
 
-// y * 2^k for k in [-1086, 2046] with one rounding (two into the subnormal range).
+// y * 2^k (y < 2, k in [-1086, 1024]) with one rounding (two into the subnormal range).
 double Scale(double y, int k) {
   if (k > 1023) return y * 0x1p1023 * Pow2(k - 1023);
   if (k < -1022) return y * Pow2(k + 64) * 0x1p-64;
@@ -187,7 +192,7 @@ double ExpDD(DD t) {
   const DD kl = TwoProd(kd, kLn2.hi);
   DD r = TwoSum(t.hi - kl.hi, t.lo);
   r = Add(r, DD{-kl.lo, -kd * kLn2.lo});
-  return Scale(Round(Horner(kExpSeries, r)), k);
+  return Scale(Round(Horner<6>(kExpSeries, r)), k);  // r^6/6! < 2^-18
 }
 
 // ---------------------------------------------------------------------------
@@ -219,7 +224,7 @@ Mantissa Decompose(double x) {
 DD LogMantissa(double m) {
   const double f = m - 1.0;  // exact (Sterbenz)
   const DD s = Div(DD{f, 0.0}, TwoSum(2.0, f));
-  return Mul(s, Horner(kAtanhSeries, Mul(s, s)));
+  return Mul(s, Horner<4>(kAtanhSeries, Mul(s, s)));  // s^8/9 < 2^-23
 }
 
 // log(x) for positive finite x.
@@ -313,8 +318,9 @@ Reduced ReducePiO2(double ax) {
   return ReduceLarge(ax);
 }
 
-double SinKernel(DD r) { return Round(Mul(r, Horner(kSinSeries, Mul(r, r)))); }
-double CosKernel(DD r) { return Round(Horner(kCosSeries, Mul(r, r))); }
+// Plain-double tails: r^8/9! < 2^-21 and r^10/10! < 2^-25.
+double SinKernel(DD r) { return Round(Mul(r, Horner<4>(kSinSeries, Mul(r, r)))); }
+double CosKernel(DD r) { return Round(Horner<5>(kCosSeries, Mul(r, r))); }
 
 // ---------------------------------------------------------------------------
 // atan
@@ -339,7 +345,7 @@ DD AtanDD(DD t) {
     base = kAtanHalf;
     u = Div(Add(t, DD{-0.5, 0.0}), Add(one, Mul(t, 0.5)));
   }
-  return Add(base, Mul(u, Horner(kAtanSeries, Mul(u, u))));
+  return Add(base, Mul(u, Horner<8>(kAtanSeries, Mul(u, u))));  // u^16/17 < 2^-23
 }
 
 // ---------------------------------------------------------------------------
@@ -347,7 +353,7 @@ DD AtanDD(DD t) {
 
 // erf(z) for |z| <= 1.5 by its Taylor series in double-double, so that
 // 1 - erf(z) keeps full precision too.
-DD ErfDD(double z) { return Mul(Mul(kTwoOverSqrtPi, z), Horner(kErfSeries, TwoProd(z, z))); }
+DD ErfDD(double z) { return Mul(Mul(kTwoOverSqrtPi, z), Horner<32>(kErfSeries, TwoProd(z, z))); }
 
 // erfcx(z) = exp(z^2) erfc(z) for z >= 0.45: 1 - erf below 1.5, else the even
 // part of Laplace's continued fraction, 60 levels evaluated bottom-up
@@ -411,7 +417,7 @@ double Exp2(double x) {
   if (x <= -1075.0) return 0.0;
   const int k = NearestInt(x);
   const double r = x - static_cast<double>(k);  // exact, |r| <= 1/2
-  return Scale(Round(Horner(kExpSeries, Mul(kLn2, r))), k);
+  return Scale(Round(Horner<6>(kExpSeries, Mul(kLn2, r))), k);
 }
 
 double Log(double x) {

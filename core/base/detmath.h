@@ -8,17 +8,19 @@
 // Method: exact range reduction (powers of two, integer Payne-Hanek for sin/cos,
 // exactly represented breakpoints for atan), then a Taylor/atanh series
 // evaluated by Horner's rule in double-double arithmetic (~2^-70 relative),
-// then one final rounding. Results are therefore almost always correctly
-// rounded. Measured against the x86-64 80-bit long double functions over
-// ~10^6 arguments per function (normal-range results):
-//   Exp, Exp2, Log, Log2, Sin, Cos, Atan, Atan2, Pow: max error 0.50 ulp
-//   (no incorrectly rounded result found). Subnormal results of Exp/Exp2/Pow
-//   are rounded twice (error <= 1 ulp of the subnormal).
+// then one final rounding, so results are almost always correctly rounded.
+// Measured against x86-64 80-bit long double libm (resolution ~2^-11 ulp),
+// 10^6 arguments per range, over Exp [-745, 709.7], Exp2 [-1074, 1024),
+// Log/Log2 [1e-300, 1e300] and subnormals, Sin/Cos [-10, 10] and up to 1e300,
+// Atan up to 1e300, Atan2 and Pow (x in [e^-50, e^50], |y| <= 1000) with
+// normal results: max error 0.5000 ulp for every function (no incorrectly
+// rounded result found). Subnormal results of Exp/Exp2/Pow are rounded twice:
+// measured max 0.75 ulp (bound 1 ulp of the subnormal).
 // Results that are exactly representable come out exactly, e.g. Exp(0) == 1,
 // Log(1) == 0, Exp2(k) == 2^k, Log2(2^k) == k, Pow(2, 10) == 1024, Pow(x, 1) == x.
 //
-// Speed: 0.1-1 microsecond per call. Not for per-pixel use (pixel code is
-// integer only anyway).
+// Speed (x86-64, -O2): 0.13-0.35 us per call, InvNormalCdf ~1 us. For
+// configure time only (pixel code is integer only anyway).
 #pragma once
 
 namespace camsim::detmath {
@@ -56,9 +58,9 @@ double Atan2(double y, double x);
 // InvNormalCdf(1) = +inf, p outside [0, 1] or NaN -> NaN. Exactly antisymmetric:
 // InvNormalCdf(1 - p) == -InvNormalCdf(p) whenever 1 - p is exact (p >= 0.25).
 // Acklam's rational approximation (relative error 1.15e-9) refined by one Halley
-// step whose residual Phi(z) - p is computed from an Erf series and an erfc
-// continued fraction. Measured relative error against 50-digit references:
-// <= 3e-16 over p in [2^-40, 1 - 2^-40], and <= 1e-15 down to p = 1e-300.
+// step whose residual Phi(z) - p is computed from a double-double erf series
+// and an erfc continued fraction. Measured relative error against 380-digit
+// references at 9000 p from 5e-324 to 1 - 2^-40: max 3.4e-16 (~3 ulp).
 double InvNormalCdf(double p);
 
 }  // namespace camsim::detmath

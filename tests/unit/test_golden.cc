@@ -23,9 +23,13 @@ const char kHashFile[] = CAMSIM_SOURCE_DIR "/tests/golden/hashes.txt";
 std::map<std::string, std::string> ReadHashes() {
   std::map<std::string, std::string> m;
   std::ifstream in(kHashFile);
-  std::string name, hash;
-  while (in >> name >> hash)
-    if (name[0] != '#') m[name] = hash;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    std::string name, hash;
+    if (fields >> name >> hash) m[name] = hash;
+  }
   return m;
 }
 
