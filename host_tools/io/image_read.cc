@@ -16,22 +16,14 @@
 #include <png.h>
 
 #include "host_tools/io/exr_common.h"
+#include "host_tools/io/png_error.h"
 
 namespace camsim::io {
 namespace {
 
-// libpng reports errors through longjmp; the message is kept here.
-struct PngErrorText {
-  char text[256] = "";
-};
-
-void OnPngError(png_structp png, png_const_charp message) {
-  auto* e = static_cast<PngErrorText*>(png_get_error_ptr(png));
-  std::snprintf(e->text, sizeof e->text, "%s", message);
-  png_longjmp(png, 1);
-}
-
-void OnPngWarning(png_structp, png_const_charp) {}
+using detail::OnPngError;
+using detail::OnPngWarning;
+using detail::PngErrorText;
 
 struct DecodedPng {
   uint32_t width = 0, height = 0;

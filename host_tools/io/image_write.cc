@@ -1,4 +1,5 @@
 #include "host_tools/io/image_write.h"
+#include "host_tools/io/png_error.h"
 
 #include <bit>
 #include <cerrno>
@@ -101,18 +102,9 @@ bool CheckImage(const std::string& path, const void* data, int width, int height
   return false;
 }
 
-// libpng reports errors through longjmp; the message is kept here.
-struct PngErrorText {
-  char text[256] = "";
-};
-
-void OnPngError(png_structp png, png_const_charp message) {
-  auto* e = static_cast<PngErrorText*>(png_get_error_ptr(png));
-  std::snprintf(e->text, sizeof e->text, "%s", message);
-  png_longjmp(png, 1);
-}
-
-void OnPngWarning(png_structp, png_const_charp) {}
+using detail::OnPngError;
+using detail::OnPngWarning;
+using detail::PngErrorText;
 
 // Encodes the image into `f`. Because of setjmp/longjmp, no object with a
 // destructor lives in this frame.

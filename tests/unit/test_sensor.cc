@@ -14,12 +14,16 @@ namespace camsim {
 namespace {
 
 // Exposure giving exactly 1000 photons per unit radiance: c = 1000 /ms, 1 ms, f/1.
+void ThousandPhotonsPerRadiance(PipelineConfig* c) {
+  c->exposure.exposure_time_us = 1000.0;
+  c->exposure.f_number = 1.0;
+  c->exposure.photons_per_radiance_ms = 1000.0;
+}
+
 PipelineConfig SensorOnly(int w, int h, Cfa cfa) {
   PipelineConfig c;
   c.geometry = {w, h, cfa, 12};
-  c.exposure.exposure_time_us = 1000.0;
-  c.exposure.f_number = 1.0;
-  c.exposure.photons_per_radiance_ms = 1000.0;
+  ThousandPhotonsPerRadiance(&c);
   c.order[0] = StageId::kExposure;
   c.order[1] = StageId::kCfa;
   c.order[2] = StageId::kSensor;
@@ -232,9 +236,7 @@ TEST(Sensor, VignettingMatchesReference) {
     const double table[5] = {1.0, 0.95, 0.8, 0.6, 0.3};
     for (int i = 0; i < 5; ++i) c.vignetting.table[i] = table[i];
     c.vignetting.table_count = 5;
-    c.exposure.exposure_time_us = 1000.0;
-    c.exposure.f_number = 1.0;
-    c.exposure.photons_per_radiance_ms = 1000.0;
+    ThousandPhotonsPerRadiance(&c);
     c.order[0] = StageId::kExposure;
     c.order[1] = StageId::kVignetting;
     c.order_count = 2;
@@ -263,9 +265,7 @@ TEST(Sensor, VignettingMaskMultipliesEachPixel) {
   PipelineConfig c;
   c.geometry = {8, 4, Cfa::kBayerRG, 12};
   c.vignetting.mode = VignettingMode::kMask;
-  c.exposure.exposure_time_us = 1000.0;
-  c.exposure.f_number = 1.0;
-  c.exposure.photons_per_radiance_ms = 1000.0;
+  ThousandPhotonsPerRadiance(&c);
   c.order[0] = StageId::kExposure;
   c.order[1] = StageId::kVignetting;
   c.order_count = 2;
