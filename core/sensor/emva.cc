@@ -96,46 +96,71 @@ Status SensorStage::Init(Arena& tables) {
   return Status::Ok();
 }
 
+// Pixels go in blocks of kBlock: the Philox words of a whole block are drawn
+// first (DrawBitsLanes: vectorised, the lanes overlap), then each pixel
+// consumes its words. Lanes of a last, partial block beyond the row's end are
+// drawn and never used (every word is a pure function of its key, so that
+// changes nothing). Even and odd columns have one CFA colour each (x0 is a
+// multiple of kBlock, so column parity is lane parity): qe and the electron
+// sums are indexed by parity. The arithmetic is bit for bit the model in
+// emva.h; without patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu *
+// 65536 < 2^49 rounds back to mu) and the DSNU term 0, so both are skipped.
+// The two switches are tested per pixel but never change within a row, so the
+// branches cost nothing (specialised copies of the loop measured no faster).
 void SensorStage::ProcessRow(const RowArgs& a) const {
+  constexpr int kBlock = RandomLanes::kLanes;
   const int channels = a.out[1] != nullptr ? 3 : 1;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
+  const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
+  // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
+  // K in [1e-3, 2.6e5] (Configure's ranges) keeps K.shift + 8 in [22, 49].
+  const int k_shift = k_scale_.shift + 8;
+  const int64_t k_half = int64_t{1} << (k_shift - 1);
+  const int64_t k_mant = static_cast<int64_t>(k_scale_.mant);
   for (int c = 0; c < channels; ++c) {
-    const uint32_t* in = a.rows[0].ch[c];
-    uint32_t* out = a.out[c];
-    int64_t electrons_sum[3] = {};
-    for (int x = 0; x < a.width; ++x) {
-      const Colour colour = channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, x, a.y);
-      const uint32_t ux = static_cast<uint32_t>(x);
-      int32_t z_prnu = 0, z_dsnu = 0;
-      if (patterns) {
-        const RandomBits f = DrawBits(seed_, kStreamSensorFixedPattern, 0, ux, y, static_cast<uint32_t>(c));
-        z_prnu = gauss_.Sample(f.v[0]);
-        z_dsnu = gauss_.Sample(f.v[1]);
+    const uint32_t channel = static_cast<uint32_t>(c);
+    // The colours of even and odd columns of this row.
+    const Colour colour[2] = {channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, 0, a.y),
+                              channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, 1, a.y)};
+    const uint32_t qe[2] = {qe_q16_[colour[0]], qe_q16_[colour[1]]};
+    int64_t electrons[2] = {};
+    for (int x0 = 0; x0 < a.width; x0 += kBlock) {
+      const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
+      RandomLanes t;  // temporal: Poisson u, Poisson z, read noise z
+      DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, static_cast<uint32_t>(x0), y, channel, &t);
+      RandomLanes f;  // fixed pattern: PRNU z, DSNU z
+      if (patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x0), y, channel, &f);
+      const uint32_t* in = a.rows[0].ch[c] + x0;
+      uint32_t* out = a.out[c] + x0;
+      for (int i = 0; i < n; ++i) {
+        // Mean charge, Q24.8.
+        uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
+        int64_t dsnu = 0;  // offset pattern, Q.8 electrons
+        if (patterns) {
+          const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[0][i]), 16);  // Q1.16
+          mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
+          dsnu = RoundShift(dsnu_q8_ * gauss_.Sample(f.v[1][i]), 16);
+        }
+        const uint32_t mean_q8 = SatU32(mu + dark_q8_);
+
+        // Collected charge, Q.8, clipped at the full well.
+        uint64_t n_q8 = shot_noise
+                            ? static_cast<uint64_t>(poisson_.Sample(mean_q8, t.v[0][i], gauss_.Sample(t.v[1][i]))) << 8
+                            : mean_q8;
+        if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
+        electrons[i & 1] += static_cast<int64_t>(n_q8);
+
+        // Readout: offset pattern and read noise (electrons, Q.8), then K and black level.
+        const int64_t v = static_cast<int64_t>(n_q8) + dsnu + RoundShift(read_q8_ * gauss_.Sample(t.v[2][i]), 16);
+        const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
+        out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
       }
-      const RandomBits t = DrawBits(seed_, kStreamSensorTemporal, a.frame, ux, y, static_cast<uint32_t>(c));
-
-      // Mean charge, Q24.8.
-      uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[x]) * qe_q16_[colour], 16);
-      const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q1.16, > 0 below 50 % rms * 6.2
-      mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
-      const uint32_t mean_q8 = SatU32(mu + dark_q8_);
-
-      // Collected charge, Q.8, clipped at the full well.
-      uint64_t n_q8 = config_.shot_noise
-                          ? static_cast<uint64_t>(poisson_.Sample(mean_q8, t.v[0], gauss_.Sample(t.v[1]))) << 8
-                          : mean_q8;
-      if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
-      electrons_sum[colour] += static_cast<int64_t>(n_q8);
-
-      // Readout: offset pattern and read noise (electrons, Q.8), then K and black level.
-      const int64_t v = static_cast<int64_t>(n_q8) + RoundShift(dsnu_q8_ * z_dsnu, 16) +
-                        RoundShift(read_q8_ * gauss_.Sample(t.v[2]), 16);
-      const int64_t dn = RoundShift(v * static_cast<int64_t>(k_scale_.mant), k_scale_.shift + 8) + black_;
-      out[x] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
     }
-    if (a.stats != nullptr)
-      for (int i = 0; i < 3; ++i) a.stats->aux_sum[i] += electrons_sum[i];
+    if (a.stats != nullptr) {
+      a.stats->aux_sum[colour[0]] += electrons[0];
+      a.stats->aux_sum[colour[1]] += electrons[1];
+    }
   }
 }
 

@@ -83,6 +83,116 @@ TEST(DrawBitsTest, DeterministicAndSensitiveToEveryInput) {
       same(DrawBits(42, 1, 0, 3, 4), DrawBits(42, 1, 0, 4, 3)));  // x and y not interchangeable
 }
 
+// DrawBitsLanes is DrawBits for 16 consecutive x, word for word, including
+// an x0 where x0 + i wraps around 2^32.
+TEST(DrawBitsTest, LanesMatchDrawBits) {
+  struct Key {
+    uint64_t seed;
+    uint32_t stream, frame, x0, y, draw;
+  };
+  const Key keys[] = {{0, 0, 0, 0, 0, 0},
+                      {1, 1, 3, 640, 479, 0},
+                      {0x0123456789ABCDEFull, 2, 0, 1904, 1079, 2},
+                      {~0ull, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFF8u, 0xFFFFFFFFu, 0xFFFFFFFFu}};
+  for (const Key& k : keys) {
+    RandomLanes lanes;
+    DrawBitsLanes(k.seed, k.stream, k.frame, k.x0, k.y, k.draw, &lanes);
+    for (int i = 0; i < RandomLanes::kLanes; ++i) {
+      const RandomBits b = DrawBits(k.seed, k.stream, k.frame, k.x0 + static_cast<uint32_t>(i), k.y, k.draw);
+      for (int w = 0; w < 4; ++w) EXPECT_EQ(lanes.v[w][i], b.v[w]) << "x0 " << k.x0 << " lane " << i << " word " << w;
+    }
+  }
+}
+
+// ISqrt64 (table + Newton + exact correction) against the definition,
+// floor(sqrt(x)): r^2 <= x < (r + 1)^2, and against the bit-by-bit reference.
+bool IsFloorSqrt(uint64_t x, uint64_t r) {
+  return r <= 0xFFFFFFFFu && r * r <= x && x - r * r <= 2 * r;  // (r + 1)^2 > x without overflow
+}
+
+static_assert(ISqrt64(0) == 0 && ISqrt64(1) == 1 && ISqrt64(3) == 1 && ISqrt64(4) == 2);
+static_assert(ISqrt64(~uint64_t{0}) == 0xFFFFFFFFu && ISqrt64(0xFFFFFFFE00000001ull) == 0xFFFFFFFFu &&
+              ISqrt64(0xFFFFFFFE00000000ull) == 0xFFFFFFFEu);
+
+TEST(ISqrt64Test, ExhaustiveBelow2To22) {
+  for (uint64_t x = 0; x < (uint64_t{1} << 16); ++x) ASSERT_EQ(ISqrt64(x), ISqrt64BitByBit(x)) << x;
+  // Every x in [r^2, (r + 1)^2) gives r.
+  for (uint64_t r = 0; r < (uint64_t{1} << 11); ++r)
+    for (uint64_t x = r * r; x < (r + 1) * (r + 1); ++x) ASSERT_EQ(ISqrt64(x), r) << x;
+}
+
+TEST(ISqrt64Test, PerfectSquaresAndNeighboursOverTheWholeRange) {
+  auto check = [](uint64_t r) {
+    ASSERT_EQ(ISqrt64(r * r), r) << r;
+    if (r > 0) {
+      ASSERT_EQ(ISqrt64(r * r - 1), r - 1) << r;
+    }
+    ASSERT_EQ(ISqrt64(r * r + 1), r + (r == 0 ? 1 : 0)) << r;
+    ASSERT_EQ(ISqrt64(r * r + 2 * r), r) << r;  // (r + 1)^2 - 1
+  };
+  for (uint64_t r = 0; r <= 0xFFFFFFFFu; r += (r >> 13) + 1) check(r);   // ~2^18 r, every scale
+  for (uint64_t r = 0xFFFFFFFFu - 65535; r <= 0xFFFFFFFFu; ++r) check(r);  // the top, up to 2^64 - 1
+}
+
+TEST(ISqrt64Test, PowersOfTwoTableCellEdgesAndExtremes) {
+  for (int b = 0; b < 64; ++b) {
+    const uint64_t p = uint64_t{1} << b;
+    for (uint64_t x : {p - 1, p, p + 1}) EXPECT_EQ(ISqrt64(x), ISqrt64BitByBit(x)) << x;
+  }
+  // Both ends of every table cell (top 10 bits of the normalised x), at every scale.
+  for (uint64_t i = 256; i <= 1024; ++i) {
+    for (int shift = 0; shift < 64; shift += 2) {
+      for (int d = -2; d <= 2; ++d) {
+        const uint64_t x = ((i << 54) + static_cast<uint64_t>(d)) >> shift;  // i = 1024: 2^64 + d wraps
+        ASSERT_EQ(ISqrt64(x), ISqrt64BitByBit(x)) << x;
+      }
+    }
+  }
+  EXPECT_EQ(ISqrt64(~uint64_t{0}), 0xFFFFFFFFu);
+  EXPECT_EQ(ISqrt64(~uint64_t{0} - 1), 0xFFFFFFFFu);
+}
+
+TEST(ISqrt64Test, RandomValuesOfEveryMagnitude) {
+  uint64_t s = 0x9E3779B97F4A7C15ull;  // splitmix64
+  auto next = [&s] {
+    uint64_t z = (s += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  };
+  for (int i = 0; i < 2000000; ++i) {
+    const uint64_t x = next() >> (i & 63);
+    ASSERT_TRUE(IsFloorSqrt(x, ISqrt64(x))) << x;
+  }
+  for (int i = 0; i < 20000; ++i) {
+    const uint64_t x = next() >> (i & 63);
+    ASSERT_EQ(ISqrt64(x), ISqrt64BitByBit(x)) << x;
+  }
+}
+
+// DivideSmall (multiply by a reciprocal where there is a 128-bit product) is
+// floor(n / d) for n < 2^57, 1 <= d <= 64: checked at the top of the range,
+// where the proof's margin is smallest, at every remainder, and at random.
+TEST(DivideSmallTest, IsExactDivision) {
+  constexpr uint64_t kLimit = uint64_t{1} << 57;
+  uint64_t s = 12345;
+  for (uint32_t d = 1; d <= 64; ++d) {
+    const uint64_t top = (kLimit - 1) / d;  // largest quotient
+    for (uint64_t q : {uint64_t{0}, uint64_t{1}, top / 2, top - 1, top}) {
+      for (uint64_t r = 0; r < d; ++r) {
+        const uint64_t n = q * d + r;
+        if (n >= kLimit) continue;
+        ASSERT_EQ(DivideSmall(n, d), n / d) << n << " / " << d;
+      }
+    }
+    for (int i = 0; i < 20000; ++i) {
+      s = s * 6364136223846793005ull + 1442695040888963407ull;
+      const uint64_t n = (s >> 7) >> (i & 31);
+      ASSERT_EQ(DivideSmall(n, d), n / d) << n << " / " << d;
+    }
+  }
+}
+
 class GaussianTest : public ::testing::Test {
  protected:
   void SetUp() override { ASSERT_TRUE(table_.Build({storage_.data(), storage_.size()}).ok()); }
@@ -281,6 +391,48 @@ TEST_F(PoissonTest, MomentsMatchPoisson) {
       const double p0 = std::exp(-lambda);
       EXPECT_LE(std::fabs(zeros / double{kN} - p0), 5.0 * std::sqrt(p0 * (1 - p0) / kN) + 1e-12)
           << lambda;
+    }
+  }
+}
+
+// The sampler against a plain transcription of its definition (the original
+// code: a 64-bit division per step, the bit-by-bit square root): equal for
+// every small lambda_q8 at many u, and for large means over a grid of z.
+uint32_t ReferenceSmall(const std::vector<uint32_t>& table, uint32_t lambda_q8, uint32_t u) {
+  const uint32_t n = (lambda_q8 * 369u) >> 16;
+  const uint64_t target = static_cast<uint64_t>(u) << n;
+  uint64_t p = table[lambda_q8];
+  uint64_t cdf = p;
+  uint32_t k = 0;
+  while (target >= cdf && k < PoissonTable::kMaxSmallCount) {
+    const uint64_t div = static_cast<uint64_t>(k + 1) << 8;
+    p = (p * lambda_q8 + div / 2) / div;
+    if (p == 0) break;
+    ++k;
+    cdf += p;
+  }
+  return k;
+}
+
+uint32_t ReferenceLarge(uint32_t lambda_q8, int32_t z_q16) {
+  const uint64_t lambda = static_cast<uint64_t>(lambda_q8) << 24;
+  const int64_t sigma = ISqrt64BitByBit(lambda - PoissonTable::kVarianceCorrection);
+  const int64_t z = z_q16;
+  return SatU32(RoundShift(static_cast<int64_t>(lambda) + sigma * z + (z * z - (int64_t{1} << 32)) / 6, 32));
+}
+
+TEST_F(PoissonTest, MatchesReferenceDefinition) {
+  for (uint32_t q = 0; q < PoissonTable::kSmallQ8; ++q) {
+    for (uint32_t j = 0; j < 64; ++j) {
+      const uint32_t u = j * 0x04000000u + q * 2654435761u % 0x04000000u;  // every 1/64 of [0, 2^32)
+      ASSERT_EQ(table_.Sample(q, u, 0), ReferenceSmall(storage_, q, u)) << q << " " << u;
+    }
+    ASSERT_EQ(table_.Sample(q, 0xFFFFFFFFu, 0), ReferenceSmall(storage_, q, 0xFFFFFFFFu)) << q;
+  }
+  for (uint64_t q = PoissonTable::kSmallQ8; q <= 0xFFFFFFFFu; q += (q >> 6) + 1) {
+    for (int32_t z : {INT32_MIN, -415364, -65536, -1, 0, 1, 40000, 415364, INT32_MAX}) {
+      const uint32_t q32 = static_cast<uint32_t>(q);
+      ASSERT_EQ(table_.Sample(q32, 0, z), ReferenceLarge(q32, z)) << q << " " << z;
     }
   }
 }
