@@ -3,7 +3,7 @@
 namespace camsim {
 namespace {
 
-constexpr int64_t kMaxQ16 = 65535;
+constexpr uint32_t kMaxQ16 = 65535;
 
 }  // namespace
 
@@ -35,15 +35,34 @@ Result<LineFormat> BlackLevelStage::Plan(LineFormat in) const {
   return LineFormat{Domain::kLinear, in.channels, in.mosaic};
 }
 
+// out = Clamp(RoundShift(min(in, max) * mant - offset, shift), 0, 65535), as
+// one loop compilers vectorise: 64-bit unsigned arithmetic and 32-bit
+// compares only (64-bit compares and arithmetic shifts do not vectorise on
+// every target, e.g. x86-64 without SSE4.2). Bounds: dn <= 65535 (adc_bits
+// <= 16) and mant < 2^32, so dn * mant < 2^48 and offset < 2^48; the shift is
+// in [16, 31] (the scale 65535 / (max - BL) is in [1, 65535] and its mantissa
+// in [2^31, 2^32)).
 void BlackLevelStage::ProcessRow(const RowArgs& a) const {
+  CAMSIM_DCHECK(scale_.shift >= 16 && scale_.shift <= 31);
   const int channels = a.out[1] != nullptr ? 3 : 1;
-  const int64_t mant = scale_.mant;
+  const uint32_t max_dn = max_dn_;
+  const uint64_t mant = scale_.mant;
+  const int shift = scale_.shift;
+  const int width = a.width;
+  // The rounding half minus the offset, modulo 2^64.
+  const uint64_t bias = (uint64_t{1} << (shift - 1)) - static_cast<uint64_t>(offset_);
   for (int c = 0; c < channels; ++c) {
     const uint32_t* in = a.rows[0].ch[c];
     uint32_t* out = a.out[c];
-    for (int x = 0; x < a.width; ++x) {
-      const int64_t dn = in[x] < max_dn_ ? in[x] : max_dn_;
-      out[x] = static_cast<uint32_t>(Clamp64(RoundShift(dn * mant - offset_, scale_.shift), 0, kMaxQ16));
+    for (int x = 0; x < width; ++x) {
+      const uint32_t dn = in[x] < max_dn ? in[x] : max_dn;
+      // dn * mant - offset + half, in (-2^48, 2^48) as a signed value, here
+      // modulo 2^64: bit 63 is set exactly when it is negative, and when it
+      // is not, >> shift (>= 16) leaves less than 2^32.
+      const uint64_t v = dn * mant + bias;
+      const uint32_t negative = static_cast<uint32_t>(v >> 63);
+      const uint32_t q = static_cast<uint32_t>(v >> shift);
+      out[x] = (q < kMaxQ16 ? q : kMaxQ16) & (negative - 1u);  // 0 when negative
     }
   }
 }

@@ -3,86 +3,103 @@
 namespace camsim {
 namespace {
 
-using Rows = const uint32_t* const*;  // rows[2] is the output row
-
 constexpr int kBilinearRadius = 1;
 constexpr int kMalvarRadius = 2;
 constexpr int kCentre = 2;  // index of row y in the 5-row window
 
-struct Bilinear {
-  static uint32_t GreenAtRb(Rows r, int x) {
-    const int64_t sum = int64_t{r[1][x]} + r[3][x] + r[2][x - 1] + r[2][x + 1];
-    return static_cast<uint32_t>(RoundShift(sum, 2));
-  }
-  static uint32_t Horizontal(Rows r, int x) {
-    return static_cast<uint32_t>(RoundShift(int64_t{r[2][x - 1]} + r[2][x + 1], 1));
-  }
-  static uint32_t Vertical(Rows r, int x) {
-    return static_cast<uint32_t>(RoundShift(int64_t{r[1][x]} + r[3][x], 1));
-  }
-  static uint32_t Diagonal(Rows r, int x) {
-    const int64_t sum = int64_t{r[1][x - 1]} + r[1][x + 1] + r[3][x - 1] + r[3][x + 1];
-    return static_cast<uint32_t>(RoundShift(sum, 2));
-  }
-};
+// Both methods run one unit-stride loop over the row: at every column they
+// compute what a green site needs (own colour, other colour) and what a
+// red/blue site needs (green, other colour), then keep one by the column's
+// parity. That is twice the arithmetic of visiting each site type in its own
+// strided loop, but compilers vectorise it, which they cannot do with strided
+// stores. The rows are __restrict parameters: an output row never overlaps an
+// input row, so no store forces the inputs to be reloaded.
+//
+// Samples are Linear Q0.16, at most 65535 (see demosaic.h): every sum below
+// fits its 32-bit type.
 
-struct Malvar {
-  // Weights are 16 times the estimate: one rounding, then the Q0.16 range.
-  static uint32_t Finish(int64_t sum16) {
-    return static_cast<uint32_t>(Clamp64(RoundShift(sum16, 4), 0, 65535));
-  }
-  static int64_t Diagonals(Rows r, int x) {
-    return int64_t{r[1][x - 1]} + r[1][x + 1] + r[3][x - 1] + r[3][x + 1];
-  }
-  static uint32_t GreenAtRb(Rows r, int x) {
-    const int64_t near = int64_t{r[1][x]} + r[3][x] + r[2][x - 1] + r[2][x + 1];
-    const int64_t far = int64_t{r[0][x]} + r[4][x] + r[2][x - 2] + r[2][x + 2];
-    return Finish(8 * int64_t{r[2][x]} + 4 * near - 2 * far);
-  }
-  static uint32_t Horizontal(Rows r, int x) {
-    const int64_t along = int64_t{r[2][x - 1]} + r[2][x + 1];
-    const int64_t along2 = int64_t{r[2][x - 2]} + r[2][x + 2];
-    const int64_t across2 = int64_t{r[0][x]} + r[4][x];
-    return Finish(10 * int64_t{r[2][x]} + 8 * along - 2 * along2 - 2 * Diagonals(r, x) + across2);
-  }
-  static uint32_t Vertical(Rows r, int x) {
-    const int64_t along = int64_t{r[1][x]} + r[3][x];
-    const int64_t along2 = int64_t{r[0][x]} + r[4][x];
-    const int64_t across2 = int64_t{r[2][x - 2]} + r[2][x + 2];
-    return Finish(10 * int64_t{r[2][x]} + 8 * along - 2 * along2 - 2 * Diagonals(r, x) + across2);
-  }
-  static uint32_t Diagonal(Rows r, int x) {
-    const int64_t far = int64_t{r[0][x]} + r[4][x] + r[2][x - 2] + r[2][x + 2];
-    return Finish(12 * int64_t{r[2][x]} + 4 * Diagonals(r, x) - 3 * far);
-  }
-};
+// A sample as int32 (exact: it is at most 65535).
+inline int32_t S(uint32_t v) { return static_cast<int32_t>(v); }
 
-// Green sites and non-green sites in two strided loops: no per-pixel branch.
-template <typename K>
-void DemosaicRow(Rows r, int width, int green_x, uint32_t* own, uint32_t* green, uint32_t* other) {
-  for (int x = green_x; x < width; x += 2) {
-    green[x] = r[kCentre][x];
-    own[x] = K::Horizontal(r, x);
-    other[x] = K::Vertical(r, x);
+// All ones at a green site (x of green_x's parity), else zero.
+template <typename T>
+T GreenMask(int x, int green_x) {
+  const bool at_green = ((x ^ green_x) & 1) == 0;
+  return static_cast<T>(0u - static_cast<uint32_t>(at_green));
+}
+// a where mask is all ones, b where it is zero. Bitwise, not ?:, so that
+// compilers cannot move a load under a branch (which stops vectorisation).
+template <typename T>
+T Select(T mask, T a, T b) {
+  return (a & mask) | (b & ~mask);
+}
+
+void BilinearRow(const uint32_t* /*up2*/, const uint32_t* __restrict up1, const uint32_t* __restrict mid,
+                 const uint32_t* __restrict down1, const uint32_t* /*down2*/, int width, int green_x,
+                 uint32_t* __restrict own, uint32_t* __restrict green, uint32_t* __restrict other) {
+  for (int x = 0; x < width; ++x) {
+    const uint32_t c = mid[x];
+    const uint32_t w1 = mid[x - 1] + mid[x + 1];
+    const uint32_t n1 = up1[x] + down1[x];
+    const uint32_t diagonals = up1[x - 1] + up1[x + 1] + down1[x - 1] + down1[x + 1];
+    const uint32_t at_green = GreenMask<uint32_t>(x, green_x);
+    // Green site: own colour from W/E, other from N/S (a mean of 2 as
+    // (2 sum + 2) >> 2, i.e. (sum + 1) >> 1). Red/blue site: green from the 4
+    // nearest, other colour from the diagonals.
+    const uint32_t first = (Select(at_green, 2 * w1, w1 + n1) + 2) >> 2;
+    const uint32_t second = (Select(at_green, 2 * n1, diagonals) + 2) >> 2;
+    own[x] = Select(at_green, first, c);
+    green[x] = Select(at_green, c, first);
+    other[x] = second;
   }
-  for (int x = 1 - green_x; x < width; x += 2) {
-    own[x] = r[kCentre][x];
-    green[x] = K::GreenAtRb(r, x);
-    other[x] = K::Diagonal(r, x);
+}
+
+// Malvar: weights are 16 times the estimate; one rounding, then the Q0.16 range.
+inline uint32_t Finish(int32_t sum16) {
+  const int32_t v = (sum16 + 8) >> 4;  // RoundShift by 4; >> of a negative int is floor in C++20
+  return static_cast<uint32_t>(v < 0 ? 0 : (v > 65535 ? 65535 : v));
+}
+
+void MalvarRow(const uint32_t* __restrict up2, const uint32_t* __restrict up1, const uint32_t* __restrict mid,
+               const uint32_t* __restrict down1, const uint32_t* __restrict down2, int width, int green_x,
+               uint32_t* __restrict own, uint32_t* __restrict green, uint32_t* __restrict other) {
+  for (int x = 0; x < width; ++x) {
+    // The sums the kernels are made of (each at most 4 * 65535).
+    const int32_t c = S(mid[x]);
+    const int32_t w1 = S(mid[x - 1]) + S(mid[x + 1]);
+    const int32_t w2 = S(mid[x - 2]) + S(mid[x + 2]);
+    const int32_t n1 = S(up1[x]) + S(down1[x]);
+    const int32_t n2 = S(up2[x]) + S(down2[x]);
+    const int32_t diagonals = S(up1[x - 1]) + S(up1[x + 1]) + S(down1[x - 1]) + S(down1[x + 1]);
+    const int32_t at_green = GreenMask<int32_t>(x, green_x);
+    // Green site: own colour along the row, other colour along the column.
+    // Red/blue site: green, and the other colour from the diagonals.
+    const int32_t first = Select(at_green, 10 * c + 8 * w1 - 2 * w2 - 2 * diagonals + n2,
+                                 8 * c + 4 * (n1 + w1) - 2 * (n2 + w2));
+    const int32_t second = Select(at_green, 10 * c + 8 * n1 - 2 * n2 - 2 * diagonals + w2,
+                                  12 * c + 4 * diagonals - 3 * (n2 + w2));
+    const uint32_t estimate = Finish(first);
+    own[x] = Select(static_cast<uint32_t>(at_green), estimate, mid[x]);
+    green[x] = Select(static_cast<uint32_t>(at_green), mid[x], estimate);
+    other[x] = Finish(second);
   }
 }
 
 }  // namespace
 
 Status DemosaicStage::Configure(const DemosaicConfig& c, const SensorGeometry& g) {
+  // A value outside the enum would map every site to green, and the row
+  // functions' three __restrict output rows to the same row.
+  if (g.cfa > Cfa::kBayerBG)
+    return InvalidArgument("sensor.cfa", "must be Mono, BayerRG, BayerGR, BayerGB or BayerBG");
   switch (c.method) {
     case DemosaicMethod::kBilinear:
       radius_ = kBilinearRadius;
-      row_fn_ = DemosaicRow<Bilinear>;
+      row_fn_ = BilinearRow;
       break;
     case DemosaicMethod::kMalvar:
       radius_ = kMalvarRadius;
-      row_fn_ = DemosaicRow<Malvar>;
+      row_fn_ = MalvarRow;
       break;
     default: return InvalidArgument("demosaic.method", "must be bilinear or malvar");
   }
@@ -110,7 +127,7 @@ void DemosaicStage::ProcessRow(const RowArgs& a) const {
   const int green_x = CfaColour(cfa_, 0, a.y) == kGreen ? 0 : 1;
   const Colour own = CfaColour(cfa_, 1 - green_x, a.y);
   const Colour other = own == kRed ? kBlue : kRed;
-  row_fn_(rows, a.width, green_x, a.out[own], a.out[kGreen], a.out[other]);
+  row_fn_(rows[0], rows[1], rows[2], rows[3], rows[4], a.width, green_x, a.out[own], a.out[kGreen], a.out[other]);
 }
 
 }  // namespace camsim

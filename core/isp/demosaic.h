@@ -15,7 +15,9 @@
 //
 // Formats: in  Linear Q0.16, 1 channel Bayer mosaic (any of the four phases)
 //          out Linear Q0.16, 3 channels
-//          sums in int64 (at most 40 * (2^32 - 1) in magnitude), one rounding
+//          sums in 32 bits: linear samples are at most 65535 (every stage
+//          that makes them saturates there), so a Malvar sum lies in
+//          [-12, 28] * 65535 and a bilinear one in [0, 4 * 65535]. One rounding
 //          (ties up): exactly the rounded convolution, error <= 0.5 LSB.
 // Context: 1 row / column each side for bilinear, 2 for Malvar, reflect-101
 // (which keeps the CFA phase for sizes >= 2). A flat field comes out flat and
@@ -47,11 +49,12 @@ class DemosaicStage final : public Stage {
   void ProcessRow(const RowArgs& args) const override;
 
  private:
-  // One output row for either method, chosen at Configure. rows[0..4]: input
-  // rows y-2 .. y+2 (only y-1 .. y+1 for bilinear); green_x: parity of the G
-  // sites in this row; own: output of the row's non-green colour, other: of
-  // the remaining one.
-  using RowFn = void (*)(const uint32_t* const* rows, int width, int green_x, uint32_t* own, uint32_t* green,
+  // One output row for either method, chosen at Configure. up2 .. down2: input
+  // rows y-2 .. y+2 (bilinear reads only up1 .. down1; up2 and down2 are then
+  // null); green_x: parity of the G sites in this row; own: output of the
+  // row's non-green colour, other: of the remaining one. No two rows overlap.
+  using RowFn = void (*)(const uint32_t* up2, const uint32_t* up1, const uint32_t* mid, const uint32_t* down1,
+                         const uint32_t* down2, int width, int green_x, uint32_t* own, uint32_t* green,
                          uint32_t* other);
 
   Cfa cfa_ = Cfa::kBayerRG;

@@ -62,10 +62,14 @@ Status GammaStage::Init(Arena& tables) {
 
 void GammaStage::ProcessRow(const RowArgs& a) const {
   const int channels = a.out[1] != nullptr ? 3 : 1;
+  // Locals: a store through out (uint32_t) could alias a.width (int), and
+  // would make the compiler reload it every sample.
+  const uint16_t* table = table_;
+  const int width = a.width;
   for (int c = 0; c < channels; ++c) {
     const uint32_t* in = a.rows[0].ch[c];
     uint32_t* out = a.out[c];
-    for (int x = 0; x < a.width; ++x) out[x] = table_[in[x] < kMaxCode ? in[x] : kMaxCode];
+    for (int x = 0; x < width; ++x) out[x] = table[in[x] < kMaxCode ? in[x] : kMaxCode];
   }
 }
 

@@ -30,41 +30,60 @@ void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa
     s->count[kGreen] += width;
     return;
   }
-  for (int x = 0; x < width; ++x) {
-    const Colour c = CfaColour(cfa, x, y);
-    s->sum[c] += rows[0][x];
-    s->count[c] += 1;
+  // A mosaic row alternates two colours: sum even and odd columns apart.
+  const uint32_t* row = rows[0];
+  int64_t even = 0, odd = 0;
+  int x = 0;
+  for (; x + 1 < width; x += 2) {
+    even += row[x];
+    odd += row[x + 1];
   }
+  if (x < width) even += row[x];
+  const Colour even_colour = CfaColour(cfa, 0, y), odd_colour = CfaColour(cfa, 1, y);
+  s->sum[even_colour] += even;
+  s->count[even_colour] += (width + 1) / 2;
+  s->sum[odd_colour] += odd;
+  s->count[odd_colour] += width / 2;
 }
 
 void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width) {
+  CAMSIM_DCHECK(channels == 1 || channels == 3);
+  // Converts and interleaves the row into dst: a loop per channel count, with
+  // the row pointers in locals (a store through dst, a uint8_t store in
+  // particular, could alias them and would make the compiler reload them for
+  // every sample).
+  const auto interleave = [rows, channels, width](auto* dst, auto convert) {
+    const uint32_t* r0 = rows[0];
+    if (channels == 1) {
+      for (int x = 0; x < width; ++x) dst[x] = convert(r0[x]);
+      return;
+    }
+    const uint32_t* r1 = rows[1];
+    const uint32_t* r2 = rows[2];
+    for (int x = 0; x < width; ++x) {
+      dst[3 * x] = convert(r0[x]);
+      dst[3 * x + 1] = convert(r1[x]);
+      dst[3 * x + 2] = convert(r2[x]);
+    }
+  };
   const ptrdiff_t offset = static_cast<ptrdiff_t>(y) * tap.stride;
   switch (tap.format) {
-    case TapFormat::kU32: {
-      uint32_t* dst = static_cast<uint32_t*>(tap.data) + offset;
-      for (int x = 0; x < width; ++x)
-        for (int c = 0; c < channels; ++c) dst[x * channels + c] = rows[c][x];
+    case TapFormat::kU32:
+      interleave(static_cast<uint32_t*>(tap.data) + offset, [](uint32_t v) { return v; });
       break;
-    }
-    case TapFormat::kU16: {
-      uint16_t* dst = static_cast<uint16_t*>(tap.data) + offset;
-      for (int x = 0; x < width; ++x)
-        for (int c = 0; c < channels; ++c) {
-          const uint32_t v = rows[c][x];
-          dst[x * channels + c] = static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v);
-        }
+    case TapFormat::kU16:
+      interleave(static_cast<uint16_t*>(tap.data) + offset,
+                 [](uint32_t v) { return static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v); });
       break;
-    }
-    case TapFormat::kU8: {
-      // Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up.
-      uint8_t* dst = static_cast<uint8_t*>(tap.data) + offset;
-      for (int x = 0; x < width; ++x)
-        for (int c = 0; c < channels; ++c) {
-          const uint32_t v = rows[c][x] > 0xFFFFu ? 0xFFFFu : rows[c][x];
-          dst[x * channels + c] = static_cast<uint8_t>((v * 255u + 32767u) / 65535u);
-        }
+    case TapFormat::kU8:
+      // Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up. As
+      // 65535 = 255 * 257 that is round(v / 257) = floor((v + 128.5) / 257),
+      // which is (v + 128) / 257: no multiple of 257 lies in (v + 128, v + 128.5].
+      interleave(static_cast<uint8_t*>(tap.data) + offset, [](uint32_t v) {
+        const uint32_t q = v > 0xFFFFu ? 0xFFFFu : v;
+        return static_cast<uint8_t>((q + 128u) / 257u);
+      });
       break;
-    }
   }
 }
 
@@ -144,6 +163,8 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   if (g.width < 1 || g.width > kMaxDimension) return InvalidArgument("sensor.width", "must be in [1, 16384]");
   if (g.height < 1 || g.height > kMaxDimension) return InvalidArgument("sensor.height", "must be in [1, 16384]");
   if (g.adc_bits < 8 || g.adc_bits > 16) return InvalidArgument("sensor.adc_bits", "must be 8 to 16");
+  if (static_cast<uint8_t>(g.cfa) > static_cast<uint8_t>(Cfa::kBayerBG))
+    return InvalidArgument("sensor.cfa", "must be Mono, BayerRG, BayerGR, BayerGB or BayerBG");
   if (workers < 1 || workers > kMaxWorkers) return InvalidArgument("threads", "must be in [1, 64]");
   if (config.order_count < 1 || config.order_count > kStageCount)
     return InvalidArgument("pipeline.stages", "must name 1 to all stages");
@@ -289,7 +310,14 @@ uint32_t* Pipeline::RingRow(const StripState& s, int j, int row, int channel) co
 
 void Pipeline::FillMargins(uint32_t* row) const {
   const int w = config_.geometry.width;
-  for (int m = 1; m <= margin_; ++m) {
+  if (margin_ < w) {  // reflect-101 within the row: -m -> m, w - 1 + m -> w - 1 - m
+    for (int m = 1; m <= margin_; ++m) {
+      row[-m] = row[m];
+      row[w - 1 + m] = row[w - 1 - m];
+    }
+    return;
+  }
+  for (int m = 1; m <= margin_; ++m) {  // narrower than the margin: reflect repeatedly
     row[-m] = row[Reflect101(-m, w)];
     row[w - 1 + m] = row[Reflect101(w - 1 + m, w)];
   }
