@@ -79,6 +79,25 @@ Field Array(const char* s, const char* k, const char* doc, int min_count, int ma
   return f;
 }
 
+// A TOML basic string that reads back as exactly `s`.
+std::string TomlString(const std::string& s) {
+  std::string t = "\"";
+  for (const char ch : s) {
+    const unsigned char u = static_cast<unsigned char>(ch);
+    if (ch == '"' || ch == '\\') {
+      t += '\\';
+      t += ch;
+    } else if (u < 0x20 || u == 0x7F) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04X", u);
+      t += buf;
+    } else {
+      t += ch;
+    }
+  }
+  return t + "\"";
+}
+
 // Every configuration key, in the order `config --default` prints them.
 const std::vector<Field>& Fields() {
   static const std::vector<Field> fields = [] {
@@ -176,7 +195,7 @@ const std::vector<Field>& Fields() {
                       0, VignettingConfig::kMaxTable, [](RunConfig& c) { return c.core.vignetting.table; },
                       [](RunConfig& c) { return &c.core.vignetting.table_count; }));
     Field mask = Make("vignetting", "mask", Kind::kString, "mask mode: image file (PNG or EXR), gain per pixel, resampled to the sensor");
-    mask.get_text = [](const RunConfig& c) { return "\"" + c.vignetting_mask + "\""; };
+    mask.get_text = [](const RunConfig& c) { return TomlString(c.vignetting_mask); };
     mask.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
       c.vignetting_mask = s[0];
       return true;
@@ -422,8 +441,75 @@ std::vector<std::string> ConfigKeys() {
   return keys;
 }
 
+// toml++ 3.3.0 (Debian 12's) reaches __builtin_unreachable() in
+// is_non_ascii_horizontal_whitespace() for the code points U+00A1..U+0499,
+// U+2C5E..U+3057 and U+FB26..U+FEFE (but U+3000) wherever it asks whether a
+// character is whitespace: between tokens, while it scans a value to find its
+// type (`x = 16'\u026b`), and in multi-line strings after a line-ending
+// backslash (upstream issue marzer/tomlplusplus#190). No camsim key needs
+// non-ASCII there: refuse it before toml++ sees the text. Allowed: a leading
+// UTF-8 byte order mark, comments, and single-line strings in a value (a quote
+// right after `=`, `[`, `,` or `{`; anywhere else toml++ either starts no
+// string or has stopped with an error). Quoted keys and multi-line strings
+// are refused with non-ASCII / altogether.
+bool CheckTomlText(const std::string& text, const std::string& source, std::string* error) {
+  enum class State { kCode, kComment, kString };
+  State state = State::kCode;
+  bool value = false;       // after `=` on this line (else a key or a table header)
+  bool key_string = false;  // the open string is (or may be) a quoted key
+  char quote = 0;
+  char prev = '\n';  // the last code character on this line other than blanks
+  int line = 1;
+  const auto fail = [&](const char* why) {
+    *error = source + ":" + std::to_string(line) + ": " + why;
+    return false;
+  };
+  const size_t start = text.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+  for (size_t i = start; i < text.size(); ++i) {
+    const char ch = text[i];
+    const bool ascii = static_cast<unsigned char>(ch) < 0x80;
+    if (ch == '\n') {
+      ++line;
+      state = State::kCode;  // an unterminated single-line string is toml++'s error
+      value = false;
+      prev = '\n';
+      continue;
+    }
+    switch (state) {
+      case State::kComment:
+        break;
+      case State::kString:
+        if (!ascii && key_string) return fail("non-ASCII character in a key");
+        if (quote == '"' && ch == '\\' && i + 1 < text.size() && text[i + 1] != '\n') {
+          ++i;  // an escaped character
+        } else if (ch == quote) {
+          state = State::kCode;
+          prev = ch;
+        }
+        break;
+      case State::kCode:
+        if (!ascii) return fail("non-ASCII character outside a string value or a comment");
+        if (ch == '#') {
+          state = State::kComment;
+        } else if ((ch == '"' || ch == '\'') &&
+                   (!value || prev == '=' || prev == '[' || prev == ',' || prev == '{')) {
+          if (text.compare(i, 3, std::string(3, ch)) == 0) return fail("multi-line strings are not supported");
+          state = State::kString;
+          quote = ch;
+          key_string = !value;
+        } else {
+          if (ch == '=') value = true;
+          if (ch != ' ' && ch != '\t') prev = ch;
+        }
+        break;
+    }
+  }
+  return true;
+}
+
 bool ParseConfig(const std::string& text, const std::string& source, RunConfig* c, Origins* origins,
                  std::string* error) {
+  if (!CheckTomlText(text, source, error)) return false;
   try {
     toml::table root = toml::parse(text, source);
     return ApplyTable(root, source, c, origins, error);

@@ -11,6 +11,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/openexr.h>
 
 namespace camsim::io::detail {
 
@@ -28,6 +29,22 @@ std::unique_ptr<Imf::MultiPartInputFile> OpenExr(const std::string& path, std::s
   if (std::filesystem::is_directory(st)) {
     *error = "'" + path + "' is a directory, not an OpenEXR file";
     return nullptr;
+  }
+  // OpenEXRCore checks every header against the file (attribute sizes,
+  // windows, duplicates) without allocating what a corrupt header claims;
+  // Imf 3.1 allocates first: a 909-byte file with a string attribute "of
+  // 1.9 GB" made it allocate 1.9 GB. Strict: without the flag, Core reports
+  // such a header of a later part and still returns success.
+  {
+    exr_context_t ctx = nullptr;
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.flags = EXR_CONTEXT_FLAG_STRICT_HEADER | EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+    const exr_result_t r = exr_start_read(&ctx, path.c_str(), &init);
+    if (ctx != nullptr) exr_finish(&ctx);
+    if (r != EXR_ERR_SUCCESS) {
+      *error = "'" + path + "' is not a readable OpenEXR file: " + exr_get_default_error_message(r);
+      return nullptr;
+    }
   }
   std::unique_ptr<Imf::MultiPartInputFile> file;
   CatchExr(path, error, [&] {
@@ -115,7 +132,7 @@ std::string BoxText(const Imath::Box2i& b) {
 bool DisplaySize(const Imf::Header& header, int* width, int* height) {
   const Imath::Box2i& d = header.displayWindow();
   const int64_t w = int64_t{d.max.x} - d.min.x + 1, h = int64_t{d.max.y} - d.min.y + 1;
-  if (w < 1 || h < 1 || w > kMaxDisplayDim || h > kMaxDisplayDim) return false;
+  if (w < 1 || h < 1 || w > kMaxDisplayDim || h > kMaxDisplayDim || w * h > kMaxDisplayPixels) return false;
   *width = static_cast<int>(w);
   *height = static_cast<int>(h);
   return true;
@@ -127,8 +144,9 @@ void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<Cha
   const Imath::Box2i disp = header.displayWindow(), data = header.dataWindow();
   int width = 0, height = 0;
   if (!DisplaySize(header, &width, &height)) {
-    throw UnsupportedExr("display window " + BoxText(disp) + " is empty or larger than " +
-                         std::to_string(kMaxDisplayDim) + " x " + std::to_string(kMaxDisplayDim));
+    throw UnsupportedExr("display window " + BoxText(disp) + " is empty, larger than " +
+                         std::to_string(kMaxDisplayDim) + " x " + std::to_string(kMaxDisplayDim) + " or more than " +
+                         std::to_string(kMaxDisplayPixels) + " pixels");
   }
   const int64_t data_width = int64_t{data.max.x} - data.min.x + 1;
   if (data_width < 1 || data_width > kMaxDataWidth || data.max.y < data.min.y) {
@@ -154,7 +172,8 @@ void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<Cha
 
   // Read strips of whole data-window rows (about 1M samples per channel, so
   // OpenEXR's threads get many blocks at once), copy the overlap.
-  const int64_t strip_rows = std::max<int64_t>(16, (int64_t{1} << 20) / data_width);
+  const int64_t strip_rows =
+      std::min<int64_t>(int64_t{y1} - y0 + 1, std::max<int64_t>(16, (int64_t{1} << 20) / data_width));
   const size_t plane_samples = static_cast<size_t>(data_width * strip_rows);
   std::vector<float> buffer(plane_samples * reads.size());
   for (int64_t y = y0; y <= y1; y += strip_rows) {

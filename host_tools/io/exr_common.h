@@ -2,6 +2,7 @@
 // Not part of the public API.
 #pragma once
 
+#include <cstdint>
 #include <exception>
 #include <memory>
 #include <stdexcept>
@@ -16,6 +17,10 @@
 namespace camsim::io::detail {
 
 inline constexpr int kMaxDisplayDim = 16384;
+// At most 2^25 pixels (8K UHD, 7680 x 4320, fits): a header of a few hundred
+// bytes must not make the loader allocate and fill gigabytes (every plane of
+// the display window is float; colour, depth and motion are 6 planes).
+inline constexpr int64_t kMaxDisplayPixels = int64_t{1} << 25;
 inline constexpr int kMaxDataWidth = 65536;
 
 // Opens `path` as a (single- or multi-part) OpenEXR file; nullptr and *error

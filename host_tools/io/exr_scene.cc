@@ -92,8 +92,9 @@ bool ReadColourFile(Imf::MultiPartInputFile& file, const std::string& path, bool
   Colour c;
   if (!FindColour(file, path, &c, error)) return false;
   if (!detail::DisplaySize(file.header(c.part), &frame->width, &frame->height)) {
-    *error = "'" + path + "': display window is empty or larger than " +
-             std::to_string(detail::kMaxDisplayDim) + " x " + std::to_string(detail::kMaxDisplayDim);
+    *error = "'" + path + "': display window is empty, larger than " + std::to_string(detail::kMaxDisplayDim) +
+             " x " + std::to_string(detail::kMaxDisplayDim) + " or more than " +
+             std::to_string(detail::kMaxDisplayPixels) + " pixels";
     return false;
   }
   frame->layout = c.layout;

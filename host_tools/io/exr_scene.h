@@ -39,8 +39,8 @@
 // Windows: the output is the display window (width x height). Display-window
 // pixels outside the data window get radiance 0, depth +inf and motion 0 (not
 // counted in the stats); data outside the display window is dropped. The
-// display window must be non-empty and at most 16384 x 16384; the data window
-// at most 65536 wide.
+// display window must be non-empty, at most 16384 x 16384 and at most 2^25
+// pixels (8K UHD fits); the data window at most 65536 wide.
 //
 // Sanitising, counted in the stats before replacement (only samples that came
 // from the file are counted):
