@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages camsim needs, skipping those already present.
 # Idempotent; needs root (or sudo) only when something is missing.
+#   scripts/install-deps.sh              the native build's packages
+#   scripts/install-deps.sh PACKAGE...   these instead (scripts/cross.sh and
+#                                        scripts/baremetal.sh pass their toolchains)
 set -euo pipefail
 
 packages=(
@@ -8,6 +11,7 @@ packages=(
   libopenexr-dev libimath-dev libpng-dev zlib1g-dev libtomlplusplus-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
+[ $# -eq 0 ] || packages=("$@")
 
 missing=()
 for p in "${packages[@]}"; do

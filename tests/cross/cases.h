@@ -1,0 +1,97 @@
+// Pipeline configurations shared by the cross-architecture golden test
+// (core_golden.cc) and the bare-metal build (baremetal_main.cc). Core headers
+// only: no host library, no allocation.
+#pragma once
+
+#include "core/pipeline/pipeline.h"
+
+namespace camsim::cross {
+
+// configs/camera.toml (the demo camera) written out in code, because the TOML
+// reader is a host tool: BayerRG 12 bit, exposure 10 ms at f/2.8, cos4
+// vignetting of a 28 mm lens on a 36 mm wide sensor, the default EMVA 1288
+// sensor, white balance (1.3, 1, 1.1818), Malvar demosaic, sRGB gamma. The
+// colour matrix is the identity, so the planner leaves it out.
+inline PipelineConfig DemoConfig(int width, int height) {
+  PipelineConfig c;
+  c.geometry.width = width;
+  c.geometry.height = height;
+  c.geometry.cfa = Cfa::kBayerRG;
+  c.geometry.adc_bits = 12;
+  c.seed = 1;
+  c.exposure.exposure_time_us = 10000.0;
+  c.exposure.f_number = 2.8;
+  c.vignetting.mode = VignettingMode::kCos4;
+  // host_tools/config.cc: focal_length_px = focal_length_mm / (36 mm / width).
+  c.vignetting.focal_length_px = 28.0 / (36.0 / width);
+  c.white_balance.gain[0] = 1.3;
+  c.white_balance.gain[1] = 1.0;
+  c.white_balance.gain[2] = 1.1818;
+  c.demosaic.method = DemosaicMethod::kMalvar;
+  c.gamma.curve = GammaCurve::kSrgb;
+  return c;
+}
+
+// A mono sensor: 10-bit, 6 dB analog gain, a vignetting table instead of
+// cos4, a mono white-balance gain and a power-law gamma. Demosaic and the
+// colour matrix are left out (nothing to interpolate for a mono sensor).
+inline PipelineConfig MonoConfig(int width, int height) {
+  PipelineConfig c;
+  c.geometry.width = width;
+  c.geometry.height = height;
+  c.geometry.cfa = Cfa::kMono;
+  c.geometry.adc_bits = 10;
+  c.seed = 7;
+  c.exposure.exposure_time_us = 1000.0;  // the flat field at ~50 % of the range
+  c.exposure.f_number = 2.0;
+  c.vignetting.mode = VignettingMode::kTable;
+  const double table[5] = {1.0, 0.97, 0.9, 0.78, 0.6};
+  for (int i = 0; i < 5; ++i) c.vignetting.table[i] = table[i];
+  c.vignetting.table_count = 5;
+  c.sensor.gain_db = 6.0;
+  c.white_balance.gain[1] = 1.25;
+  c.gamma.curve = GammaCurve::kPower;
+  c.gamma.gamma = 2.2;
+  return c;
+}
+
+// The paper's BayerBG layout with bilinear demosaic (eq. 23-24), a 16-bit
+// ADC with 12 dB analog gain, a warm sensor (dark current doubling), a seed using all 64 bits, no
+// vignetting (left out) and a real colour matrix.
+inline PipelineConfig BilinearBgConfig(int width, int height) {
+  PipelineConfig c;
+  c.geometry.width = width;
+  c.geometry.height = height;
+  c.geometry.cfa = Cfa::kBayerBG;
+  c.geometry.adc_bits = 16;
+  c.seed = 0x0123456789ABCDEFull;
+  c.exposure.exposure_time_us = 20000.0;
+  c.exposure.f_number = 4.0;
+  c.sensor.gain_db = 12.0;
+  c.sensor.temperature_c = 45.0;
+  c.sensor.black_level_dn = 256.0;
+  c.white_balance.gain[0] = 1.9;
+  c.white_balance.gain[1] = 1.0;
+  c.white_balance.gain[2] = 1.45;
+  c.demosaic.method = DemosaicMethod::kBilinear;
+  const double m[9] = {1.62, -0.41, -0.21, -0.28, 1.49, -0.21, -0.07, -0.52, 1.59};
+  for (int i = 0; i < 9; ++i) c.color_matrix.m[i] = m[i];
+  c.gamma.curve = GammaCurve::kSrgb;
+  return c;
+}
+
+// Radiance of TexturedScene (tests/support/test_support.cc) at (x, y) for
+// colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
+// bright (saturating) spot. IEEE basic operations only, so it is the same on
+// every platform.
+inline uint32_t TexturedRadiance(int width, int height, int x, int y, int c) {
+  const double gx = static_cast<double>(x) / (width > 1 ? width - 1 : 1);
+  const double gy = static_cast<double>(y) / (height > 1 ? height - 1 : 1);
+  const bool check = ((x / 8) + (y / 8)) % 2 == 0;
+  double v[3] = {0.05 + 0.9 * gx, 0.1 + 0.6 * gy, 0.3 * (check ? 1.0 : 0.2)};
+  const double dx = x - width * 0.7, dy = y - height * 0.3;
+  if (dx * dx + dy * dy < 9.0) v[0] = v[1] = v[2] = 400.0;
+  return Q<16, 16>::FromDouble(v[c]).raw;
+}
+
+}  // namespace camsim::cross
