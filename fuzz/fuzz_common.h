@@ -1,0 +1,322 @@
+// Shared by the fuzz targets and the seed generator: the compact binary
+// description of a core configuration that fuzz_core reads, and a checked run
+// of a configured pipeline (strip-height and worker invariance, output ranges).
+//
+// Blob layout (every read past the end gives 0, so any byte string decodes;
+// 0 bytes mostly mean "the default", so short blobs give valid configurations):
+//   byte  width  = 1 + b % 64           byte  height = 1 + b % 64
+//   byte  cfa    = b % 6  (5 is not a Cfa: the core must refuse it or cope)
+//   byte  adc_bits = 12 for 0, else 6 + b % 13  (6..18; the valid range is 8..16)
+//   byte  order mode: even -> the default order filtered by a 9-bit mask
+//         (2 bytes follow; an empty mask means every stage); odd ->
+//         (b >> 1) % 11 stage ids follow, each byte % 10 (9 is not a stage);
+//         counts 0 and 10 are out of range
+//   2 bytes seed
+//   enum bytes (vignetting mode % 5, table count % 66, demosaic method % 3,
+//   gamma curve % 4, shot noise: b != 1, vignetting mask & 1), then one number
+//   per parameter in Params() order (see DecodeNumber), then radiance samples:
+//   each sample is 4 little-endian bytes (any uint32, 0xFFFFFFFF included);
+//   when the blob runs out, the samples already read repeat (a blob without
+//   samples gives a ramp through 0 and 0xFFFFFFFF). The optional Q2.14
+//   vignetting mask is derived from the radiance.
+//
+// A number byte b: 0 keeps the default; 1..8 are specials {NaN, +inf, -inf, 0,
+// -0, -1, lo, hi}; 9..15 lie just outside or far outside [lo, hi]; 16..254 map
+// over [lo, hi] (logarithmically for log-scaled parameters); 255 is followed
+// by the 8 bytes of a raw little-endian double (any value, exactly).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+
+namespace camsim::fuzz {
+
+#define FUZZ_CHECK(cond, ...)                                        \
+  do {                                                               \
+    if (!(cond)) {                                                   \
+      std::fprintf(stderr, "FUZZ_CHECK failed: %s: ", #cond);        \
+      std::fprintf(stderr, __VA_ARGS__);                             \
+      std::fprintf(stderr, "\n");                                    \
+      std::abort();                                                  \
+    }                                                                \
+  } while (0)
+
+class ByteReader {
+ public:
+  ByteReader(const uint8_t* data, size_t size) : data_(data), size_(size) {}
+  uint8_t Byte() { return pos_ < size_ ? data_[pos_++] : 0; }
+  size_t remaining() const { return size_ - pos_; }
+  const uint8_t* here() const { return data_ + pos_; }
+  double RawDouble() {
+    uint8_t b[8];
+    for (uint8_t& x : b) x = Byte();
+    double v;
+    std::memcpy(&v, b, sizeof v);  // little-endian hosts only (x86-64, aarch64)
+    return v;
+  }
+
+ private:
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_ = 0;
+};
+
+struct NumberParam {
+  const char* name;
+  double lo, hi;
+  bool log;
+  double& (*ref)(PipelineConfig&);
+};
+
+#define CAMSIM_FUZZ_PARAM(name, lo, hi, log, expr) \
+  NumberParam { name, lo, hi, log, [](PipelineConfig& c) -> double& { return expr; } }
+
+// Every double of PipelineConfig, with its documented valid range.
+inline const std::vector<NumberParam>& Params() {
+  static const std::vector<NumberParam> params = {
+      CAMSIM_FUZZ_PARAM("exposure_time_us", 1.0, 1e8, true, c.exposure.exposure_time_us),
+      CAMSIM_FUZZ_PARAM("f_number", 0.5, 128.0, true, c.exposure.f_number),
+      CAMSIM_FUZZ_PARAM("photons_per_radiance_ms", 1e-3, 1e9, true, c.exposure.photons_per_radiance_ms),
+      CAMSIM_FUZZ_PARAM("focal_length_px", 1.0, 1e6, true, c.vignetting.focal_length_px),
+      CAMSIM_FUZZ_PARAM("table0", 0.0, 4.0, false, c.vignetting.table[0]),
+      CAMSIM_FUZZ_PARAM("table1", 0.0, 4.0, false, c.vignetting.table[1]),
+      CAMSIM_FUZZ_PARAM("table2", 0.0, 4.0, false, c.vignetting.table[2]),
+      CAMSIM_FUZZ_PARAM("table_last", 0.0, 4.0, false, c.vignetting.table[VignettingConfig::kMaxTable - 1]),
+      CAMSIM_FUZZ_PARAM("mono_weight_r", 0.0, 1.0, false, c.cfa.mono_weights[0]),
+      CAMSIM_FUZZ_PARAM("mono_weight_g", 0.0, 1.0, false, c.cfa.mono_weights[1]),
+      CAMSIM_FUZZ_PARAM("mono_weight_b", 0.0, 1.0, false, c.cfa.mono_weights[2]),
+      CAMSIM_FUZZ_PARAM("qe_r", 0.0, 1.0, false, c.sensor.quantum_efficiency[0]),
+      CAMSIM_FUZZ_PARAM("qe_g", 0.0, 1.0, false, c.sensor.quantum_efficiency[1]),
+      CAMSIM_FUZZ_PARAM("qe_b", 0.0, 1.0, false, c.sensor.quantum_efficiency[2]),
+      CAMSIM_FUZZ_PARAM("full_well_e", 1.0, 1e6, true, c.sensor.full_well_e),
+      CAMSIM_FUZZ_PARAM("system_gain_dn_per_e", 1e-3, 1e3, true, c.sensor.system_gain_dn_per_e),
+      CAMSIM_FUZZ_PARAM("gain_db", 0.0, 48.0, false, c.sensor.gain_db),
+      CAMSIM_FUZZ_PARAM("dark_noise_e", 0.0, 1000.0, false, c.sensor.dark_noise_e),
+      CAMSIM_FUZZ_PARAM("dark_current_e_per_s", 0.0, 1e6, false, c.sensor.dark_current_e_per_s),
+      CAMSIM_FUZZ_PARAM("temperature_c", -100.0, 150.0, false, c.sensor.temperature_c),
+      CAMSIM_FUZZ_PARAM("dark_current_ref_c", -100.0, 150.0, false, c.sensor.dark_current_ref_c),
+      CAMSIM_FUZZ_PARAM("dark_current_doubling_c", 1.0, 100.0, false, c.sensor.dark_current_doubling_c),
+      CAMSIM_FUZZ_PARAM("dsnu_e", 0.0, 1000.0, false, c.sensor.dsnu_e),
+      CAMSIM_FUZZ_PARAM("prnu_percent", 0.0, 50.0, false, c.sensor.prnu_percent),
+      CAMSIM_FUZZ_PARAM("sensor_black_level_dn", 0.0, 65534.0, false, c.sensor.black_level_dn),
+      CAMSIM_FUZZ_PARAM("isp_black_level_dn", -1.0, 65534.0, false, c.black_level.black_level_dn),
+      CAMSIM_FUZZ_PARAM("wb_r", 0.0, 16.0, false, c.white_balance.gain[0]),
+      CAMSIM_FUZZ_PARAM("wb_g", 0.0, 16.0, false, c.white_balance.gain[1]),
+      CAMSIM_FUZZ_PARAM("wb_b", 0.0, 16.0, false, c.white_balance.gain[2]),
+      CAMSIM_FUZZ_PARAM("m0", -16.0, 16.0, false, c.color_matrix.m[0]),
+      CAMSIM_FUZZ_PARAM("m1", -16.0, 16.0, false, c.color_matrix.m[1]),
+      CAMSIM_FUZZ_PARAM("m2", -16.0, 16.0, false, c.color_matrix.m[2]),
+      CAMSIM_FUZZ_PARAM("m3", -16.0, 16.0, false, c.color_matrix.m[3]),
+      CAMSIM_FUZZ_PARAM("m4", -16.0, 16.0, false, c.color_matrix.m[4]),
+      CAMSIM_FUZZ_PARAM("m5", -16.0, 16.0, false, c.color_matrix.m[5]),
+      CAMSIM_FUZZ_PARAM("m6", -16.0, 16.0, false, c.color_matrix.m[6]),
+      CAMSIM_FUZZ_PARAM("m7", -16.0, 16.0, false, c.color_matrix.m[7]),
+      CAMSIM_FUZZ_PARAM("m8", -16.0, 16.0, false, c.color_matrix.m[8]),
+      CAMSIM_FUZZ_PARAM("gamma", 0.1, 10.0, true, c.gamma.gamma),
+  };
+  return params;
+}
+
+inline double DecodeNumber(ByteReader& r, const NumberParam& p, double current) {
+  const uint8_t b = r.Byte();
+  const double span = p.hi - p.lo;
+  switch (b) {
+    case 0: return current;
+    case 1: return std::numeric_limits<double>::quiet_NaN();
+    case 2: return std::numeric_limits<double>::infinity();
+    case 3: return -std::numeric_limits<double>::infinity();
+    case 4: return 0.0;
+    case 5: return -0.0;
+    case 6: return -1.0;
+    case 7: return p.lo;
+    case 8: return p.hi;
+    case 9: return p.lo - span * 1e-9;
+    case 10: return p.hi + span * 1e-9;
+    case 11: return std::nextafter(p.lo, -std::numeric_limits<double>::infinity());
+    case 12: return std::nextafter(p.hi, std::numeric_limits<double>::infinity());
+    case 13: return p.hi * 1e6 + 1.0;
+    case 14: return std::numeric_limits<double>::max();
+    case 15: return std::numeric_limits<double>::denorm_min();
+    case 255: return r.RawDouble();
+    default: break;
+  }
+  const double t = (b - 16) / 238.0;  // 0..1
+  if (p.log) return std::pow(10.0, std::log10(p.lo) + (std::log10(p.hi) - std::log10(p.lo)) * t);
+  return p.lo + span * t;
+}
+
+struct CoreCase {
+  PipelineConfig config;
+  bool has_mask = false;
+  std::vector<uint32_t> radiance[3];
+  std::vector<uint16_t> mask;
+
+  FrameInput View() const {
+    FrameInput in;
+    const int w = config.geometry.width, h = config.geometry.height;
+    for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(radiance[c].data(), w, h);
+    if (has_mask) in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), w, h);
+    return in;
+  }
+};
+
+inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
+  ByteReader r(data, size);
+  CoreCase k;
+  PipelineConfig& c = k.config;
+  c.geometry.width = 1 + r.Byte() % 64;
+  c.geometry.height = 1 + r.Byte() % 64;
+  c.geometry.cfa = static_cast<Cfa>(r.Byte() % 6);
+  const uint8_t bits = r.Byte();
+  c.geometry.adc_bits = bits == 0 ? 12 : 6 + bits % 13;
+  const uint8_t mode = r.Byte();
+  if (mode % 2 == 0) {
+    uint32_t mask = (r.Byte() | (uint32_t{r.Byte()} << 8)) & 0x1FFu;
+    if (mask == 0) mask = 0x1FFu;
+    c.order_count = 0;
+    for (int i = 0; i < kStageCount; ++i)
+      if (mask & (1u << i)) c.order[c.order_count++] = static_cast<StageId>(i);
+  } else {
+    c.order_count = (mode >> 1) % 11;
+    for (int i = 0; i < c.order_count; ++i) {
+      const StageId id = static_cast<StageId>(r.Byte() % 10);
+      if (i < kStageCount) c.order[i] = id;
+    }
+  }
+  c.seed = r.Byte() | (uint64_t{r.Byte()} << 8);
+  c.vignetting.mode = static_cast<VignettingMode>(r.Byte() % 5);
+  c.vignetting.table_count = r.Byte() % 66;
+  c.demosaic.method = static_cast<DemosaicMethod>(r.Byte() % 3);
+  c.gamma.curve = static_cast<GammaCurve>(r.Byte() % 4);
+  c.sensor.shot_noise = r.Byte() != 1;
+  k.has_mask = r.Byte() & 1;
+  for (const NumberParam& p : Params()) p.ref(c) = DecodeNumber(r, p, p.ref(c));
+  // Table entries not named in Params() repeat the decoded ones.
+  for (int i = 3; i < VignettingConfig::kMaxTable - 1; ++i) c.vignetting.table[i] = c.vignetting.table[i % 3];
+
+  const size_t n = static_cast<size_t>(c.geometry.width) * c.geometry.height;
+  std::vector<uint32_t> samples;
+  while (r.remaining() >= 4 && samples.size() < 3 * n) {
+    const uint8_t* p = r.here();
+    samples.push_back(p[0] | (uint32_t{p[1]} << 8) | (uint32_t{p[2]} << 16) | (uint32_t{p[3]} << 24));
+    for (int i = 0; i < 4; ++i) r.Byte();
+  }
+  if (samples.empty()) samples = {0u, 0x8000u, 0x10000u, 0x7FFFFFFFu, 0xFFFFFFFFu, 1u, 0x640000u};
+  for (int ch = 0; ch < 3; ++ch) {
+    k.radiance[ch].resize(n);
+    for (size_t i = 0; i < n; ++i) k.radiance[ch][i] = samples[(ch * n + i) % samples.size()];
+  }
+  k.mask.resize(n);
+  for (size_t i = 0; i < n; ++i) k.mask[i] = static_cast<uint16_t>(k.radiance[0][i] ^ (k.radiance[1][i] >> 16));
+  return k;
+}
+
+// The inverse for seeds: a blob that decodes to exactly this configuration
+// (numbers as raw doubles; orders as explicit lists; samples verbatim).
+inline std::vector<uint8_t> EncodeCoreCase(const PipelineConfig& config, bool has_mask,
+                                           const std::vector<uint32_t>& samples) {
+  PipelineConfig c = config;
+  std::vector<uint8_t> b;
+  b.push_back(static_cast<uint8_t>(c.geometry.width - 1));
+  b.push_back(static_cast<uint8_t>(c.geometry.height - 1));
+  b.push_back(static_cast<uint8_t>(c.geometry.cfa));
+  b.push_back(static_cast<uint8_t>(c.geometry.adc_bits - 6 + 13));  // never 0 (which means 12)
+  b.push_back(static_cast<uint8_t>(1 + 2 * c.order_count));
+  for (int i = 0; i < c.order_count; ++i) b.push_back(static_cast<uint8_t>(c.order[i]));
+  b.push_back(static_cast<uint8_t>(c.seed));
+  b.push_back(static_cast<uint8_t>(c.seed >> 8));
+  b.push_back(static_cast<uint8_t>(c.vignetting.mode));
+  b.push_back(static_cast<uint8_t>(c.vignetting.table_count));
+  b.push_back(static_cast<uint8_t>(c.demosaic.method));
+  b.push_back(static_cast<uint8_t>(c.gamma.curve));
+  b.push_back(c.sensor.shot_noise ? 0 : 1);
+  b.push_back(has_mask ? 1 : 0);
+  for (const NumberParam& p : Params()) {
+    b.push_back(255);
+    uint8_t raw[8];
+    std::memcpy(raw, &p.ref(c), 8);
+    b.insert(b.end(), raw, raw + 8);
+  }
+  for (uint32_t s : samples)
+    for (int i = 0; i < 4; ++i) b.push_back(static_cast<uint8_t>(s >> (8 * i)));
+  return b;
+}
+
+// The largest value a sample of `domain` may take.
+inline uint32_t DomainMax(Domain d, int adc_bits) {
+  switch (d) {
+    case Domain::kDigital: return (1u << adc_bits) - 1;
+    case Domain::kLinear:
+    case Domain::kEncoded: return 65535u;
+    case Domain::kRadiance:
+    case Domain::kPhotons: break;
+  }
+  return 0xFFFFFFFFu;
+}
+
+// Configures (errors are fine: returns false), then runs the frame twice: the
+// whole frame in strips of `rows_a` on worker 0, and in strips of `rows_b`
+// alternating between workers 0 and 1, with every tap prefilled differently.
+// Aborts if the outputs differ, a sample is out of its domain's range, or a
+// step that must succeed for a valid configuration fails.
+inline bool RunChecked(const PipelineConfig& config, const FrameInput& input, bool has_mask, int rows_a,
+                       int rows_b) {
+  Pipeline p;
+  if (!p.Configure(config, 2, has_mask).ok()) return false;
+  // Garbage, not zeros: a ring row that is read before it was written shows up
+  // as 0xA5A5A5A5, out of range in every domain after the sensor.
+  std::vector<uint8_t> workspace(p.WorkspaceBytes(), 0xA5);
+  const Status init = p.Init(Span<uint8_t>{workspace.data(), workspace.size()});
+  FUZZ_CHECK(init.ok(), "Init failed after Configure succeeded: %s", init.message());
+  const Status in = p.CheckInput(input);
+  FUZZ_CHECK(in.ok(), "CheckInput refused a well-formed frame: %s", in.message());
+
+  const Plan& plan = p.plan();
+  FUZZ_CHECK(plan.running >= 1 && plan.running <= kStageCount, "running %d", plan.running);
+  const int w = p.width(), h = p.height();
+  // Tap every running stage.
+  std::vector<std::vector<uint32_t>> out_a(static_cast<size_t>(plan.running)), out_b(out_a.size());
+  std::vector<Tap> taps_a(out_a.size()), taps_b(out_a.size());
+  std::vector<LineFormat> formats;
+  for (int e = 0; e < plan.count; ++e)
+    if (plan.entries[e].runs) formats.push_back(plan.entries[e].out);
+  FUZZ_CHECK(static_cast<int>(formats.size()) == plan.running, "plan entries");
+  for (size_t i = 0; i < out_a.size(); ++i) {
+    const size_t n = static_cast<size_t>(w) * h * formats[i].channels;
+    out_a[i].assign(n, 0xA5A5A5A5u);
+    out_b[i].assign(n, 0x5A5A5A5Au);
+    for (auto [taps, out] : {std::pair{&taps_a, &out_a}, std::pair{&taps_b, &out_b}}) {
+      Tap& t = (*taps)[i];
+      t.stage = static_cast<int>(i);
+      t.format = TapFormat::kU32;
+      t.data = (*out)[i].data();
+      t.stride = static_cast<ptrdiff_t>(w) * formats[i].channels;
+    }
+  }
+  WorkerStats stats{};
+  p.ProcessFrame(input, 7, rows_a, taps_a.data(), static_cast<int>(taps_a.size()), &stats, nullptr);
+  if (rows_b < 1) rows_b = 1;
+  for (int y = 0, k = 0; y < h; y += rows_b, ++k)
+    p.ProcessStrip(input, 7, y, y + rows_b, k & 1, taps_b.data(), static_cast<int>(taps_b.size()), nullptr,
+                   nullptr);
+  for (size_t i = 0; i < out_a.size(); ++i) {
+    const uint32_t max = DomainMax(formats[i].domain, config.geometry.adc_bits);
+    for (size_t j = 0; j < out_a[i].size(); ++j) {
+      FUZZ_CHECK(out_a[i][j] == out_b[i][j],
+                 "stage %zu (%s) sample %zu differs between strip heights %d and %d: %u vs %u", i,
+                 DomainName(formats[i].domain), j, rows_a, rows_b, out_a[i][j], out_b[i][j]);
+      FUZZ_CHECK(out_a[i][j] <= max, "stage %zu (%s) sample %zu = %u > %u", i, DomainName(formats[i].domain), j,
+                 out_a[i][j], max);
+    }
+  }
+  return true;
+}
+
+}  // namespace camsim::fuzz

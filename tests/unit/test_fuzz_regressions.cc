@@ -1,0 +1,226 @@
+// Inputs found by the fuzz targets (fuzz/, scripts/fuzz.sh) or while building
+// them, reduced. Each must be refused with an error, or processed with every
+// sample in range; none may reach undefined behaviour (the debug preset runs
+// this file under ASan + UBSan).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "host_tools/config.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+// A pipeline on a workspace full of garbage (the core must not rely on zeroed
+// memory: a ring row read before it was written shows up as 0xA5A5A5A5), with
+// every running stage tapped.
+struct GarbageRun {
+  Status status;
+  std::vector<LineFormat> format;           // per running stage
+  std::vector<std::vector<uint32_t>> out;   // per running stage, interleaved
+};
+GarbageRun RunOnGarbage(const PipelineConfig& config, const test::Scene& scene, int strip_rows) {
+  GarbageRun r;
+  Pipeline p;
+  r.status = p.Configure(config, 1, false);
+  if (!r.status.ok()) return r;
+  std::vector<uint8_t> workspace(p.WorkspaceBytes(), 0xA5);
+  r.status = p.Init(Span<uint8_t>{workspace.data(), workspace.size()});
+  if (!r.status.ok()) return r;
+  for (int e = 0; e < p.plan().count; ++e)
+    if (p.plan().entries[e].runs) r.format.push_back(p.plan().entries[e].out);
+  r.out.resize(r.format.size());
+  std::vector<Tap> taps(r.format.size());
+  for (size_t i = 0; i < taps.size(); ++i) {
+    r.out[i].assign(static_cast<size_t>(scene.width) * scene.height * r.format[i].channels, 0xDEADBEEFu);
+    taps[i].stage = static_cast<int>(i);
+    taps[i].format = TapFormat::kU32;
+    taps[i].data = r.out[i].data();
+    taps[i].stride = static_cast<ptrdiff_t>(scene.width) * r.format[i].channels;
+  }
+  p.ProcessFrame(scene.View(), 0, strip_rows, taps.data(), static_cast<int>(taps.size()), nullptr, nullptr);
+  return r;
+}
+
+// Samples above their domain's range (DN for 12 bits; photons have none).
+size_t OutOfRange(const GarbageRun& r) {
+  size_t bad = 0;
+  for (size_t i = 0; i < r.out.size(); ++i) {
+    const Domain d = r.format[i].domain;
+    const uint32_t max = d == Domain::kDigital ? 4095u : (d == Domain::kPhotons ? 0xFFFFFFFFu : 65535u);
+    for (uint32_t v : r.out[i]) bad += v > max;
+  }
+  return bad;
+}
+
+// fuzz_core: Pipeline::Configure accepted a Cfa outside the enum (geometry.cfa
+// = 5, reachable through the core API, not through TOML). Every site then
+// reads as green, demosaic writes G twice and never writes B, and the ISP
+// output's blue channel is whatever the line ring held before.
+// Fix: Pipeline::Configure refuses "sensor.cfa" outside Mono..BayerBG.
+// (The final output hides it: gamma clamps the garbage to 65535; the
+// demosaic tap shows it.) The other enums: demosaic.method and gamma.curve
+// are already refused; vignetting.mode 4 is accepted and acts as a flat curve
+// (no garbage), which this test allows; a `default:` in
+// VignettingStage::Configure's switch would refuse it.
+TEST(FuzzRegressions, EnumValuesOutsideTheirRange) {
+  const test::Scene scene = test::TexturedScene(8, 6);
+  struct Case {
+    const char* field;
+    void (*set)(PipelineConfig&);
+  };
+  const Case cases[] = {
+      {"sensor.cfa", [](PipelineConfig& c) { c.geometry.cfa = static_cast<Cfa>(5); }},
+      {"vignetting.mode", [](PipelineConfig& c) { c.vignetting.mode = static_cast<VignettingMode>(4); }},
+      {"demosaic.method", [](PipelineConfig& c) { c.demosaic.method = static_cast<DemosaicMethod>(2); }},
+      {"gamma.curve", [](PipelineConfig& c) { c.gamma.curve = static_cast<GammaCurve>(3); }},
+  };
+  for (const Case& k : cases) {
+    PipelineConfig c = test::DemoConfig(8, 6);
+    k.set(c);
+    const GarbageRun whole = RunOnGarbage(c, scene, 6), strips = RunOnGarbage(c, scene, 1);
+    if (!whole.status.ok()) {
+      EXPECT_STREQ(whole.status.field(), k.field) << whole.status.message();
+      continue;
+    }
+    ASSERT_FALSE(whole.format.empty()) << k.field;
+    EXPECT_EQ(OutOfRange(whole), 0u) << k.field << " was accepted and a stage output samples that were never written";
+    EXPECT_TRUE(whole.out == strips.out) << k.field << ": output depends on the strip height";
+  }
+}
+
+// Found reading UScale while writing fuzz_core's number mapping, confirmed
+// through fuzz_config under UBSan ("shift exponent -1 is negative"); the
+// fuzzers did not reach the half-unit-wide window on their own. A scale factor
+// in [2^32 - 0.5, 2^32) made UScale::FromDouble round the mantissa up to 2^32
+// and renormalise it to 2^31 with shift -1; UScale::Apply then shifted by -1
+// (undefined behaviour on every exposure sample). Reachable from TOML: exposure with
+// 1e9 photons/radiance/ms, 1e8 us and f/9.536743164339855 gives a factor of
+// 4294967295.75. Fix (core/base/fixed.h, UScale::FromDouble): when the rounded
+// mantissa reaches 2^32 and shift is already 0, return the "scale factor too
+// large" error instead of decrementing shift.
+TEST(FuzzRegressions, ScaleFactorJustBelowTwoToThe32) {
+  const Result<UScale> s = UScale::FromDouble(4294967295.75, "factor");
+  if (s.ok()) {
+    // A valid scale: shift in [0, 95], mantissa normalised.
+    ASSERT_GE(s.value().shift, 0);
+    ASSERT_LE(s.value().shift, UScale::kMaxShift);
+    ASSERT_GE(s.value().mant, 0x80000000u);
+  }
+  const std::string toml =
+      "[pipeline]\nstages = [\"exposure\"]\n"
+      "[exposure]\nexposure_time_us = 1e8\nphotons_per_radiance_ms = 1e9\nf_number = 9.536743164339855\n";
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  ASSERT_TRUE(host::ParseConfig(toml, "fuzz.toml", &rc, &origins, &error)) << error;
+  const double factor = ExposurePhotonsPerRadiance(rc.core.exposure) / 256.0;  // what UScale gets
+  ASSERT_GE(factor, 4294967295.5);
+  ASSERT_LT(factor, 4294967296.0);
+  if (!host::FinishConfig(&rc, 4, 1, origins, 1, &error)) {
+    EXPECT_NE(error.find("exposure"), std::string::npos) << error;
+    return;
+  }
+  // Accepted: radiance 0 gives 0 photons, anything else saturates at 2^32 - 1.
+  test::Scene scene = test::FlatScene(4, 1, 0, 0, 0);
+  for (auto& p : scene.plane) p = {0u, 1u, 0x10000u, 0xFFFFFFFFu};
+  const GarbageRun r = RunOnGarbage(rc.core, scene, 1);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.out.size(), 1u);
+  EXPECT_EQ(r.out[0], (std::vector<uint32_t>{0, 0, 0, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu,
+                                          0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFFFu}));
+}
+
+// fuzz_config (UBSan, toml++ compiled into the target): toml++ 3.3.0 (Debian
+// 12's libtomlplusplus) reaches __builtin_unreachable() in
+// is_non_ascii_horizontal_whitespace() for the non-ASCII code points
+// U+00A1..U+0499, U+2C5E..U+3057 and U+FB26..U+FEFE (but U+3000) wherever it
+// looks for whitespace: between tokens (the fuzzer's first find was U+FEFB at
+// the start of the file), and in a multi-line basic string after a
+// line-ending backslash (upstream issue
+// marzer/tomlplusplus#190, fixed after 3.3.0). In the shipped library that is
+// undefined behaviour that happens to fall through; the fix proposed for
+// host::ParseConfig refuses non-ASCII outside comments and single-line
+// strings, and multi-line strings, before toml++ sees the text.
+TEST(FuzzRegressions, TomlNonAsciiWhereWhitespaceMayBe) {
+  {
+    host::RunConfig rc;
+    host::Origins o;
+    std::string error;
+    EXPECT_FALSE(host::ParseConfig("[white_balance]\ngain = [1.3, 1.0, 1.18\xcf\xbe]\n", "fuzz.toml", &rc, &o, &error));
+    EXPECT_EQ(error.rfind("fuzz.toml:2:", 0), 0u) << error;
+    // U+FEFB where a table header may start (the fuzzer's first find), U+026B
+    // while toml++ scans a value for its type, after a quote that starts no
+    // string, and after a quoted key holding a '#'.
+    for (const char* text : {"\xef\xbb\xbb[sensor]\nwidth = 1\n", "[sensor]\nadc_bits = 16'\xc9\xab\n",
+                             "[sensor]\nadc_bits = 1.'\xc9\xab'\n", "[sensor]\n\"a#\" = 1\xc3\xa9\n"}) {
+      EXPECT_FALSE(host::ParseConfig(text, "fuzz.toml", &rc, &o, &error)) << text;
+      EXPECT_EQ(error.rfind("fuzz.toml:", 0), 0u) << error;
+    }
+  }
+  {
+    // A UTF-8 byte order mark (U+FEFF, whitespace to toml++) is fine.
+    host::RunConfig rc;
+    host::Origins o;
+    std::string error;
+    ASSERT_TRUE(host::ParseConfig("\xef\xbb\xbf[sensor]\nwidth = 7\n", "fuzz.toml", &rc, &o, &error)) << error;
+    EXPECT_EQ(rc.width, 7);
+  }
+  {
+    // Refused, or read as TOML says: the backslash drops the newline and the
+    // whitespace after it, so the mask is "\u00a7m.png".
+    host::RunConfig rc;
+    host::Origins o;
+    std::string error;
+    if (host::ParseConfig("[vignetting]\nmask = \"\"\"\\\n\xc2\xa7m.png\"\"\"\n", "fuzz.toml", &rc, &o, &error))
+      EXPECT_EQ(rc.vignetting_mask, "\xc2\xa7m.png");
+    else
+      EXPECT_EQ(error.rfind("fuzz.toml:", 0), 0u) << error;
+  }
+  {
+    // Non-ASCII in comments and in (single-line) strings, e.g. paths, stays fine.
+    host::RunConfig rc;
+    host::Origins o;
+    std::string error;
+    ASSERT_TRUE(host::ParseConfig("# sensor at 25 \xc2\xb0" "C\n[vignetting]\nmask = \"m\xc3\xa9.png\"  # \xc2\xa7\n",
+                                  "fuzz.toml", &rc, &o, &error))
+        << error;
+    EXPECT_EQ(rc.vignetting_mask, "m\xc3\xa9.png");
+  }
+  {
+    // fuzz_config with toml++'s internal assertions on: a table header that
+    // starts with a character no key may start with trips an assert in
+    // parse_key(); the release library reports it as an error.
+    host::RunConfig rc;
+    host::Origins o;
+    std::string error;
+    EXPECT_FALSE(host::ParseConfig("[&ipeline]\nseed = 1\n", "fuzz.toml", &rc, &o, &error));
+    EXPECT_EQ(error.rfind("fuzz.toml:1:", 0), 0u) << error;
+  }
+}
+
+// fuzz_config (its round-trip check): host::ConfigToToml wrote
+// vignetting.mask between quotes without escaping, so a mask path with `"`
+// printed TOML that does not parse, and one with `\` read back differently
+// (`\b` became a backspace). Fix (host_tools/config.cc, the mask field's
+// get_text): escape `"` and `\` with a backslash and control characters as
+// \uXXXX.
+TEST(FuzzRegressions, ConfigToTomlRoundTripsTheMaskPath) {
+  host::RunConfig rc;
+  host::Origins o;
+  std::string error;
+  ASSERT_TRUE(host::ParseConfig("[vignetting]\nmask = 'dir\\b\"q\".png'\n", "fuzz.toml", &rc, &o, &error)) << error;
+  ASSERT_EQ(rc.vignetting_mask, "dir\\b\"q\".png");
+  rc.vignetting_mask += "\t\x01";  // control characters (only reachable through the API)
+  const std::string printed = host::ConfigToToml(rc, false);
+  host::RunConfig again;
+  ASSERT_TRUE(host::ParseConfig(printed, "printed.toml", &again, &o, &error)) << error << "\n" << printed;
+  EXPECT_EQ(again.vignetting_mask, rc.vignetting_mask);
+  EXPECT_EQ(host::ConfigToToml(again, false), printed);
+}
+
+}  // namespace
+}  // namespace camsim
