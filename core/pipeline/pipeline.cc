@@ -207,6 +207,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     e.runs = true;
     e.out = out.value();
     format = e.out;
+    run_format_[run_count_] = e.out;
     run_[run_count_++] = stage;
   }
   if (run_count_ == 0) return InvalidArgument("pipeline.stages", "every listed stage was left out");
@@ -325,7 +326,7 @@ void Pipeline::FillMargins(uint32_t* row) const {
 
 // Row pointers of ring j (0 = input) for `row`, which must be available.
 RowIn Pipeline::RowOf(const StripState& s, int j, int row) const {
-  RowIn r;
+  RowIn r{};
   if (j == 0 && input_direct_) {
     for (int c = 0; c < 3; ++c) r.ch[c] = s.input->radiance[c].row(row);
     return r;
@@ -362,7 +363,7 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
       if (src > needed) needed = src;
     }
     Produce(s, j - 1, needed);
-    RowIn rows[2 * kMaxContextRows + 1];
+    RowIn rows[2 * kMaxContextRows + 1];  // only [0, above + below] are set and read
     for (int k = -above; k <= below; ++k) rows[k + above] = RowOf(s, j - 1, Reflect101(r + k, h));
 
     const bool in_strip = r >= s.y0 && r < s.y1;
@@ -383,20 +384,13 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
     s.tag[j][r % ring_slots_[j]] = r;
 
     if (!in_strip) continue;
-    const LineFormat& f = RunningFormat(j - 1);
+    const LineFormat& f = run_format_[j - 1];
     if (st != nullptr) AddRowStats(args.out, f.channels, f.mosaic, config_.geometry.cfa, r, w, st);
     for (int t = 0; t < s.tap_count; ++t) {
       const int tap_stage = s.taps[t].stage < 0 ? run_count_ - 1 : s.taps[t].stage;
       if (tap_stage == j - 1) WriteTapRow(s.taps[t], args.out, f.channels, r, w);
     }
   }
-}
-
-const LineFormat& Pipeline::RunningFormat(int i) const {
-  int k = 0;
-  for (int e = 0; e < plan_.count; ++e)
-    if (plan_.entries[e].runs && k++ == i) return plan_.entries[e].out;
-  return plan_.output;
 }
 
 void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int y1, int worker,

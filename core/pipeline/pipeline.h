@@ -151,7 +151,6 @@ class Pipeline {
   void FillMargins(uint32_t* row) const;
   RowIn RowOf(const StripState& s, int ring, int row) const;
   void Produce(StripState& s, int ring, int row) const;
-  const LineFormat& RunningFormat(int i) const;
   Stage* StageFor(StageId id);
   const Stage* StageFor(StageId id) const;
 
@@ -161,6 +160,7 @@ class Pipeline {
   int margin_ = 0;
   bool input_direct_ = true;        // first stage reads the caller's rows directly
   const Stage* run_[kStageCount] = {};  // running stages, in order
+  LineFormat run_format_[kStageCount];   // their output formats
   int run_count_ = 0;
   int ring_slots_[kStageCount + 1] = {};     // [0] = input ring, [i + 1] = stage i's output
   int ring_channels_[kStageCount + 1] = {};

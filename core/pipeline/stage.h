@@ -87,7 +87,7 @@ struct FrameInput;
 // width - 1 + Margin(): the driver fills margins by reflection (reflect-101,
 // which keeps the CFA phase).
 struct RowIn {
-  const uint32_t* ch[kMaxChannels] = {};
+  const uint32_t* ch[kMaxChannels];  // no initialiser: the driver's row arrays are not zero-filled per row
 };
 
 // Sums gathered while rows are hot, for the run report. Per colour (R, G, B;
