@@ -80,8 +80,8 @@ inline PipelineConfig BilinearBgConfig(int width, int height) {
   return c;
 }
 
-// Radiance of TexturedScene (tests/support/test_support.cc) at (x, y) for
-// colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
+// The radiance of the tests' TexturedScene (tests/support/test_support.cc
+// uses this too) at (x, y) for colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
 // bright (saturating) spot. IEEE basic operations only, so it is the same on
 // every platform.
 inline uint32_t TexturedRadiance(int width, int height, int x, int y, int c) {

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "host_tools/config.h"
+#include "tests/cross/cases.h"
 
 namespace camsim::test {
 
@@ -46,17 +47,9 @@ Scene TexturedScene(int width, int height) {
   s.height = height;
   for (int c = 0; c < 3; ++c) s.plane[c].resize(static_cast<size_t>(width) * height);
   for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x) {
-      // Smooth gradients, a checkerboard of 8-pixel cells and a bright spot.
-      const double gx = static_cast<double>(x) / (width > 1 ? width - 1 : 1);
-      const double gy = static_cast<double>(y) / (height > 1 ? height - 1 : 1);
-      const bool check = ((x / 8) + (y / 8)) % 2 == 0;
-      double v[3] = {0.05 + 0.9 * gx, 0.1 + 0.6 * gy, 0.3 * (check ? 1.0 : 0.2)};
-      const double dx = x - width * 0.7, dy = y - height * 0.3;
-      if (dx * dx + dy * dy < 9.0) v[0] = v[1] = v[2] = 400.0;
+    for (int x = 0; x < width; ++x)
       for (int c = 0; c < 3; ++c)
-        s.plane[c][static_cast<size_t>(y) * width + x] = Q<16, 16>::FromDouble(v[c]).raw;
-    }
+        s.plane[c][static_cast<size_t>(y) * width + x] = cross::TexturedRadiance(width, height, x, y, c);
   return s;
 }
 
