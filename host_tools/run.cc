@@ -64,6 +64,8 @@ struct FrameRecord {
   std::vector<std::string> outputs;
   double wall_ms = 0;
   io::InputSanitizeStats radiance_stats;
+  std::string layout;
+  bool has_depth = false, has_motion = false;  // loaded; no stage uses them yet
 };
 
 struct Accumulated {
@@ -155,7 +157,8 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
       << ", \"sanitised\": {\"nan\": " << f.radiance_stats.nan << ", \"pos_inf\": " << f.radiance_stats.pos_inf
       << ", \"neg_inf\": " << f.radiance_stats.neg_inf << ", \"negative\": " << f.radiance_stats.negative
-      << "}, \"outputs\": [";
+      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? "\"present, unused\"" : "null")
+      << ", \"motion\": " << (f.has_motion ? "\"present, unused\"" : "null") << ", \"outputs\": [";
     for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
     j << "]}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
   }
@@ -374,6 +377,9 @@ int RunCommand(const RunOptions& o) {
     rec.wall_ms = (hal::NowNs() - t0) / 1e6;
     rec.input = scene.source;
     rec.radiance_stats = scene.radiance_stats;
+    rec.layout = scene.layout;
+    rec.has_depth = scene.has_depth;
+    rec.has_motion = scene.has_motion;
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
 
     // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),
@@ -438,6 +444,10 @@ int RunCommand(const RunOptions& o) {
     if (!o.quiet && !acc.frames.empty()) {
       double total = 0;
       for (const FrameRecord& r : acc.frames) total += r.wall_ms;
+      const FrameRecord& first = acc.frames.front();
+      if (first.has_depth || first.has_motion)
+        std::fprintf(stderr, "input %s: %s%spresent but unused (no configured stage needs them)\n",
+                     first.layout.c_str(), first.has_depth ? "depth " : "", first.has_motion ? "motion " : "");
       std::fprintf(stderr, "%zu frame(s), %.2f ms/frame wall on %d thread(s); outputs in %s\n", acc.frames.size(),
                    total / acc.frames.size(), o.threads, o.out_dir.c_str());
     }
