@@ -23,59 +23,20 @@
 #include "fuzz/fuzz_common.h"
 #include "host_tools/config.h"
 #include "host_tools/io/exr_scene.h"
+#include "tests/support/exr_fixture.h"
 
 namespace fs = std::filesystem;
 using namespace camsim;
 
 namespace {
 
-struct Channel {
-  std::string name;
-  Imf::PixelType type;
-  std::vector<float> values;  // data window, row-major
-};
+using test::Box;
+using Channel = test::ExrChannel;
 
-// One scanline or tiled part with the given windows and compression.
 void WriteExr(const std::string& path, const Imath::Box2i& display, const Imath::Box2i& data,
               const std::vector<Channel>& channels, Imf::Compression compression, bool tiled = false) {
-  Imf::Header header(display, data);
-  header.compression() = compression;
-  const int w = data.max.x - data.min.x + 1;
-  Imf::FrameBuffer fb;
-  std::vector<std::vector<half>> halves;
-  std::vector<std::vector<uint32_t>> uints;
-  halves.reserve(channels.size());
-  uints.reserve(channels.size());
-  for (const Channel& c : channels) {
-    header.channels().insert(c.name, Imf::Channel(c.type));
-    char* base = nullptr;
-    size_t size = 4;
-    if (c.type == Imf::HALF) {
-      halves.emplace_back(c.values.begin(), c.values.end());
-      base = reinterpret_cast<char*>(halves.back().data());
-      size = 2;
-    } else if (c.type == Imf::UINT) {
-      uints.emplace_back();
-      for (float v : c.values) uints.back().push_back(v > 0 && v < 4e9f ? static_cast<uint32_t>(v) : 0u);
-      base = reinterpret_cast<char*>(uints.back().data());
-    } else {
-      base = reinterpret_cast<char*>(const_cast<float*>(c.values.data()));
-    }
-    fb.insert(c.name, Imf::Slice::Make(c.type, base, data, size, size * static_cast<size_t>(w)));
-  }
-  if (tiled) {
-    header.setTileDescription(Imf::TileDescription(4, 4, Imf::ONE_LEVEL));
-    Imf::TiledOutputFile file(path.c_str(), header);
-    file.setFrameBuffer(fb);
-    file.writeTiles(0, file.numXTiles() - 1, 0, file.numYTiles() - 1);
-  } else {
-    Imf::OutputFile file(path.c_str(), header);
-    file.setFrameBuffer(fb);
-    file.writePixels(data.max.y - data.min.y + 1);
-  }
+  test::WriteExrFixture(path, display, data, channels, compression, tiled);
 }
-
-Imath::Box2i Box(int x0, int y0, int x1, int y1) { return Imath::Box2i({x0, y0}, {x1, y1}); }
 
 std::vector<float> Ramp(int n, float scale, float offset = 0.0f) {
   std::vector<float> v(static_cast<size_t>(n));

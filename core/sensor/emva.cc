@@ -109,6 +109,7 @@ Status SensorStage::Init(Arena& tables) {
 // branches cost nothing (specialised copies of the loop measured no faster).
 void SensorStage::ProcessRow(const RowArgs& a) const {
   constexpr int kBlock = RandomLanes::kLanes;
+  static_assert(kBlock % 2 == 0, "blocks start on even columns: lane parity is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool shot_noise = config_.shot_noise;

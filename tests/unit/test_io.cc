@@ -23,6 +23,7 @@
 #include <png.h>
 #include <unistd.h>
 
+#include "tests/support/exr_fixture.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
@@ -70,46 +71,13 @@ void WriteBytes(const std::string& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary) << bytes;
 }
 
-// A channel for WriteTestExr: values cover the data window, row-major.
-struct TestChannel {
-  std::string name;
-  Imf::PixelType type;
-  std::vector<float> values;
-};
+using test::Box;
+using TestChannel = test::ExrChannel;
 
-// Writes a single-part scanline EXR with the given windows, converting the
-// values to each channel's type.
 void WriteTestExr(const std::string& path, const Imath::Box2i& display, const Imath::Box2i& data,
                   const std::vector<TestChannel>& channels) {
-  Imf::Header header(display, data);
-  const int w = data.max.x - data.min.x + 1;
-  Imf::FrameBuffer fb;
-  std::vector<std::vector<half>> halves;
-  std::vector<std::vector<uint32_t>> uints;
-  halves.reserve(channels.size());
-  uints.reserve(channels.size());
-  for (const TestChannel& c : channels) {
-    header.channels().insert(c.name, Imf::Channel(c.type));
-    char* base = nullptr;
-    size_t size = 4;
-    if (c.type == Imf::HALF) {
-      halves.emplace_back(c.values.begin(), c.values.end());
-      base = reinterpret_cast<char*>(halves.back().data());
-      size = 2;
-    } else if (c.type == Imf::UINT) {
-      uints.emplace_back(c.values.begin(), c.values.end());
-      base = reinterpret_cast<char*>(uints.back().data());
-    } else {
-      base = reinterpret_cast<char*>(const_cast<float*>(c.values.data()));
-    }
-    fb.insert(c.name, Imf::Slice::Make(c.type, base, data, size, size * static_cast<size_t>(w)));
-  }
-  Imf::OutputFile file(path.c_str(), header);
-  file.setFrameBuffer(fb);
-  file.writePixels(data.max.y - data.min.y + 1);
+  test::WriteExrFixture(path, display, data, channels);
 }
-
-Imath::Box2i Box(int x0, int y0, int x1, int y1) { return Imath::Box2i({x0, y0}, {x1, y1}); }
 
 // ---- LoadSceneExr ---------------------------------------------------------
 
