@@ -65,7 +65,7 @@ struct FrameRecord {
   double wall_ms = 0;
   io::InputSanitizeStats radiance_stats;
   std::string layout;
-  bool has_depth = false, has_motion = false;  // loaded; no stage uses them yet
+  bool has_depth = false, has_motion = false;  // loaded but no running stage uses them
 };
 
 struct Accumulated {
@@ -378,8 +378,17 @@ int RunCommand(const RunOptions& o) {
     rec.input = scene.source;
     rec.radiance_stats = scene.radiance_stats;
     rec.layout = scene.layout;
-    rec.has_depth = scene.has_depth;
-    rec.has_motion = scene.has_motion;
+    {
+      // Motion blur reads depth for camera translation and the vectors in vectors mode.
+      bool motion_runs = false;
+      for (int i = 0; i < plan.count; ++i)
+        motion_runs = motion_runs || (plan.entries[i].id == StageId::kMotionBlur && plan.entries[i].runs);
+      const MotionBlurConfig& m = rc.core.motion_blur;
+      const bool translating = m.linear_velocity_m_s[0] != 0.0 || m.linear_velocity_m_s[1] != 0.0 ||
+                               m.linear_velocity_m_s[2] != 0.0;
+      rec.has_depth = scene.has_depth && !(motion_runs && m.source == MotionSource::kCamera && translating);
+      rec.has_motion = scene.has_motion && !(motion_runs && m.source == MotionSource::kVectors);
+    }
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
 
     // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),

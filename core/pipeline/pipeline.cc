@@ -9,7 +9,7 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "exposure", "motion_blur", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -143,6 +143,7 @@ Stage* Pipeline::StageFor(StageId id) {
 const Stage* Pipeline::StageFor(StageId id) const {
   switch (id) {
     case StageId::kExposure: return &exposure_;
+    case StageId::kMotionBlur: return &motion_blur_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
     case StageId::kSensor: return &sensor_;
@@ -172,6 +173,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
 
   // Each stage validates its own section.
   CAMSIM_TRY(exposure_.Configure(config.exposure));
+  CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
@@ -284,6 +286,19 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
   }
+  bool motion_runs = false;
+  for (int i = 0; i < run_count_; ++i) motion_runs = motion_runs || run_[i] == &motion_blur_;
+  if (motion_runs && motion_blur_.NeedsInverseDepth()) {
+    const ImageView<const uint32_t>& d = input.motion_inverse_depth;
+    if (d.data == nullptr || d.width != w || d.height != h || d.channels != 1 || d.stride < w)
+      return InvalidArgument("motion.linear_velocity_m_s", "camera translation needs a sensor-sized depth plane");
+  }
+  if (motion_runs && motion_blur_.NeedsVectors())
+    for (int c = 0; c < 2; ++c) {
+      const ImageView<const int32_t>& m = input.motion_vectors[c];
+      if (m.data == nullptr || m.width != w || m.height != h || m.channels != 1 || m.stride < w)
+        return InvalidArgument("motion.source", "'vectors' needs sensor-sized motion vector planes (x and y)");
+    }
   return Status::Ok();
 }
 

@@ -19,6 +19,7 @@
 #include "core/isp/demosaic.h"
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
+#include "core/lens/motion_blur.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -30,6 +31,7 @@ namespace camsim {
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
   kExposure,
+  kMotionBlur,
   kVignetting,
   kCfa,
   kSensor,
@@ -50,6 +52,9 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+  // Motion blur (core/lens/motion_blur.h), needed only when that stage asks:
+  ImageView<const uint32_t> motion_inverse_depth;  // 1 / depth in 1/m, Q8.24 (0 = infinitely far)
+  ImageView<const int32_t> motion_vectors[2];      // x, y: px per frame interval, Q16.16, rows downwards
 };
 
 struct PipelineConfig {
@@ -57,12 +62,13 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kExposure,   StageId::kMotionBlur, StageId::kVignetting, StageId::kCfa,
                                 StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
                                 StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
   ExposureConfig exposure;
+  MotionBlurConfig motion_blur;
   VignettingConfig vignetting;
   CfaConfig cfa;
   SensorConfig sensor;
@@ -171,6 +177,7 @@ class Pipeline {
   bool initialised_ = false;
 
   ExposureStage exposure_;
+  MotionBlurStage motion_blur_;
   VignettingStage vignetting_;
   CfaStage cfa_;
   SensorStage sensor_;
