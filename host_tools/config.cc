@@ -202,8 +202,8 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.motion_blur.cx_px; }));
     v.push_back(Number("motion", "cy_px", "principal point y, pixels; negative = the centre",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.cy_px; }));
-    v.push_back(Number("motion", "frame_interval_us", "vectors: the time the motion vectors span, us (1e6 / fps)",
-                       [](RunConfig& c) -> double& { return c.core.motion_blur.frame_interval_us; }));
+    v.push_back(Number("motion", "vector_fps", "vectors: frames per second of the render (the vectors span 1 / fps)",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.vector_fps; }));
     v.push_back(Number("motion", "line_time_us", "rolling shutter: delay from one row's exposure to the next, us; 0 = global shutter",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.line_time_us; }));
     v.push_back(Integer("motion", "max_displacement_px", "bound on each sample's offset, 1 .. 63 px (longer motion stops there)",

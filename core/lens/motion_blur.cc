@@ -93,11 +93,11 @@ Status MotionBlurStage::Configure(const MotionBlurConfig& in, const SensorGeomet
     return InvalidArgument("motion.line_time_us", "readout longer than 32768 exposure times");
   const double t_s = exposure_time_us * 1e-6;
   if (c.source == MotionSource::kVectors) {
-    if (!(c.frame_interval_us > 0.0 && Finite(c.frame_interval_us)))
-      return InvalidArgument("motion.frame_interval_us", "must be > 0 microseconds");
-    const double scale = exposure_time_us / c.frame_interval_us;
-    if (scale > kMaxVectorScale)
-      return InvalidArgument("motion.frame_interval_us", "exposure longer than 16 frame intervals");
+    if (!(c.vector_fps > 0.0 && Finite(c.vector_fps)))
+      return InvalidArgument("motion.vector_fps", "must be > 0 frames per second");
+    const double scale = exposure_time_us * c.vector_fps / 1e6;  // T / Tf
+    if (!(scale <= kMaxVectorScale))
+      return InvalidArgument("motion.vector_fps", "exposure longer than 16 frame intervals");
     vector_scale_q32_ = ToFixed(scale, 4294967296.0);
     return Status::Ok();
   }

@@ -12,8 +12,9 @@
 //      dv/dt = fy [ (-vy + y vz) iz + (1 + y^2) wx - x y wy - x wz ]
 //    and D = T * (du/dt, dv/dt). Translation needs depth; iz = 0 (sky, no
 //    depth) gives no translational motion.
-//  - vectors: renderer motion vectors M (pixels per frame interval Tf, from
-//    the previous frame to this one, image rows downwards): D = M * T / Tf.
+//  - vectors: renderer motion vectors M (pixels per frame interval Tf =
+//    1 / vector_fps, from the previous frame to this one, image rows
+//    downwards): D = M * T / Tf.
 // The rendered image is the scene at the middle of the frame's readout: row y
 // is exposed over [t_y - T/2, t_y + T/2] with t_y = (y - (H-1)/2) * line_time
 // (line_time = 0: global shutter). A point at p at the rendered instant is at
@@ -57,7 +58,7 @@ struct MotionBlurConfig {
   double linear_velocity_m_s[3] = {};     // camera: vx, vy, vz (camera frame)
   double fx_px = 0.0, fy_px = 0.0;        // camera: focal lengths, pixels (> 0)
   double cx_px = -1.0, cy_px = -1.0;      // camera: principal point, pixels; < 0 = centre, (W-1)/2, (H-1)/2
-  double frame_interval_us = 1e6 / 24.0;  // vectors: time the vectors span (Blender: 1/fps)
+  double vector_fps = 24.0;               // vectors: render frame rate; the vectors span 1 / fps (Blender's default 24)
   double line_time_us = 0.0;              // rolling shutter: row-to-row delay; 0 = global shutter
   int max_displacement_px = 32;           // bound on each sample's offset, 1 .. 63 pixels
   int max_samples = 64;                   // bound on n, 1 .. 256

@@ -25,7 +25,7 @@ void RefMotionDisplacement(const MotionBlurConfig& c, const MotionRefInput& in, 
   const double t = exposure_us * 1e-6;
   const size_t i = static_cast<size_t>(y) * in.width + x;
   if (c.source == MotionSource::kVectors) {
-    const double s = exposure_us / c.frame_interval_us;
+    const double s = exposure_us * c.vector_fps / 1e6;
     *dx = (*in.vectors[0])[i] * s;
     *dy = (*in.vectors[1])[i] * s;
     return;

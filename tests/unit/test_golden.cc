@@ -98,7 +98,7 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       m.angular_velocity_rad_s[1] = 0.6;
       m.linear_velocity_m_s[2] = 2.0;
       m.line_time_us = 20.0;
-      m.frame_interval_us = 20000.0;  // 10 ms of the 20 ms between frames: half the vectors
+      m.vector_fps = 50.0;  // 10 ms of the 20 ms between frames: half the vectors
       auto b = test::Build(c);
       ASSERT_TRUE(b->status.ok()) << b->status.message();
       ASSERT_TRUE(b->pipeline.plan().entries[1].runs);

@@ -238,7 +238,7 @@ Busy BusyCase(int w, int h, MotionSource source) {
   m.linear_velocity_m_s[2] = 1.5;
   m.line_time_us = 15.0;
   m.max_displacement_px = 20;
-  m.frame_interval_us = 20000.0;
+  m.vector_fps = 50.0;
   k.scene = test::TexturedScene(w, h);
   k.extras.inverse_depth.resize(static_cast<size_t>(w) * h);
   for (int c = 0; c < 2; ++c) k.extras.vectors[c].resize(static_cast<size_t>(w) * h);
@@ -368,12 +368,12 @@ TEST(MotionBlur, ConfigErrorsNameTheKey) {
       {[](PipelineConfig& c) { c.motion_blur.source = static_cast<MotionSource>(9); }, "motion.source"},
       {[](PipelineConfig& c) {
          c.motion_blur.source = MotionSource::kVectors;
-         c.motion_blur.frame_interval_us = 0;
-       }, "motion.frame_interval_us"},
+         c.motion_blur.vector_fps = 0;
+       }, "motion.vector_fps"},
       {[](PipelineConfig& c) {
          c.motion_blur.source = MotionSource::kVectors;
-         c.motion_blur.frame_interval_us = 10;  // exposure 1000 us = 100 intervals
-       }, "motion.frame_interval_us"},
+         c.motion_blur.vector_fps = 1e5;  // exposure 1000 us = 100 frame intervals
+       }, "motion.vector_fps"},
   };
   for (const Case& k : cases) {
     PipelineConfig c = MotionOnly(32, 24, 1000.0);
