@@ -5,7 +5,11 @@
 //
 // Pipeline/W/H/threads: the demo camera (configs/camera.toml) end to end,
 // raw Bayer and RGB8 written to memory. Prefix/W/H/k: the pipeline cut after
-// its k-th stage, so consecutive rows give each stage's share.
+// its k-th stage, so consecutive rows give each stage's share. Stage/W/H/i/threads:
+// running stage i alone on a captured frame of its input (its label names it;
+// the demo camera runs 8 stages, its colour matrix being the identity).
+// Peers (OpenCV doing the closest job) are in opencv_peers.cc; bench_main.cc
+// prints the camsim/peer ratios and the seed paper's baseline after the run.
 #include <benchmark/benchmark.h>
 
 #include <atomic>
@@ -14,6 +18,8 @@
 #include <string>
 #include <thread>
 
+#include "bench/bench_common.h"
+#include "bench/stage_bench.h"
 #include "hal/thread_pool.h"
 #include "host_tools/config.h"
 #include "host_tools/io/exr_scene.h"
@@ -22,29 +28,8 @@
 namespace camsim {
 namespace {
 
-const host::CoreInput& Scene(int width) {
-  static std::map<int, std::unique_ptr<host::CoreInput>> cache;
-  auto& slot = cache[width];
-  if (!slot) {
-    const std::string name = width == 1920 ? "aisle1080_0001.exr" : "aisle_0001.exr";
-    io::SceneFrame frame;
-    std::string error;
-    if (!io::LoadSceneExr(std::string(CAMSIM_SOURCE_DIR "/scenes/") + name, "", &frame, &error)) std::abort();
-    slot = std::make_unique<host::CoreInput>();
-    host::PrepareInput(frame, frame.width, frame.height, host::SceneFit::kCrop, slot.get());
-  }
-  return *slot;
-}
-
-PipelineConfig Demo(int w, int h) {
-  host::RunConfig rc;
-  host::Origins origins;
-  std::string error;
-  if (!host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error) ||
-      !host::FinishConfig(&rc, w, h, origins, 1, &error))
-    std::abort();
-  return rc.core;
-}
+using bench::Demo;
+using bench::Scene;
 
 void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads) {
   const int w = config.geometry.width, h = config.geometry.height;
@@ -101,7 +86,30 @@ BENCHMARK(BM_Prefix)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+void BM_Stage(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  const int index = static_cast<int>(state.range(2)), threads = static_cast<int>(state.range(3));
+  Pipeline p;
+  if (!p.Configure(Demo(w, h), threads, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  if (index >= p.plan().running) {
+    state.SkipWithError("the demo pipeline has fewer running stages");
+    return;
+  }
+  const FrameInput in = Scene(w).View();
+  bench::StageRunner runner(p, index, in, threads);
+  uint32_t frame = 0;
+  for (auto _ : state) runner.RunFrame(frame++);
+  state.SetLabel(runner.stage().name());
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_Stage)
+    ->ArgsProduct({{640}, {480}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
+    ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 }  // namespace
 }  // namespace camsim
-
-BENCHMARK_MAIN();
