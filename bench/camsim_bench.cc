@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "bench/bench_common.h"
+#include "core/base/random.h"
 #include "bench/stage_bench.h"
 #include "hal/thread_pool.h"
 #include "host_tools/config.h"
@@ -110,6 +111,39 @@ BENCHMARK(BM_Stage)
     ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The sensor's random primitives per pixel (what bounds the sensor stage):
+// Philox4x32-10 for 16 lanes (4 words per pixel), a Gaussian table sample, and
+// a Poisson sample at a mean of 5 (the exact small-count path) and 1000
+// electrons (the skew-corrected normal).
+void BM_RandomLanes(benchmark::State& state) {
+  RandomLanes lanes;
+  uint32_t x = 0;
+  for (auto _ : state) {
+    DrawBitsLanes(1, 2, 3, x, 7, 0, &lanes);
+    x += RandomLanes::kLanes;
+    benchmark::DoNotOptimize(lanes.v[0][0]);
+  }
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * RandomLanes::kLanes,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_RandomLanes);
+
+void BM_PoissonSample(benchmark::State& state) {
+  std::vector<int32_t> g(GaussianTable::kEntries);
+  std::vector<uint32_t> q(PoissonTable::kEntries);
+  GaussianTable gauss;
+  PoissonTable poisson;
+  if (!gauss.Build(Span<int32_t>{g.data(), g.size()}).ok() || !poisson.Build(Span<uint32_t>{q.data(), q.size()}).ok())
+    std::abort();
+  const uint32_t mean_q8 = static_cast<uint32_t>(state.range(0)) * 256u;
+  uint32_t u = 12345;
+  for (auto _ : state) {
+    u = u * 1664525u + 1013904223u;  // cheap stand-in bits: this times the sampler only
+    benchmark::DoNotOptimize(poisson.Sample(mean_q8, u, gauss.Sample(u ^ 0x9E3779B9u)));
+  }
+}
+BENCHMARK(BM_PoissonSample)->Arg(5)->Arg(1000);
 
 }  // namespace
 }  // namespace camsim
