@@ -84,7 +84,8 @@ Status MotionBlurStage::Configure(const MotionBlurConfig& in, const SensorGeomet
   if (!(exposure_time_us > 0.0 && Finite(exposure_time_us)))
     return InvalidArgument("exposure.exposure_time_us", "must be > 0 for motion blur");
   if (c.max_displacement_px < 1 || c.max_displacement_px > kMaxDisplacementPx)
-    return InvalidArgument("motion.max_displacement_px", "must be in [1, 63] pixels");
+    return InvalidArgument("motion.max_displacement_px", "must be in [1, 511] pixels");
+  vreach_ = c.max_displacement_px;
   if (c.max_samples < 1 || c.max_samples > kMaxSamples)
     return InvalidArgument("motion.max_samples", "must be in [1, 256]");
   if (!(c.line_time_us >= 0.0 && Finite(c.line_time_us)))
@@ -134,6 +135,26 @@ Status MotionBlurStage::Configure(const MotionBlurConfig& in, const SensorGeomet
   if (!translation_ok)
     return InvalidArgument("motion.linear_velocity_m_s", "translation moves pixels at 1 m over 16384 px per exposure");
   ku_ = ToFixed(ku, 1.0);
+  if (!translating_) {
+    // Rotation only: the vertical displacement along a row is linear in x, so
+    // its largest size is at column 0 or W-1; times the largest |time / T|
+    // of the row's samples, |rho -+ 1/2|. One pixel of margin covers the
+    // fixed-point rounding of the tables.
+    double reach = 0.0;
+    for (int v = 0; v < g.height; ++v) {
+      const RowTerms r = RowOf(c, t_s, v);
+      const double rho = (v - (g.height - 1) / 2.0) * c.line_time_us / exposure_time_us;
+      const double tau = Abs(rho) + 0.5;
+      for (int end = 0; end < 2; ++end) {
+        const int u = end == 0 ? 0 : g.width - 1;
+        const ColumnTerms k = ColumnOf(c, t_s, u);
+        const double dv = k.cv_a * r.y + k.cv_b + r.rv_b;
+        if (Abs(dv) * tau > reach) reach = Abs(dv) * tau;
+      }
+    }
+    if (reach + 1.0 < vreach_) vreach_ = static_cast<int>(reach) + 2;  // ceil(reach) + 1, or one more
+    if (vreach_ > c.max_displacement_px) vreach_ = c.max_displacement_px;
+  }
   return Status::Ok();
 }
 
@@ -158,8 +179,13 @@ const char* MotionBlurStage::IdentityReason() const {
   return nullptr;
 }
 
-int MotionBlurStage::RowsAbove() const { return config_.max_displacement_px; }
-int MotionBlurStage::RowsBelow() const { return config_.max_displacement_px + 1; }  // bilinear's second row
+// Rows y - reach .. y + reach + 1 (the bilinear's second row), within the
+// frame: sample positions are clamped into it.
+RowWindow MotionBlurStage::InputRows(int y, int height) const {
+  const int first = y - vreach_ < 0 ? 0 : y - vreach_;
+  const int last = y + vreach_ + 1 > height - 1 ? height - 1 : y + vreach_ + 1;
+  return {first, last};
+}
 
 void MotionBlurStage::CountTables(WorkspaceCounter& counter) const {
   const size_t w = static_cast<size_t>(geometry_.width), h = static_cast<size_t>(geometry_.height);
@@ -242,8 +268,8 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   int32_t* dv = du + a.width;
   RowDisplacements(a, du, dv);
 
-  const int y = a.y, w = a.width, h = geometry_.height, above = RowsAbove();
-  const int64_t bound = int64_t{config_.max_displacement_px} << 16;
+  const int y = a.y, w = a.width, h = geometry_.height, first_row = a.first_row;
+  const int64_t bound = int64_t{config_.max_displacement_px} << 16, vbound = int64_t{vreach_} << 16;
   const int64_t max_x = int64_t{w - 1} << 16, max_y = int64_t{h - 1} << 16;
   const int64_t half_minus_rho = 32768 - rho_[y];  // 1/2 - rho_y, Q.16
   const int max_n = config_.max_samples;
@@ -263,7 +289,7 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
       // Offset of sample i: D (1/2 - rho) - D (2i + 1) / (2n), each component
       // within +-bound, then the position within the frame.
       const int64_t ox = Clamp(base_x - RoundShift(sx32 * k, 16), -bound, bound);
-      const int64_t oy = Clamp(base_y - RoundShift(sy32 * k, 16), -bound, bound);
+      const int64_t oy = Clamp(base_y - RoundShift(sy32 * k, 16), -vbound, vbound);
       const int64_t qx = Clamp(px + ox, 0, max_x), qy = Clamp(py + oy, 0, max_y);
       const int x0 = static_cast<int>(qx >> 16), y0 = static_cast<int>(qy >> 16);
       const int x1 = x0 + 1 < w ? x0 + 1 : x0, y1 = y0 + 1 < h ? y0 + 1 : y0;
@@ -271,8 +297,8 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
       const uint64_t fy = static_cast<uint64_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
       const uint64_t gx = kWeightOne - fx, gy = kWeightOne - fy;
       const uint64_t w00 = gx * gy, w01 = fx * gy, w10 = gx * fy, w11 = fx * fy;
-      const RowIn& r0 = a.rows[y0 - y + above];
-      const RowIn& r1 = a.rows[y1 - y + above];
+      const RowIn& r0 = a.rows[y0 - first_row];
+      const RowIn& r1 = a.rows[y1 - first_row];
       for (int c = 0; c < 3; ++c)
         sum[c] += r0.ch[c][x0] * w00 + r0.ch[c][x1] * w01 + r1.ch[c][x0] * w10 + r1.ch[c][x1] * w11;
     }

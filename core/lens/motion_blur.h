@@ -27,10 +27,14 @@
 // per-row shift; motion blur alone (line_time 0) is centred on p.
 //
 // Bounds. Every sample's offset from p is clamped per component to
-// +-max_displacement_px (a knob: it sets the rows of context, 2 * max + 2);
-// motion beyond the bound is cut off there (a longer smear piles up at the
-// bound). Sample positions are then clamped into the frame (edge pixels
-// repeat), so no margin columns are read.
+// +-max_displacement_px (a knob, up to 511: it bounds the rows of context,
+// 2 * max + 2 <= kMaxWindowRows); motion beyond the bound is cut off there (a
+// longer smear piles up at the bound). Sample positions are then clamped into
+// the frame (edge pixels repeat), so no margin columns are read and the row
+// window is clamped into the frame too. For camera rotation without
+// translation the vertical reach is known at configure time (the rotational
+// field is linear in x along a row): the vertical bound, and so the window and
+// the line rings, shrink to that reach + 1 row (a pan reads 3 or 4 rows).
 //
 // Formats: in/out kRadiance Q16.16 or kPhotons Q24.8, 3 channels (not mosaic);
 //   the stage is linear in the samples, so units pass through.
@@ -60,13 +64,13 @@ struct MotionBlurConfig {
   double cx_px = -1.0, cy_px = -1.0;      // camera: principal point, pixels; < 0 = centre, (W-1)/2, (H-1)/2
   double vector_fps = 24.0;               // vectors: render frame rate; the vectors span 1 / fps (Blender's default 24)
   double line_time_us = 0.0;              // rolling shutter: row-to-row delay; 0 = global shutter
-  int max_displacement_px = 32;           // bound on each sample's offset, 1 .. 63 pixels
+  int max_displacement_px = 32;           // bound on each sample's offset, 1 .. 511 pixels
   int max_samples = 64;                   // bound on n, 1 .. 256
 };
 
 class MotionBlurStage final : public Stage {
  public:
-  static constexpr int kMaxDisplacementPx = 63;  // RowsBelow = max + 1 <= kMaxContextRows (64)
+  static constexpr int kMaxDisplacementPx = 511;  // window 2 * max + 2 <= kMaxWindowRows (1024)
   static constexpr int kMaxSamples = 256;        // keeps the uint64 sum below 2^56
   static constexpr int kInverseDepthFracBits = 24;  // FrameInput.motion_inverse_depth, Q8.24 1/m
   static constexpr int kVectorFracBits = 16;        // FrameInput.motion_vectors, Q16.16 px
@@ -75,8 +79,9 @@ class MotionBlurStage final : public Stage {
   const char* name() const override { return "motion_blur"; }
   Result<LineFormat> Plan(LineFormat in) const override;
   const char* IdentityReason() const override;
-  int RowsAbove() const override;
-  int RowsBelow() const override;
+  RowWindow InputRows(int y, int height) const override;
+  // Rows above and below its own that a sample may reach (<= max_displacement_px).
+  int VerticalReach() const { return vreach_; }
   void CountTables(WorkspaceCounter& counter) const override;
   size_t ScratchBytes(int width) const override;
   Status Init(Arena& tables) override;
@@ -95,6 +100,7 @@ class MotionBlurStage final : public Stage {
   SensorGeometry geometry_;
   double exposure_us_ = 0.0;
   bool translating_ = false;
+  int vreach_ = 0;                // vertical bound on sample offsets, pixels
   int64_t vector_scale_q32_ = 0;  // T / Tf, Q.32
   int64_t ku_ = 0;                // T fx wz, Q.16 px (times y)
   // Tables (Init): per column

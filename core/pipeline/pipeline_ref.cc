@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/lens/motion_blur_ref.h"
+
 namespace camsim::ref {
 namespace {
 
@@ -56,6 +58,30 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
       for (size_t k = 0; k < in.planes.size(); ++k)
         for (size_t i = 0; i < in.planes[k].size(); ++i)
           out.planes[k][i] = std::min(ReferenceExposure(c.exposure, in.planes[k][i]), kMaxPhotons);
+      return out;
+    }
+    case StageId::kMotionBlur: {
+      // Inverse depth Q8.24 and vectors Q16.16 as doubles, when the stage reads them.
+      std::vector<double> iz, vec[2];
+      MotionRefInput mi;
+      mi.width = w;
+      mi.height = h;
+      for (int k = 0; k < 3; ++k) mi.plane[k] = &in.planes[static_cast<size_t>(k)];
+      if (input.motion_inverse_depth.data != nullptr) {
+        iz.resize(static_cast<size_t>(w) * h);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) iz[at(x, y)] = std::ldexp(input.motion_inverse_depth.row(y)[x], -24);
+        mi.inverse_depth = &iz;
+      }
+      for (int k = 0; k < 2; ++k)
+        if (input.motion_vectors[k].data != nullptr) {
+          vec[k].resize(static_cast<size_t>(w) * h);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) vec[k][at(x, y)] = std::ldexp(input.motion_vectors[k].row(y)[x], -16);
+          mi.vectors[k] = &vec[k];
+        }
+      RefImage out = Like(in, 3);
+      out.planes = RefMotionBlur(c.motion_blur, mi, c.exposure.exposure_time_us);
       return out;
     }
     case StageId::kVignetting: {

@@ -351,7 +351,7 @@ TEST(MotionBlur, ConfigErrorsNameTheKey) {
     const char* field;
   };
   const Case cases[] = {
-      {[](PipelineConfig& c) { c.motion_blur.max_displacement_px = 64; }, "motion.max_displacement_px"},
+      {[](PipelineConfig& c) { c.motion_blur.max_displacement_px = 512; }, "motion.max_displacement_px"},
       {[](PipelineConfig& c) { c.motion_blur.max_displacement_px = 0; }, "motion.max_displacement_px"},
       {[](PipelineConfig& c) { c.motion_blur.max_samples = 257; }, "motion.max_samples"},
       {[](PipelineConfig& c) { c.motion_blur.line_time_us = -1; }, "motion.line_time_us"},
@@ -400,6 +400,66 @@ TEST(MotionBlur, DisplacementBeyondTheBoundIsClamped) {
   EXPECT_GE(p.first, x0 - 4);
   EXPECT_LE(p.last, x0 + 4);
   EXPECT_NEAR(p.centre, x0, 0.05);
+}
+
+}  // namespace
+}  // namespace camsim
+
+namespace camsim {
+namespace {
+
+// A pan reads only the rows its samples can reach: the window (and so the
+// line rings) shrinks from 2 * max_displacement_px + 2 rows to a few.
+TEST(MotionBlur, PanReadsFewRows) {
+  PipelineConfig c = MotionOnly(640, 480, 10000.0);
+  c.motion_blur.angular_velocity_rad_s[1] = 2.0;  // 10 px of horizontal blur
+  c.motion_blur.max_displacement_px = 200;
+  MotionBlurStage s;
+  ASSERT_TRUE(s.Configure(c.motion_blur, c.geometry, 10000.0).ok());
+  // The rotational dv along the edge rows is -T fy wy x y: at the corners
+  // 0.01 * 500 * 2 * 0.64 * 0.48 = 3.07 px, times |tau| <= 1/2.
+  EXPECT_EQ(s.VerticalReach(), 3);
+  EXPECT_EQ(s.InputRows(100, 480).first, 97);
+  EXPECT_EQ(s.InputRows(100, 480).last, 104);
+  EXPECT_EQ(s.InputRows(0, 480).first, 0);
+  EXPECT_EQ(s.InputRows(479, 480).last, 479);
+  // Translation can move anything anywhere (depth is per pixel): the full bound.
+  c.motion_blur.linear_velocity_m_s[0] = 0.1;
+  ASSERT_TRUE(s.Configure(c.motion_blur, c.geometry, 10000.0).ok());
+  EXPECT_EQ(s.VerticalReach(), 200);
+}
+
+// A long vertical smear (150 px, beyond the old 64-row context) through the
+// InputRows window: predicted length, and the same bytes for every strip height.
+TEST(MotionBlur, LongSmearThroughAWideWindow) {
+  const int w = 9, h = 401, x0 = 4, y0 = 200;
+  PipelineConfig c = MotionOnly(w, h, 10000.0);
+  c.motion_blur.angular_velocity_rad_s[0] = 30.0;  // D = fy wx T = 150 px down
+  c.motion_blur.max_displacement_px = 100;
+  c.motion_blur.max_samples = 256;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const test::Scene s = PointScene(w, h, x0, y0, 500.0);
+  const std::vector<uint32_t> out = RunMotion(*b, s, {}, h);
+  for (int strip : {1, 13, 64}) EXPECT_EQ(RunMotion(*b, s, {}, strip), out) << strip;
+  double mass = 0, m1 = 0, m2 = 0;
+  int first = -1, last = -1;
+  for (int y = 0; y < h; ++y) {
+    const double v = out[(static_cast<size_t>(y) * w + x0) * 3];
+    if (v == 0) continue;
+    if (first < 0) first = y;
+    last = y;
+    mass += v;
+    m1 += v * y;
+    m2 += v * y * y;
+  }
+  const double centre = m1 / mass;
+  // (1 + y^2) grows to 1.16 at the ends of the segment (y = +-0.2 at 75..100
+  // px from the centre row), so the smear is a little longer than 150 px.
+  EXPECT_NEAR(centre, y0, 0.5);
+  EXPECT_GE(first, y0 - 80);
+  EXPECT_LE(last, y0 + 80);
+  EXPECT_NEAR(std::sqrt(12.0 * (m2 / mass - centre * centre)), 150.0, 6.0);
 }
 
 }  // namespace
