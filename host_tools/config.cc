@@ -208,6 +208,8 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.motion_blur.line_time_us; }));
     v.push_back(Integer("motion", "max_displacement_px", "bound on each sample's offset, 1 .. 63 px (longer motion stops there)",
                         [](RunConfig& c) -> int& { return c.core.motion_blur.max_displacement_px; }));
+    v.push_back(Number("motion", "samples_per_px", "samples per pixel of motion length (precision knob), 1/16 .. 16",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.samples_per_px; }));
     v.push_back(Integer("motion", "max_samples", "bound on the samples per pixel, 1 .. 256",
                         [](RunConfig& c) -> int& { return c.core.motion_blur.max_samples; }));
 

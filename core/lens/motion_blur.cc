@@ -88,6 +88,9 @@ Status MotionBlurStage::Configure(const MotionBlurConfig& in, const SensorGeomet
   vreach_ = c.max_displacement_px;
   if (c.max_samples < 1 || c.max_samples > kMaxSamples)
     return InvalidArgument("motion.max_samples", "must be in [1, 256]");
+  if (!(c.samples_per_px >= 1.0 / 16 && c.samples_per_px <= 16.0))
+    return InvalidArgument("motion.samples_per_px", "must be in [1/16, 16]");
+  spp_q4_ = ToFixed(c.samples_per_px, 16.0);
   if (!(c.line_time_us >= 0.0 && Finite(c.line_time_us)))
     return InvalidArgument("motion.line_time_us", "must be >= 0 microseconds");
   if (c.line_time_us * (g.height - 1) / 2.0 > kMaxRho * exposure_time_us)
@@ -275,8 +278,10 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   const int max_n = config_.max_samples;
   for (int x = 0; x < w; ++x) {
     const int64_t dx = du[x], dy = dv[x];
+    // n = 1 + ceil(L spp): L Q.16 (<= 2^30) times spp Q.4 (<= 256) is Q.20 below 2^39.
     const int64_t len = (dx < 0 ? -dx : dx) > (dy < 0 ? -dy : dy) ? (dx < 0 ? -dx : dx) : (dy < 0 ? -dy : dy);
-    int n = 1 + static_cast<int>((len + 65535) >> 16);
+    const int64_t lq = len * spp_q4_;
+    int n = 1 + static_cast<int>(lq >= (int64_t{kMaxSamples} << 20) ? kMaxSamples : (lq + 0xFFFFF) >> 20);
     if (n > max_n) n = max_n;
     // Offset of the first sample's segment start: D (1/2 - rho), Q.16; the
     // step D / (2n) in Q.32 (|D| <= 2^30, 1/(2n) <= 2^31: product < 2^61).

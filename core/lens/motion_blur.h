@@ -22,8 +22,10 @@
 // output pixel, the usual gather approximation):
 //   out(p) = 1/n sum_{i<n} S(p - D * (rho_y - 1/2 + (i + 1/2) / n)),  rho_y = t_y / T
 // Midpoint samples in time replace eq. 14's i/(n-1), which fails for n = 1.
-// n = min(max_samples, 1 + ceil(max(|Dx|, |Dy|))): sample spacing below one
-// pixel. S is sampled bilinearly. Rolling shutter alone (tiny T) is a pure
+// n = min(max_samples, 1 + ceil(samples_per_px * max(|Dx|, |Dy|))): with the
+// default 1 sample per pixel of motion the spacing is below one pixel;
+// samples_per_px is the precision knob (the midpoint rule's error against the
+// continuous time integral falls as it grows; camsim tradeoff measures it). S is sampled bilinearly. Rolling shutter alone (tiny T) is a pure
 // per-row shift; motion blur alone (line_time 0) is centred on p.
 //
 // Bounds. Every sample's offset from p is clamped per component to
@@ -66,6 +68,7 @@ struct MotionBlurConfig {
   double line_time_us = 0.0;              // rolling shutter: row-to-row delay; 0 = global shutter
   int max_displacement_px = 32;           // bound on each sample's offset, 1 .. 511 pixels
   int max_samples = 64;                   // bound on n, 1 .. 256
+  double samples_per_px = 1.0;            // samples per pixel of motion length, 1/16 .. 16 (1/16 steps)
 };
 
 class MotionBlurStage final : public Stage {
@@ -102,6 +105,7 @@ class MotionBlurStage final : public Stage {
   bool translating_ = false;
   int vreach_ = 0;                // vertical bound on sample offsets, pixels
   int64_t vector_scale_q32_ = 0;  // T / Tf, Q.32
+  int64_t spp_q4_ = 16;           // samples_per_px, Q.4
   int64_t ku_ = 0;                // T fx wz, Q.16 px (times y)
   // Tables (Init): per column
   int64_t* cu_a_ = nullptr;  // T fx wx x, Q.16 (times y)

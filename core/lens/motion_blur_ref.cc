@@ -41,7 +41,7 @@ void RefMotionDisplacement(const MotionBlurConfig& c, const MotionRefInput& in, 
 }
 
 std::vector<std::vector<double>> RefMotionBlur(const MotionBlurConfig& c, const MotionRefInput& in,
-                                               double exposure_us) {
+                                               double exposure_us, bool continuous) {
   const int w = in.width, h = in.height;
   std::vector<std::vector<double>> out(3, std::vector<double>(static_cast<size_t>(w) * h));
   const double bound = c.max_displacement_px;
@@ -52,7 +52,9 @@ std::vector<std::vector<double>> RefMotionBlur(const MotionBlurConfig& c, const 
       RefMotionDisplacement(c, in, exposure_us, x, y, &dx, &dy);
       dx = std::clamp(dx, -kMaxD, kMaxD);
       dy = std::clamp(dy, -kMaxD, kMaxD);
-      const int n = std::min(c.max_samples, 1 + static_cast<int>(std::ceil(std::max(std::abs(dx), std::abs(dy)))));
+      const double len = std::max(std::abs(dx), std::abs(dy));
+      const int n = continuous ? std::max(64, static_cast<int>(std::ceil(16 * len)))
+                               : std::min(c.max_samples, 1 + static_cast<int>(std::ceil(len * c.samples_per_px)));
       double sum[3] = {0, 0, 0};
       for (int i = 0; i < n; ++i) {
         const double tau = rho - 0.5 + (i + 0.5) / n;  // time / T

@@ -22,8 +22,11 @@ struct MotionRefInput {
 void RefMotionDisplacement(const MotionBlurConfig& config, const MotionRefInput& in, double exposure_us, int x,
                            int y, double* dx, double* dy);
 
-// The stage's output, not rounded: planes [3][width * height].
+// The stage's output, not rounded: planes [3][width * height]. With
+// `continuous`, the time integral is taken with 16 samples per pixel of
+// motion (at least 64) instead of the stage's n: the ideal the stage's
+// sampling approximates, to measure what max_samples costs.
 std::vector<std::vector<double>> RefMotionBlur(const MotionBlurConfig& config, const MotionRefInput& in,
-                                               double exposure_us);
+                                               double exposure_us, bool continuous = false);
 
 }  // namespace camsim::ref

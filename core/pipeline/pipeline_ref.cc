@@ -81,7 +81,8 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
           mi.vectors[k] = &vec[k];
         }
       RefImage out = Like(in, 3);
-      out.planes = RefMotionBlur(c.motion_blur, mi, c.exposure.exposure_time_us);
+      // The continuous time integral: the error includes max_samples' sampling.
+      out.planes = RefMotionBlur(c.motion_blur, mi, c.exposure.exposure_time_us, true);
       return out;
     }
     case StageId::kVignetting: {
