@@ -504,3 +504,66 @@ TEST(MotionBlur, ErrorFallsAsSamplesPerPixelGrows) {
 
 }  // namespace
 }  // namespace camsim
+
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim {
+namespace {
+
+// The two motion sources agree on the bundled scene. aisle_0002 is frame 2
+// of a dolly from y = -3.0 to -2.6 m over frames 1..3 (scenes/make_scene.py),
+// so the camera moved 0.2 m along world +y since frame 1; the camera is
+// pitched 85 degrees about x, so in its own frame (x right, y down, z
+// forward) that is v = (0, -0.2 sin 5deg, 0.2 cos 5deg) per frame. The
+// motion field of that translation with the scene's depth must match
+// Blender's Vector pass as the host converts it (velocity, rows downwards).
+// The Vector pass is a finite difference over a frame and the field a
+// derivative: they differ by about the fraction of the depth travelled
+// (v_z / depth), so only pixels beyond 5 m (< 4 %) are compared.
+TEST(MotionBlur, CameraMotionFieldMatchesTheBlenderVectorPass) {
+  io::SceneFrame frame;
+  std::string error;
+  ASSERT_TRUE(io::LoadSceneExr(CAMSIM_SOURCE_DIR "/scenes/aisle_0002.exr", "", &frame, &error)) << error;
+  host::CoreInput in;
+  host::PrepareInput(frame, frame.width, frame.height, host::SceneFit::kCrop, &in);
+  const int w = in.width, h = in.height;
+  MotionBlurConfig c;
+  c.source = MotionSource::kCamera;
+  c.fx_px = c.fy_px = 28.0 / 36.0 * w;  // scenes/README.md: 28 mm lens, 36 mm sensor width
+  const double kPi = 3.14159265358979323846, tilt = 5.0 * kPi / 180.0;
+  c.linear_velocity_m_s[1] = -0.2 * std::sin(tilt);
+  c.linear_velocity_m_s[2] = 0.2 * std::cos(tilt);
+  std::vector<double> iz(in.inverse_depth.size());
+  for (size_t i = 0; i < iz.size(); ++i) iz[i] = in.inverse_depth[i] / 16777216.0;
+  ref::MotionRefInput ri;
+  ri.width = w;
+  ri.height = h;
+  ri.inverse_depth = &iz;
+  std::vector<double> rel;
+  int compared = 0, sign_ok = 0;
+  for (int y = 0; y < h; y += 3)
+    for (int x = 0; x < w; x += 3) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      if (!(iz[i] > 0 && iz[i] < 1.0 / 5.0)) continue;  // beyond 5 m, not sky
+      double dx, dy;
+      ref::RefMotionDisplacement(c, ri, 1e6, x, y, &dx, &dy);  // T = 1 s at "velocity per frame": per frame
+      const double mx = in.motion[0][i] / 65536.0, my = in.motion[1][i] / 65536.0;
+      const double predicted = std::hypot(dx, dy);
+      if (predicted < 0.5) continue;
+      ++compared;
+      sign_ok += (dx * mx + dy * my) > 0;
+      rel.push_back(std::hypot(dx - mx, dy - my) / predicted);
+    }
+  ASSERT_GT(compared, 1000);
+  std::sort(rel.begin(), rel.end());
+  const double median = rel[rel.size() / 2], p90 = rel[rel.size() * 9 / 10];
+  std::printf("vector pass vs camera motion field: %d pixels, median error %.3g, 90th percentile %.3g\n", compared,
+              median, p90);
+  EXPECT_EQ(sign_ok, compared);
+  EXPECT_LT(median, 0.05);
+  EXPECT_LT(p90, 0.10);
+}
+
+}  // namespace
+}  // namespace camsim
