@@ -567,3 +567,42 @@ TEST(MotionBlur, CameraMotionFieldMatchesTheBlenderVectorPass) {
 
 }  // namespace
 }  // namespace camsim
+
+namespace camsim {
+namespace {
+
+// The largest values every bound allows: saturated samples stay saturated
+// (the mean of 2^32 - 1 is 2^32 - 1), extreme vectors are clamped, and
+// nothing overflows (the debug preset runs this under UBSan).
+TEST(MotionBlur, ExtremesStayInRange) {
+  const int w = 48, h = 40;
+  test::Scene s = test::FlatScene(w, h, 0, 0, 0);
+  for (int c = 0; c < 3; ++c) std::fill(s.plane[c].begin(), s.plane[c].end(), 0xFFFFFFFFu);
+  Extras e;
+  e.inverse_depth.assign(static_cast<size_t>(w) * h, 0xFFFFFFFFu);  // 3.9 mm everywhere
+  e.vectors[0].assign(static_cast<size_t>(w) * h, INT32_MIN);
+  e.vectors[1].assign(static_cast<size_t>(w) * h, INT32_MAX);
+  for (MotionSource source : {MotionSource::kCamera, MotionSource::kVectors}) {
+    PipelineConfig c = MotionOnly(w, h, 1e6);  // 1 s exposure
+    MotionBlurConfig& m = c.motion_blur;
+    m.source = source;
+    m.fx_px = m.fy_px = 3.0;                   // |x| <= 7.8, |y| <= 6.5
+    m.angular_velocity_rad_s[0] = 300.0;       // just inside the 65536 px table bound
+    m.angular_velocity_rad_s[1] = -300.0;
+    m.angular_velocity_rad_s[2] = 300.0;
+    m.linear_velocity_m_s[0] = 200.0;          // 16384 px at 1 m: near the bound
+    m.linear_velocity_m_s[2] = -100.0;
+    m.line_time_us = 1e6 * 32768.0 / ((h - 1) / 2.0);  // |rho| up to 32768
+    m.max_displacement_px = MotionBlurStage::kMaxDisplacementPx;
+    m.max_samples = MotionBlurStage::kMaxSamples;
+    m.samples_per_px = 16.0;
+    m.vector_fps = 16.0;  // T / Tf = 16
+    auto b = test::Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.field() << " " << b->status.message();
+    const std::vector<uint32_t> out = RunMotion(*b, s, e, 5);
+    for (uint32_t v : out) ASSERT_EQ(v, 0xFFFFFFFFu);
+  }
+}
+
+}  // namespace
+}  // namespace camsim
