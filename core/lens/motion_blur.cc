@@ -288,24 +288,56 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
     const int64_t base_x = RoundShift(dx * half_minus_rho, 16), base_y = RoundShift(dy * half_minus_rho, 16);
     const int64_t sx32 = RoundShift(dx * int64_t{inv2n_[n]}, 16), sy32 = RoundShift(dy * int64_t{inv2n_[n]}, 16);
     const int64_t px = int64_t{x} << 16, py = int64_t{y} << 16;
+    // Sample offsets are monotone in i (RoundShift is monotone), so the first
+    // and last bound them all. When every sample and its bilinear neighbours
+    // lie inside the bounds and the frame (the usual case), the clamps are
+    // no-ops and the second row / column always exist: a loop without them
+    // gives the same bytes.
+    const int64_t last = 2 * static_cast<int64_t>(n) - 1;
+    const int64_t ox_a = base_x - RoundShift(sx32, 16), ox_b = base_x - RoundShift(sx32 * last, 16);
+    const int64_t oy_a = base_y - RoundShift(sy32, 16), oy_b = base_y - RoundShift(sy32 * last, 16);
+    const int64_t ox_lo = ox_a < ox_b ? ox_a : ox_b, ox_hi = ox_a < ox_b ? ox_b : ox_a;
+    const int64_t oy_lo = oy_a < oy_b ? oy_a : oy_b, oy_hi = oy_a < oy_b ? oy_b : oy_a;
+    const bool inside = ox_lo >= -bound && ox_hi <= bound && oy_lo >= -vbound && oy_hi <= vbound && px + ox_lo >= 0 &&
+                        px + ox_hi < max_x && py + oy_lo >= 0 && py + oy_hi < max_y;
     uint64_t sum[3] = {0, 0, 0};
-    for (int i = 0; i < n; ++i) {
-      const int64_t k = 2 * i + 1;
-      // Offset of sample i: D (1/2 - rho) - D (2i + 1) / (2n), each component
-      // within +-bound, then the position within the frame.
-      const int64_t ox = Clamp(base_x - RoundShift(sx32 * k, 16), -bound, bound);
-      const int64_t oy = Clamp(base_y - RoundShift(sy32 * k, 16), -vbound, vbound);
-      const int64_t qx = Clamp(px + ox, 0, max_x), qy = Clamp(py + oy, 0, max_y);
-      const int x0 = static_cast<int>(qx >> 16), y0 = static_cast<int>(qy >> 16);
-      const int x1 = x0 + 1 < w ? x0 + 1 : x0, y1 = y0 + 1 < h ? y0 + 1 : y0;
-      const uint64_t fx = static_cast<uint64_t>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));  // 0 .. kWeightOne
-      const uint64_t fy = static_cast<uint64_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
-      const uint64_t gx = kWeightOne - fx, gy = kWeightOne - fy;
-      const uint64_t w00 = gx * gy, w01 = fx * gy, w10 = gx * fy, w11 = fx * fy;
-      const RowIn& r0 = a.rows[y0 - first_row];
-      const RowIn& r1 = a.rows[y1 - first_row];
-      for (int c = 0; c < 3; ++c)
-        sum[c] += r0.ch[c][x0] * w00 + r0.ch[c][x1] * w01 + r1.ch[c][x0] * w10 + r1.ch[c][x1] * w11;
+    if (inside) {
+      uint64_t s0 = 0, s1 = 0, s2 = 0;
+      for (int i = 0; i < n; ++i) {
+        const int64_t k = 2 * i + 1;
+        const int64_t qx = px + base_x - RoundShift(sx32 * k, 16), qy = py + base_y - RoundShift(sy32 * k, 16);
+        const int x0 = static_cast<int>(qx >> 16);
+        const uint32_t fx = static_cast<uint32_t>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+        const uint32_t fy = static_cast<uint32_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+        const uint32_t gx = static_cast<uint32_t>(kWeightOne) - fx, gy = static_cast<uint32_t>(kWeightOne) - fy;
+        const uint64_t w00 = gx * gy, w01 = fx * gy, w10 = gx * fy, w11 = fx * fy;  // each <= 2^20
+        const RowIn* r = &a.rows[static_cast<int>(qy >> 16) - first_row];  // r[1]: the next row
+        s0 += r[0].ch[0][x0] * w00 + r[0].ch[0][x0 + 1] * w01 + r[1].ch[0][x0] * w10 + r[1].ch[0][x0 + 1] * w11;
+        s1 += r[0].ch[1][x0] * w00 + r[0].ch[1][x0 + 1] * w01 + r[1].ch[1][x0] * w10 + r[1].ch[1][x0 + 1] * w11;
+        s2 += r[0].ch[2][x0] * w00 + r[0].ch[2][x0 + 1] * w01 + r[1].ch[2][x0] * w10 + r[1].ch[2][x0 + 1] * w11;
+      }
+      sum[0] = s0;
+      sum[1] = s1;
+      sum[2] = s2;
+    } else {
+      for (int i = 0; i < n; ++i) {
+        const int64_t k = 2 * i + 1;
+        // Offset of sample i: D (1/2 - rho) - D (2i + 1) / (2n), each component
+        // within its bound, then the position within the frame.
+        const int64_t ox = Clamp(base_x - RoundShift(sx32 * k, 16), -bound, bound);
+        const int64_t oy = Clamp(base_y - RoundShift(sy32 * k, 16), -vbound, vbound);
+        const int64_t qx = Clamp(px + ox, 0, max_x), qy = Clamp(py + oy, 0, max_y);
+        const int x0 = static_cast<int>(qx >> 16), y0 = static_cast<int>(qy >> 16);
+        const int x1 = x0 + 1 < w ? x0 + 1 : x0, y1 = y0 + 1 < h ? y0 + 1 : y0;
+        const uint64_t fx = static_cast<uint64_t>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));  // 0 .. kWeightOne
+        const uint64_t fy = static_cast<uint64_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+        const uint64_t gx = kWeightOne - fx, gy = kWeightOne - fy;
+        const uint64_t w00 = gx * gy, w01 = fx * gy, w10 = gx * fy, w11 = fx * fy;
+        const RowIn& r0 = a.rows[y0 - first_row];
+        const RowIn& r1 = a.rows[y1 - first_row];
+        for (int c = 0; c < 3; ++c)
+          sum[c] += r0.ch[c][x0] * w00 + r0.ch[c][x1] * w01 + r1.ch[c][x0] * w10 + r1.ch[c][x1] * w11;
+      }
     }
     const uint64_t den = static_cast<uint64_t>(n) << (2 * kWeightBits);
     for (int c = 0; c < 3; ++c) a.out[c][x] = static_cast<uint32_t>((sum[c] + den / 2) / den);
