@@ -339,8 +339,12 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
           sum[c] += r0.ch[c][x0] * w00 + r0.ch[c][x1] * w01 + r1.ch[c][x0] * w10 + r1.ch[c][x1] * w11;
       }
     }
-    const uint64_t den = static_cast<uint64_t>(n) << (2 * kWeightBits);
-    for (int c = 0; c < 3; ++c) a.out[c][x] = static_cast<uint32_t>((sum[c] + den / 2) / den);
+    // round(sum / (n 2^20)) = floor(floor((sum + n 2^19) / 2^20) / n): the
+    // shift first, then a division by n (none for a single sample).
+    for (int c = 0; c < 3; ++c) {
+      const uint64_t t = (sum[c] + (static_cast<uint64_t>(n) << (2 * kWeightBits - 1))) >> (2 * kWeightBits);
+      a.out[c][x] = static_cast<uint32_t>(n == 1 ? t : t / static_cast<uint32_t>(n));
+    }
   }
 }
 
