@@ -276,8 +276,15 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   const int64_t max_x = int64_t{w - 1} << 16, max_y = int64_t{h - 1} << 16;
   const int64_t half_minus_rho = 32768 - rho_[y];  // 1/2 - rho_y, Q.16
   const int max_n = config_.max_samples;
+  int64_t still = 0;  // pixels without motion: copied (the gather would give the same)
+  const RowIn& own = a.rows[y - first_row];
   for (int x = 0; x < w; ++x) {
     const int64_t dx = du[x], dy = dv[x];
+    if ((dx | dy) == 0) {
+      for (int c = 0; c < 3; ++c) a.out[c][x] = own.ch[c][x];
+      ++still;
+      continue;
+    }
     // n = 1 + ceil(L spp): L Q.16 (<= 2^30) times spp Q.4 (<= 256) is Q.20 below 2^39.
     const int64_t len = (dx < 0 ? -dx : dx) > (dy < 0 ? -dy : dy) ? (dx < 0 ? -dx : dx) : (dy < 0 ? -dy : dy);
     const int64_t lq = len * spp_q4_;
@@ -346,6 +353,7 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
       a.out[c][x] = static_cast<uint32_t>(n == 1 ? t : t / static_cast<uint32_t>(n));
     }
   }
+  if (a.stats != nullptr) a.stats->skipped_px += still;
 }
 
 }  // namespace camsim

@@ -25,8 +25,9 @@
 // n = min(max_samples, 1 + ceil(samples_per_px * max(|Dx|, |Dy|))): with the
 // default 1 sample per pixel of motion the spacing is below one pixel;
 // samples_per_px is the precision knob (the midpoint rule's error against the
-// continuous time integral falls as it grows; camsim tradeoff measures it). S is sampled bilinearly. Rolling shutter alone (tiny T) is a pure
-// per-row shift; motion blur alone (line_time 0) is centred on p.
+// continuous time integral falls as it grows; camsim tradeoff measures it).
+// S is sampled bilinearly. Rolling shutter alone (tiny T) is a pure per-row
+// shift; motion blur alone (line_time 0) is centred on p.
 //
 // Bounds. Every sample's offset from p is clamped per component to
 // +-max_displacement_px (a knob, up to 511: it bounds the rows of context,
@@ -49,7 +50,9 @@
 //   Sample offsets: D (1/2 - rho) and D (2i+1) / (2n) with 1/(2n) as Q.32;
 //   positions Q.16; bilinear weights Q0.10 per axis (rounded from Q.16, ties
 //   up), products summing to 2^20; sum over samples in uint64 (< 2^32 2^20 256);
-//   out = round(sum / (n 2^20)), ties up, exact integer division (<= 2^32-1).
+//   out = round(sum / (n 2^20)), ties up, exact integer division; a mean of
+//   32-bit samples, so it cannot exceed 2^32 - 1 (no saturation needed).
+//   samples_per_px: Q.4 (rounded to 1/16); n from L (Q.16) * spp (Q.4), ceil.
 #pragma once
 
 #include "core/pipeline/stage.h"
