@@ -606,3 +606,37 @@ TEST(MotionBlur, ExtremesStayInRange) {
 
 }  // namespace
 }  // namespace camsim
+
+namespace camsim {
+namespace {
+
+// The host's conversion of depth and Blender vectors into the core's planes.
+TEST(MotionBlur, HostConvertsDepthAndVectors) {
+  io::SceneFrame f;
+  f.width = 7;
+  f.height = 1;
+  for (io::FloatPlane* p : {&f.r, &f.g, &f.b, &f.depth, &f.motion_x, &f.motion_y}) {
+    p->width = 7;
+    p->height = 1;
+    p->data.assign(7, 0.0f);
+  }
+  f.has_depth = f.has_motion = true;
+  const float nan = std::nanf(""), inf = INFINITY;
+  f.depth.data = {0.0f, -1.0f, nan, inf, 1e10f, 2.0f, 0.001f};
+  f.motion_x.data = {1.0f, -2.5f, 0, 0, 0, 0, 0};
+  f.motion_y.data = {2.0f, 0.25f, 0, 0, 0, 0, 0};
+  host::CoreInput in;
+  host::PrepareInput(f, 7, 1, host::SceneFit::kCrop, &in);
+  // 0, negative, NaN, inf: infinitely far (0); 1e10 m: 1e-10 * 2^24 rounds to
+  // 0; 2 m: 2^23; 1 mm: 1000 / m saturates Q8.24.
+  const std::vector<uint32_t> iz = {0, 0, 0, 0, 0, 1u << 23, 0xFFFFFFFFu};
+  EXPECT_EQ(in.inverse_depth, iz);
+  // Velocity rows downwards: (-X, +Y), Q16.16.
+  EXPECT_EQ(in.motion[0][0], -65536);
+  EXPECT_EQ(in.motion[1][0], 131072);
+  EXPECT_EQ(in.motion[0][1], 163840);
+  EXPECT_EQ(in.motion[1][1], 16384);
+}
+
+}  // namespace
+}  // namespace camsim
