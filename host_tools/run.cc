@@ -445,7 +445,14 @@ int RunCommand(const RunOptions& o) {
       double total = 0;
       for (const FrameRecord& r : acc.frames) total += r.wall_ms;
       const FrameRecord& first = acc.frames.front();
-      if (first.has_depth || first.has_motion)
+      bool depth_used = false;
+      for (int i = 0; i < pipeline.plan().count; ++i) {
+        const PlanEntry& e = pipeline.plan().entries[i];
+        if (e.runs && (e.id == StageId::kDofGather || e.id == StageId::kDofRows)) depth_used = true;
+      }
+      if (depth_used && first.has_depth && first.has_motion)
+        std::fprintf(stderr, "input %s: motion present but unused (no configured stage needs it)\n", first.layout.c_str());
+      else if (!depth_used && (first.has_depth || first.has_motion))
         std::fprintf(stderr, "input %s: %s%spresent but unused (no configured stage needs them)\n",
                      first.layout.c_str(), first.has_depth ? "depth " : "", first.has_motion ? "motion " : "");
       std::fprintf(stderr, "%zu frame(s), %.2f ms/frame wall on %d thread(s); outputs in %s\n", acc.frames.size(),

@@ -9,6 +9,7 @@ FrameInput CoreInput::View() const {
   FrameInput in;
   for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(radiance[c].data(), width, height);
   if (!mask.empty()) in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), width, height);
+  if (!inverse_depth.empty()) in.inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
   return in;
 }
 
@@ -65,6 +66,24 @@ void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit f
     const io::FloatPlane fitted = FitPlane(*planes[c], width, height, fit);
     out->radiance[c].resize(fitted.data.size());
     for (size_t i = 0; i < fitted.data.size(); ++i) out->radiance[c][i] = ToFixed(fitted.data[i], 16, 4294967295.0);
+  }
+  out->inverse_depth.clear();
+  if (!scene.has_depth) return;
+  const bool same = scene.depth.width == width && scene.depth.height == height;
+  if (same || fit == SceneFit::kCrop) {
+    const io::FloatPlane fitted = FitPlane(scene.depth, width, height, fit);
+    out->inverse_depth.resize(fitted.data.size());
+    for (size_t i = 0; i < fitted.data.size(); ++i) out->inverse_depth[i] = InverseDepthFromMetres(fitted.data[i]);
+    return;
+  }
+  // Scale: average 1/z in 1/m (float), NaN marking invalid so it spreads to the footprint.
+  io::FloatPlane iz = scene.depth;
+  for (float& v : iz.data) v = v < 0.0f ? std::nanf("") : (v == 0.0f ? INFINITY : 1.0f / v);
+  const io::FloatPlane fitted = FitPlane(iz, width, height, fit);
+  out->inverse_depth.resize(fitted.data.size());
+  for (size_t i = 0; i < fitted.data.size(); ++i) {
+    const float v = fitted.data[i];
+    out->inverse_depth[i] = v != v ? kInvalidInverseDepth : InverseDepthFromMetres(v == 0.0f ? INFINITY : 1.0 / v);
   }
 }
 

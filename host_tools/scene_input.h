@@ -6,6 +6,10 @@
 // weighting, exact for integer ratios). Radiance becomes Q16.16 with
 // round-to-nearest and saturation at 65535.99998 (the loader has already
 // replaced NaN/Inf/negatives). A vignetting mask becomes Q2.14 gains the same way.
+// Depth (when the scene has it) becomes inverse depth by InverseDepthFromMetres
+// (z = 0: nearest; +inf, 1e10, NaN: 0; z < 0, -inf: invalid). Crop copies each
+// pixel's depth; scale averages inverse depth (1/z, the quantity the CoC is
+// linear in) over the footprint, and a footprint holding an invalid depth is invalid.
 #pragma once
 
 #include <cstdint>
@@ -21,6 +25,7 @@ struct CoreInput {
   int width = 0, height = 0;
   std::vector<uint32_t> radiance[3];
   std::vector<uint16_t> mask;
+  std::vector<uint32_t> inverse_depth;  // Q12.20 1/m (core/lens/dof.h); empty without depth
   FrameInput View() const;
 };
 

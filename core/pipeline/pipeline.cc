@@ -9,7 +9,7 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "dof_gather", "dof_rows", "dof_columns", "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -153,6 +153,9 @@ Stage* Pipeline::StageFor(StageId id) {
 
 const Stage* Pipeline::StageFor(StageId id) const {
   switch (id) {
+    case StageId::kDofGather: return &dof_gather_;
+    case StageId::kDofRows: return &dof_rows_;
+    case StageId::kDofColumns: return &dof_columns_;
     case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
@@ -182,6 +185,9 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   workers_ = workers;
 
   // Each stage validates its own section.
+  CAMSIM_TRY(dof_gather_.Configure(config.dof, g, config.exposure.f_number));
+  CAMSIM_TRY(dof_rows_.Configure(config.dof, g, config.exposure.f_number));
+  CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
@@ -324,6 +330,19 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     const ImageView<const uint16_t>& m = input.vignetting_mask;
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
+  }
+  bool depth = false;  // a running depth-of-field stage reads the depth plane
+  for (int i = 0; i < plan_.count; ++i) {
+    const PlanEntry& e = plan_.entries[i];
+    if (!e.runs) continue;
+    if (e.id == StageId::kDofGather) depth = true;
+    if (e.id == StageId::kDofRows && config_.dof.method == DofMethod::kDiffusion && !config_.dof.structural_only)
+      depth = true;
+  }
+  if (depth) {
+    const ImageView<const uint32_t>& d = input.inverse_depth;
+    if (d.data == nullptr || d.width != w || d.height != h || d.stride < w)
+      return InvalidArgument("dof.method", "depth of field needs a sensor-sized depth plane (input has none)");
   }
   return Status::Ok();
 }

@@ -20,6 +20,7 @@
 #include "core/isp/demosaic.h"
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
+#include "core/lens/dof.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -30,6 +31,9 @@ namespace camsim {
 // The stages in their default order (also the order of the paper's Figure 2
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
+  kDofGather,
+  kDofRows,
+  kDofColumns,
   kExposure,
   kVignetting,
   kCfa,
@@ -49,6 +53,8 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+  // 1/depth in 1/m, Q12.20 (InverseDepthFromMetres, core/lens/dof.h); needed by dof.
+  ImageView<const uint32_t> inverse_depth;
 };
 
 struct PipelineConfig {
@@ -56,11 +62,13 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kDofGather, StageId::kDofRows,   StageId::kDofColumns,
+                                StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
                                 StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
                                 StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
+  DofConfig dof;  // depth of field and structural blur (dof_gather, dof_rows, dof_columns)
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
@@ -171,6 +179,9 @@ class Pipeline {
   uint8_t* workers_base_ = nullptr;
   bool initialised_ = false;
 
+  DofGatherStage dof_gather_;
+  DofRowStage dof_rows_;
+  DofColumnStage dof_columns_;
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;
