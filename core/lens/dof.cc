@@ -295,8 +295,7 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
   for (int c = 0; c < 3; ++c)
     for (int x = 0; x < w; ++x) a.out[c][x] = in.ch[c][x];
   const int solved = dof::SolveLine(a.out, 3, beta, w, work);
-  if (a.stats != nullptr)
-    for (int c = 0; c < 3; ++c) a.stats->aux_sum[c] += int64_t{solved} << 8;
+  if (a.stats != nullptr) a.stats->skipped_px += w - solved;
 }
 
 // ---------------------------------------------------------------- column stage
@@ -408,8 +407,7 @@ void DofColumnStage::ProcessRow(const RowArgs& a) const {
       for (int c = 0; c < 3; ++c) a.out[c][x] = OutOf(uf[c][x] + MulQ30(ub[c][x] - uf[c][x], wt));
     }
   }
-  if (a.stats != nullptr)
-    for (int c = 0; c < 3; ++c) a.stats->aux_sum[c] += solved << 8;
+  if (a.stats != nullptr) a.stats->skipped_px += w - solved;
 }
 
 }  // namespace camsim

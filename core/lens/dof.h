@@ -54,9 +54,9 @@
 //          error < 2^-33). coc: Q.8 pixels, at most 1024 - 2^-8.
 //          Output: RoundShift(y, 16), within [min, max] of the input line.
 // Skipping: b = 0 decouples neighbours exactly (r = e = 1), so pixels whose
-// both links are 0 are copied, not solved, and cost no division; the stats'
-// aux_sum counts the pixels solved (x 256 per channel, so the report's
-// "aux / 256 / count" reads as the fraction solved).
+// both links are 0 (CoC below min_coc on either side) are copied, not solved,
+// and cost no division; StageStats::skipped_px counts them. (The column pass
+// still reads its window's depth rows for them.)
 //
 // Gather DoF (eq. 11, reverse-mapped z-buffer, DofGatherStage): each source
 // pixel q spreads its radiance uniformly over a disc of radius
@@ -210,7 +210,6 @@ class DofGatherStage final : public Stage {
   Result<LineFormat> Plan(LineFormat in) const override;
   const char* IdentityReason() const override;
   RowWindow InputRows(int y, int height) const override;
-  int Margin() const override { return config_.max_radius_px; }
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
   size_t ScratchBytes(int width) const override;

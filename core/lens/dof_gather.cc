@@ -95,7 +95,20 @@ void DofGatherStage::ProcessRow(const RowArgs& a) const {
   for (int k = 0; k < 4; ++k)
     for (int x = 0; x <= w; ++x) acc[k][x] = 0;
   const uint32_t rcap = 4u * static_cast<uint32_t>(rmax);
-  int64_t spread = 0;  // source pixels with a radius > 0
+  // Skip: no disc in the window reaches beyond its own pixel (radius < 1 px,
+  // i.e. quarter-pixel radius (coc + 64) >> 7 < 4, coc < 448 in Q.8).
+  bool blur = false;
+  for (int k = 0; k < a.row_count && !blur; ++k) {
+    const uint32_t* iz = a.input->inverse_depth.row(a.first_row + k);
+    for (int x = 0; x < w; ++x) blur |= coc_.Coc(iz[x]) >= 448;
+  }
+  if (!blur) {
+    const RowIn& in = a.rows[y - a.first_row];
+    for (int c = 0; c < 3; ++c)
+      for (int x = 0; x < w; ++x) a.out[c][x] = in.ch[c][x];
+    if (a.stats != nullptr) a.stats->skipped_px += w;
+    return;
+  }
   for (int k = 0; k < a.row_count; ++k) {
     const int sy = a.first_row + k;
     const int dy = sy > y ? sy - y : y - sy;
@@ -109,7 +122,6 @@ void DofGatherStage::ProcessRow(const RowArgs& a) const {
       const size_t q = radius[x];
       const int h = half_width_[q * static_cast<size_t>(rmax + 1) + dy];
       if (h < 0) continue;
-      spread += q != 0 && dy == 0;
       const int x0 = x - h < 0 ? 0 : x - h, x1 = x + h + 1 > w ? w : x + h + 1;
       const int64_t wt = weight_[q];
       acc[3][x0] += wt;
@@ -127,8 +139,6 @@ void DofGatherStage::ProcessRow(const RowArgs& a) const {
     const uint64_t ws = static_cast<uint64_t>(s[3]);
     for (int c = 0; c < 3; ++c) a.out[c][x] = SatU32((static_cast<uint64_t>(s[c]) + ws / 2) / ws);
   }
-  if (a.stats != nullptr)
-    for (int c = 0; c < 3; ++c) a.stats->aux_sum[c] += spread << 8;
 }
 
 }  // namespace camsim

@@ -39,10 +39,10 @@ namespace {
 double BetaOf(double a, double b) { return std::min(a, b); }
 }  // namespace
 
-std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const std::vector<double>& cc2, int w, int h,
-                                       int window) {
-  std::vector<double> rows(plane.size()), out(plane.size());
-  std::vector<double> x(static_cast<size_t>(std::max(w, h))), b(x.size() + 1), y(x.size());
+std::vector<double> ReferenceDiffusionRows(const std::vector<double>& plane, const std::vector<double>& cc2, int w,
+                                           int h) {
+  std::vector<double> rows(plane.size());
+  std::vector<double> x(static_cast<size_t>(w)), b(x.size() + 1), y(x.size());
   for (int r = 0; r < h; ++r) {
     for (int i = 0; i < w; ++i) {
       x[static_cast<size_t>(i)] = plane[static_cast<size_t>(r) * w + i];
@@ -51,6 +51,13 @@ std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const s
     ReferenceSolveLine(x.data(), b.data(), w, y.data());
     for (int i = 0; i < w; ++i) rows[static_cast<size_t>(r) * w + i] = y[static_cast<size_t>(i)];
   }
+  return rows;
+}
+
+std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& rows, const std::vector<double>& cc2, int w,
+                                              int h, int window) {
+  std::vector<double> out(rows.size());
+  std::vector<double> x(static_cast<size_t>(h)), b(x.size() + 1), y(x.size());
   for (int c = 0; c < w; ++c) {
     auto at = [&](const std::vector<double>& v, int r) { return v[static_cast<size_t>(r) * w + c]; };
     if (window < 0) {
@@ -73,6 +80,55 @@ std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const s
     }
   }
   return out;
+}
+
+std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const std::vector<double>& cc2, int w, int h,
+                                       int window) {
+  return ReferenceDiffusionColumns(ReferenceDiffusionRows(plane, cc2, w, h), cc2, w, h, window);
+}
+
+namespace {
+double DepthOf(uint32_t iz) {
+  if (iz == kInvalidInverseDepth) return -1.0;
+  if (iz == 0) return INFINITY;
+  return 1048576.0 / iz;  // 2^20 / iz
+}
+}  // namespace
+
+std::vector<double> ReferenceCc2(const DofConfig& c, double n, const uint32_t* iz, int w, int h, bool use_depth) {
+  std::vector<double> cc2(static_cast<size_t>(w) * h, 0.0);
+  double poly_sum = 0;
+  for (double a : c.structural_poly) poly_sum += std::fabs(a);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      double v = 0;
+      if (use_depth) {
+        const double coc = c.diffusion_scale * ReferenceCocPixels(c, n, DepthOf(iz[i]));
+        v = coc * coc;
+      }
+      if (poly_sum > 0) {
+        const double dx = 2.0 * x - (w - 1), dy = 2.0 * y - (h - 1);
+        const double den = double(w - 1) * (w - 1) + double(h - 1) * (h - 1);
+        const double r = den > 0 ? std::sqrt((dx * dx + dy * dy) / den) : 0.0;
+        double d = 0, rk = 1;
+        for (double a : c.structural_poly) {
+          d += a * rk;
+          rk *= r;
+        }
+        d = std::min(std::max(d, 0.0), c.max_coc_px);
+        if (d < c.min_coc_px) d = 0;
+        v += (c.diffusion_scale * d) * (c.diffusion_scale * d);
+      }
+      cc2[i] = std::min(v, 1048575.0);
+    }
+  return cc2;
+}
+
+std::vector<double> ReferenceGatherRadius(const DofConfig& c, double n, const uint32_t* iz, int w, int h) {
+  std::vector<double> r(static_cast<size_t>(w) * h);
+  for (size_t i = 0; i < r.size(); ++i) r[i] = std::min(ReferenceCocPixels(c, n, DepthOf(iz[i])) / 2, double(c.max_radius_px));
+  return r;
 }
 
 std::vector<double> ReferenceGather(const std::vector<double>& plane, const std::vector<double>& radius, int w, int h) {

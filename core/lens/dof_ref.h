@@ -24,6 +24,21 @@ void ReferenceSolveLine(const double* x, const double* b, int n, double* y);
 std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const std::vector<double>& cc2, int width,
                                        int height, int window);
 
+// The two passes of ReferenceDiffusion on their own.
+std::vector<double> ReferenceDiffusionRows(const std::vector<double>& plane, const std::vector<double>& cc2, int width,
+                                           int height);
+std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& plane, const std::vector<double>& cc2,
+                                              int width, int height, int window);
+
+// Per-pixel inputs of the references from the core's inverse depth (Q12.20),
+// through the double thin-lens CoC (ReferenceCocPixels) and, for the
+// diffusion, the structural polynomial: squared diffusion CoC (pixels^2) and
+// gather radius (pixels, capped at max_radius_px).
+std::vector<double> ReferenceCc2(const DofConfig& config, double f_number, const uint32_t* inverse_depth, int width,
+                                 int height, bool use_depth);
+std::vector<double> ReferenceGatherRadius(const DofConfig& config, double f_number, const uint32_t* inverse_depth,
+                                          int width, int height);
+
 // Reverse-mapped gather: source q spreads uniformly over its disc of radius
 // radius_q (pixels; integer offsets with dx^2 + dy^2 <= r^2), normalised.
 std::vector<double> ReferenceGather(const std::vector<double>& plane, const std::vector<double>& radius, int width,

@@ -1,5 +1,7 @@
 #include "core/pipeline/pipeline_ref.h"
 
+#include "core/lens/dof_ref.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -51,6 +53,24 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
   StageFromName(name, &id);
   const auto at = [w](int x, int y) { return static_cast<size_t>(y) * w + x; };
   switch (id) {
+    case StageId::kDofGather:
+    case StageId::kDofRows:
+    case StageId::kDofColumns: {
+      // Radiance in physical units: the passes are linear, so units do not matter.
+      RefImage out = Like(in, in.planes.size());
+      const uint32_t* iz = input.inverse_depth.data;
+      const bool depth = c.dof.method == DofMethod::kDiffusion && !c.dof.structural_only;
+      for (size_t k = 0; k < in.planes.size(); ++k) {
+        if (id == StageId::kDofGather) {
+          out.planes[k] = ReferenceGather(in.planes[k], ReferenceGatherRadius(c.dof, c.exposure.f_number, iz, w, h), w, h);
+        } else {
+          const std::vector<double> cc2 = ReferenceCc2(c.dof, c.exposure.f_number, iz, w, h, depth);
+          out.planes[k] = id == StageId::kDofRows ? ReferenceDiffusionRows(in.planes[k], cc2, w, h)
+                                                  : ReferenceDiffusionColumns(in.planes[k], cc2, w, h, -1);
+        }
+      }
+      return out;
+    }
     case StageId::kExposure: {
       RefImage out = Like(in, in.planes.size());
       for (size_t k = 0; k < in.planes.size(); ++k)

@@ -479,13 +479,29 @@ TEST(DofSkipping, CountsSolvedPixels) {
   const std::vector<uint32_t> out = RunDof(p, s, 8, &st);
   // Linked pixels: columns 40 .. 63 (column 40's link to 39 is min(0, .) = 0).
   const int64_t expected = int64_t{24} * h;
-  EXPECT_EQ(st.stage[0].aux_sum[1] >> 8, expected) << "rows";
-  EXPECT_EQ(st.stage[1].aux_sum[1] >> 8, expected) << "columns";
+  EXPECT_EQ(st.stage[0].skipped_px, int64_t{w} * h - expected) << "rows";
+  EXPECT_EQ(st.stage[1].skipped_px, int64_t{w} * h - expected) << "columns";
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < 40; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
       ASSERT_EQ(out[3 * i], s.plane[0][i]) << "skipped pixels are copied";
     }
+}
+
+TEST(DofSkipping, GatherCopiesRowsWithoutBlur) {
+  const int w = 40, h = 60;
+  test::Scene s = test::TexturedScene(w, h);
+  // Rows 0 .. 29 at focus, rows 30 .. 59 far out of focus; radius cap 5.
+  SetDepth(&s, [](int, int y) { return y < 30 ? 3.0 : 0.5; });
+  PipelineConfig p = DofPipeline(w, h, DofMethod::kGather);
+  p.dof.max_radius_px = 5;
+  WorkerStats st;
+  const std::vector<uint32_t> out = RunDof(p, s, 8, &st);
+  EXPECT_EQ(st.stage[0].skipped_px, int64_t{w} * 25) << "rows 0 .. 24 see no blurred row within 5";
+  for (size_t i = 0; i < static_cast<size_t>(w) * 25 * 3; ++i) ASSERT_EQ(out[i], s.plane[i % 3][i / 3]);
+  int changed = 0;
+  for (size_t i = static_cast<size_t>(w) * 30 * 3; i < out.size(); ++i) changed += out[i] != s.plane[i % 3][i / 3];
+  EXPECT_GT(changed, w * 30) << "the out-of-focus half is blurred";
 }
 
 TEST(DofPipelineTest, MissingDepthIsAnErrorNamingTheKey) {
