@@ -105,12 +105,12 @@ Status CocModel::Configure(const DofConfig& c, double f_number) {
   Result<UScale> s = UScale::FromDouble(kq, "dof.focus_distance_m");
   if (!s.ok()) return s.status();
   scale_ = s.value();
-  Result<UScale> sd = UScale::FromDouble(kq * c.diffusion_scale, "dof.diffusion_scale");
+  Result<UScale> sd = UScale::FromDouble(kq * 256.0 * c.diffusion_scale, "dof.diffusion_scale");  // Q.16
   if (!sd.ok()) return sd.status();
   diffusion_scale_ = sd.value();
   focus_ = InverseDepthFromMetres(c.focus_distance_m);
   cap_ = static_cast<uint32_t>(Q<10, 8>::FromDouble(c.max_coc_px).raw);
-  diffusion_cap_ = static_cast<uint32_t>(Q<10, 8>::FromDouble(c.max_coc_px * c.diffusion_scale).raw);
+  diffusion_cap_ = static_cast<uint32_t>(Q<10, 16>::FromDouble(c.max_coc_px * c.diffusion_scale).raw);
   // Smallest d with Apply(d) >= min_coc (Apply is monotone): binary search.
   const uint32_t min_raw = static_cast<uint32_t>(Q<10, 8>::FromDouble(c.min_coc_px).raw);
   uint32_t lo = 0, hi = 0xFFFFFFFFu;
@@ -272,7 +272,7 @@ void DofRowStage::RowCc2(const FrameInput& input, int y, uint64_t* cc2) const {
     const uint32_t pos = rho_to_index_.Apply(dx2_[x] + dy2);
     const uint32_t i = pos >> 16, f = pos & 0xFFFF;
     const uint64_t g0 = struct_cc2_[i], g1 = struct_cc2_[i + 1];
-    cc2[x] += (g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16;
+    cc2[x] += ((g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16) << 16;  // Q.16 -> Q.32
   }
 }
 

@@ -47,7 +47,8 @@
 // Formats: x, out: radiance Q16.16 (uint32), 3 channels.
 //          u, v, y: int64 Q16.32 (16 guard bits below the input's LSB);
 //                   products with weights are exact 64-bit splits (MulQ30).
-//          b: uint32 Q20.12, 0 .. 2^20 - 2^-12 (so b r fits 62 bits).
+//          b: uint32 Q20.12, 0 .. 2^20 - 2^-12 (so b r fits 62 bits), from
+//             squared diffusion CoCs in Q.32 (s coc in Q10.16, squared).
 //          r, e, w: uint32 Q2.30 in [0, 1]; D: uint64 Q.30 in [1, 2^20 + 1].
 //          Divisions: round to nearest (ties up) of a normalised 64-bit
 //          quotient (numerator and denominator shifted to < 2^34: relative
@@ -104,6 +105,7 @@ class CocModel {
  public:
   static constexpr int kCocFracBits = 8;  // Q.8 pixels
   static constexpr uint32_t kMaxCocRaw = (1024u << kCocFracBits) - 1;
+  static constexpr int kDiffusionCocFracBits = 16;  // Q10.16
   Status Configure(const DofConfig& config, double f_number);
   // CoC diameter, Q.8 pixels, of an inverse-depth sample (0 below min_coc).
   uint32_t Coc(uint32_t inverse_depth) const {
@@ -113,7 +115,9 @@ class CocModel {
     const uint32_t c = scale_.Apply(d);
     return c < cap_ ? c : cap_;
   }
-  // The diffusion's s * coc from the same sample, Q.8 (0 where Coc is 0).
+  // The diffusion's s * coc from the same sample, Q.16 (0 where Coc is 0):
+  // 16 fractional bits because s * coc is small (s = 0.18) and b = (s coc)^2
+  // would otherwise carry a 1e-3 relative rounding error.
   uint32_t DiffusionCoc(uint32_t inverse_depth) const {
     if (inverse_depth == kInvalidInverseDepth) return 0;
     const uint32_t d = inverse_depth > focus_ ? inverse_depth - focus_ : focus_ - inverse_depth;
@@ -131,7 +135,7 @@ class CocModel {
   double k_px_m_ = 0.0;          // K / pitch: CoC in pixels per 1/m of inverse-depth difference
   uint32_t focus_ = 0;           // iz_f, Q12.20
   UScale scale_;                 // |iz - iz_f| Q12.20 -> coc Q.8
-  UScale diffusion_scale_;       // the same times s
+  UScale diffusion_scale_;       // |iz - iz_f| -> s coc Q.16
   uint32_t cap_ = 0, diffusion_cap_ = 0;
   uint32_t min_diff_ = 0;        // smallest |iz - iz_f| whose CoC reaches min_coc
 };
@@ -142,10 +146,11 @@ inline constexpr int kBetaFracBits = 12;             // b: Q20.12
 inline constexpr uint32_t kMaxBeta = 0xFFFFFFFFu;    // 2^20 - 2^-12
 inline constexpr int kGuardBits = 16;                // u, v, y: Q16.32 in int64
 inline constexpr int kWeightFracBits = 30;           // r, e, w: Q2.30
-// b from two neighbours' squared diffusion CoCs (Q.16): min, to Q.12, capped.
+// b from two neighbours' squared diffusion CoCs (Q.32, < 2^52): min, to
+// Q.12 (rounded, ties up), capped.
 constexpr uint32_t BetaOf(uint64_t cc2_a, uint64_t cc2_b) {
   const uint64_t m = cc2_a < cc2_b ? cc2_a : cc2_b;
-  const uint64_t b = (m + 8) >> 4;  // Q.16 -> Q.12, round ties up
+  const uint64_t b = (m + (1u << 19)) >> 20;  // Q.32 -> Q.12
   return b > kMaxBeta ? kMaxBeta : static_cast<uint32_t>(b);
 }
 // Solves one line of n samples for `channels` channels in place: beta[i]
@@ -172,7 +177,7 @@ class DofRowStage final : public Stage {
 
  protected:
   friend class DofColumnStage;
-  // Squared diffusion CoC per pixel of row y, Q.16 (depth + structural).
+  // Squared diffusion CoC per pixel of row y, Q.32 (depth + structural).
   void RowCc2(const FrameInput& input, int y, uint64_t* cc2) const;
 
   DofConfig config_;
@@ -180,7 +185,7 @@ class DofRowStage final : public Stage {
   CocModel coc_;
   bool structural_ = false;
   UScale rho_to_index_;          // as vignetting: (dx2 + dy2) -> curve position Q.16
-  uint32_t* struct_cc2_ = nullptr;  // kCurvePoints + 1 squared diffusion diameters, Q.16
+  uint32_t* struct_cc2_ = nullptr;  // kCurvePoints + 1 squared diffusion diameters, Q.16 (added << 16)
   uint32_t* dx2_ = nullptr;
 };
 
