@@ -104,8 +104,8 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
-                 "sensor, black_level, white_balance, demosaic, color_matrix, gamma; dof_gather, dof_rows, dof_columns (before exposure)");
+                 "stages in run order; a stage not listed does not run. All, in the default order: dof_gather, dof_rows, dof_columns, exposure, vignetting, cfa, "
+                 "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
       for (int i = 0; i < c.core.order_count; ++i)

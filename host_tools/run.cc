@@ -65,7 +65,8 @@ struct FrameRecord {
   double wall_ms = 0;
   io::InputSanitizeStats radiance_stats;
   std::string layout;
-  bool has_depth = false, has_motion = false;  // loaded; no stage uses them yet
+  bool has_depth = false, has_motion = false;  // loaded
+  bool depth_used = false;                     // a running depth-of-field stage reads it
 };
 
 struct Accumulated {
@@ -165,7 +166,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
       << ", \"sanitised\": {\"nan\": " << f.radiance_stats.nan << ", \"pos_inf\": " << f.radiance_stats.pos_inf
       << ", \"neg_inf\": " << f.radiance_stats.neg_inf << ", \"negative\": " << f.radiance_stats.negative
-      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? "\"present, unused\"" : "null")
+      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? (f.depth_used ? "\"present, used\"" : "\"present, unused\"") : "null")
       << ", \"motion\": " << (f.has_motion ? "\"present, unused\"" : "null") << ", \"outputs\": [";
     for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
     j << "]}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
@@ -390,6 +391,12 @@ int RunCommand(const RunOptions& o) {
     rec.radiance_stats = scene.radiance_stats;
     rec.layout = scene.layout;
     rec.has_depth = scene.has_depth;
+    for (int i = 0; i < pipeline.plan().count; ++i) {
+      const PlanEntry& e = pipeline.plan().entries[i];
+      if (e.runs && (e.id == StageId::kDofGather || (e.id == StageId::kDofRows && rc.core.dof.method == DofMethod::kDiffusion &&
+                                                      !rc.core.dof.structural_only)))
+        rec.depth_used = true;
+    }
     rec.has_motion = scene.has_motion;
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
 
@@ -456,11 +463,7 @@ int RunCommand(const RunOptions& o) {
       double total = 0;
       for (const FrameRecord& r : acc.frames) total += r.wall_ms;
       const FrameRecord& first = acc.frames.front();
-      bool depth_used = false;
-      for (int i = 0; i < pipeline.plan().count; ++i) {
-        const PlanEntry& e = pipeline.plan().entries[i];
-        if (e.runs && (e.id == StageId::kDofGather || e.id == StageId::kDofRows)) depth_used = true;
-      }
+      const bool depth_used = first.depth_used;
       if (depth_used && first.has_depth && first.has_motion)
         std::fprintf(stderr, "input %s: motion present but unused (no configured stage needs it)\n", first.layout.c_str());
       else if (!depth_used && (first.has_depth || first.has_motion))

@@ -62,7 +62,9 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
       const bool depth = c.dof.method == DofMethod::kDiffusion && !c.dof.structural_only;
       for (size_t k = 0; k < in.planes.size(); ++k) {
         if (id == StageId::kDofGather) {
-          out.planes[k] = ReferenceGather(in.planes[k], ReferenceGatherRadius(c.dof, c.exposure.f_number, iz, w, h), w, h);
+          DofConfig uncapped = c.dof;  // the model's disc: radius coc / 2, not capped by the knob
+          uncapped.max_radius_px = DofGatherStage::kMaxRadius;
+          out.planes[k] = ReferenceGather(in.planes[k], ReferenceGatherRadius(uncapped, c.exposure.f_number, iz, w, h), w, h);
         } else {
           const std::vector<double> cc2 = ReferenceCc2(c.dof, c.exposure.f_number, iz, w, h, depth);
           out.planes[k] = id == StageId::kDofRows ? ReferenceDiffusionRows(in.planes[k], cc2, w, h)

@@ -21,6 +21,9 @@ namespace camsim::host {
 const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
       {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
+      {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},
+       "diffusion DoF: rows solved each side per column (truncation of the column solve)"},
+      {"dof_gather", "dof.max_radius_px", {"4", "8", "16", "32"}, "gather DoF: disc radius cap"},
   };
   return knobs;
 }
