@@ -254,22 +254,22 @@ Status DofRowStage::Init(Arena& tables) {
   return Status::Ok();
 }
 
-void DofRowStage::RowCc2(const FrameInput& input, int y, uint64_t* cc2) const {
-  const int w = geometry_.width;
+void DofRowStage::RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const {
+  const int n = x1 - x0;
   if (config_.method == DofMethod::kDiffusion && !config_.structural_only) {
-    const uint32_t* iz = input.inverse_depth.row(y);
-    for (int x = 0; x < w; ++x) {
+    const uint32_t* iz = input.inverse_depth.row(y) + x0;
+    for (int x = 0; x < n; ++x) {
       const uint64_t c = coc_.DiffusionCoc(iz[x]);
       cc2[x] = c * c;
     }
   } else {
-    for (int x = 0; x < w; ++x) cc2[x] = 0;
+    for (int x = 0; x < n; ++x) cc2[x] = 0;
   }
   if (!structural_) return;
   const int64_t dy = 2 * static_cast<int64_t>(y) - (geometry_.height - 1);
   const uint32_t dy2 = static_cast<uint32_t>(dy * dy);
-  for (int x = 0; x < w; ++x) {
-    const uint32_t pos = rho_to_index_.Apply(dx2_[x] + dy2);
+  for (int x = 0; x < n; ++x) {
+    const uint32_t pos = rho_to_index_.Apply(dx2_[x0 + x] + dy2);
     const uint32_t i = pos >> 16, f = pos & 0xFFFF;
     const uint64_t g0 = struct_cc2_[i], g1 = struct_cc2_[i + 1];
     cc2[x] += ((g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16) << 16;  // Q.16 -> Q.32
@@ -287,7 +287,7 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
   uint32_t* beta = reinterpret_cast<uint32_t*>(a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)));
   uint8_t* work = a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)) +
                   AlignUp(sizeof(uint32_t) * static_cast<size_t>(w + 1));
-  RowCc2(*a.input, a.y, cc2);
+  RowCc2(*a.input, a.y, 0, w, cc2);
   beta[0] = 0;
   beta[w] = 0;
   for (int x = 1; x < w; ++x) beta[x] = dof::BetaOf(cc2[x - 1], cc2[x]);
@@ -315,20 +315,27 @@ RowWindow DofColumnStage::InputRows(int y, int height) const {
 }
 
 size_t DofColumnStage::ScratchBytes(int width) const {
-  const size_t n = static_cast<size_t>(width);
-  return 4 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n);
+  const size_t n = static_cast<size_t>(width < kTile ? width : kTile);
+  return 3 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n);
 }
 
 void DofColumnStage::ProcessRow(const RowArgs& a) const {
-  const int w = a.width, y = a.y;
+  // Columns are independent: solve them in tiles of kTile so the sweep state
+  // (~20 KB) stays in L1 while all window rows pass over it.
+  int64_t solved = 0;
+  for (int x0 = 0; x0 < a.width; x0 += kTile) solved += SolveTile(a, x0, x0 + kTile < a.width ? x0 + kTile : a.width);
+  if (a.stats != nullptr) a.stats->skipped_px += a.width - solved;
+}
+
+int64_t DofColumnStage::SolveTile(const RowArgs& a, int x0, int x1) const {
+  const int w = x1 - x0, y = a.y;
   const int lo = a.first_row, hi = a.first_row + a.row_count - 1;
-  const size_t n = static_cast<size_t>(w);
+  const size_t n = static_cast<size_t>(a.width < kTile ? a.width : kTile);  // as ScratchBytes
   uint8_t* p = a.scratch;
   auto take64 = [&p, n]() { uint64_t* q = reinterpret_cast<uint64_t*>(p); p += AlignUp(sizeof(uint64_t) * n); return q; };
   uint64_t* cc2_prev = take64();
   uint64_t* cc2_cur = take64();
   uint64_t* cc2_y = take64();
-  uint64_t* cc2_spare = take64();
   uint32_t* rf = reinterpret_cast<uint32_t*>(p);
   p += AlignUp(sizeof(uint32_t) * n);
   uint32_t* rb = reinterpret_cast<uint32_t*>(p);
@@ -338,33 +345,33 @@ void DofColumnStage::ProcessRow(const RowArgs& a) const {
   for (int c = 0; c < 3; ++c) uf[c] = reinterpret_cast<int64_t*>(take64());
   for (int c = 0; c < 3; ++c) ub[c] = reinterpret_cast<int64_t*>(take64());
 
-  // One sweep step on every column: link b between the previous row and row
-  // `src` (a row of the window), input samples of row `src`.
-  auto step = [w](const uint64_t* cc2_a, const uint64_t* cc2_b, const RowIn& in, uint32_t* r, int64_t* const* u) {
+  // One sweep step on every column of the tile: link b between the previous
+  // row and row `in` of the window.
+  auto step = [w, x0](const uint64_t* cc2_a, const uint64_t* cc2_b, const RowIn& in, uint32_t* r, int64_t* const* u) {
     for (int x = 0; x < w; ++x) {
       const uint32_t b = dof::BetaOf(cc2_a[x], cc2_b[x]);
       if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
         r[x] = kOneW;
-        for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x]} << kG;
+        for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
         continue;
       }
       const uint32_t rx = ROf(DOf(b, r[x]), b);
       r[x] = rx;
-      for (int c = 0; c < 3; ++c) u[c][x] += MulQ30((int64_t{in.ch[c][x]} << kG) - u[c][x], rx);
+      for (int c = 0; c < 3; ++c) u[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - u[c][x], rx);
     }
   };
-  auto start = [w](const RowIn& in, uint32_t* r, int64_t* const* u) {
+  auto start = [w, x0](const RowIn& in, uint32_t* r, int64_t* const* u) {
     for (int x = 0; x < w; ++x) {
       r[x] = kOneW;
-      for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x]} << kG;
+      for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
     }
   };
 
   // Downward sweep: rows lo .. y.
-  rows_->RowCc2(*a.input, lo, cc2_prev);
+  rows_->RowCc2(*a.input, lo, x0, x1, cc2_prev);
   start(a.rows[0], rf, uf);
   for (int i = lo + 1; i <= y; ++i) {
-    rows_->RowCc2(*a.input, i, cc2_cur);
+    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
     step(cc2_prev, cc2_cur, a.rows[i - lo], rf, uf);
     uint64_t* t = cc2_prev;
     cc2_prev = cc2_cur;
@@ -373,41 +380,40 @@ void DofColumnStage::ProcessRow(const RowArgs& a) const {
   uint64_t* t = cc2_y;  // keep row y's values
   cc2_y = cc2_prev;
   cc2_prev = t;
-  (void)cc2_spare;
 
   int64_t solved = 0;
   if (hi == y) {  // the frame's last row: nothing below
     for (int x = 0; x < w; ++x) {
       solved += rf[x] != kOneW;
-      for (int c = 0; c < 3; ++c) a.out[c][x] = OutOf(uf[c][x]);
+      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
     }
-  } else {
-    // Upward sweep: rows hi .. y + 1.
-    rows_->RowCc2(*a.input, hi, cc2_prev);
-    start(a.rows[hi - lo], rb, ub);
-    for (int i = hi - 1; i > y; --i) {
-      rows_->RowCc2(*a.input, i, cc2_cur);
-      step(cc2_cur, cc2_prev, a.rows[i - lo], rb, ub);
-      uint64_t* s = cc2_prev;
-      cc2_prev = cc2_cur;
-      cc2_cur = s;
-    }
-    // Twist: out = u_y + w (v_{y+1} - u_y), w = b r_y / (D' + b r_y).
-    for (int x = 0; x < w; ++x) {
-      const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
-      if (b == 0) {
-        solved += rf[x] != kOneW;
-        for (int c = 0; c < 3; ++c) a.out[c][x] = OutOf(uf[c][x]);
-        continue;
-      }
-      ++solved;
-      const uint64_t Dp = DOf(b, rb[x]);
-      const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
-      const uint32_t wt = DivQ30(tb, Dp + tb);
-      for (int c = 0; c < 3; ++c) a.out[c][x] = OutOf(uf[c][x] + MulQ30(ub[c][x] - uf[c][x], wt));
-    }
+    return solved;
   }
-  if (a.stats != nullptr) a.stats->skipped_px += w - solved;
+  // Upward sweep: rows hi .. y + 1.
+  rows_->RowCc2(*a.input, hi, x0, x1, cc2_prev);
+  start(a.rows[hi - lo], rb, ub);
+  for (int i = hi - 1; i > y; --i) {
+    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+    step(cc2_cur, cc2_prev, a.rows[i - lo], rb, ub);
+    uint64_t* s = cc2_prev;
+    cc2_prev = cc2_cur;
+    cc2_cur = s;
+  }
+  // Twist: out = u_y + w (v_{y+1} - u_y), w = b r_y / (D' + b r_y).
+  for (int x = 0; x < w; ++x) {
+    const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
+    if (b == 0) {
+      solved += rf[x] != kOneW;
+      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
+      continue;
+    }
+    ++solved;
+    const uint64_t Dp = DOf(b, rb[x]);
+    const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
+    const uint32_t wt = DivQ30(tb, Dp + tb);
+    for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x] + MulQ30(ub[c][x] - uf[c][x], wt));
+  }
+  return solved;
 }
 
 }  // namespace camsim

@@ -178,7 +178,8 @@ class DofRowStage final : public Stage {
  protected:
   friend class DofColumnStage;
   // Squared diffusion CoC per pixel of row y, Q.32 (depth + structural).
-  void RowCc2(const FrameInput& input, int y, uint64_t* cc2) const;
+  // Columns [x0, x1) of row y into cc2[0 .. x1 - x0).
+  void RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const;
 
   DofConfig config_;
   SensorGeometry geometry_;
@@ -200,7 +201,11 @@ class DofColumnStage final : public Stage {
   size_t ScratchBytes(int width) const override;
   void ProcessRow(const RowArgs& args) const override;
 
+  static constexpr int kTile = 256;  // columns solved together (state ~20 KB)
+
  private:
+  int64_t SolveTile(const RowArgs& args, int x0, int x1) const;  // returns the pixels solved
+
   DofConfig config_;
   SensorGeometry geometry_;
   const DofRowStage* rows_ = nullptr;
