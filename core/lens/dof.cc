@@ -41,14 +41,7 @@ inline uint32_t DivQ30(uint64_t n, uint64_t d) {
   return static_cast<uint32_t>(((n << kW) + (d >> 1)) / d);
 }
 
-// round(d * w / 2^30) for |d| < 2^49, 0 <= w <= 2^30, exact: d is split into
-// a high part (d >> 24, |.| < 2^25) and a low part (24 bits) so both 64-bit
-// products stay below 2^55; the sum is rounded once (ties up).
-inline int64_t MulQ30(int64_t d, uint32_t w) {
-  const int64_t qh = (d >> 24) * static_cast<int64_t>(w);
-  const int64_t ql = (d & 0xFFFFFF) * static_cast<int64_t>(w);
-  return (qh >> 6) + ((((qh & 63) << 24) + ql + (int64_t{1} << (kW - 1))) >> kW);
-}
+using dof::MulQ30;
 
 // D = 1 + b r (Q.30) and the next r = D / (D + b).
 inline uint64_t DOf(uint32_t b, uint32_t r) {

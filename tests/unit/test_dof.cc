@@ -224,6 +224,25 @@ TEST(DofSolver, StiffAndRaggedLinesMatchDoubleThomas) {
   }
 }
 
+TEST(DofSolver, WideAndSplitProductsAgree) {
+  // The 128-bit product (x86-64, aarch64) and the split one (armhf) must give
+  // the same bits, including the extremes of both operands.
+  std::mt19937_64 rng(11);
+  const int64_t kD = (int64_t{1} << 49) - 1;
+  for (int i = 0; i < 2000000; ++i) {
+    int64_t d = static_cast<int64_t>(rng() % (2 * static_cast<uint64_t>(kD) + 1)) - kD;
+    uint32_t w = static_cast<uint32_t>(rng() % ((1u << 30) + 1));
+    if (i < 64) {  // the extremes
+      d = (i & 1) ? kD : -kD;
+      w = (i & 2) ? (1u << 30) : static_cast<uint32_t>(i >> 2);
+    }
+    ASSERT_EQ(dof::MulQ30(d, w), dof::MulQ30Split(d, w)) << d << " * " << w;
+  }
+  // Ties round up: 2^29 / 2^30 = 0.5 -> 1; -0.5 -> 0.
+  EXPECT_EQ(dof::MulQ30Split(1, 1u << 29), 1);
+  EXPECT_EQ(dof::MulQ30Split(-1, 1u << 29), 0);
+}
+
 TEST(DofSolver, ConstantLineStaysExactlyConstant) {
   const int n = 333;
   for (const LineCase& lc : LineCases(n)) {
