@@ -189,8 +189,15 @@ Status DofRowStage::Configure(const DofConfig& c, const SensorGeometry& g, doubl
     return InvalidArgument("dof.method", "must be off, diffusion or gather");
   if (c.column_window < 1 || c.column_window > (kMaxWindowRows - 1) / 2)
     return InvalidArgument("dof.column_window", "must be in [1, 511] rows");
-  if (c.method == DofMethod::kDiffusion || structural_) {
+  if (c.method == DofMethod::kDiffusion && !c.structural_only) {
     CAMSIM_TRY(coc_.Configure(c, f_number));
+  } else if (structural_) {  // no lens model needed, but the shared limits still apply
+    if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
+      return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
+    if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
+      return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
+    if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
+      return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
   }
   const uint64_t den = Geometry2::Denominator(g);
   if (structural_ && den > 0) {
