@@ -61,11 +61,15 @@
 //
 // Gather DoF (eq. 11, reverse-mapped z-buffer, DofGatherStage): each source
 // pixel q spreads its radiance uniformly over a disc of radius
-// R_q = min(coc_q / 2, max_radius) (the "scatter as gather" of the z-buffer
-// method): out_p = sum_q [|p - q| <= R_q] x_q / A(R_q) / sum_q [..] / A(R_q),
-// A(R) the pixel count of the disc (a table). Weights Q.32 / A; sums in 64
-// bits; one rounded division per channel. Reads rows y - max_radius ..
-// y + max_radius (clipped to the frame) and max_radius columns each side.
+// R_q = min(coc_q / 2, max_radius) in quarter pixels (the "scatter as
+// gather" of the z-buffer method):
+//   out_p = sum_q [|p - q| <= R_q] x_q / A(R_q) / sum_q [|p - q| <= R_q] / A(R_q),
+// A(R) the pixel count of the disc (a table); integer offsets, a binary disc,
+// so CoCs below 2 px do not blur. Weights round(2^26 / A); sums in 64 bits;
+// one rounded division per channel (details in dof_gather.cc). Reads rows
+// y - max_radius .. y + max_radius, clipped to the frame (discs are clipped
+// at the borders and renormalised, so no margin columns). A row whose window
+// holds no CoC >= 2 px is copied (StageStats::skipped_px).
 #pragma once
 
 #include "core/pipeline/stage.h"
