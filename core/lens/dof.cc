@@ -217,6 +217,7 @@ Result<LineFormat> DofRowStage::Plan(LineFormat in) const {
 const char* DofRowStage::IdentityReason() const {
   if (config_.method != DofMethod::kDiffusion && !structural_)
     return "dof.method is not diffusion and there is no structural blur";
+  if (config_.structural_only && !structural_) return "dof.structural_only without dof.structural_poly";
   return nullptr;
 }
 
