@@ -104,7 +104,8 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All: exposure, motion_blur, vignetting, cfa, "
+                 "stages in run order; a stage not listed does not run. All, in the default order: dof_gather, dof_rows, "
+                 "dof_columns, motion_blur, exposure, vignetting, cfa, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
@@ -212,6 +213,31 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.motion_blur.samples_per_px; }));
     v.push_back(Integer("motion", "max_samples", "bound on the samples per pixel, 1 .. 256",
                         [](RunConfig& c) -> int& { return c.core.motion_blur.max_samples; }));
+    // [dof]
+    v.push_back(Enum<DofMethod>("dof", "method",
+                                "depth of field: off, diffusion (implicit heat diffusion, rows then windowed columns) "
+                                "or gather (reverse-mapped z-buffer disc gather); needs a depth plane",
+                                {"off", "diffusion", "gather"}, [](RunConfig& c) -> DofMethod& { return c.core.dof.method; }));
+    v.push_back(Number("dof", "focus_distance_m", "focus distance, metres (> focal length)",
+                       [](RunConfig& c) -> double& { return c.core.dof.focus_distance_m; }));
+    v.push_back(Number("dof", "max_coc_px", "circle-of-confusion diameter cap, pixels (0.25 .. 1023)",
+                       [](RunConfig& c) -> double& { return c.core.dof.max_coc_px; }));
+    v.push_back(Number("dof", "min_coc_px", "CoC diameters below this are 0: those pixels are not blurred (skipped)",
+                       [](RunConfig& c) -> double& { return c.core.dof.min_coc_px; }));
+    v.push_back(Number("dof", "diffusion_scale",
+                       "diffusion: beta = (scale * CoC)^2; 1/sqrt(32) matches a disc's variance",
+                       [](RunConfig& c) -> double& { return c.core.dof.diffusion_scale; }));
+    v.push_back(Integer("dof", "column_window", "diffusion: rows solved each side per column (precision knob, 1 .. 511)",
+                        [](RunConfig& c) -> int& { return c.core.dof.column_window; }));
+    v.push_back(Integer("dof", "max_radius_px", "gather: disc radius cap, pixels (precision knob, 1 .. 255)",
+                        [](RunConfig& c) -> int& { return c.core.dof.max_radius_px; }));
+    v.push_back(Array("dof", "structural_poly",
+                      "structural blur: diameter in pixels = sum a_k r^k, r = normalised radius (0 centre, 1 corner); "
+                      "0 .. 5 coefficients; runs the diffusion stages",
+                      0, DofConfig::kPolyTerms, [](RunConfig& c) { return c.core.dof.structural_poly; },
+                      [](RunConfig& c) { return &c.core.dof.structural_poly_count; }));
+    v.push_back(Bool("dof", "structural_only", "diffusion stages blur by structural_poly only (no depth needed)",
+                     [](RunConfig& c) -> bool& { return c.core.dof.structural_only; }));
 
     // [vignetting]
     v.push_back(Enum<VignettingMode>("vignetting", "mode",
@@ -648,6 +674,8 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   if (p.vignetting.focal_length_px == 0.0) p.vignetting.focal_length_px = c->focal_length_mm / pitch_mm;
   if (p.motion_blur.fx_px == 0.0) p.motion_blur.fx_px = c->focal_length_mm / pitch_mm;
   if (p.motion_blur.fy_px == 0.0) p.motion_blur.fy_px = c->focal_length_mm / pitch_mm;
+  p.dof.focal_length_mm = c->focal_length_mm;
+  p.dof.pixel_pitch_um = pitch_mm * 1000.0;
   Pipeline probe;
   const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
   if (!s.ok()) {

@@ -65,7 +65,8 @@ struct FrameRecord {
   double wall_ms = 0;
   io::InputSanitizeStats radiance_stats;
   std::string layout;
-  bool has_depth = false, has_motion = false;  // loaded but no running stage uses them
+  bool has_depth = false, has_motion = false;    // loaded
+  bool depth_used = false, motion_used = false;  // read by a running stage
 };
 
 struct Accumulated {
@@ -165,8 +166,8 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
       << ", \"sanitised\": {\"nan\": " << f.radiance_stats.nan << ", \"pos_inf\": " << f.radiance_stats.pos_inf
       << ", \"neg_inf\": " << f.radiance_stats.neg_inf << ", \"negative\": " << f.radiance_stats.negative
-      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? "\"present, unused\"" : "null")
-      << ", \"motion\": " << (f.has_motion ? "\"present, unused\"" : "null") << ", \"outputs\": [";
+      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? (f.depth_used ? "\"present, used\"" : "\"present, unused\"") : "null")
+      << ", \"motion\": " << (f.has_motion ? (f.motion_used ? "\"present, used\"" : "\"present, unused\"") : "null") << ", \"outputs\": [";
     for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
     j << "]}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
   }
@@ -389,16 +390,20 @@ int RunCommand(const RunOptions& o) {
     rec.input = scene.source;
     rec.radiance_stats = scene.radiance_stats;
     rec.layout = scene.layout;
-    {
-      // Motion blur reads depth for camera translation and the vectors in vectors mode.
-      bool motion_runs = false;
-      for (int i = 0; i < plan.count; ++i)
-        motion_runs = motion_runs || (plan.entries[i].id == StageId::kMotionBlur && plan.entries[i].runs);
+    rec.has_depth = scene.has_depth;
+    rec.has_motion = scene.has_motion;
+    for (int i = 0; i < plan.count; ++i) {
+      const PlanEntry& e = plan.entries[i];
+      if (!e.runs) continue;
+      const DofConfig& d = rc.core.dof;
+      if (e.id == StageId::kDofGather ||
+          (e.id == StageId::kDofRows && d.method == DofMethod::kDiffusion && !d.structural_only))
+        rec.depth_used = true;
       const MotionBlurConfig& m = rc.core.motion_blur;
       const bool translating = m.linear_velocity_m_s[0] != 0.0 || m.linear_velocity_m_s[1] != 0.0 ||
                                m.linear_velocity_m_s[2] != 0.0;
-      rec.has_depth = scene.has_depth && !(motion_runs && m.source == MotionSource::kCamera && translating);
-      rec.has_motion = scene.has_motion && !(motion_runs && m.source == MotionSource::kVectors);
+      if (e.id == StageId::kMotionBlur && m.source == MotionSource::kCamera && translating) rec.depth_used = true;
+      if (e.id == StageId::kMotionBlur && m.source == MotionSource::kVectors) rec.motion_used = true;
     }
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
 
@@ -465,9 +470,10 @@ int RunCommand(const RunOptions& o) {
       double total = 0;
       for (const FrameRecord& r : acc.frames) total += r.wall_ms;
       const FrameRecord& first = acc.frames.front();
-      if (first.has_depth || first.has_motion)
-        std::fprintf(stderr, "input %s: %s%spresent but unused (no configured stage needs them)\n",
-                     first.layout.c_str(), first.has_depth ? "depth " : "", first.has_motion ? "motion " : "");
+      const bool depth_idle = first.has_depth && !first.depth_used, motion_idle = first.has_motion && !first.motion_used;
+      if (depth_idle || motion_idle)
+        std::fprintf(stderr, "input %s: %s%spresent but unused (no configured stage needs it)\n", first.layout.c_str(),
+                     depth_idle ? "depth " : "", motion_idle ? "motion " : "");
       std::fprintf(stderr, "%zu frame(s), %.2f ms/frame wall on %d thread(s); outputs in %s\n", acc.frames.size(),
                    total / acc.frames.size(), o.threads, o.out_dir.c_str());
     }

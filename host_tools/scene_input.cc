@@ -9,8 +9,7 @@ FrameInput CoreInput::View() const {
   FrameInput in;
   for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(radiance[c].data(), width, height);
   if (!mask.empty()) in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), width, height);
-  if (!inverse_depth.empty())
-    in.motion_inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
+  if (!inverse_depth.empty()) in.inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
   for (int c = 0; c < 2; ++c)
     if (!motion[c].empty()) in.motion_vectors[c] = MakeImageView<const int32_t>(motion[c].data(), width, height);
   return in;
@@ -59,6 +58,26 @@ uint32_t ToFixed(float v, int frac, double max) {
   return static_cast<uint32_t>(std::floor(s + 0.5));
 }
 
+// Crop copies each pixel's depth; scale averages 1/z in 1/m (float), with NaN
+// marking an invalid depth so that it spreads to its footprint.
+void PrepareInverseDepth(const io::SceneFrame& scene, int width, int height, SceneFit fit, CoreInput* out) {
+  const bool same = scene.depth.width == width && scene.depth.height == height;
+  if (same || fit == SceneFit::kCrop) {
+    const io::FloatPlane fitted = FitPlane(scene.depth, width, height, fit);
+    out->inverse_depth.resize(fitted.data.size());
+    for (size_t i = 0; i < fitted.data.size(); ++i) out->inverse_depth[i] = InverseDepthFromMetres(fitted.data[i]);
+    return;
+  }
+  io::FloatPlane iz = scene.depth;
+  for (float& v : iz.data) v = v < 0.0f ? std::nanf("") : (v == 0.0f ? INFINITY : 1.0f / v);
+  const io::FloatPlane fitted = FitPlane(iz, width, height, fit);
+  out->inverse_depth.resize(fitted.data.size());
+  for (size_t i = 0; i < fitted.data.size(); ++i) {
+    const float v = fitted.data[i];
+    out->inverse_depth[i] = v != v ? kInvalidInverseDepth : InverseDepthFromMetres(v == 0.0f ? INFINITY : 1.0 / v);
+  }
+}
+
 }  // namespace
 
 void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit fit, CoreInput* out) {
@@ -71,13 +90,7 @@ void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit f
     for (size_t i = 0; i < fitted.data.size(); ++i) out->radiance[c][i] = ToFixed(fitted.data[i], 16, 4294967295.0);
   }
   out->inverse_depth.clear();
-  if (scene.has_depth) {
-    io::FloatPlane inv = scene.depth;
-    for (float& d : inv.data) d = (d > 0.0f && std::isfinite(d)) ? 1.0f / d : 0.0f;
-    const io::FloatPlane fitted = FitPlane(inv, width, height, fit);
-    out->inverse_depth.resize(fitted.data.size());
-    for (size_t i = 0; i < fitted.data.size(); ++i) out->inverse_depth[i] = ToFixed(fitted.data[i], 24, 4294967295.0);
-  }
+  if (scene.has_depth) PrepareInverseDepth(scene, width, height, fit, out);
   for (int c = 0; c < 2; ++c) out->motion[c].clear();
   if (scene.has_motion) {
     // Velocity, rows downwards: x = -Vector.X, y = +Vector.Y (see the header).

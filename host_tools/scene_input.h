@@ -6,11 +6,14 @@
 // weighting, exact for integer ratios). Radiance becomes Q16.16 with
 // round-to-nearest and saturation at 65535.99998 (the loader has already
 // replaced NaN/Inf/negatives). A vignetting mask becomes Q2.14 gains the same way.
-// Depth becomes inverse depth before fitting (area averages of 1/z stay
-// meaningful next to a 1e10 m sky), Q8.24 saturating at 255.99 1/m (depth
-// under 4 mm). Blender's Vector.X/Y point from the pixel to its position in
-// the previous frame with y upwards; the core takes the velocity with rows
-// downwards: (-X, +Y), scaled by the fit's size ratio, Q16.16 saturating.
+// Depth (when the scene has it) becomes inverse depth by InverseDepthFromMetres
+// (core/pipeline/inverse_depth.h: z = 0: nearest; +inf, 1e10, NaN: 0; z < 0,
+// -inf: invalid). Crop copies each pixel's depth; scale averages inverse depth
+// (1/z, the quantity the CoC and the parallax are linear in) over the
+// footprint, and a footprint holding an invalid depth is invalid.
+// Blender's Vector.X/Y point from the pixel to its position in the previous
+// frame with y upwards; the core takes the velocity with rows downwards:
+// (-X, +Y), scaled by the fit's size ratio, Q16.16 saturating.
 #pragma once
 
 #include <cstdint>
@@ -27,7 +30,7 @@ struct CoreInput {
   std::vector<uint32_t> radiance[3];
   std::vector<uint16_t> mask;
   // From the scene's depth and motion planes when it has them (else empty):
-  std::vector<uint32_t> inverse_depth;  // 1 / depth, Q8.24 1/m; depth <= 0, NaN or inf -> 0
+  std::vector<uint32_t> inverse_depth;  // Q12.20 1/m (core/pipeline/inverse_depth.h)
   std::vector<int32_t> motion[2];       // x, y velocity in px per frame interval, Q16.16, rows downwards
   FrameInput View() const;
 };

@@ -252,12 +252,12 @@ void MotionBlurStage::RowDisplacements(const RowArgs& a, int32_t* du, int32_t* d
     return;
   }
   const int64_t yq = ry_[y], row_v = rv_b_[y], row_c = rv_c_[y];
-  const uint32_t* iz = translating_ ? a.input->motion_inverse_depth.row(y) : nullptr;
+  const uint32_t* iz = translating_ ? a.input->inverse_depth.row(y) : nullptr;
   for (int x = 0; x < a.width; ++x) {
     int64_t u = RoundShift((cu_a_[x] + ku_) * yq, kYFracBits) + cu_b_[x];
     int64_t v = RoundShift(cv_a_[x] * yq, kYFracBits) + cv_b_[x] + row_v;
     if (iz != nullptr) {
-      const int64_t z = iz[x];
+      const int64_t z = iz[x] == kInvalidInverseDepth ? 0 : iz[x];  // no depth: as far away
       u += RoundShift(cu_c_[x] * z, kInverseDepthFracBits);
       v += RoundShift(row_c * z, kInverseDepthFracBits);
     }

@@ -44,7 +44,8 @@
 //   D: int32 Q15.16 pixels, clamped to +-2^30 (16384 px) when formed.
 //   Camera tables (configure-time doubles, rounded once): per column and per
 //   row int64 Q.16 pixels; normalised y per row Q.24 (|y| <= 16, validated);
-//   products Q.16 x Q.24 rounded (ties up) by >> 24; inverse depth Q8.24.
+//   products with FrameInput.inverse_depth (Q12.20 1/m, core/pipeline/inverse_depth.h;
+//   an invalid depth counts as infinitely far) rounded (ties up) by >> 20.
 //   Vectors: int32 Q16.16, clamped to +-2^26, times T/Tf as Q.32 (<= 2^36).
 //   rho_y: int64 Q.16 (|rho| <= 2^15, validated).
 //   Sample offsets: D (1/2 - rho) and D (2i+1) / (2n) with 1/(2n) as Q.32;
@@ -55,6 +56,7 @@
 //   samples_per_px: Q.4 (rounded to 1/16); n from L (Q.16) * spp (Q.4), ceil.
 #pragma once
 
+#include "core/pipeline/inverse_depth.h"
 #include "core/pipeline/stage.h"
 
 namespace camsim {
@@ -78,7 +80,6 @@ class MotionBlurStage final : public Stage {
  public:
   static constexpr int kMaxDisplacementPx = 511;  // window 2 * max + 2 <= kMaxWindowRows (1024)
   static constexpr int kMaxSamples = 256;        // keeps the uint64 sum below 2^56
-  static constexpr int kInverseDepthFracBits = 24;  // FrameInput.motion_inverse_depth, Q8.24 1/m
   static constexpr int kVectorFracBits = 16;        // FrameInput.motion_vectors, Q16.16 px
 
   Status Configure(const MotionBlurConfig& config, const SensorGeometry& geometry, double exposure_time_us);
@@ -93,7 +94,7 @@ class MotionBlurStage final : public Stage {
   Status Init(Arena& tables) override;
   void ProcessRow(const RowArgs& args) const override;
 
-  // True when the stage reads FrameInput.motion_inverse_depth / motion_vectors.
+  // True when the stage reads FrameInput.inverse_depth / motion_vectors.
   bool NeedsInverseDepth() const;
   bool NeedsVectors() const { return config_.source == MotionSource::kVectors; }
   const MotionBlurConfig& config() const { return config_; }

@@ -9,7 +9,8 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "motion_blur", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "dof_gather", "dof_rows", "dof_columns", "motion_blur", "exposure", "vignetting", "cfa", "sensor", "black_level",
+    "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -153,8 +154,11 @@ Stage* Pipeline::StageFor(StageId id) {
 
 const Stage* Pipeline::StageFor(StageId id) const {
   switch (id) {
-    case StageId::kExposure: return &exposure_;
+    case StageId::kDofGather: return &dof_gather_;
+    case StageId::kDofRows: return &dof_rows_;
+    case StageId::kDofColumns: return &dof_columns_;
     case StageId::kMotionBlur: return &motion_blur_;
+    case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
     case StageId::kSensor: return &sensor_;
@@ -183,8 +187,11 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   workers_ = workers;
 
   // Each stage validates its own section.
-  CAMSIM_TRY(exposure_.Configure(config.exposure));
+  CAMSIM_TRY(dof_gather_.Configure(config.dof, g, config.exposure.f_number));
+  CAMSIM_TRY(dof_rows_.Configure(config.dof, g, config.exposure.f_number));
+  CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
+  CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
@@ -327,13 +334,24 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
   }
+  // The depth plane, when a running stage reads it: depth of field, or motion
+  // blur from camera translation.
+  bool depth = false;
   bool motion_runs = false;
-  for (int i = 0; i < run_count_; ++i) motion_runs = motion_runs || run_[i] == &motion_blur_;
-  if (motion_runs && motion_blur_.NeedsInverseDepth()) {
-    const ImageView<const uint32_t>& d = input.motion_inverse_depth;
-    if (d.data == nullptr || d.width != w || d.height != h || d.channels != 1 || d.stride < w)
-      return InvalidArgument("motion.linear_velocity_m_s", "camera translation needs a sensor-sized depth plane");
+  for (int i = 0; i < plan_.count; ++i) {
+    const PlanEntry& e = plan_.entries[i];
+    if (!e.runs) continue;
+    if (e.id == StageId::kDofGather) depth = true;
+    if (e.id == StageId::kDofRows && config_.dof.method == DofMethod::kDiffusion && !config_.dof.structural_only)
+      depth = true;
+    if (e.id == StageId::kMotionBlur) motion_runs = true;
   }
+  const ImageView<const uint32_t>& d = input.inverse_depth;
+  const bool has_depth = d.data != nullptr && d.width == w && d.height == h && d.channels == 1 && d.stride >= w;
+  if (depth && !has_depth)
+    return InvalidArgument("dof.method", "depth of field needs a sensor-sized depth plane (input has none)");
+  if (motion_runs && motion_blur_.NeedsInverseDepth() && !has_depth)
+    return InvalidArgument("motion.linear_velocity_m_s", "camera translation needs a sensor-sized depth plane");
   if (motion_runs && motion_blur_.NeedsVectors())
     for (int c = 0; c < 2; ++c) {
       const ImageView<const int32_t>& m = input.motion_vectors[c];

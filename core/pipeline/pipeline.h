@@ -21,6 +21,7 @@
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
 #include "core/lens/motion_blur.h"
+#include "core/lens/dof.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -31,8 +32,11 @@ namespace camsim {
 // The stages in their default order (also the order of the paper's Figure 2
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
-  kExposure,
+  kDofGather,
+  kDofRows,
+  kDofColumns,
   kMotionBlur,
+  kExposure,
   kVignetting,
   kCfa,
   kSensor,
@@ -51,8 +55,10 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
-  // Motion blur (core/lens/motion_blur.h), needed only when that stage asks:
-  ImageView<const uint32_t> motion_inverse_depth;  // 1 / depth in 1/m, Q8.24 (0 = infinitely far)
+  // Depth (core/pipeline/inverse_depth.h), needed by depth of field and by
+  // motion blur from camera translation:
+  ImageView<const uint32_t> inverse_depth;         // 1 / depth in 1/m, Q12.20
+  // Renderer motion (motion blur with motion.source = vectors):
   ImageView<const int32_t> motion_vectors[2];      // x, y: px per frame interval, Q16.16, rows downwards
 };
 
@@ -61,13 +67,15 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kMotionBlur, StageId::kVignetting, StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kDofGather,  StageId::kDofRows,    StageId::kDofColumns,
+                                StageId::kMotionBlur, StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
                                 StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
                                 StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
-  ExposureConfig exposure;
+  DofConfig dof;  // depth of field and structural blur (dof_gather, dof_rows, dof_columns)
   MotionBlurConfig motion_blur;
+  ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
   SensorConfig sensor;
@@ -182,8 +190,11 @@ class Pipeline {
   uint8_t* workers_base_ = nullptr;
   bool initialised_ = false;
 
-  ExposureStage exposure_;
+  DofGatherStage dof_gather_;
+  DofRowStage dof_rows_;
+  DofColumnStage dof_columns_;
   MotionBlurStage motion_blur_;
+  ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;
   SensorStage sensor_;

@@ -1,5 +1,7 @@
 #include "core/pipeline/pipeline_ref.h"
 
+#include "core/lens/dof_ref.h"
+
 #include <algorithm>
 #include <cmath>
 
@@ -53,6 +55,26 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
   StageFromName(name, &id);
   const auto at = [w](int x, int y) { return static_cast<size_t>(y) * w + x; };
   switch (id) {
+    case StageId::kDofGather:
+    case StageId::kDofRows:
+    case StageId::kDofColumns: {
+      // Radiance in physical units: the passes are linear, so units do not matter.
+      RefImage out = Like(in, in.planes.size());
+      const uint32_t* iz = input.inverse_depth.data;
+      const bool depth = c.dof.method == DofMethod::kDiffusion && !c.dof.structural_only;
+      for (size_t k = 0; k < in.planes.size(); ++k) {
+        if (id == StageId::kDofGather) {
+          DofConfig uncapped = c.dof;  // the model's disc: radius coc / 2, not capped by the knob
+          uncapped.max_radius_px = DofGatherStage::kMaxRadius;
+          out.planes[k] = ReferenceGather(in.planes[k], ReferenceGatherRadius(uncapped, c.exposure.f_number, iz, w, h), w, h);
+        } else {
+          const std::vector<double> cc2 = ReferenceCc2(c.dof, c.exposure.f_number, iz, w, h, depth);
+          out.planes[k] = id == StageId::kDofRows ? ReferenceDiffusionRows(in.planes[k], cc2, w, h)
+                                                  : ReferenceDiffusionColumns(in.planes[k], cc2, w, h, -1);
+        }
+      }
+      return out;
+    }
     case StageId::kExposure: {
       RefImage out = Like(in, in.planes.size());
       for (size_t k = 0; k < in.planes.size(); ++k)
@@ -61,16 +83,19 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
       return out;
     }
     case StageId::kMotionBlur: {
-      // Inverse depth Q8.24 and vectors Q16.16 as doubles, when the stage reads them.
+      // Inverse depth Q12.20 (invalid: far, 0) and vectors Q16.16 as doubles, when present.
       std::vector<double> iz, vec[2];
       MotionRefInput mi;
       mi.width = w;
       mi.height = h;
       for (int k = 0; k < 3; ++k) mi.plane[k] = &in.planes[static_cast<size_t>(k)];
-      if (input.motion_inverse_depth.data != nullptr) {
+      if (input.inverse_depth.data != nullptr) {
         iz.resize(static_cast<size_t>(w) * h);
         for (int y = 0; y < h; ++y)
-          for (int x = 0; x < w; ++x) iz[at(x, y)] = std::ldexp(input.motion_inverse_depth.row(y)[x], -24);
+          for (int x = 0; x < w; ++x) {
+            const uint32_t v = input.inverse_depth.row(y)[x];
+            iz[at(x, y)] = v == kInvalidInverseDepth ? 0.0 : std::ldexp(v, -kInverseDepthFracBits);
+          }
         mi.inverse_depth = &iz;
       }
       for (int k = 0; k < 2; ++k)

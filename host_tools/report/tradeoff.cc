@@ -22,6 +22,9 @@ const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
       {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
       {"motion_blur", "motion.samples_per_px", {"0.25", "0.5", "1", "2", "4"}, "time samples per pixel of motion"},
+      {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},
+       "diffusion DoF: rows solved each side per column (truncation of the column solve)"},
+      {"dof_gather", "dof.max_radius_px", {"4", "8", "16", "32"}, "gather DoF: disc radius cap"},
   };
   return knobs;
 }

@@ -81,7 +81,7 @@ inline PipelineConfig BilinearBgConfig(int width, int height) {
 }
 
 // The demo camera shaken and moving: camera-source motion blur with rotation
-// about every axis, translation (so the inverse depth plane below is read)
+// about every axis, translation (so the depth plane, DepthMetres, is read)
 // and a rolling shutter of 12 us per row.
 inline PipelineConfig MotionConfig(int width, int height) {
   PipelineConfig c = DemoConfig(width, height);
@@ -99,12 +99,47 @@ inline PipelineConfig MotionConfig(int width, int height) {
   return c;
 }
 
-// Inverse depth for MotionConfig, Q8.24 1/m: depth 1 .. 16 m in diagonal
-// bands, and a sky (0) over the top fifth. Integer arithmetic only.
-inline uint32_t InverseDepth(int width, int height, int x, int y) {
-  (void)width;
-  if (5 * y < height) return 0;
-  return (1u << 24) / static_cast<uint32_t>(1 + (x + 2 * y) % 16);
+// Depth of field on the textured scene (DepthMetres below): the stages in
+// the radiance domain, then exposure, so the cases hash the DoF output scaled
+// to photons. 28 mm at f/1.4 focused at 1.2 m on 18.75 um pixels: CoCs of
+// 0 .. 30 px. Diffusion with a 12-row column window; gather capped at 6 px;
+// structural blur (diffusion of a radial polynomial) without depth.
+inline PipelineConfig DofConfig(int width, int height, DofMethod method, bool structural) {
+  PipelineConfig c;
+  c.geometry.width = width;
+  c.geometry.height = height;
+  c.exposure.f_number = 1.4;
+  c.dof.method = method;
+  c.dof.focal_length_mm = 28.0;
+  c.dof.pixel_pitch_um = 18.75;
+  c.dof.focus_distance_m = 1.2;
+  c.dof.column_window = 12;
+  c.dof.max_radius_px = 6;
+  if (structural) {
+    c.dof.structural_only = true;
+    c.dof.structural_poly[0] = 0.5;
+    c.dof.structural_poly[2] = 9.0;
+  }
+  c.order[0] = StageId::kDofGather;
+  c.order[1] = StageId::kDofRows;
+  c.order[2] = StageId::kDofColumns;
+  c.order[3] = StageId::kExposure;
+  c.order_count = 4;
+  return c;
+}
+inline PipelineConfig DofDiffusionConfig(int w, int h) { return DofConfig(w, h, DofMethod::kDiffusion, false); }
+inline PipelineConfig DofGatherConfig(int w, int h) { return DofConfig(w, h, DofMethod::kGather, false); }
+inline PipelineConfig StructuralBlurConfig(int w, int h) { return DofConfig(w, h, DofMethod::kOff, true); }
+
+// Depth in metres of the cases' scenes at (x, y): a slanted plane from 0.4 m
+// to 6 m, a band of 1e10 (sky) at the top, a focus-distance square, and
+// single pixels at 0 and -1 m (IEEE basic operations only).
+inline double DepthMetres(int width, int height, int x, int y) {
+  if (y * 8 < height) return 1e10;
+  if (x == width / 3 && y == height / 2) return 0.0;
+  if (x == width / 2 && y == height / 3) return -1.0;
+  if (x * 5 > width * 3 && x * 5 < width * 4 && y * 2 > height) return 1.2;
+  return 0.4 + 5.6 * (static_cast<double>(x) + y) / (width + height);
 }
 
 // The radiance of the tests' TexturedScene (tests/support/test_support.cc

@@ -28,6 +28,7 @@ std::string Hex64(uint64_t v) {
 FrameInput Scene::View() const {
   FrameInput in;
   for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(plane[c].data(), width, height);
+  if (!inverse_depth.empty()) in.inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
   return in;
 }
 

@@ -20,6 +20,7 @@ std::string Hex64(uint64_t v);
 struct Scene {
   int width = 0, height = 0;
   std::vector<uint32_t> plane[3];
+  std::vector<uint32_t> inverse_depth;  // Q12.20 1/m (core/lens/dof.h); empty = none
   FrameInput View() const;
 };
 // Flat field: every pixel has radiance (r, g, b).

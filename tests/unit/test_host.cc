@@ -2,6 +2,8 @@
 // conversion to the core's fixed-point input.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "host_tools/config.h"
 #include "host_tools/scene_input.h"
 
@@ -79,6 +81,33 @@ TEST(SceneInput, RadianceBecomesRoundedSaturatedQ16) {
   CoreInput in;
   PrepareInput(s, 4, 1, SceneFit::kCrop, &in);
   EXPECT_EQ(in.radiance[0], (std::vector<uint32_t>{0u, 65536u, 1u, 0xFFFFFFFFu}));  // ties up, saturate
+}
+
+TEST(SceneInput, DepthBecomesInverseDepthWithDocumentedSpecials) {
+  io::SceneFrame s;
+  s.width = 6;
+  s.height = 1;
+  for (io::FloatPlane* p : {&s.r, &s.g, &s.b, &s.depth}) {
+    p->width = 6;
+    p->height = 1;
+    p->data.assign(6, 0.5f);
+  }
+  s.has_depth = true;
+  s.depth.data = {2.0f, 1e10f, 0.0f, -1.0f, INFINITY, NAN};
+  CoreInput in;
+  PrepareInput(s, 6, 1, SceneFit::kCrop, &in);
+  EXPECT_EQ(in.inverse_depth, (std::vector<uint32_t>{524288u, 0u, kMaxInverseDepth, kInvalidInverseDepth, 0u, 0u}));
+  EXPECT_EQ(in.View().inverse_depth.data, in.inverse_depth.data());
+  // Scale: 1/z averaged over the footprint; an invalid depth makes it invalid.
+  s.depth.data = {1.0f, 0.5f, 4.0f, 1e10f, -1.0f, 2.0f};
+  PrepareInput(s, 3, 1, SceneFit::kScale, &in);
+  EXPECT_EQ(in.inverse_depth[0], 1572864u);  // mean(1, 2) = 1.5 /m
+  EXPECT_EQ(in.inverse_depth[1], 131072u);   // mean(0.25, 0) = 0.125 /m
+  EXPECT_EQ(in.inverse_depth[2], kInvalidInverseDepth);
+  // No depth: no plane.
+  s.has_depth = false;
+  PrepareInput(s, 6, 1, SceneFit::kCrop, &in);
+  EXPECT_TRUE(in.inverse_depth.empty());
 }
 
 }  // namespace

@@ -38,7 +38,7 @@ struct Extras {
 FrameInput ViewOf(const test::Scene& s, const Extras& e) {
   FrameInput in = s.View();
   if (!e.inverse_depth.empty())
-    in.motion_inverse_depth = MakeImageView<const uint32_t>(e.inverse_depth.data(), s.width, s.height);
+    in.inverse_depth = MakeImageView<const uint32_t>(e.inverse_depth.data(), s.width, s.height);
   for (int c = 0; c < 2; ++c)
     if (!e.vectors[c].empty()) in.motion_vectors[c] = MakeImageView<const int32_t>(e.vectors[c].data(), s.width, s.height);
   return in;
@@ -247,7 +247,7 @@ Busy BusyCase(int w, int h, MotionSource source) {
       const size_t i = static_cast<size_t>(y) * w + x;
       // Depth 0.5 .. 20 m in bands, and a sky (inverse depth 0) at the top.
       const double depth = y < h / 6 ? 0.0 : 0.5 + 19.5 * ((x * 7 + y * 3) % 50) / 49.0;
-      k.extras.inverse_depth[i] = depth > 0 ? static_cast<uint32_t>(std::lround(16777216.0 / depth)) : 0u;
+      k.extras.inverse_depth[i] = depth > 0 ? static_cast<uint32_t>(std::lround(1048576.0 / depth)) : 0u;
       // Vectors: a swirl, up to ~12 px per frame interval.
       k.extras.vectors[0][i] = static_cast<int32_t>(std::lround(65536.0 * 0.15 * (y - h / 2)));
       k.extras.vectors[1][i] = static_cast<int32_t>(std::lround(65536.0 * -0.15 * (x - w / 2)));
@@ -295,7 +295,7 @@ TEST(MotionBlur, MatchesTheDoubleReference) {
     const std::vector<uint32_t> out = RunMotion(*b, k.scene, k.extras, 9);
     std::vector<double> planes[3], iz(k.extras.inverse_depth.size()), vec[2];
     for (int c = 0; c < 3; ++c) planes[c].assign(k.scene.plane[c].begin(), k.scene.plane[c].end());
-    for (size_t i = 0; i < iz.size(); ++i) iz[i] = k.extras.inverse_depth[i] / 16777216.0;
+    for (size_t i = 0; i < iz.size(); ++i) iz[i] = k.extras.inverse_depth[i] / 1048576.0;
     for (int c = 0; c < 2; ++c)
       for (int32_t v : k.extras.vectors[c]) vec[c].push_back(v / 65536.0);
     ref::MotionRefInput ri;
@@ -479,7 +479,7 @@ TEST(MotionBlur, ErrorFallsAsSamplesPerPixelGrows) {
   k.config.motion_blur.max_samples = 256;
   std::vector<double> planes[3], iz(k.extras.inverse_depth.size());
   for (int c = 0; c < 3; ++c) planes[c].assign(k.scene.plane[c].begin(), k.scene.plane[c].end());
-  for (size_t i = 0; i < iz.size(); ++i) iz[i] = k.extras.inverse_depth[i] / 16777216.0;
+  for (size_t i = 0; i < iz.size(); ++i) iz[i] = k.extras.inverse_depth[i] / 1048576.0;
   ref::MotionRefInput ri;
   ri.width = w;
   ri.height = h;
@@ -535,7 +535,7 @@ TEST(MotionBlur, CameraMotionFieldMatchesTheBlenderVectorPass) {
   c.linear_velocity_m_s[1] = -0.2 * std::sin(tilt);
   c.linear_velocity_m_s[2] = 0.2 * std::cos(tilt);
   std::vector<double> iz(in.inverse_depth.size());
-  for (size_t i = 0; i < iz.size(); ++i) iz[i] = in.inverse_depth[i] / 16777216.0;
+  for (size_t i = 0; i < iz.size(); ++i) iz[i] = in.inverse_depth[i] / 1048576.0;
   ref::MotionRefInput ri;
   ri.width = w;
   ri.height = h;
@@ -579,7 +579,7 @@ TEST(MotionBlur, ExtremesStayInRange) {
   test::Scene s = test::FlatScene(w, h, 0, 0, 0);
   for (int c = 0; c < 3; ++c) std::fill(s.plane[c].begin(), s.plane[c].end(), 0xFFFFFFFFu);
   Extras e;
-  e.inverse_depth.assign(static_cast<size_t>(w) * h, 0xFFFFFFFFu);  // 3.9 mm everywhere
+  e.inverse_depth.assign(static_cast<size_t>(w) * h, kMaxInverseDepth);  // 0.24 mm everywhere
   e.vectors[0].assign(static_cast<size_t>(w) * h, INT32_MIN);
   e.vectors[1].assign(static_cast<size_t>(w) * h, INT32_MAX);
   for (MotionSource source : {MotionSource::kCamera, MotionSource::kVectors}) {
@@ -627,9 +627,11 @@ TEST(MotionBlur, HostConvertsDepthAndVectors) {
   f.motion_y.data = {2.0f, 0.25f, 0, 0, 0, 0, 0};
   host::CoreInput in;
   host::PrepareInput(f, 7, 1, host::SceneFit::kCrop, &in);
-  // 0, negative, NaN, inf: infinitely far (0); 1e10 m: 1e-10 * 2^24 rounds to
-  // 0; 2 m: 2^23; 1 mm: 1000 / m saturates Q8.24.
-  const std::vector<uint32_t> iz = {0, 0, 0, 0, 0, 1u << 23, 0xFFFFFFFFu};
+  // The rules of core/pipeline/inverse_depth.h: 0 m: nearest; negative:
+  // invalid; NaN, inf: infinitely far (0); 1e10 m: 1e-10 * 2^20 rounds to 0;
+  // 2 m: 2^19; 1 mm (as a float, 0.001f): round(2^20 / 0.001f).
+  const uint32_t mm = static_cast<uint32_t>(std::lround(1048576.0 / static_cast<double>(0.001f)));
+  const std::vector<uint32_t> iz = {kMaxInverseDepth, kInvalidInverseDepth, 0, 0, 0, 1u << 19, mm};
   EXPECT_EQ(in.inverse_depth, iz);
   // Velocity rows downwards: (-X, +Y), Q16.16.
   EXPECT_EQ(in.motion[0][0], -65536);

@@ -1,0 +1,412 @@
+// Depth of field and structural blur; formats and method in dof.h.
+//
+// Why the solver is stable in fixed point. Thomas' algorithm for the matrix
+// of dof.h, with p_i the forward pivot (p_0 = 1):
+//   p_i = 1 + b_i + b_{i+1} - b_i b_i / p'_{i-1},  p'_{i-1} = p_{i-1} + b_i ...
+// is written without any subtraction by tracking r_i = 1 / (pivot minus the
+// coupling to the next sample): with e_{i-1} = 1 / (1 + b_i r_{i-1}),
+//   r_i = 1 / (1 + b_i e_{i-1}) = D_i / (D_i + b_i),  D_i = 1 + b_i r_{i-1},
+// every quantity is a ratio of positive numbers, r and e lie in (0, 1], and
+// the eliminated right-hand side u_i = y'_i / e_i obeys
+//   u_i = (x_i + b_i e_{i-1} u_{i-1}) / (1 + b_i e_{i-1}) = u_{i-1} + r_i (x_i - u_{i-1}),
+// a convex combination; the back substitution y_i = e_i u_i + (1 - e_i) y_{i+1}
+// is one too. Rounding a convex step d * w (|w| <= 1) to an integer never
+// leaves [0, d], so the maximum principle holds exactly, and a constant line
+// is reproduced exactly, for any b (0 .. 2^20) and any ratio of neighbouring
+// b. The pivot growth that breaks naive fixed-point Thomas (p up to 1 + 2b,
+// products b^2) never appears: D <= 1 + b, and b r <= b < 2^20 in Q.30.
+#include "core/lens/dof.h"
+
+#include <bit>
+#include <cmath>
+
+#include "core/pipeline/pipeline.h"
+
+namespace camsim {
+namespace {
+
+constexpr int kG = dof::kGuardBits;
+constexpr int kW = dof::kWeightFracBits;
+constexpr uint32_t kOneW = 1u << kW;          // 1.0 in Q2.30
+constexpr int kCurvePoints = 257;             // structural curve over rho, as vignetting
+
+// round(n / d * 2^30) for 0 <= n <= d, 0 < d < 2^63. Both are shifted right
+// until d < 2^34 (n << 30 then fits 64 bits); d keeps >= 33 significant bits,
+// so the quotient's relative error is below 2^-32 plus the final rounding.
+inline uint32_t DivQ30(uint64_t n, uint64_t d) {
+  const int bits = static_cast<int>(std::bit_width(d));
+  const int k = bits > 34 ? bits - 34 : 0;
+  n >>= k;
+  d >>= k;
+  return static_cast<uint32_t>(((n << kW) + (d >> 1)) / d);
+}
+
+using dof::MulQ30;
+
+// D = 1 + b r (Q.30) and the next r = D / (D + b).
+inline uint64_t DOf(uint32_t b, uint32_t r) {
+  return (uint64_t{1} << kW) + RoundShiftU(uint64_t{b} * r, dof::kBetaFracBits);
+}
+inline uint32_t ROf(uint64_t D, uint32_t b) {
+  return DivQ30(D, D + (uint64_t{b} << (kW - dof::kBetaFracBits)));
+}
+
+inline uint32_t OutOf(int64_t y) { return SatU32(RoundShift(y, kG)); }
+
+struct Geometry2 {
+  static uint64_t Denominator(const SensorGeometry& g) {
+    const uint64_t w = static_cast<uint64_t>(g.width - 1), h = static_cast<uint64_t>(g.height - 1);
+    return w * w + h * h;
+  }
+};
+
+}  // namespace
+
+
+// ---------------------------------------------------------------- CocModel
+
+Status CocModel::Configure(const DofConfig& c, double f_number) {
+  config_ = c;
+  f_number_ = f_number;
+  if (!(c.focal_length_mm > 0.0 && c.focal_length_mm <= 10000.0))
+    return InvalidArgument("lens.focal_length_mm", "must be in (0, 10000]");
+  if (!(c.pixel_pitch_um > 0.0 && c.pixel_pitch_um <= 1000.0))
+    return InvalidArgument("sensor.pixel_pitch_um", "depth of field needs a pixel pitch in (0, 1000] um");
+  if (!(f_number >= 0.5 && f_number <= 1000.0))
+    return InvalidArgument("exposure.f_number", "depth of field needs an f-number in [0.5, 1000]");
+  const double f = c.focal_length_mm / 1000.0;
+  if (!(c.focus_distance_m > f && c.focus_distance_m <= 1e6))
+    return InvalidArgument("dof.focus_distance_m", "must exceed the focal length and be at most 1e6 m");
+  if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
+    return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
+  if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
+    return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
+  if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
+    return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
+  const double pitch = c.pixel_pitch_um * 1e-6;
+  k_px_m_ = f * f * c.focus_distance_m / (f_number * (c.focus_distance_m - f)) / pitch;
+  // |iz - iz_f| in Q12.20 -> pixels Q.8: K' = K_px * 2^8 / 2^20.
+  const double kq = k_px_m_ / 4096.0;
+  Result<UScale> s = UScale::FromDouble(kq, "dof.focus_distance_m");
+  if (!s.ok()) return s.status();
+  scale_ = s.value();
+  Result<UScale> sd = UScale::FromDouble(kq * 256.0 * c.diffusion_scale, "dof.diffusion_scale");  // Q.16
+  if (!sd.ok()) return sd.status();
+  diffusion_scale_ = sd.value();
+  focus_ = InverseDepthFromMetres(c.focus_distance_m);
+  cap_ = static_cast<uint32_t>(Q<10, 8>::FromDouble(c.max_coc_px).raw);
+  diffusion_cap_ = static_cast<uint32_t>(Q<10, 16>::FromDouble(c.max_coc_px * c.diffusion_scale).raw);
+  // Smallest d with Apply(d) >= min_coc (Apply is monotone): binary search.
+  const uint32_t min_raw = static_cast<uint32_t>(Q<10, 8>::FromDouble(c.min_coc_px).raw);
+  uint32_t lo = 0, hi = 0xFFFFFFFFu;
+  if (scale_.Apply(hi) < min_raw) {
+    min_diff_ = hi;
+  } else {
+    while (lo < hi) {
+      const uint32_t mid = lo + (hi - lo) / 2;
+      if (scale_.Apply(mid) >= min_raw) hi = mid; else lo = mid + 1;
+    }
+    min_diff_ = lo;
+  }
+  return Status::Ok();
+}
+
+// ---------------------------------------------------------------- solver
+
+namespace dof {
+
+size_t LineWorkBytes(int n) {
+  return AlignUp(sizeof(uint32_t) * static_cast<size_t>(n)) + 3 * AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
+}
+
+int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work) {
+  uint32_t* e = reinterpret_cast<uint32_t*>(work);
+  int64_t* u[3];
+  uint8_t* p = work + AlignUp(sizeof(uint32_t) * static_cast<size_t>(n));
+  for (int c = 0; c < 3; ++c) {
+    u[c] = reinterpret_cast<int64_t*>(p);
+    p += AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
+  }
+  int solved = 0;
+  int s = 0;
+  while (s < n) {
+    // The segment [s, t]: linked by non-zero b; a lone sample is its own solution.
+    int t = s;
+    while (t + 1 < n && beta[t + 1] != 0) ++t;
+    if (t == s) {
+      ++s;
+      continue;
+    }
+    solved += t - s + 1;
+    for (int c = 0; c < channels; ++c) u[c][s] = int64_t{line[c][s]} << kG;
+    uint32_t r = kOneW;
+    for (int i = s + 1; i <= t; ++i) {
+      const uint32_t b = beta[i];
+      const uint64_t D = DOf(b, r);
+      r = ROf(D, b);
+      e[i - 1] = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
+      for (int c = 0; c < channels; ++c) {
+        const int64_t prev = u[c][i - 1];
+        u[c][i] = prev + MulQ30((int64_t{line[c][i]} << kG) - prev, r);
+      }
+    }
+    for (int c = 0; c < channels; ++c) {
+      int64_t y = u[c][t];
+      uint32_t* out = line[c];
+      out[t] = OutOf(y);
+      for (int i = t - 1; i >= s; --i) {
+        y += MulQ30(u[c][i] - y, e[i]);
+        out[i] = OutOf(y);
+      }
+    }
+    s = t + 1;
+  }
+  return solved;
+}
+
+}  // namespace dof
+
+// ---------------------------------------------------------------- row stage
+
+Status DofRowStage::Configure(const DofConfig& c, const SensorGeometry& g, double f_number) {
+  config_ = c;
+  geometry_ = g;
+  structural_ = false;
+  for (double a : c.structural_poly) {
+    if (!(a >= -1023.0 && a <= 1023.0))
+      return InvalidArgument("dof.structural_poly", "coefficients must be in [-1023, 1023] pixels");
+    if (a != 0.0) structural_ = true;
+  }
+  if (c.method != DofMethod::kOff && c.method != DofMethod::kDiffusion && c.method != DofMethod::kGather)
+    return InvalidArgument("dof.method", "must be off, diffusion or gather");
+  if (c.column_window < 1 || c.column_window > (kMaxWindowRows - 1) / 2)
+    return InvalidArgument("dof.column_window", "must be in [1, 511] rows");
+  if (c.method == DofMethod::kDiffusion && !c.structural_only) {
+    CAMSIM_TRY(coc_.Configure(c, f_number));
+  } else if (structural_) {  // no lens model needed, but the shared limits still apply
+    if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
+      return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
+    if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
+      return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
+    if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
+      return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
+  }
+  const uint64_t den = Geometry2::Denominator(g);
+  if (structural_ && den > 0) {
+    Result<UScale> s = UScale::FromDouble((kCurvePoints - 1) * 65536.0 / static_cast<double>(den), "sensor.width");
+    if (!s.ok()) return s.status();
+    rho_to_index_ = s.value();
+  }
+  return Status::Ok();
+}
+
+Result<LineFormat> DofRowStage::Plan(LineFormat in) const {
+  if (in.domain != Domain::kRadiance || in.channels != 3)
+    return InvalidArgument("dof", "depth of field needs 3-channel radiance input (run it before exposure)");
+  return in;
+}
+
+const char* DofRowStage::IdentityReason() const {
+  if (config_.method != DofMethod::kDiffusion && !structural_)
+    return "dof.method is not diffusion and there is no structural blur";
+  if (config_.structural_only && !structural_) return "dof.structural_only without dof.structural_poly";
+  return nullptr;
+}
+
+void DofRowStage::CountTables(WorkspaceCounter& counter) const {
+  if (!structural_) return;
+  counter.Add<uint32_t>(kCurvePoints + 1);
+  counter.Add<uint32_t>(static_cast<size_t>(geometry_.width));
+}
+
+Status DofRowStage::Init(Arena& tables) {
+  if (!structural_) return Status::Ok();
+  struct_cc2_ = tables.Take<uint32_t>(kCurvePoints + 1);
+  dx2_ = tables.Take<uint32_t>(static_cast<size_t>(geometry_.width));
+  if (struct_cc2_ == nullptr || dx2_ == nullptr)
+    return Status(StatusCode::kResourceExhausted, "workspace too small for structural blur tables");
+  for (int i = 0; i < kCurvePoints; ++i) {
+    const double r = std::sqrt(static_cast<double>(i) / (kCurvePoints - 1));
+    double d = 0.0, rk = 1.0;
+    for (double a : config_.structural_poly) {
+      d += a * rk;
+      rk *= r;
+    }
+    if (d < 0.0) d = 0.0;
+    if (d > config_.max_coc_px) d = config_.max_coc_px;
+    if (d < config_.min_coc_px) d = 0.0;
+    const double sd = d * config_.diffusion_scale * 256.0;  // Q.8 diffusion diameter
+    const double sq = sd * sd;                              // Q.16 squared
+    struct_cc2_[i] = sq >= 4294967295.0 ? 0xFFFFFFFFu : static_cast<uint32_t>(sq + 0.5);
+  }
+  struct_cc2_[kCurvePoints] = struct_cc2_[kCurvePoints - 1];
+  for (int x = 0; x < geometry_.width; ++x) {
+    const int64_t d = 2 * static_cast<int64_t>(x) - (geometry_.width - 1);
+    dx2_[x] = static_cast<uint32_t>(d * d);
+  }
+  return Status::Ok();
+}
+
+void DofRowStage::RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const {
+  const int n = x1 - x0;
+  if (config_.method == DofMethod::kDiffusion && !config_.structural_only) {
+    const uint32_t* iz = input.inverse_depth.row(y) + x0;
+    for (int x = 0; x < n; ++x) {
+      const uint64_t c = coc_.DiffusionCoc(iz[x]);
+      cc2[x] = c * c;
+    }
+  } else {
+    for (int x = 0; x < n; ++x) cc2[x] = 0;
+  }
+  if (!structural_) return;
+  const int64_t dy = 2 * static_cast<int64_t>(y) - (geometry_.height - 1);
+  const uint32_t dy2 = static_cast<uint32_t>(dy * dy);
+  for (int x = 0; x < n; ++x) {
+    const uint32_t pos = rho_to_index_.Apply(dx2_[x0 + x] + dy2);
+    const uint32_t i = pos >> 16, f = pos & 0xFFFF;
+    const uint64_t g0 = struct_cc2_[i], g1 = struct_cc2_[i + 1];
+    cc2[x] += ((g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16) << 16;  // Q.16 -> Q.32
+  }
+}
+
+size_t DofRowStage::ScratchBytes(int width) const {
+  return AlignUp(sizeof(uint64_t) * static_cast<size_t>(width)) +
+         AlignUp(sizeof(uint32_t) * static_cast<size_t>(width + 1)) + dof::LineWorkBytes(width);
+}
+
+void DofRowStage::ProcessRow(const RowArgs& a) const {
+  const int w = a.width;
+  uint64_t* cc2 = reinterpret_cast<uint64_t*>(a.scratch);
+  uint32_t* beta = reinterpret_cast<uint32_t*>(a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)));
+  uint8_t* work = a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)) +
+                  AlignUp(sizeof(uint32_t) * static_cast<size_t>(w + 1));
+  RowCc2(*a.input, a.y, 0, w, cc2);
+  beta[0] = 0;
+  beta[w] = 0;
+  for (int x = 1; x < w; ++x) beta[x] = dof::BetaOf(cc2[x - 1], cc2[x]);
+  const RowIn& in = a.rows[0];
+  for (int c = 0; c < 3; ++c)
+    for (int x = 0; x < w; ++x) a.out[c][x] = in.ch[c][x];
+  const int solved = dof::SolveLine(a.out, 3, beta, w, work);
+  if (a.stats != nullptr) a.stats->skipped_px += w - solved;
+}
+
+// ---------------------------------------------------------------- column stage
+
+Status DofColumnStage::Configure(const DofConfig& c, const SensorGeometry& g, const DofRowStage* rows) {
+  config_ = c;
+  geometry_ = g;
+  rows_ = rows;
+  return Status::Ok();
+}
+
+Result<LineFormat> DofColumnStage::Plan(LineFormat in) const { return rows_->Plan(in); }
+
+RowWindow DofColumnStage::InputRows(int y, int height) const {
+  const int lo = y - config_.column_window, hi = y + config_.column_window;
+  return {lo < 0 ? 0 : lo, hi > height - 1 ? height - 1 : hi};
+}
+
+size_t DofColumnStage::ScratchBytes(int width) const {
+  const size_t n = static_cast<size_t>(width < kTile ? width : kTile);
+  return 3 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n);
+}
+
+void DofColumnStage::ProcessRow(const RowArgs& a) const {
+  // Columns are independent: solve them in tiles of kTile so the sweep state
+  // (~20 KB) stays in L1 while all window rows pass over it.
+  int64_t solved = 0;
+  for (int x0 = 0; x0 < a.width; x0 += kTile) solved += SolveTile(a, x0, x0 + kTile < a.width ? x0 + kTile : a.width);
+  if (a.stats != nullptr) a.stats->skipped_px += a.width - solved;
+}
+
+int64_t DofColumnStage::SolveTile(const RowArgs& a, int x0, int x1) const {
+  const int w = x1 - x0, y = a.y;
+  const int lo = a.first_row, hi = a.first_row + a.row_count - 1;
+  const size_t n = static_cast<size_t>(a.width < kTile ? a.width : kTile);  // as ScratchBytes
+  uint8_t* p = a.scratch;
+  auto take64 = [&p, n]() { uint64_t* q = reinterpret_cast<uint64_t*>(p); p += AlignUp(sizeof(uint64_t) * n); return q; };
+  uint64_t* cc2_prev = take64();
+  uint64_t* cc2_cur = take64();
+  uint64_t* cc2_y = take64();
+  uint32_t* rf = reinterpret_cast<uint32_t*>(p);
+  p += AlignUp(sizeof(uint32_t) * n);
+  uint32_t* rb = reinterpret_cast<uint32_t*>(p);
+  p += AlignUp(sizeof(uint32_t) * n);
+  int64_t* uf[3];
+  int64_t* ub[3];
+  for (int c = 0; c < 3; ++c) uf[c] = reinterpret_cast<int64_t*>(take64());
+  for (int c = 0; c < 3; ++c) ub[c] = reinterpret_cast<int64_t*>(take64());
+
+  // One sweep step on every column of the tile: link b between the previous
+  // row and row `in` of the window.
+  auto step = [w, x0](const uint64_t* cc2_a, const uint64_t* cc2_b, const RowIn& in, uint32_t* r, int64_t* const* u) {
+    for (int x = 0; x < w; ++x) {
+      const uint32_t b = dof::BetaOf(cc2_a[x], cc2_b[x]);
+      if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
+        r[x] = kOneW;
+        for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
+        continue;
+      }
+      const uint32_t rx = ROf(DOf(b, r[x]), b);
+      r[x] = rx;
+      for (int c = 0; c < 3; ++c) u[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - u[c][x], rx);
+    }
+  };
+  auto start = [w, x0](const RowIn& in, uint32_t* r, int64_t* const* u) {
+    for (int x = 0; x < w; ++x) {
+      r[x] = kOneW;
+      for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
+    }
+  };
+
+  // Downward sweep: rows lo .. y.
+  rows_->RowCc2(*a.input, lo, x0, x1, cc2_prev);
+  start(a.rows[0], rf, uf);
+  for (int i = lo + 1; i <= y; ++i) {
+    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+    step(cc2_prev, cc2_cur, a.rows[i - lo], rf, uf);
+    uint64_t* t = cc2_prev;
+    cc2_prev = cc2_cur;
+    cc2_cur = t;
+  }
+  uint64_t* t = cc2_y;  // keep row y's values
+  cc2_y = cc2_prev;
+  cc2_prev = t;
+
+  int64_t solved = 0;
+  if (hi == y) {  // the frame's last row: nothing below
+    for (int x = 0; x < w; ++x) {
+      solved += rf[x] != kOneW;
+      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
+    }
+    return solved;
+  }
+  // Upward sweep: rows hi .. y + 1.
+  rows_->RowCc2(*a.input, hi, x0, x1, cc2_prev);
+  start(a.rows[hi - lo], rb, ub);
+  for (int i = hi - 1; i > y; --i) {
+    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+    step(cc2_cur, cc2_prev, a.rows[i - lo], rb, ub);
+    uint64_t* s = cc2_prev;
+    cc2_prev = cc2_cur;
+    cc2_cur = s;
+  }
+  // Twist: out = u_y + w (v_{y+1} - u_y), w = b r_y / (D' + b r_y).
+  for (int x = 0; x < w; ++x) {
+    const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
+    if (b == 0) {
+      solved += rf[x] != kOneW;
+      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
+      continue;
+    }
+    ++solved;
+    const uint64_t Dp = DOf(b, rb[x]);
+    const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
+    const uint32_t wt = DivQ30(tb, Dp + tb);
+    for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x] + MulQ30(ub[c][x] - uf[c][x], wt));
+  }
+  return solved;
+}
+
+}  // namespace camsim

@@ -1,0 +1,252 @@
+// Depth of field (paper eq. 11-13) and structural blur, on scene radiance.
+//
+// Circle of confusion (thin lens, model-notes): with focal length f, f-number
+// N, focus distance z_f and depth z, the blur circle's diameter on the sensor
+// is c = f^2 |z - z_f| / (N z (z_f - f)) = K |1/z - 1/z_f| with
+// K = f^2 z_f / (N (z_f - f)), divided by the pixel pitch for pixels. It is
+// linear in inverse depth, so the core takes depth as inverse depth
+// (FrameInput::inverse_depth, 1/m in Q12.20) and computes per pixel
+//   coc = min(max_coc, round(K' |iz - iz_f|)),  coc in Q.8 pixels (diameter),
+// K' = K / pitch * 2^8 / 2^20 as a UScale; coc < min_coc becomes 0.
+// Special depths (the host's conversion, host_tools/scene_input.cc, and the
+// core agree on these; tests/unit/test_dof.cc checks each):
+//   z = 1e10 (the bundled sky) or +inf: iz rounds to 0, the CoC of infinity,
+//                     K / pitch / z_f-independent = f^2 / (N (z_f - f) pitch).
+//   z = NaN:          the loader turns it into +inf (counted): as the sky.
+//   z = 0:            iz saturates at kMaxInverseDepth: the largest blur, i.e.
+//                     max_coc for any real lens.
+//   z < 0 or -inf:    no valid depth: kInvalidInverseDepth, CoC 0 (left sharp).
+//
+// Diffusion DoF (eq. 12-13, Kass, Lefohn, Owens 2006): per line the system
+//   -b_i y_{i-1} + (1 + b_i + b_{i+1}) y_i - b_{i+1} y_{i+1} = x_i,
+//   b_i = min(s^2 coc_{i-1}^2, s^2 coc_i^2), b = 0 across the frame border,
+// first along rows (DofRowStage, a whole-line solve), then along columns
+// (DofColumnStage). s = diffusion_scale: one row + column step has per-axis
+// variance 2 b, a uniform disc of diameter c has c^2 / 16, so the default
+// s = 1/sqrt(32) makes both methods blur alike (the cross-check relies on it).
+// Structural blur adds (s d(r))^2 to every pixel's s^2 coc^2, d(r) a blur
+// diameter polynomial in the normalised radius r (0 centre, 1 corner): two
+// diffusions in sequence are about one with the summed coefficient.
+//
+// The solver (Thomas' algorithm rewritten so every step is a convex
+// combination; see dof.cc for the derivation):
+//   forward:  D_i = 1 + b_i r_{i-1},  r_i = D_i / (D_i + b_i)      (r_0 = 1)
+//             u_i = u_{i-1} + r_i (x_i - u_{i-1})                  (u_0 = x_0)
+//   backward: y_i = y_{i+1} + e_i (u_i - y_{i+1}),  e_i = 1 / D_{i+1}
+// r, e in (0, 1]: u and y never leave [min x, max x] (maximum principle) and
+// a constant line stays exactly constant, whatever the rounding. The column
+// pass solves, for output row y, only the rows [y - W, y + W] of the window
+// (insulated at the window ends; W = column_window, the precision knob),
+// by a twisted factorisation: the forward sweep from the top down to y, the
+// same sweep from the bottom up to y + 1, and
+//   out = u_y + w (v_{y+1} - u_y),  w = b_{y+1} r_y / (D'_y + b_{y+1} r_y),
+//   D'_y = 1 + b_{y+1} r'_{y+1}  (r' the upward sweep's r).
+// Rows of the window outside the frame do not exist (insulated border), so
+// the result depends only on y, never on the strip.
+//
+// Formats: x, out: radiance Q16.16 (uint32), 3 channels.
+//          u, v, y: int64 Q16.32 (16 guard bits below the input's LSB);
+//                   products with weights are exact 64-bit splits (MulQ30).
+//          b: uint32 Q20.12, 0 .. 2^20 - 2^-12 (so b r fits 62 bits), from
+//             squared diffusion CoCs in Q.32 (s coc in Q10.16, squared).
+//          r, e, w: uint32 Q2.30 in [0, 1]; D: uint64 Q.30 in [1, 2^20 + 1].
+//          Divisions: round to nearest (ties up) of a normalised 64-bit
+//          quotient (numerator and denominator shifted to < 2^34: relative
+//          error < 2^-33). coc: Q.8 pixels, at most 1024 - 2^-8.
+//          Output: RoundShift(y, 16), within [min, max] of the input line.
+// Skipping: b = 0 decouples neighbours exactly (r = e = 1), so pixels whose
+// both links are 0 (CoC below min_coc on either side) are copied, not solved,
+// and cost no division; StageStats::skipped_px counts them. (The column pass
+// still reads its window's depth rows for them.)
+//
+// Gather DoF (eq. 11, reverse-mapped z-buffer, DofGatherStage): each source
+// pixel q spreads its radiance uniformly over a disc of radius
+// R_q = min(coc_q / 2, max_radius) in quarter pixels (the "scatter as
+// gather" of the z-buffer method):
+//   out_p = sum_q [|p - q| <= R_q] x_q / A(R_q) / sum_q [|p - q| <= R_q] / A(R_q),
+// A(R) the pixel count of the disc (a table); integer offsets, a binary disc,
+// so CoCs below 2 px do not blur. Weights round(2^26 / A); sums in 64 bits;
+// one rounded division per channel (details in dof_gather.cc). Reads rows
+// y - max_radius .. y + max_radius, clipped to the frame (discs are clipped
+// at the borders and renormalised, so no margin columns). A row whose window
+// holds no CoC >= 2 px is copied (StageStats::skipped_px).
+#pragma once
+
+#include "core/pipeline/inverse_depth.h"
+#include "core/pipeline/stage.h"
+
+namespace camsim {
+
+enum class DofMethod : uint8_t { kOff, kDiffusion, kGather };
+
+struct DofConfig {
+  DofMethod method = DofMethod::kOff;
+  double focal_length_mm = 28.0;   // lens focal length (the host copies lens.focal_length_mm)
+  double pixel_pitch_um = 0.0;     // the host fills it in from the sensor; must be > 0
+  double focus_distance_m = 3.0;   // z_f, must exceed the focal length
+  double max_coc_px = 64.0;        // CoC diameter cap, pixels (0.25 .. 1023)
+  double min_coc_px = 0.5;         // smaller CoCs are 0: those pixels are not blurred
+  double diffusion_scale = 0.17677669529663687;  // s = 1/sqrt(32), see above
+  int column_window = 32;          // diffusion: rows each side solved per column (1 .. 511)
+  int max_radius_px = 16;          // gather: disc radius cap (1 .. 255); also its row window
+  // Structural blur: blur diameter in pixels = sum_k poly[k] r^k, r the
+  // normalised radius (0 at the centre, 1 at the corners). All 0: off.
+  static constexpr int kPolyTerms = 5;
+  double structural_poly[kPolyTerms] = {};
+  int structural_poly_count = 0;   // coefficients given (the rest are 0)
+  bool structural_only = false;    // diffusion without depth: structural blur alone
+};
+
+
+// The configured thin-lens CoC model, shared by the three stages.
+class CocModel {
+ public:
+  static constexpr int kCocFracBits = 8;  // Q.8 pixels
+  static constexpr uint32_t kMaxCocRaw = (1024u << kCocFracBits) - 1;
+  static constexpr int kDiffusionCocFracBits = 16;  // Q10.16
+  Status Configure(const DofConfig& config, double f_number);
+  // CoC diameter, Q.8 pixels, of an inverse-depth sample (0 below min_coc).
+  uint32_t Coc(uint32_t inverse_depth) const {
+    if (inverse_depth == kInvalidInverseDepth) return 0;
+    const uint32_t d = inverse_depth > focus_ ? inverse_depth - focus_ : focus_ - inverse_depth;
+    if (d < min_diff_) return 0;
+    const uint32_t c = scale_.Apply(d);
+    return c < cap_ ? c : cap_;
+  }
+  // The diffusion's s * coc from the same sample, Q.16 (0 where Coc is 0):
+  // 16 fractional bits because s * coc is small (s = 0.18) and b = (s coc)^2
+  // would otherwise carry a 1e-3 relative rounding error.
+  uint32_t DiffusionCoc(uint32_t inverse_depth) const {
+    if (inverse_depth == kInvalidInverseDepth) return 0;
+    const uint32_t d = inverse_depth > focus_ ? inverse_depth - focus_ : focus_ - inverse_depth;
+    if (d < min_diff_) return 0;
+    const uint32_t c = diffusion_scale_.Apply(d);
+    return c < diffusion_cap_ ? c : diffusion_cap_;
+  }
+  // The same in double pixels (reference; invalid depth -> 0).
+  double CocPixels(double z_metres) const;
+  uint32_t focus() const { return focus_; }
+
+ private:
+  DofConfig config_;
+  double f_number_ = 1.0;
+  double k_px_m_ = 0.0;          // K / pitch: CoC in pixels per 1/m of inverse-depth difference
+  uint32_t focus_ = 0;           // iz_f, Q12.20
+  UScale scale_;                 // |iz - iz_f| Q12.20 -> coc Q.8
+  UScale diffusion_scale_;       // |iz - iz_f| -> s coc Q.16
+  uint32_t cap_ = 0, diffusion_cap_ = 0;
+  uint32_t min_diff_ = 0;        // smallest |iz - iz_f| whose CoC reaches min_coc
+};
+
+// The fixed-point line solver, exposed for tests and the bench.
+namespace dof {
+inline constexpr int kBetaFracBits = 12;             // b: Q20.12
+inline constexpr uint32_t kMaxBeta = 0xFFFFFFFFu;    // 2^20 - 2^-12
+inline constexpr int kGuardBits = 16;                // u, v, y: Q16.32 in int64
+inline constexpr int kWeightFracBits = 30;           // r, e, w: Q2.30
+// b from two neighbours' squared diffusion CoCs (Q.32, < 2^52): min, to
+// Q.12 (rounded, ties up), capped.
+constexpr uint32_t BetaOf(uint64_t cc2_a, uint64_t cc2_b) {
+  const uint64_t m = cc2_a < cc2_b ? cc2_a : cc2_b;
+  const uint64_t b = (m + (1u << 19)) >> 20;  // Q.32 -> Q.12
+  return b > kMaxBeta ? kMaxBeta : static_cast<uint32_t>(b);
+}
+// round(d * w / 2^30) (ties up) for |d| < 2^49, 0 <= w <= 2^30, exact. The
+// portable form splits d into a high part (d >> 24, |.| < 2^25) and 24 low
+// bits so both 64-bit products stay below 2^55, and rounds the sum once;
+// where the compiler has a 128-bit integer (x86-64, aarch64) one wide
+// product gives the same exact value faster. armhf uses the split.
+constexpr int64_t MulQ30Split(int64_t d, uint32_t w) {
+  const int64_t qh = (d >> 24) * static_cast<int64_t>(w);
+  const int64_t ql = (d & 0xFFFFFF) * static_cast<int64_t>(w);
+  return (qh >> 6) + ((((qh & 63) << 24) + ql + (int64_t{1} << 29)) >> 30);
+}
+inline int64_t MulQ30(int64_t d, uint32_t w) {
+#if defined(__SIZEOF_INT128__)
+  __extension__ typedef __int128 Wide;
+  return static_cast<int64_t>((static_cast<Wide>(d) * w + (Wide{1} << 29)) >> 30);
+#else
+  return MulQ30Split(d, w);
+#endif
+}
+// Solves one line of n samples for `channels` channels in place: beta[i]
+// (i = 1 .. n - 1) couples samples i - 1 and i; beta[0] and beta[n] are
+// ignored (insulated ends). work: 2 n uint32 + 3 n int64 (LineWorkBytes).
+// Returns the number of samples solved (those with a non-zero link).
+size_t LineWorkBytes(int n);
+int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work);
+}  // namespace dof
+
+// Row pass of the diffusion DoF (and structural blur).
+class DofRowStage final : public Stage {
+ public:
+  Status Configure(const DofConfig& config, const SensorGeometry& geometry, double f_number);
+  const char* name() const override { return "dof_rows"; }
+  Result<LineFormat> Plan(LineFormat in) const override;
+  const char* IdentityReason() const override;
+  void CountTables(WorkspaceCounter& counter) const override;
+  Status Init(Arena& tables) override;
+  size_t ScratchBytes(int width) const override;
+  void ProcessRow(const RowArgs& args) const override;
+
+  const CocModel& coc() const { return coc_; }
+
+ protected:
+  friend class DofColumnStage;
+  // Squared diffusion CoC per pixel of row y, Q.32 (depth + structural).
+  // Columns [x0, x1) of row y into cc2[0 .. x1 - x0).
+  void RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const;
+
+  DofConfig config_;
+  SensorGeometry geometry_;
+  CocModel coc_;
+  bool structural_ = false;
+  UScale rho_to_index_;          // as vignetting: (dx2 + dy2) -> curve position Q.16
+  uint32_t* struct_cc2_ = nullptr;  // kCurvePoints + 1 squared diffusion diameters, Q.16 (added << 16)
+  uint32_t* dx2_ = nullptr;
+};
+
+// Column pass: windowed twisted solve per output row.
+class DofColumnStage final : public Stage {
+ public:
+  Status Configure(const DofConfig& config, const SensorGeometry& geometry, const DofRowStage* rows);
+  const char* name() const override { return "dof_columns"; }
+  Result<LineFormat> Plan(LineFormat in) const override;
+  const char* IdentityReason() const override { return rows_->IdentityReason(); }
+  RowWindow InputRows(int y, int height) const override;
+  size_t ScratchBytes(int width) const override;
+  void ProcessRow(const RowArgs& args) const override;
+
+  static constexpr int kTile = 256;  // columns solved together (state ~20 KB)
+
+ private:
+  int64_t SolveTile(const RowArgs& args, int x0, int x1) const;  // returns the pixels solved
+
+  DofConfig config_;
+  SensorGeometry geometry_;
+  const DofRowStage* rows_ = nullptr;
+};
+
+// Reverse-mapped z-buffer DoF: disc gather with per-source radius.
+class DofGatherStage final : public Stage {
+ public:
+  static constexpr int kMaxRadius = 255;
+  Status Configure(const DofConfig& config, const SensorGeometry& geometry, double f_number);
+  const char* name() const override { return "dof_gather"; }
+  Result<LineFormat> Plan(LineFormat in) const override;
+  const char* IdentityReason() const override;
+  RowWindow InputRows(int y, int height) const override;
+  void CountTables(WorkspaceCounter& counter) const override;
+  Status Init(Arena& tables) override;
+  size_t ScratchBytes(int width) const override;
+  void ProcessRow(const RowArgs& args) const override;
+
+ private:
+  DofConfig config_;
+  SensorGeometry geometry_;
+  CocModel coc_;
+  uint32_t* weight_ = nullptr;     // [R] = round(2^32 / A(R)), R = 0 .. max_radius
+  int16_t* half_width_ = nullptr;  // [q * (R_max + 1) + |dy|] = floor(sqrt((q/4)^2 - dy^2)), -1 outside; q = radius in quarter pixels
+};
+
+}  // namespace camsim
