@@ -20,6 +20,7 @@
 #include "core/isp/demosaic.h"
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
+#include "core/lens/distortion.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -30,6 +31,7 @@ namespace camsim {
 // The stages in their default order (also the order of the paper's Figure 2
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
+  kDistortion,
   kExposure,
   kVignetting,
   kCfa,
@@ -56,11 +58,12 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kDistortion, StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
                                 StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
                                 StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
+  DistortionConfig distortion;
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
@@ -171,6 +174,7 @@ class Pipeline {
   uint8_t* workers_base_ = nullptr;
   bool initialised_ = false;
 
+  DistortionStage distortion_;
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;
