@@ -14,7 +14,7 @@
 // multiply-add) shows here even when rounding to integers hides it in the
 // pixel output.
 //
-// Cases, part 2: three pipeline configurations (tests/cross/cases.h: the demo
+// Cases, part 2: four pipeline configurations (tests/cross/cases.h: the demo
 // camera, a mono sensor, bilinear BayerBG with a colour matrix) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
@@ -260,6 +260,7 @@ int main(int argc, char** argv) {
       {"demo", cross::DemoConfig, 1},
       {"mono", cross::MonoConfig, 2},
       {"bilinear_bg", cross::BilinearBgConfig, 1000003},
+      {"lens", cross::LensConfig, 5},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 
@@ -282,6 +283,7 @@ int main(int argc, char** argv) {
         c.order_count = n;
         auto p = std::make_unique<Pipeline>();
         const Status st = p->Configure(c, kWorkers, false);
+        if (n == 1 && !st.ok() && std::strcmp(st.message(), "every listed stage was left out") == 0) continue;
         if (!st.ok()) {
           std::printf("ERROR %s %dx%d cut %d: Configure: %s %s\n", cfg.name, w, h, n, st.field(), st.message());
           ++failures;

@@ -71,10 +71,39 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       PipelineConfig c = full;
       c.order_count = n;
       auto b = test::Build(c);
+      if (!b->status.ok() && std::string(b->status.message()) == "every listed stage was left out") continue;
       ASSERT_TRUE(b->status.ok()) << b->status.message();
       if (!b->pipeline.plan().entries[n - 1].runs) continue;  // identical to the previous cut
       const std::string key = std::string(scene_name) + ":" + StageName(c.order[n - 1]);
       got[key] = test::Hex64(HashSamples(test::RunFrame(*b, scene, 1, 32)));
+    }
+    // Lens distortion (a typical barrel calibration with tangential terms and
+    // lateral chromatic aberration): the stage alone, then the whole demo
+    // pipeline (the CFA site-only path) for each filter.
+    PipelineConfig lens = full;
+    LensModel& m = lens.distortion.lens;
+    m.model = DistortionModel::kBrown;
+    m.fx = m.fy = 0.8 * scene.width;
+    m.cx = (scene.width - 1) / 2.0 + 2.5;
+    m.cy = (scene.height - 1) / 2.0 - 1.75;
+    m.k[0] = -0.28;
+    m.k[1] = 0.07;
+    m.p1 = 0.0012;
+    m.p2 = -0.0007;
+    lens.distortion.chromatic_scale[0] = 1.003;
+    lens.distortion.chromatic_scale[2] = 0.998;
+    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
+      static constexpr const char* kFilterNames[3] = {"bilinear", "bicubic", "lanczos3"};
+      lens.distortion.filter = f;
+      for (int n : {1, lens.order_count}) {
+        PipelineConfig c = lens;
+        c.order_count = n;
+        auto b = test::Build(c);
+        ASSERT_TRUE(b->status.ok()) << b->status.message();
+        const std::string key = std::string(scene_name) + ":lens_" + kFilterNames[static_cast<int>(f)] + ":" +
+                                StageName(c.order[n - 1]);
+        got[key] = test::Hex64(HashSamples(test::RunFrame(*b, scene, 1, 32)));
+      }
     }
   }
   if (update) {
