@@ -39,7 +39,9 @@ bool PatternFromName(const std::string& n, PatternKind* k) {
 }
 
 double PatternCell(const PatternOptions& o) { return o.cell > 0.0 ? o.cell : o.height / 12.0; }
-double PatternDotRadius(const PatternOptions& o) { return kDotRadiusOfCell * PatternCell(o); }
+double PatternDotRadius(const PatternOptions& o) {
+  return o.dot_radius > 0.0 ? o.dot_radius : kDotRadiusOfCell * PatternCell(o);
+}
 
 double PatternAt(const PatternOptions& o, double x, double y) {
   const double cell = PatternCell(o);

@@ -20,6 +20,7 @@ struct PatternOptions {
   double cell = 0.0;  // square / dot spacing in pixels; 0 = height / 12
   double low = 0.05, high = 0.9;  // radiance of dark and light parts
   int supersample = 8;
+  double dot_radius = 0.0;  // dot grid: dot radius in pixels; 0 = cell / 4
 };
 
 bool PatternFromName(const std::string& name, PatternKind* kind);
