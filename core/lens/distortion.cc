@@ -35,50 +35,81 @@ double Floor(double v) {
   return t > v ? t - 1.0 : t;
 }
 
-// Source position for N taps: reads rows and columns around (px, py) (Q.16)
-// and returns the filtered sample; 0 when the source is off the image or a
-// tap row is outside the window the driver provided.
+// The taps of one source position: the N input rows (indices into
+// RowArgs::rows), the N columns (x0 .. x0 + N - 1 or reflected) and the
+// weights of the two phases. Valid is false when the pixel gets the fill:
+// the source is off the image, or a tap row is outside the window the
+// driver provided (impossible for valid nodes; see InputRows).
 template <int N>
-uint32_t Sample(const RowArgs& a, int c, int64_t px, int64_t py, int height, int phase_bits,
-                const int16_t* weights) {
+struct Taps {
+  int row[N];
+  int col[N];
+  bool contiguous;  // col[t] == col[0] + t
+  const int16_t* wx;
+  const int16_t* wy;
+};
+
+template <int N>
+bool SetUpTaps(const RowArgs& a, int64_t px, int64_t py, int height, int phase_bits, const int16_t* weights,
+               Taps<N>* t) {
   const int width = a.width;
   constexpr int64_t kHalf = int64_t{1} << 15;
   if (px < -kHalf || py < -kHalf || px > (int64_t{width} << 16) - kHalf || py > (int64_t{height} << 16) - kHalf)
-    return 0;
+    return false;
   const int shift = 16 - phase_bits;
   const int64_t qx = (px + (int64_t{1} << (shift - 1))) >> shift;  // 1/phases of a pixel, ties up
   const int64_t qy = (py + (int64_t{1} << (shift - 1))) >> shift;
   const int mask = (1 << phase_bits) - 1;
   const int ix = static_cast<int>(qx >> phase_bits), iy = static_cast<int>(qy >> phase_bits);
-  const int16_t* wx = weights + (qx & mask) * N;
-  const int16_t* wy = weights + (qy & mask) * N;
+  t->wx = weights + (qx & mask) * N;
+  t->wy = weights + (qy & mask) * N;
   constexpr int kBefore = N / 2 - 1;  // taps before the integer position
   const int x0 = ix - kBefore, y0 = iy - kBefore;
-
-  const uint32_t* rows[N];
-  const bool rows_inside = y0 >= 0 && y0 + N - 1 < height;
-  for (int k = 0; k < N; ++k) {
-    const int r = (rows_inside ? y0 + k : Reflect101(y0 + k, height)) - a.first_row;
-    if (r < 0 || r >= a.row_count) return 0;  // cannot happen for valid nodes; see InputRows
-    rows[k] = a.rows[r].ch[c];
-  }
-  int cols[N];
-  if (x0 >= 0 && x0 + N - 1 < width) {
-    for (int t = 0; t < N; ++t) cols[t] = x0 + t;
+  if (y0 >= 0 && y0 + N - 1 < height && y0 >= a.first_row && y0 + N - 1 < a.first_row + a.row_count) {
+    for (int k = 0; k < N; ++k) t->row[k] = y0 - a.first_row + k;
   } else {
-    for (int t = 0; t < N; ++t) cols[t] = Reflect101(x0 + t, width);
+    for (int k = 0; k < N; ++k) {
+      const int r = Reflect101(y0 + k, height) - a.first_row;
+      if (r < 0 || r >= a.row_count) return false;
+      t->row[k] = r;
+    }
   }
+  t->contiguous = x0 >= 0 && x0 + N - 1 < width;
+  if (t->contiguous) {
+    for (int k = 0; k < N; ++k) t->col[k] = x0 + k;
+  } else {
+    for (int k = 0; k < N; ++k) t->col[k] = Reflect101(x0 + k, width);
+  }
+  return true;
+}
+
+// The filtered sample of channel c at the taps.
+template <int N>
+uint32_t Filter(const RowArgs& a, int c, const Taps<N>& t) {
   constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int kBefore = N / 2 - 1;
+  const uint32_t* rows[N];
+  for (int k = 0; k < N; ++k) rows[k] = a.rows[t.row[k]].ch[c];
   int64_t v = 0;
-  for (int k = 0; k < N; ++k) {
-    int64_t s = 0;
-    for (int t = 0; t < N; ++t) s += int64_t{wx[t]} * rows[k][cols[t]];
-    v += int64_t{wy[k]} * ((s + (int64_t{1} << (kF - 1))) >> kF);
+  if (t.contiguous) {
+    const int x0 = t.col[0];
+    for (int k = 0; k < N; ++k) {
+      const uint32_t* p = rows[k] + x0;
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += int64_t{t.wx[i]} * p[i];
+      v += int64_t{t.wy[k]} * ((s + (int64_t{1} << (kF - 1))) >> kF);
+    }
+  } else {
+    for (int k = 0; k < N; ++k) {
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += int64_t{t.wx[i]} * rows[k][t.col[i]];
+      v += int64_t{t.wy[k]} * ((s + (int64_t{1} << (kF - 1))) >> kF);
+    }
   }
   v = (v + (int64_t{1} << (kF - 1))) >> kF;
   if constexpr (N > 2) {  // ringing clamp to the 2x2 samples around the source
-    const uint32_t s00 = rows[kBefore][cols[kBefore]], s01 = rows[kBefore][cols[kBefore + 1]];
-    const uint32_t s10 = rows[kBefore + 1][cols[kBefore]], s11 = rows[kBefore + 1][cols[kBefore + 1]];
+    const uint32_t s00 = rows[kBefore][t.col[kBefore]], s01 = rows[kBefore][t.col[kBefore + 1]];
+    const uint32_t s10 = rows[kBefore + 1][t.col[kBefore]], s11 = rows[kBefore + 1][t.col[kBefore + 1]];
     uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
     if (s10 < lo) lo = s10;
     if (s10 > hi) hi = s10;
@@ -372,14 +403,17 @@ bool DistortionStage::SourcePosition(int x, int y, int c, int64_t* sx, int64_t* 
   return true;
 }
 
-void DistortionStage::ProcessRow(const RowArgs& a) const {
+template <int N>
+void DistortionStage::ProcessRowN(const RowArgs& a) const {
   int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
-  const int width = a.width, height = geometry_.height, y = a.y;
+  const int width = a.width, height = geometry_.height, y = a.y, phase_bits = phase_bits_;
   const int step_bits = step_bits_, smask = (1 << step_bits) - 1;
   const int64_t half = (int64_t{1} << step_bits) >> 1;
   constexpr int64_t kRound = int64_t{1} << (kScaleFracBits - 1);
+  const bool any_scaled = scaled_[0] || scaled_[1] || scaled_[2];
+  const int16_t* weights = weights_;
   for (int x = 0; x < width; ++x) {
     const int i = x >> step_bits;
     int c0 = 0, c1 = 3;
@@ -395,20 +429,28 @@ void DistortionStage::ProcessRow(const RowArgs& a) const {
     const int64_t fx = x & smask, w0 = (1 << step_bits) - fx;
     const int64_t sx = (int64_t{x} << 16) + ((vdx[i] * w0 + vdx[i + 1] * fx + half) >> step_bits);
     const int64_t sy = (int64_t{y} << 16) + ((vdy[i] * w0 + vdy[i + 1] * fx + half) >> step_bits);
+    Taps<N> t;
+    if (!any_scaled) {  // one position for every channel
+      const bool ok = SetUpTaps<N>(a, sx, sy, height, phase_bits, weights, &t);
+      for (int c = c0; c < c1; ++c) a.out[c][x] = ok ? Filter<N>(a, c, t) : 0;
+      continue;
+    }
     for (int c = c0; c < c1; ++c) {
       int64_t px = sx, py = sy;
       if (scaled_[c]) {
         px = centre_x_ + (((sx - centre_x_) * scale_[c] + kRound) >> kScaleFracBits);
         py = centre_y_ + (((sy - centre_y_) * scale_[c] + kRound) >> kScaleFracBits);
       }
-      uint32_t v = 0;
-      switch (taps_) {
-        case 2: v = Sample<2>(a, c, px, py, height, phase_bits_, weights_); break;
-        case 4: v = Sample<4>(a, c, px, py, height, phase_bits_, weights_); break;
-        default: v = Sample<6>(a, c, px, py, height, phase_bits_, weights_); break;
-      }
-      a.out[c][x] = v;
+      a.out[c][x] = SetUpTaps<N>(a, px, py, height, phase_bits, weights, &t) ? Filter<N>(a, c, t) : 0;
     }
+  }
+}
+
+void DistortionStage::ProcessRow(const RowArgs& a) const {
+  switch (taps_) {
+    case 2: ProcessRowN<2>(a); break;
+    case 4: ProcessRowN<4>(a); break;
+    default: ProcessRowN<6>(a); break;
   }
 }
 

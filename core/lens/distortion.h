@@ -89,6 +89,8 @@ class DistortionStage final : public Stage {
   // The source position (pixels) of grid node (i, j); false if none.
   bool NodeSource(int i, int j, double* sx, double* sy) const;
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
+  template <int N>
+  void ProcessRowN(const RowArgs& args) const;
 
   DistortionConfig config_;
   SensorGeometry geometry_;
