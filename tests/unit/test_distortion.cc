@@ -380,3 +380,49 @@ TEST(Distortion, ExtremeCoefficientsGiveClearErrorsOrDocumentedFill) {
 
 }  // namespace
 }  // namespace camsim
+
+namespace camsim {
+namespace {
+
+// What distortion adds to the workspace at 1920x1080 for the typical lens:
+// its table and a row of scratch, and no line ring when it runs first (it
+// reads the caller's rows); after exposure it needs a ring as deep as its
+// widest row window, 3 channels.
+TEST(Distortion, WorkspaceAt1080p) {
+  const int w = 1920, h = 1080;
+  PipelineConfig plain = test::DemoConfig(w, h);
+  PipelineConfig lens = plain;
+  lens.distortion.lens = TypicalBrown(w, h);
+  Pipeline a, b;
+  ASSERT_TRUE(a.Configure(plain, 1, false).ok());
+  ASSERT_TRUE(b.Configure(lens, 1, false).ok());
+  DistortionStage s;
+  SensorGeometry g = lens.geometry;
+  ASSERT_TRUE(s.Configure(lens.distortion, g).ok());
+  WorkspaceCounter tables;
+  s.CountTables(tables);
+  std::printf("1080p typical lens: table %zu bytes (grid step %d), widest row window %d rows; workspace %zu -> %zu "
+              "bytes (distortion first)\n",
+              s.TableBytes(), lens.distortion.grid_step, s.MaxWindowRows(), a.WorkspaceBytes(), b.WorkspaceBytes());
+  EXPECT_EQ(b.TableBytes() - a.TableBytes(), tables.raw_bytes());
+  // Per worker: no ring for its input; one row (3 channels, with margins)
+  // between it and exposure, and its scratch row of interpolated nodes.
+  std::printf("  per worker %zu -> %zu bytes\n", a.WorkerBytes(), b.WorkerBytes());
+  // (Measured: 27200 bytes, about one 3-channel row; a ring of the window would be 90 rows.)
+  const size_t window_ring = static_cast<size_t>(s.MaxWindowRows()) * 3 * w * sizeof(uint32_t);
+  EXPECT_LT(b.WorkerBytes() - a.WorkerBytes(), window_ring / 50);
+
+  // After exposure: a ring of the window's span, 3 channels of uint32.
+  PipelineConfig late = lens;
+  late.order[0] = StageId::kExposure;
+  late.order[1] = StageId::kDistortion;
+  Pipeline c;
+  ASSERT_TRUE(c.Configure(late, 1, false).ok());
+  const size_t ring = window_ring;
+  std::printf("  distortion after exposure: workspace %zu bytes (ring of %d rows x 3 x %d x 4 B = %zu)\n",
+              c.WorkspaceBytes(), s.MaxWindowRows(), w, ring);
+  EXPECT_GE(c.WorkerBytes(), a.WorkerBytes() + ring - 3 * static_cast<size_t>(w) * 4 * 2);
+}
+
+}  // namespace
+}  // namespace camsim
