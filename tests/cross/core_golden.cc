@@ -15,7 +15,8 @@
 // pixel output.
 //
 // Cases, part 2: four pipeline configurations (tests/cross/cases.h: the demo
-// camera, a mono sensor, bilinear BayerBG with a colour matrix) x two synthetic scenes
+// camera, a mono sensor, bilinear BayerBG with a colour matrix, the demo camera
+// behind a distorting lens) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
 // pipeline after a running stage. Each case's output (uint32 samples, the
