@@ -106,7 +106,7 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
+                 "stages in run order; a stage not listed does not run. All: distortion, exposure, vignetting, cfa, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
