@@ -170,6 +170,46 @@ bool LoadCalibration(const std::string& path, bool fisheye_hint, Calibration* ou
   return ParseCalibration(ss.str(), path, fisheye_hint, out, error);
 }
 
+bool LoadDisplacementMesh(const std::string& path, std::vector<float>* dxdy, int* cols, int* rows, double* step,
+                          std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = path + ": cannot open the displacement mesh";
+    return false;
+  }
+  std::string text, line;
+  while (std::getline(in, line)) text += line.substr(0, line.find('#')) + "\n";
+  std::istringstream s(text);
+  std::string word;
+  *cols = *rows = 0;
+  *step = 0.0;
+  if (!(s >> word) || word != "step" || !(s >> *step) || !(s >> word) || word != "size" || !(s >> *cols >> *rows)) {
+    *error = path + ": expected 'step S' then 'size COLS ROWS' before the displacements";
+    return false;
+  }
+  if (*cols < 2 || *rows < 2 || *cols > 4096 || *rows > 4096 || !(*step >= 1.0)) {
+    *error = path + ": size must be 2..4096 nodes each way and step >= 1 pixel";
+    return false;
+  }
+  dxdy->assign(static_cast<size_t>(*cols) * *rows * 2, 0.0f);
+  for (size_t i = 0; i < dxdy->size(); ++i) {
+    double v = 0.0;
+    if (!(s >> v) || !std::isfinite(v)) {
+      std::ostringstream e;
+      e << path << ": displacement of node (" << i / 2 % *cols << ", " << i / 2 / *cols
+        << ") is missing or not a finite number";
+      *error = e.str();
+      return false;
+    }
+    (*dxdy)[i] = static_cast<float>(v);
+  }
+  if (s >> word) {
+    *error = path + ": more values than size COLS ROWS says";
+    return false;
+  }
+  return true;
+}
+
 bool FitCalibration(const Calibration& cal, int width, int height, LensModel* lens, std::string* error) {
   *lens = cal.lens;
   if (cal.width == 0 || (cal.width == width && cal.height == height)) return true;

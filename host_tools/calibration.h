@@ -13,6 +13,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "core/lens/lens_model.h"
 
@@ -34,6 +35,14 @@ bool LoadCalibration(const std::string& path, bool fisheye_hint, Calibration* ou
 // with pixel centres at integer coordinates: c' = (c + 0.5) s - 0.5 (the
 // distortion coefficients are in normalised coordinates and stay). Another
 // aspect ratio is refused (a crop's offset is unknown).
+// A displacement mesh (core/lens/distortion.h DisplacementMesh) from text:
+//   # comments
+//   step S          pixels between nodes
+//   size COLS ROWS
+//   dx dy dx dy ... COLS * ROWS pairs, row-major (any whitespace)
+bool LoadDisplacementMesh(const std::string& path, std::vector<float>* dxdy, int* cols, int* rows, double* step,
+                          std::string* error);
+
 bool FitCalibration(const Calibration& cal, int width, int height, LensModel* lens, std::string* error);
 
 }  // namespace camsim::host

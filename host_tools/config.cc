@@ -201,6 +201,15 @@ const std::vector<Field>& Fields() {
       return true;
     };
     v.push_back(calibration);
+    Field mesh = Make("distortion", "mesh", Kind::kString,
+                      "displacement mesh text file (step S / size COLS ROWS / dx dy pairs): moves each output "
+                      "pixel's source, on top of the lens model (asymmetric or measured distortion)");
+    mesh.get_text = [](const RunConfig& c) { return TomlString(c.mesh); };
+    mesh.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.mesh = s[0];
+      return true;
+    };
+    v.push_back(mesh);
     v.push_back(Number("distortion", "fx", "focal length x, pixels; 0 = lens.focal_length_mm / pixel pitch",
                        [](RunConfig& c) -> double& { return c.core.distortion.lens.fx; }));
     v.push_back(Number("distortion", "fy", "focal length y, pixels; 0 = fx",
@@ -639,6 +648,16 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
 bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, std::string* error) {
   DistortionConfig& d = c->core.distortion;
   const SensorGeometry& g = c->core.geometry;
+  d.mesh = DisplacementMesh();
+  if (!c->mesh.empty()) {
+    auto data = std::make_shared<std::vector<float>>();
+    if (!LoadDisplacementMesh(c->mesh, data.get(), &d.mesh.cols, &d.mesh.rows, &d.mesh.step, error)) {
+      *error = "distortion.mesh: " + *error;
+      return false;
+    }
+    c->mesh_data = data;
+    d.mesh.dxdy = data->data();
+  }
   if (!c->calibration.empty()) {
     for (const char* key : {"distortion.fx", "distortion.fy", "distortion.cx", "distortion.cy", "distortion.k1",
                             "distortion.k2", "distortion.k3", "distortion.k4", "distortion.k5", "distortion.k6",

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,9 @@ struct RunConfig {
   double focal_length_mm = 28.0;  // lens focal length (the bundled scenes: 28 mm)
   std::string vignetting_mask;    // mask image path (vignetting.mode = "mask")
   std::string calibration;        // OpenCV / ROS calibration YAML (distortion.calibration)
+  std::string mesh;               // displacement mesh text file (distortion.mesh)
+  // The loaded mesh, shared by copies (core.distortion.mesh points into it).
+  std::shared_ptr<const std::vector<float>> mesh_data;
   int output_bits = 8;            // ISP output PNG depth: 8 or 16
 };
 

@@ -154,7 +154,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   site_only_ = false;
   table_ = nullptr;
   weights_ = nullptr;
-  const LensModel& m = c.lens;
+  const LensModel& m = config_.lens;
   if (static_cast<uint8_t>(m.model) > static_cast<uint8_t>(DistortionModel::kFisheye))
     return InvalidArgument("distortion.model", "must be off, brown or fisheye");
   if (static_cast<uint8_t>(c.filter) > static_cast<uint8_t>(ResampleFilter::kLanczos3))
@@ -166,7 +166,25 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   for (int i = 0; i < 3; ++i)
     if (!(c.chromatic_scale[i] >= kMinChromatic && c.chromatic_scale[i] <= kMaxChromatic))
       return InvalidArgument("distortion.chromatic_scale", "each scale must be in [0.5, 2]");
+  const DisplacementMesh& mesh = c.mesh;
+  if (mesh.dxdy != nullptr) {
+    if (mesh.cols < 2 || mesh.rows < 2 || mesh.cols > 4096 || mesh.rows > 4096)
+      return InvalidArgument("distortion.mesh", "needs 2 to 4096 nodes per row and column");
+    if (!(mesh.step >= 1.0 && mesh.step <= 16384.0))
+      return InvalidArgument("distortion.mesh", "node step must be in [1, 16384] pixels");
+    for (int i = 0; i < 2 * mesh.cols * mesh.rows; ++i)
+      if (!(mesh.dxdy[i] >= -4096.0f && mesh.dxdy[i] <= 4096.0f))
+        return InvalidArgument("distortion.mesh", "displacements must be finite, within 4096 pixels");
+  }
   if (IdentityReason() != nullptr) return Status::Ok();
+  if (m.model == DistortionModel::kOff && m.fx == 0.0 && m.fy == 0.0) {
+    // Mesh or chromatic aberration alone: the centre defaults to the frame's.
+    config_.lens.fx = config_.lens.fy = 1.0;
+    if (m.cx == 0.0 && m.cy == 0.0) {
+      config_.lens.cx = (g.width - 1) / 2.0;
+      config_.lens.cy = (g.height - 1) / 2.0;
+    }
+  }
 
   if (!(m.fx >= kMinFocal && m.fx <= kMaxFocal)) return InvalidArgument("distortion.fx", "must be in [1, 1e6] pixels");
   if (!(m.fy >= kMinFocal && m.fy <= kMaxFocal)) return InvalidArgument("distortion.fy", "must be in [1, 1e6] pixels");
@@ -277,7 +295,32 @@ bool DistortionStage::NodeSource(int i, int j, double* sx, double* sy) const {
   if (!LensUndistort(m, branch_, xd, yd, &x, &y)) return false;
   *sx = m.fx * x + m.cx;
   *sy = m.fy * y + m.cy;
+  if (config_.mesh.dxdy != nullptr) {
+    double dx = 0.0, dy = 0.0;
+    MeshDisplacement(u, v, &dx, &dy);
+    *sx += dx;
+    *sy += dy;
+  }
   return *sx == *sx && *sy == *sy;
+}
+
+void DistortionStage::MeshDisplacement(double u, double v, double* dx, double* dy) const {
+  const DisplacementMesh& mesh = config_.mesh;
+  double gx = u / mesh.step, gy = v / mesh.step;
+  gx = gx < 0.0 ? 0.0 : (gx > mesh.cols - 1 ? mesh.cols - 1 : gx);
+  gy = gy < 0.0 ? 0.0 : (gy > mesh.rows - 1 ? mesh.rows - 1 : gy);
+  int i = static_cast<int>(gx), j = static_cast<int>(gy);
+  if (i > mesh.cols - 2) i = mesh.cols - 2;
+  if (j > mesh.rows - 2) j = mesh.rows - 2;
+  const double fx = gx - i, fy = gy - j;
+  const auto at = [&mesh](int ii, int jj, int k) {
+    return static_cast<double>(mesh.dxdy[(static_cast<size_t>(jj) * mesh.cols + ii) * 2 + k]);
+  };
+  for (int k = 0; k < 2; ++k) {
+    const double top = at(i, j, k) + (at(i + 1, j, k) - at(i, j, k)) * fx;
+    const double bottom = at(i, j + 1, k) + (at(i + 1, j + 1, k) - at(i, j + 1, k)) * fx;
+    (k == 0 ? *dx : *dy) = top + (bottom - top) * fy;
+  }
 }
 
 Result<LineFormat> DistortionStage::Plan(LineFormat in) const {
@@ -289,7 +332,7 @@ Result<LineFormat> DistortionStage::Plan(LineFormat in) const {
 const char* DistortionStage::IdentityReason() const {
   const bool chromatic = config_.chromatic_scale[0] != 1.0 || config_.chromatic_scale[1] != 1.0 ||
                          config_.chromatic_scale[2] != 1.0;
-  if (chromatic) return nullptr;
+  if (chromatic || config_.mesh.dxdy != nullptr) return nullptr;
   const LensModel& m = config_.lens;
   if (m.model == DistortionModel::kOff) return "distortion.model is off and no chromatic aberration";
   if (m.model == DistortionModel::kBrown) {

@@ -50,8 +50,20 @@ namespace camsim {
 
 enum class ResampleFilter : uint8_t { kBilinear, kBicubic, kLanczos3 };
 
+// An arbitrary displacement mesh (paper section 4.1: asymmetric distortion,
+// e.g. measured): node (i, j) sits at output pixel (i * step, j * step) and
+// moves that pixel's source by (dx, dy) pixels, added to the lens model's
+// source (alone when the model is off). Between nodes: bilinear; beyond the
+// last node: the edge node's value. Caller-owned; read at Configure and Init only.
+struct DisplacementMesh {
+  const float* dxdy = nullptr;  // cols * rows pairs (dx, dy), row-major
+  int cols = 0, rows = 0;
+  double step = 0.0;  // pixels between nodes
+};
+
 struct DistortionConfig {
   LensModel lens;
+  DisplacementMesh mesh;
   double chromatic_scale[3] = {1.0, 1.0, 1.0};  // R, G, B radial scale of the source
   ResampleFilter filter = ResampleFilter::kLanczos3;
   int phases = 64;     // sub-pixel phases: 16, 32, 64, 128 or 256
@@ -86,6 +98,8 @@ class DistortionStage final : public Stage {
   int taps() const { return taps_; }
 
  private:
+  // The mesh's displacement at output position (u, v) (pixels).
+  void MeshDisplacement(double u, double v, double* dx, double* dy) const;
   // The source position (pixels) of grid node (i, j); false if none.
   bool NodeSource(int i, int j, double* sx, double* sy) const;
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
