@@ -40,6 +40,15 @@ double Floor(double v) {
 // weights of the two phases. Valid is false when the pixel gets the fill:
 // the source is off the image, or a tap row is outside the window the
 // driver provided (impossible for valid nodes; see InputRows).
+// What the taps need from RowArgs, copied into locals: a store through an
+// output pointer (uint32_t) may alias RowArgs' int fields, which would make
+// the compiler reload them for every sample.
+struct Source {
+  const RowIn* rows;
+  int first_row, row_count, width, height, phase_bits;
+  const int16_t* weights;
+};
+
 template <int N>
 struct Taps {
   int row[N];
@@ -50,9 +59,9 @@ struct Taps {
 };
 
 template <int N>
-bool SetUpTaps(const RowArgs& a, int64_t px, int64_t py, int height, int phase_bits, const int16_t* weights,
-               Taps<N>* t) {
-  const int width = a.width;
+bool SetUpTaps(const Source a, int64_t px, int64_t py, Taps<N>* t) {
+  const int width = a.width, height = a.height, phase_bits = a.phase_bits;
+  const int16_t* weights = a.weights;
   constexpr int64_t kHalf = int64_t{1} << 15;
   if (px < -kHalf || py < -kHalf || px > (int64_t{width} << 16) - kHalf || py > (int64_t{height} << 16) - kHalf)
     return false;
@@ -85,7 +94,7 @@ bool SetUpTaps(const RowArgs& a, int64_t px, int64_t py, int height, int phase_b
 
 // The filtered sample of channel c at the taps.
 template <int N>
-uint32_t Filter(const RowArgs& a, int c, const Taps<N>& t) {
+uint32_t Filter(const Source a, int c, const Taps<N>& t) {
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
   const uint32_t* rows[N];
@@ -451,22 +460,25 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
   int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
-  const int width = a.width, height = geometry_.height, y = a.y, phase_bits = phase_bits_;
+  const int width = a.width, y = a.y;
+  const Source src{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_};
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const bool site_only = site_only_;
   const int step_bits = step_bits_, smask = (1 << step_bits) - 1;
   const int64_t half = (int64_t{1} << step_bits) >> 1;
   constexpr int64_t kRound = int64_t{1} << (kScaleFracBits - 1);
   const bool any_scaled = scaled_[0] || scaled_[1] || scaled_[2];
-  const int16_t* weights = weights_;
   for (int x = 0; x < width; ++x) {
     const int i = x >> step_bits;
     int c0 = 0, c1 = 3;
-    if (site_only_) {
-      c0 = CfaColour(geometry_.cfa, x, y);
+    if (site_only) {
+      c0 = CfaColour(cfa, x, y);
       c1 = c0 + 1;
-      for (int c = 0; c < 3; ++c) a.out[c][x] = 0;
+      for (int c = 0; c < 3; ++c) out[c][x] = 0;
     }
     if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
-      for (int c = c0; c < c1; ++c) a.out[c][x] = 0;
+      for (int c = c0; c < c1; ++c) out[c][x] = 0;
       continue;
     }
     const int64_t fx = x & smask, w0 = (1 << step_bits) - fx;
@@ -474,8 +486,8 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
     const int64_t sy = (int64_t{y} << 16) + ((vdy[i] * w0 + vdy[i + 1] * fx + half) >> step_bits);
     Taps<N> t;
     if (!any_scaled) {  // one position for every channel
-      const bool ok = SetUpTaps<N>(a, sx, sy, height, phase_bits, weights, &t);
-      for (int c = c0; c < c1; ++c) a.out[c][x] = ok ? Filter<N>(a, c, t) : 0;
+      const bool ok = SetUpTaps<N>(src, sx, sy, &t);
+      for (int c = c0; c < c1; ++c) out[c][x] = ok ? Filter<N>(src, c, t) : 0;
       continue;
     }
     for (int c = c0; c < c1; ++c) {
@@ -484,7 +496,7 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
         px = centre_x_ + (((sx - centre_x_) * scale_[c] + kRound) >> kScaleFracBits);
         py = centre_y_ + (((sy - centre_y_) * scale_[c] + kRound) >> kScaleFracBits);
       }
-      a.out[c][x] = SetUpTaps<N>(a, px, py, height, phase_bits, weights, &t) ? Filter<N>(a, c, t) : 0;
+      out[c][x] = SetUpTaps<N>(src, px, py, &t) ? Filter<N>(src, c, t) : 0;
     }
   }
 }
