@@ -59,7 +59,7 @@ struct Taps {
 };
 
 template <int N>
-bool SetUpTaps(const Source a, int64_t px, int64_t py, Taps<N>* t) {
+[[gnu::always_inline]] inline bool SetUpTaps(const Source a, int64_t px, int64_t py, Taps<N>* t) {
   const int width = a.width, height = a.height, phase_bits = a.phase_bits;
   const int16_t* weights = a.weights;
   constexpr int64_t kHalf = int64_t{1} << 15;
@@ -94,7 +94,7 @@ bool SetUpTaps(const Source a, int64_t px, int64_t py, Taps<N>* t) {
 
 // The filtered sample of channel c at the taps.
 template <int N>
-uint32_t Filter(const Source a, int c, const Taps<N>& t) {
+[[gnu::always_inline]] inline uint32_t Filter(const Source a, int c, const Taps<N>& t) {
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
   const uint32_t* rows[N];
@@ -486,8 +486,11 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
     const int64_t sy = (int64_t{y} << 16) + ((vdy[i] * w0 + vdy[i + 1] * fx + half) >> step_bits);
     Taps<N> t;
     if (!any_scaled) {  // one position for every channel
-      const bool ok = SetUpTaps<N>(src, sx, sy, &t);
-      for (int c = c0; c < c1; ++c) out[c][x] = ok ? Filter<N>(src, c, t) : 0;
+      if (SetUpTaps<N>(src, sx, sy, &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      } else {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      }
       continue;
     }
     for (int c = c0; c < c1; ++c) {
@@ -496,7 +499,8 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
         px = centre_x_ + (((sx - centre_x_) * scale_[c] + kRound) >> kScaleFracBits);
         py = centre_y_ + (((sy - centre_y_) * scale_[c] + kRound) >> kScaleFracBits);
       }
-      out[c][x] = SetUpTaps<N>(src, px, py, &t) ? Filter<N>(src, c, t) : 0;
+      Taps<N> tc;
+      out[c][x] = SetUpTaps<N>(src, px, py, &tc) ? Filter<N>(src, c, tc) : 0;
     }
   }
 }
