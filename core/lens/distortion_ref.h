@@ -19,8 +19,12 @@ class ReferenceDistortion {
   double Sample(const ImageView<const uint32_t>& plane, int x, int y, int c) const;
   // The filtered value of a plane at source position (sx, sy) (no fill test).
   double Filter(const ImageView<const uint32_t>& plane, double sx, double sy) const;
+  // The same for a plane of doubles (width x height of the geometry, row-major).
+  double Sample(const double* plane, int x, int y, int c) const;
 
  private:
+  template <typename At>
+  double FilterAt(const At& at, double sx, double sy) const;
   DistortionConfig config_;
   SensorGeometry geometry_;
   LensBranch branch_;

@@ -143,6 +143,11 @@ class Pipeline {
   void ProcessFrame(const FrameInput& input, uint32_t frame, int strip_rows, const Tap* taps,
                     int tap_count, WorkerStats* stats, const Clock* clock) const;
 
+  // Running stage i (0 <= i < plan().running) and its output format, for
+  // tools that drive one stage alone (the per-stage benchmark).
+  const Stage& running_stage(int i) const { return *run_[i]; }
+  LineFormat running_format(int i) const { return run_format_[i]; }
+
   int width() const { return config_.geometry.width; }
   int height() const { return config_.geometry.height; }
   const PipelineConfig& config() const { return config_; }
