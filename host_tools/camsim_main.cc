@@ -13,6 +13,7 @@
 #include "host_tools/io/image_write.h"
 
 #include "host_tools/config.h"
+#include "host_tools/pattern.h"
 #include "host_tools/report/tradeoff.h"
 #include "host_tools/run.h"
 
@@ -22,10 +23,13 @@ const char kUsage[] =
     "usage:\n"
     "  camsim run --input EXR... --out DIR [--config FILE] [--depth EXR] [--threads N]\n"
     "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE]\n"
-    "             [--first-frame N] [--dump-stages] [--quiet]\n"
+    "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
+    "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"
+    "                 [--width W] [--height H] [--cell PX] [--supersample N]\n"
+    "      a calibration target (radiance, R = G = B) to run through camsim\n"
     "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"
     "      error against run time for every precision knob of the running stages:\n"
     "      DIR/tradeoff.csv, tradeoff.md and tradeoff.png\n"
@@ -59,6 +63,15 @@ int Run(int argc, char** argv) {
     } else if (a == "--depth") o.depth_path = value("a file");
     else if (a == "--out") o.out_dir = value("a directory");
     else if (a == "--set") o.overrides.push_back(value("section.key=value"));
+    else if (a == "--calibration") {
+      // distortion.calibration as a TOML literal string.
+      const std::string path = value("an OpenCV or ROS calibration YAML file");
+      if (path.find_first_of("'\n") != std::string::npos) {
+        std::fprintf(stderr, "camsim: --calibration: the path must not contain ' or a newline\n");
+        return 1;
+      }
+      o.overrides.push_back("distortion.calibration='" + path + "'");
+    }
     else if (a == "--stages") o.stages = value("a list");
     else if (a == "--report") o.report_path = value("a file");
     else if (a == "--dump-stages") o.dump_stages = true;
@@ -176,6 +189,7 @@ int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "run") == 0) return Run(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "config") == 0) return Config(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
+  if (argc >= 2 && std::strcmp(argv[1], "pattern") == 0) return camsim::host::PatternCommand(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "tradeoff") == 0) return Tradeoff(argc, argv);
   std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
   return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;

@@ -9,6 +9,8 @@
 
 #include <toml++/toml.h>
 
+#include "host_tools/calibration.h"
+
 namespace camsim::host {
 namespace {
 
@@ -105,7 +107,7 @@ const std::vector<Field>& Fields() {
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
                  "stages in run order; a stage not listed does not run. All, in the default order: dof_gather, dof_rows, "
-                 "dof_columns, motion_blur, exposure, vignetting, cfa, "
+                 "dof_columns, motion_blur, distortion, exposure, vignetting, cfa, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
@@ -238,6 +240,56 @@ const std::vector<Field>& Fields() {
                       [](RunConfig& c) { return &c.core.dof.structural_poly_count; }));
     v.push_back(Bool("dof", "structural_only", "diffusion stages blur by structural_poly only (no depth needed)",
                      [](RunConfig& c) -> bool& { return c.core.dof.structural_only; }));
+    // [distortion]
+    v.push_back(Enum<DistortionModel>("distortion", "model",
+                                      "off, brown (OpenCV/ROS plumb_bob and rational_polynomial: k1 k2 p1 p2 k3 k4 k5 k6) "
+                                      "or fisheye (OpenCV fisheye / ROS equidistant: k1..k4)",
+                                      {"off", "brown", "fisheye"},
+                                      [](RunConfig& c) -> DistortionModel& { return c.core.distortion.lens.model; }));
+    Field calibration = Make("distortion", "calibration", Kind::kString,
+                             "OpenCV FileStorage or ROS camera_info YAML; sets model (ROS), fx fy cx cy, k1..k6, p1 p2 "
+                             "(scaled to the sensor if calibrated at another size of the same aspect ratio)");
+    calibration.get_text = [](const RunConfig& c) { return TomlString(c.calibration); };
+    calibration.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.calibration = s[0];
+      return true;
+    };
+    v.push_back(calibration);
+    Field mesh = Make("distortion", "mesh", Kind::kString,
+                      "displacement mesh text file (step S / size COLS ROWS / dx dy pairs): moves each output "
+                      "pixel's source, on top of the lens model (asymmetric or measured distortion)");
+    mesh.get_text = [](const RunConfig& c) { return TomlString(c.mesh); };
+    mesh.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.mesh = s[0];
+      return true;
+    };
+    v.push_back(mesh);
+    v.push_back(Number("distortion", "fx", "focal length x, pixels; 0 = lens.focal_length_mm / pixel pitch",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.fx; }));
+    v.push_back(Number("distortion", "fy", "focal length y, pixels; 0 = fx",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.fy; }));
+    v.push_back(Number("distortion", "cx", "principal point x, pixels (pixel centres at integers); -1 = frame centre",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.cx; }));
+    v.push_back(Number("distortion", "cy", "principal point y, pixels; -1 = frame centre",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.cy; }));
+    static constexpr const char* kKNames[6] = {"k1", "k2", "k3", "k4", "k5", "k6"};
+    for (int i = 0; i < 6; ++i)
+      v.push_back(Number("distortion", kKNames[i], i < 3 ? "radial coefficient" : "rational (brown) radial denominator coefficient; fisheye: k4 is the 4th",
+                         [i](RunConfig& c) -> double& { return c.core.distortion.lens.k[i]; }));
+    v.push_back(Number("distortion", "p1", "tangential coefficient (brown)",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.p1; }));
+    v.push_back(Number("distortion", "p2", "tangential coefficient (brown)",
+                       [](RunConfig& c) -> double& { return c.core.distortion.lens.p2; }));
+    v.push_back(Array("distortion", "chromatic_scale",
+                      "lateral chromatic aberration: radial scale of R, G, B about (cx, cy), 0.5 .. 2 (1 = none)", 3, 3,
+                      [](RunConfig& c) { return c.core.distortion.chromatic_scale; }));
+    v.push_back(Enum<ResampleFilter>("distortion", "filter", "resampling: bilinear, bicubic (Keys a = -0.5) or lanczos3",
+                                     {"bilinear", "bicubic", "lanczos3"},
+                                     [](RunConfig& c) -> ResampleFilter& { return c.core.distortion.filter; }));
+    v.push_back(Integer("distortion", "phases", "sub-pixel filter phases: 16, 32, 64, 128 or 256",
+                        [](RunConfig& c) -> int& { return c.core.distortion.phases; }));
+    v.push_back(Integer("distortion", "grid_step", "remap table grid spacing, pixels: 4, 8, 16, 32 or 64 (precision knob)",
+                        [](RunConfig& c) -> int& { return c.core.distortion.grid_step; }));
 
     // [vignetting]
     v.push_back(Enum<VignettingMode>("vignetting", "mode",
@@ -644,6 +696,46 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
   return where + (field.empty() ? "" : field + " ") + s.message();
 }
 
+// The lens of [distortion]: from a calibration file, or from the keys with
+// their defaults resolved (focal length from lens.focal_length_mm, principal
+// point at the frame centre).
+bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, std::string* error) {
+  DistortionConfig& d = c->core.distortion;
+  const SensorGeometry& g = c->core.geometry;
+  d.mesh = DisplacementMesh();
+  if (!c->mesh.empty()) {
+    auto data = std::make_shared<std::vector<float>>();
+    if (!LoadDisplacementMesh(c->mesh, data.get(), &d.mesh.cols, &d.mesh.rows, &d.mesh.step, error)) {
+      *error = "distortion.mesh: " + *error;
+      return false;
+    }
+    c->mesh_data = data;
+    d.mesh.dxdy = data->data();
+  }
+  if (!c->calibration.empty()) {
+    for (const char* key : {"distortion.fx", "distortion.fy", "distortion.cx", "distortion.cy", "distortion.k1",
+                            "distortion.k2", "distortion.k3", "distortion.k4", "distortion.k5", "distortion.k6",
+                            "distortion.p1", "distortion.p2"})
+      if (origins.count(key) != 0) {
+        *error = origins.at(key) + ": " + key + " is set together with distortion.calibration, which sets it too";
+        return false;
+      }
+    Calibration cal;
+    const bool fisheye_hint = d.lens.model == DistortionModel::kFisheye;
+    if (!LoadCalibration(c->calibration, fisheye_hint, &cal, error) ||
+        !FitCalibration(cal, g.width, g.height, &d.lens, error)) {
+      *error = "distortion.calibration: " + *error;
+      return false;
+    }
+    return true;
+  }
+  if (d.lens.fx == 0.0) d.lens.fx = c->focal_length_mm / pitch_mm;
+  if (d.lens.fy == 0.0) d.lens.fy = d.lens.fx;
+  if (d.lens.cx == -1.0) d.lens.cx = (g.width - 1) / 2.0;
+  if (d.lens.cy == -1.0) d.lens.cy = (g.height - 1) / 2.0;
+  return true;
+}
+
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error) {
   PipelineConfig& p = c->core;
@@ -676,6 +768,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   if (p.motion_blur.fy_px == 0.0) p.motion_blur.fy_px = c->focal_length_mm / pitch_mm;
   p.dof.focal_length_mm = c->focal_length_mm;
   p.dof.pixel_pitch_um = pitch_mm * 1000.0;
+  if (!ResolveDistortion(c, pitch_mm, origins, error)) return false;
   Pipeline probe;
   const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
   if (!s.ok()) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@ namespace camsim::host {
 enum class SceneFit { kCrop, kScale };
 
 struct RunConfig {
+  RunConfig() { core.distortion.lens.cx = core.distortion.lens.cy = -1.0; }  // -1 = frame centre
   PipelineConfig core;
   // Sensor size; 0 = the input's size. When it differs from the input, the
   // scene is centre-cropped (fit = crop; the sensor must not be larger) or
@@ -27,6 +29,10 @@ struct RunConfig {
   double pixel_pitch_um = 0.0;
   double focal_length_mm = 28.0;  // lens focal length (the bundled scenes: 28 mm)
   std::string vignetting_mask;    // mask image path (vignetting.mode = "mask")
+  std::string calibration;        // OpenCV / ROS calibration YAML (distortion.calibration)
+  std::string mesh;               // displacement mesh text file (distortion.mesh)
+  // The loaded mesh, shared by copies (core.distortion.mesh points into it).
+  std::shared_ptr<const std::vector<float>> mesh_data;
   int output_bits = 8;            // ISP output PNG depth: 8 or 16
 };
 

@@ -9,8 +9,8 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "dof_gather", "dof_rows", "dof_columns", "motion_blur", "exposure", "vignetting", "cfa", "sensor", "black_level",
-    "white_balance", "demosaic", "color_matrix", "gamma"};
+    "dof_gather", "dof_rows", "dof_columns", "motion_blur", "distortion", "exposure", "vignetting", "cfa", "sensor",
+    "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -158,6 +158,7 @@ const Stage* Pipeline::StageFor(StageId id) const {
     case StageId::kDofRows: return &dof_rows_;
     case StageId::kDofColumns: return &dof_columns_;
     case StageId::kMotionBlur: return &motion_blur_;
+    case StageId::kDistortion: return &distortion_;
     case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
@@ -191,6 +192,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(dof_rows_.Configure(config.dof, g, config.exposure.f_number));
   CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
+  CAMSIM_TRY(distortion_.Configure(config.distortion, g));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
@@ -233,6 +235,15 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   if (run_count_ == 0) return InvalidArgument("pipeline.stages", "every listed stage was left out");
   plan_.running = run_count_;
   plan_.output = format;
+  // Distortion followed, through pointwise stages only, by a Bayer CFA
+  // computes only the colour each site keeps (core/lens/distortion.h).
+  distortion_.SetSiteOnly(false);
+  for (int i = 0; i < run_count_; ++i) {
+    if (run_[i] != &distortion_) continue;
+    int k = i + 1;
+    while (k < run_count_ && (run_[k] == &exposure_ || run_[k] == &vignetting_)) ++k;
+    distortion_.SetSiteOnly(k < run_count_ && run_[k] == &cfa_ && g.cfa != Cfa::kMono);
+  }
 
   // Rings: the input ring (index 0) and each stage's output ring (index i + 1)
   // hold as many rows as their consumer's widest window spans; the last

@@ -22,6 +22,7 @@
 #include "core/isp/white_balance.h"
 #include "core/lens/motion_blur.h"
 #include "core/lens/dof.h"
+#include "core/lens/distortion.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -36,6 +37,7 @@ enum class StageId : uint8_t {
   kDofRows,
   kDofColumns,
   kMotionBlur,
+  kDistortion,
   kExposure,
   kVignetting,
   kCfa,
@@ -67,14 +69,16 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kDofGather,  StageId::kDofRows,    StageId::kDofColumns,
-                                StageId::kMotionBlur, StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
-                                StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
-                                StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
+  StageId order[kStageCount] = {StageId::kDofGather,  StageId::kDofRows,     StageId::kDofColumns,
+                                StageId::kMotionBlur, StageId::kDistortion,  StageId::kExposure,
+                                StageId::kVignetting, StageId::kCfa,         StageId::kSensor,
+                                StageId::kBlackLevel, StageId::kWhiteBalance, StageId::kDemosaic,
+                                StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
   DofConfig dof;  // depth of field and structural blur (dof_gather, dof_rows, dof_columns)
   MotionBlurConfig motion_blur;
+  DistortionConfig distortion;
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
@@ -194,6 +198,7 @@ class Pipeline {
   DofRowStage dof_rows_;
   DofColumnStage dof_columns_;
   MotionBlurStage motion_blur_;
+  DistortionStage distortion_;
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;

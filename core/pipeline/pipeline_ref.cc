@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "core/lens/motion_blur_ref.h"
+#include "core/lens/distortion_ref.h"
 
 namespace camsim::ref {
 namespace {
@@ -73,6 +74,19 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
                                                   : ReferenceDiffusionColumns(in.planes[k], cc2, w, h, -1);
         }
       }
+      return out;
+    }
+    case StageId::kDistortion: {
+      const auto& stage = static_cast<const DistortionStage&>(p.running_stage(index));
+      const ReferenceDistortion d(c.distortion, g);
+      RefImage out = Like(in, in.planes.size());
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          for (int k = 0; k < static_cast<int>(in.planes.size()); ++k) {
+            // Before a Bayer CFA the stage computes only the site's colour (0 elsewhere).
+            if (stage.site_only() && k != CfaColour(g.cfa, x, y)) continue;
+            out.planes[k][at(x, y)] = d.Sample(in.planes[k].data(), x, y, k);
+          }
       return out;
     }
     case StageId::kExposure: {

@@ -20,6 +20,9 @@ namespace camsim::host {
 
 const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
+      {"distortion", "distortion.filter", {"bilinear", "bicubic", "lanczos3"}, "resampling kernel (2, 4, 6 taps)"},
+      {"distortion", "distortion.grid_step", {"4", "8", "16", "32"}, "remap table spacing, pixels"},
+      {"distortion", "distortion.phases", {"16", "64", "256"}, "sub-pixel filter phases"},
       {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
       {"motion_blur", "motion.samples_per_px", {"0.25", "0.5", "1", "2", "4"}, "time samples per pixel of motion"},
       {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},

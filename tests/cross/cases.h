@@ -142,6 +142,28 @@ inline double DepthMetres(int width, int height, int x, int y) {
   return 0.4 + 5.6 * (static_cast<double>(x) + y) / (width + height);
 }
 
+// The demo camera behind a lens: Brown-Conrady barrel distortion with
+// tangential terms (typical machine-vision magnitudes), lateral chromatic
+// aberration, Lanczos-3 resampling. Distortion is the first stage that runs
+// (on radiance, reading the input rows directly) and computes only each CFA
+// site's colour (the pipeline's site-only path).
+inline PipelineConfig LensConfig(int width, int height) {
+  PipelineConfig c = DemoConfig(width, height);
+  LensModel& m = c.distortion.lens;
+  m.model = DistortionModel::kBrown;
+  m.fx = m.fy = 0.8 * width;
+  m.cx = (width - 1) / 2.0 + 1.5;
+  m.cy = (height - 1) / 2.0 - 0.75;
+  m.k[0] = -0.28;
+  m.k[1] = 0.07;
+  m.k[2] = 0.01;
+  m.p1 = 0.0012;
+  m.p2 = -0.0007;
+  c.distortion.chromatic_scale[0] = 1.003;
+  c.distortion.chromatic_scale[2] = 0.998;
+  return c;
+}
+
 // The radiance of the tests' TexturedScene (tests/support/test_support.cc
 // uses this too) at (x, y) for colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
 // bright (saturating) spot. IEEE basic operations only, so it is the same on

@@ -16,7 +16,8 @@
 //
 // Cases, part 2: four pipeline configurations (tests/cross/cases.h: the demo
 // camera, a mono sensor, bilinear BayerBG with a colour matrix, the demo
-// camera with motion blur and rolling shutter) x two synthetic scenes
+// camera with motion blur and rolling shutter, the demo camera behind a
+// distorting lens, depth of field and structural blur) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
 // pipeline after a running stage. Each case's output (uint32 samples, the
@@ -280,6 +281,7 @@ int main(int argc, char** argv) {
       {"dof_diffusion", cross::DofDiffusionConfig, 1},
       {"dof_gather", cross::DofGatherConfig, 1},
       {"structural_blur", cross::StructuralBlurConfig, 1},
+      {"lens", cross::LensConfig, 5},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 

@@ -78,6 +78,36 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       const std::string key = std::string(scene_name) + ":" + StageName(c.order[n - 1]);
       got[key] = test::Hex64(HashSamples(test::RunFrame(*b, scene, 1, 32)));
     }
+    // Lens distortion (a typical barrel calibration with tangential terms and
+    // lateral chromatic aberration): the stage alone, then the whole demo
+    // pipeline (the CFA site-only path) for each filter.
+    PipelineConfig lens = full;
+    LensModel& m = lens.distortion.lens;
+    m.model = DistortionModel::kBrown;
+    m.fx = m.fy = 0.8 * scene.width;
+    m.cx = (scene.width - 1) / 2.0 + 2.5;
+    m.cy = (scene.height - 1) / 2.0 - 1.75;
+    m.k[0] = -0.28;
+    m.k[1] = 0.07;
+    m.p1 = 0.0012;
+    m.p2 = -0.0007;
+    lens.distortion.chromatic_scale[0] = 1.003;
+    lens.distortion.chromatic_scale[2] = 0.998;
+    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
+      static constexpr const char* kFilterNames[3] = {"bilinear", "bicubic", "lanczos3"};
+      lens.distortion.filter = f;
+      int cut = 0;  // the order up to distortion (the scene-space stages before it are off)
+      while (lens.order[cut] != StageId::kDistortion) ++cut;
+      for (int n : {cut + 1, lens.order_count}) {
+        PipelineConfig c = lens;
+        c.order_count = n;
+        auto b = test::Build(c);
+        ASSERT_TRUE(b->status.ok()) << b->status.message();
+        const std::string key = std::string(scene_name) + ":lens_" + kFilterNames[static_cast<int>(f)] + ":" +
+                                StageName(c.order[n - 1]);
+        got[key] = test::Hex64(HashSamples(test::RunFrame(*b, scene, 1, 32)));
+      }
+    }
   }
   // Motion blur and rolling shutter on aisle_0002 (the camera dollies forward
   // between frames): the cut after exposure (motion blur runs on radiance just
@@ -93,9 +123,9 @@ TEST(Golden, StageOutputsOnBundledScenes) {
     ASSERT_FALSE(in.motion[0].empty());
     for (const MotionSource source : {MotionSource::kCamera, MotionSource::kVectors}) {
       PipelineConfig c = test::DemoConfig(in.width, in.height);
-      c.order_count = 5;  // dof_gather, dof_rows, dof_columns (left out), motion_blur, exposure
+      c.order_count = 6;  // dof_gather, dof_rows, dof_columns, motion_blur, distortion (off), exposure
       ASSERT_EQ(c.order[3], StageId::kMotionBlur);
-      ASSERT_EQ(c.order[4], StageId::kExposure);
+      ASSERT_EQ(c.order[5], StageId::kExposure);
       MotionBlurConfig& m = c.motion_blur;
       m.source = source;
       m.angular_velocity_rad_s[0] = 0.2;

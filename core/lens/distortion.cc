@@ -1,0 +1,516 @@
+#include "core/lens/distortion.h"
+
+#include <cmath>  // std::sqrt only (IEEE basic operation)
+
+#include "core/base/detmath.h"
+
+namespace camsim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// A node without a source (see the header's Fill); any cell touching one fills.
+constexpr int32_t kNoSource = INT32_MIN;
+// Largest displacement a node stores, pixels: Q15.16 signed.
+constexpr double kMaxDisplacement = 32767.0;
+// Configuration limits (each named in its error).
+constexpr double kMinFocal = 1.0, kMaxFocal = 1e6;        // pixels
+constexpr double kMaxCoefficient = 1e6;                    // |k|
+constexpr double kMaxTangential = 1.0;                     // |p|
+constexpr double kMinChromatic = 0.5, kMaxChromatic = 2.0;
+
+int Log2Exact(int v) {
+  int b = 0;
+  while ((1 << b) < v) ++b;
+  return (1 << b) == v ? b : -1;
+}
+
+double Sinc(double x) {
+  if (x == 0.0) return 1.0;
+  const double px = kPi * x;
+  return detmath::Sin(px) / px;
+}
+
+double Floor(double v) {
+  const double t = static_cast<double>(static_cast<int64_t>(v));
+  return t > v ? t - 1.0 : t;
+}
+
+// The taps of one source position: the N input rows (indices into
+// RowArgs::rows), the N columns (x0 .. x0 + N - 1 or reflected) and the
+// weights of the two phases. Valid is false when the pixel gets the fill:
+// the source is off the image, or a tap row is outside the window the
+// driver provided (impossible for valid nodes; see InputRows).
+// What the taps need from RowArgs, copied into locals: a store through an
+// output pointer (uint32_t) may alias RowArgs' int fields, which would make
+// the compiler reload them for every sample.
+struct Source {
+  const RowIn* rows;
+  int first_row, row_count, width, height, phase_bits;
+  const int16_t* weights;
+};
+
+template <int N>
+struct Taps {
+  int row[N];
+  int col[N];
+  bool contiguous;  // col[t] == col[0] + t
+  const int16_t* wx;
+  const int16_t* wy;
+};
+
+template <int N>
+[[gnu::always_inline]] inline bool SetUpTaps(const Source a, int64_t px, int64_t py, Taps<N>* t) {
+  const int width = a.width, height = a.height, phase_bits = a.phase_bits;
+  const int16_t* weights = a.weights;
+  constexpr int64_t kHalf = int64_t{1} << 15;
+  if (px < -kHalf || py < -kHalf || px > (int64_t{width} << 16) - kHalf || py > (int64_t{height} << 16) - kHalf)
+    return false;
+  const int shift = 16 - phase_bits;
+  const int64_t qx = (px + (int64_t{1} << (shift - 1))) >> shift;  // 1/phases of a pixel, ties up
+  const int64_t qy = (py + (int64_t{1} << (shift - 1))) >> shift;
+  const int mask = (1 << phase_bits) - 1;
+  const int ix = static_cast<int>(qx >> phase_bits), iy = static_cast<int>(qy >> phase_bits);
+  t->wx = weights + (qx & mask) * N;
+  t->wy = weights + (qy & mask) * N;
+  constexpr int kBefore = N / 2 - 1;  // taps before the integer position
+  const int x0 = ix - kBefore, y0 = iy - kBefore;
+  if (y0 >= 0 && y0 + N - 1 < height && y0 >= a.first_row && y0 + N - 1 < a.first_row + a.row_count) {
+    for (int k = 0; k < N; ++k) t->row[k] = y0 - a.first_row + k;
+  } else {
+    for (int k = 0; k < N; ++k) {
+      const int r = Reflect101(y0 + k, height) - a.first_row;
+      if (r < 0 || r >= a.row_count) return false;
+      t->row[k] = r;
+    }
+  }
+  t->contiguous = x0 >= 0 && x0 + N - 1 < width;
+  if (t->contiguous) {
+    for (int k = 0; k < N; ++k) t->col[k] = x0 + k;
+  } else {
+    for (int k = 0; k < N; ++k) t->col[k] = Reflect101(x0 + k, width);
+  }
+  return true;
+}
+
+// The filtered sample of channel c at the taps.
+template <int N>
+[[gnu::always_inline]] inline uint32_t Filter(const Source a, int c, const Taps<N>& t) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int kBefore = N / 2 - 1;
+  const uint32_t* rows[N];
+  for (int k = 0; k < N; ++k) rows[k] = a.rows[t.row[k]].ch[c];
+  int64_t v = 0;
+  if (t.contiguous) {
+    const int x0 = t.col[0];
+    for (int k = 0; k < N; ++k) {
+      const uint32_t* p = rows[k] + x0;
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += int64_t{t.wx[i]} * p[i];
+      v += int64_t{t.wy[k]} * ((s + (int64_t{1} << (kF - 1))) >> kF);
+    }
+  } else {
+    for (int k = 0; k < N; ++k) {
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += int64_t{t.wx[i]} * rows[k][t.col[i]];
+      v += int64_t{t.wy[k]} * ((s + (int64_t{1} << (kF - 1))) >> kF);
+    }
+  }
+  v = (v + (int64_t{1} << (kF - 1))) >> kF;
+  if constexpr (N > 2) {  // ringing clamp to the 2x2 samples around the source
+    const uint32_t s00 = rows[kBefore][t.col[kBefore]], s01 = rows[kBefore][t.col[kBefore + 1]];
+    const uint32_t s10 = rows[kBefore + 1][t.col[kBefore]], s11 = rows[kBefore + 1][t.col[kBefore + 1]];
+    uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
+    if (s10 < lo) lo = s10;
+    if (s10 > hi) hi = s10;
+    if (s11 < lo) lo = s11;
+    if (s11 > hi) hi = s11;
+    if (v < lo) v = lo;
+    if (v > hi) v = hi;
+  }
+  return SatU32(v);
+}
+
+}  // namespace
+
+int ResampleTaps(ResampleFilter f) {
+  switch (f) {
+    case ResampleFilter::kBilinear: return 2;
+    case ResampleFilter::kBicubic: return 4;
+    case ResampleFilter::kLanczos3: return 6;
+  }
+  return 2;
+}
+
+double ResampleKernel(ResampleFilter f, double t) {
+  const double a = t < 0.0 ? -t : t;
+  switch (f) {
+    case ResampleFilter::kBilinear: return a < 1.0 ? 1.0 - a : 0.0;
+    case ResampleFilter::kBicubic: {
+      // Keys (1981) cubic convolution with a = -0.5 (Catmull-Rom).
+      constexpr double k = -0.5;
+      if (a < 1.0) return ((k + 2.0) * a - (k + 3.0)) * a * a + 1.0;
+      if (a < 2.0) return ((k * a - 5.0 * k) * a + 8.0 * k) * a - 4.0 * k;
+      return 0.0;
+    }
+    case ResampleFilter::kLanczos3: return a < 3.0 ? Sinc(a) * Sinc(a / 3.0) : 0.0;
+  }
+  return 0.0;
+}
+
+Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometry& g) {
+  config_ = c;
+  geometry_ = g;
+  site_only_ = false;
+  table_ = nullptr;
+  weights_ = nullptr;
+  const LensModel& m = config_.lens;
+  if (static_cast<uint8_t>(m.model) > static_cast<uint8_t>(DistortionModel::kFisheye))
+    return InvalidArgument("distortion.model", "must be off, brown or fisheye");
+  if (static_cast<uint8_t>(c.filter) > static_cast<uint8_t>(ResampleFilter::kLanczos3))
+    return InvalidArgument("distortion.filter", "must be bilinear, bicubic or lanczos3");
+  phase_bits_ = Log2Exact(c.phases);
+  if (phase_bits_ < 4 || phase_bits_ > 8) return InvalidArgument("distortion.phases", "must be 16, 32, 64, 128 or 256");
+  step_bits_ = Log2Exact(c.grid_step);
+  if (step_bits_ < 2 || step_bits_ > 6) return InvalidArgument("distortion.grid_step", "must be 4, 8, 16, 32 or 64 pixels");
+  for (int i = 0; i < 3; ++i)
+    if (!(c.chromatic_scale[i] >= kMinChromatic && c.chromatic_scale[i] <= kMaxChromatic))
+      return InvalidArgument("distortion.chromatic_scale", "each scale must be in [0.5, 2]");
+  const DisplacementMesh& mesh = c.mesh;
+  if (mesh.dxdy != nullptr) {
+    if (mesh.cols < 2 || mesh.rows < 2 || mesh.cols > 4096 || mesh.rows > 4096)
+      return InvalidArgument("distortion.mesh", "needs 2 to 4096 nodes per row and column");
+    if (!(mesh.step >= 1.0 && mesh.step <= 16384.0))
+      return InvalidArgument("distortion.mesh", "node step must be in [1, 16384] pixels");
+    for (int i = 0; i < 2 * mesh.cols * mesh.rows; ++i)
+      if (!(mesh.dxdy[i] >= -4096.0f && mesh.dxdy[i] <= 4096.0f))
+        return InvalidArgument("distortion.mesh", "displacements must be finite, within 4096 pixels");
+  }
+  if (IdentityReason() != nullptr) return Status::Ok();
+  if (m.model == DistortionModel::kOff && m.fx == 0.0 && m.fy == 0.0) {
+    // Mesh or chromatic aberration alone: the centre defaults to the frame's.
+    config_.lens.fx = config_.lens.fy = 1.0;
+    if (m.cx == 0.0 && m.cy == 0.0) {
+      config_.lens.cx = (g.width - 1) / 2.0;
+      config_.lens.cy = (g.height - 1) / 2.0;
+    }
+  }
+
+  if (!(m.fx >= kMinFocal && m.fx <= kMaxFocal)) return InvalidArgument("distortion.fx", "must be in [1, 1e6] pixels");
+  if (!(m.fy >= kMinFocal && m.fy <= kMaxFocal)) return InvalidArgument("distortion.fy", "must be in [1, 1e6] pixels");
+  if (!(m.cx >= -g.width && m.cx <= 2.0 * g.width))
+    return InvalidArgument("distortion.cx", "must be within one frame width of the frame");
+  if (!(m.cy >= -g.height && m.cy <= 2.0 * g.height))
+    return InvalidArgument("distortion.cy", "must be within one frame height of the frame");
+  static constexpr const char* kKeys[6] = {"distortion.k1", "distortion.k2", "distortion.k3",
+                                           "distortion.k4", "distortion.k5", "distortion.k6"};
+  for (int i = 0; i < 6; ++i)
+    if (!(m.k[i] >= -kMaxCoefficient && m.k[i] <= kMaxCoefficient))
+      return InvalidArgument(kKeys[i], "must be finite, |k| <= 1e6");
+  if (m.model == DistortionModel::kFisheye && (m.k[4] != 0.0 || m.k[5] != 0.0))
+    return InvalidArgument(m.k[4] != 0.0 ? "distortion.k5" : "distortion.k6", "the fisheye model has k1..k4 only");
+  if (!(m.p1 >= -kMaxTangential && m.p1 <= kMaxTangential)) return InvalidArgument("distortion.p1", "must be in [-1, 1]");
+  if (!(m.p2 >= -kMaxTangential && m.p2 <= kMaxTangential)) return InvalidArgument("distortion.p2", "must be in [-1, 1]");
+  if (m.model == DistortionModel::kFisheye && (m.p1 != 0.0 || m.p2 != 0.0))
+    return InvalidArgument("distortion.p1", "the fisheye model has no tangential terms");
+
+  taps_ = ResampleTaps(c.filter);
+  const int step = 1 << step_bits_;
+  grid_w_ = ((g.width - 1) >> step_bits_) + 2;
+  grid_h_ = ((g.height - 1) >> step_bits_) + 2;
+  for (int i = 0; i < 3; ++i) {
+    scale_[i] = static_cast<int64_t>(Q<8, 24>::FromDouble(c.chromatic_scale[i]).raw);
+    scaled_[i] = scale_[i] != (int64_t{1} << kScaleFracBits);
+  }
+  centre_x_ = static_cast<int64_t>(Floor(m.cx * 65536.0 + 0.5));  // Q.16, |cx| < 2^15
+  centre_y_ = static_cast<int64_t>(Floor(m.cy * 65536.0 + 0.5));
+
+  // The distorted radius the branch must cover: the farthest grid node, and
+  // the farthest pixel of the frame (a fold inside it is refused).
+  const auto radius = [&m](double u, double v) {
+    const double x = (u - m.cx) / m.fx, y = (v - m.cy) / m.fy;
+    return std::sqrt(x * x + y * y);
+  };
+  const double umax = static_cast<double>((grid_w_ - 1) * step), vmax = static_cast<double>((grid_h_ - 1) * step);
+  double rd_nodes = 0.0, rd_frame = 0.0;
+  for (int corner = 0; corner < 4; ++corner) {
+    const double rn = radius(corner & 1 ? umax : 0.0, corner & 2 ? vmax : 0.0);
+    const double rf = radius(corner & 1 ? g.width - 1.0 : 0.0, corner & 2 ? g.height - 1.0 : 0.0);
+    if (rn > rd_nodes) rd_nodes = rn;
+    if (rf > rd_frame) rd_frame = rf;
+  }
+  branch_ = LensAnalyse(m, rd_nodes);
+  if (branch_.folds && branch_.rd_max < rd_frame)
+    return InvalidArgument(m.model == DistortionModel::kFisheye ? "distortion.k1" : "distortion.k1",
+                           "the radial model folds over (stops increasing) inside the frame, so those pixels "
+                           "have no unique source: check k1..k6 (fisheye: k1..k4) and fx, fy");
+
+  // Input rows per band: the floor of the lowest and highest source row of
+  // the band's two node rows (every interpolated position lies between them),
+  // widened by the filter's reach and one row for the rounding to phases,
+  // then reflected into the frame and made monotone.
+  const int h = g.height;
+  const int bands = grid_h_ - 1;
+  for (int j = 0; j < grid_h_; ++j) {
+    double lo = 1e300, hi = -1e300;
+    for (int i = 0; i < grid_w_; ++i) {
+      double sx = 0.0, sy = 0.0;
+      if (!NodeSource(i, j, &sx, &sy)) continue;
+      for (int ch = 0; ch < 3; ++ch) {
+        double y = m.cy + c.chromatic_scale[ch] * (sy - m.cy);
+        if (y < -0.5) y = -0.5;
+        if (y > h - 0.5) y = h - 0.5;
+        if (y < lo) lo = y;
+        if (y > hi) hi = y;
+      }
+    }
+    band_first_[j] = static_cast<int16_t>(lo <= hi ? Floor(lo) : h);
+    band_last_[j] = static_cast<int16_t>(lo <= hi ? Floor(hi) : -1);
+  }
+  const int before = taps_ / 2 - 1, after = taps_ / 2;
+  for (int j = 0; j < bands; ++j) {
+    int a = band_first_[j] < band_first_[j + 1] ? band_first_[j] : band_first_[j + 1];
+    int b = band_last_[j] > band_last_[j + 1] ? band_last_[j] : band_last_[j + 1];
+    if (a > b) a = b = (j << step_bits_) < h ? (j << step_bits_) : h - 1;  // all fill: any row
+    a -= before + 1;
+    b += after + 1;
+    int lo = h, hi = -1;
+    for (int r = a; r <= b; ++r) {
+      const int rr = Reflect101(r, h);
+      if (rr < lo) lo = rr;
+      if (rr > hi) hi = rr;
+    }
+    band_first_[j] = static_cast<int16_t>(lo);
+    band_last_[j] = static_cast<int16_t>(hi);
+  }
+  for (int j = 1; j < bands; ++j)
+    if (band_last_[j] < band_last_[j - 1]) band_last_[j] = band_last_[j - 1];
+  for (int j = bands - 2; j >= 0; --j)
+    if (band_first_[j] > band_first_[j + 1]) band_first_[j] = band_first_[j + 1];
+  max_window_ = 1;
+  for (int j = 0; j < bands; ++j)
+    if (band_last_[j] - band_first_[j] + 1 > max_window_) max_window_ = band_last_[j] - band_first_[j] + 1;
+  if (max_window_ > kMaxWindowRows)
+    return InvalidArgument("distortion.k1",
+                           "the distortion bends one output row over more than 1024 input rows, beyond the "
+                           "streaming driver's window; the lens is too strong for this frame height");
+  return Status::Ok();
+}
+
+bool DistortionStage::NodeSource(int i, int j, double* sx, double* sy) const {
+  const LensModel& m = config_.lens;
+  const double u = static_cast<double>(i << step_bits_), v = static_cast<double>(j << step_bits_);
+  const double xd = (u - m.cx) / m.fx, yd = (v - m.cy) / m.fy;
+  double x = 0.0, y = 0.0;
+  if (!LensUndistort(m, branch_, xd, yd, &x, &y)) return false;
+  *sx = m.fx * x + m.cx;
+  *sy = m.fy * y + m.cy;
+  if (config_.mesh.dxdy != nullptr) {
+    double dx = 0.0, dy = 0.0;
+    MeshDisplacement(u, v, &dx, &dy);
+    *sx += dx;
+    *sy += dy;
+  }
+  return *sx == *sx && *sy == *sy;
+}
+
+void DistortionStage::MeshDisplacement(double u, double v, double* dx, double* dy) const {
+  const DisplacementMesh& mesh = config_.mesh;
+  double gx = u / mesh.step, gy = v / mesh.step;
+  gx = gx < 0.0 ? 0.0 : (gx > mesh.cols - 1 ? mesh.cols - 1 : gx);
+  gy = gy < 0.0 ? 0.0 : (gy > mesh.rows - 1 ? mesh.rows - 1 : gy);
+  int i = static_cast<int>(gx), j = static_cast<int>(gy);
+  if (i > mesh.cols - 2) i = mesh.cols - 2;
+  if (j > mesh.rows - 2) j = mesh.rows - 2;
+  const double fx = gx - i, fy = gy - j;
+  const auto at = [&mesh](int ii, int jj, int k) {
+    return static_cast<double>(mesh.dxdy[(static_cast<size_t>(jj) * mesh.cols + ii) * 2 + k]);
+  };
+  for (int k = 0; k < 2; ++k) {
+    const double top = at(i, j, k) + (at(i + 1, j, k) - at(i, j, k)) * fx;
+    const double bottom = at(i, j + 1, k) + (at(i + 1, j + 1, k) - at(i, j + 1, k)) * fx;
+    (k == 0 ? *dx : *dy) = top + (bottom - top) * fy;
+  }
+}
+
+Result<LineFormat> DistortionStage::Plan(LineFormat in) const {
+  if ((in.domain != Domain::kRadiance && in.domain != Domain::kPhotons) || in.channels != 3 || in.mosaic)
+    return InvalidArgument("distortion", "needs RGB radiance or photons input (place it before the CFA)");
+  return in;
+}
+
+const char* DistortionStage::IdentityReason() const {
+  const bool chromatic = config_.chromatic_scale[0] != 1.0 || config_.chromatic_scale[1] != 1.0 ||
+                         config_.chromatic_scale[2] != 1.0;
+  if (chromatic || config_.mesh.dxdy != nullptr) return nullptr;
+  const LensModel& m = config_.lens;
+  if (m.model == DistortionModel::kOff) return "distortion.model is off and no chromatic aberration";
+  if (m.model == DistortionModel::kBrown) {
+    for (double k : m.k)
+      if (k != 0.0) return nullptr;
+    if (m.p1 != 0.0 || m.p2 != 0.0) return nullptr;
+    return "distortion coefficients are all 0 and no chromatic aberration";
+  }
+  return nullptr;  // fisheye: even k = 0 is the equidistant projection, not a pinhole
+}
+
+RowWindow DistortionStage::InputRows(int y, int height) const {
+  int band = y >> step_bits_;
+  if (band < 0) band = 0;
+  if (band > grid_h_ - 2) band = grid_h_ - 2;
+  (void)height;
+  return {band_first_[band], band_last_[band]};
+}
+
+size_t DistortionStage::TableBytes() const {
+  return static_cast<size_t>(grid_w_) * grid_h_ * 2 * sizeof(int32_t) +
+         static_cast<size_t>(taps_) * (size_t{1} << phase_bits_) * sizeof(int16_t);
+}
+
+int DistortionStage::MaxWindowRows() const { return max_window_; }
+
+void DistortionStage::CountTables(WorkspaceCounter& counter) const {
+  counter.Add<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
+  counter.Add<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
+}
+
+size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<size_t>(grid_w_) * 2 * sizeof(int32_t); }
+
+Status DistortionStage::Init(Arena& tables) {
+  table_ = tables.Take<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
+  weights_ = tables.Take<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
+  if (table_ == nullptr || weights_ == nullptr)
+    return Status(StatusCode::kResourceExhausted, "workspace too small for the distortion table");
+  for (int j = 0; j < grid_h_; ++j)
+    for (int i = 0; i < grid_w_; ++i) {
+      int32_t* node = table_ + (static_cast<size_t>(j) * grid_w_ + i) * 2;
+      double sx = 0.0, sy = 0.0;
+      if (!NodeSource(i, j, &sx, &sy)) {
+        node[0] = node[1] = kNoSource;
+        continue;
+      }
+      double dx = sx - (i << step_bits_), dy = sy - (j << step_bits_);
+      // A displacement beyond the format is far off the image either way.
+      dx = dx > kMaxDisplacement ? kMaxDisplacement : (dx < -kMaxDisplacement ? -kMaxDisplacement : dx);
+      dy = dy > kMaxDisplacement ? kMaxDisplacement : (dy < -kMaxDisplacement ? -kMaxDisplacement : dy);
+      node[0] = Q<15, 16, true>::FromDouble(dx).raw;
+      node[1] = Q<15, 16, true>::FromDouble(dy).raw;
+    }
+  // Weights per phase: kernel at the taps' offsets, normalised in double,
+  // rounded to Q1.14, the remainder to 2^14 put on the largest tap.
+  const int phases = 1 << phase_bits_, before = taps_ / 2 - 1;
+  for (int p = 0; p < phases; ++p) {
+    double w[6] = {}, sum = 0.0;
+    for (int t = 0; t < taps_; ++t) {
+      w[t] = ResampleKernel(config_.filter, static_cast<double>(t - before) - static_cast<double>(p) / phases);
+      sum += w[t];
+    }
+    int16_t* out = weights_ + p * taps_;
+    int total = 0, largest = 0;
+    for (int t = 0; t < taps_; ++t) {
+      out[t] = static_cast<int16_t>(Q<1, kWeightFracBits, true>::FromDouble(w[t] / sum).raw);
+      total += out[t];
+      if (out[t] > out[largest]) largest = t;
+    }
+    out[largest] = static_cast<int16_t>(out[largest] + ((1 << kWeightFracBits) - total));
+  }
+  return Status::Ok();
+}
+
+// Column i of the grid interpolated to output row y: Q.16, rounded (ties up);
+// kNoSource when either node has no source.
+static inline void NodeColumn(const int32_t* table, int grid_w, int step_bits, int y, int i, int32_t* dx,
+                              int32_t* dy) {
+  const int j = y >> step_bits, fy = y & ((1 << step_bits) - 1);
+  const int32_t* n0 = table + (static_cast<size_t>(j) * grid_w + i) * 2;
+  const int32_t* n1 = n0 + static_cast<size_t>(grid_w) * 2;
+  if (n0[0] == kNoSource || n1[0] == kNoSource) {
+    *dx = *dy = kNoSource;
+    return;
+  }
+  const int64_t w0 = (1 << step_bits) - fy, w1 = fy, half = (int64_t{1} << step_bits) >> 1;
+  *dx = static_cast<int32_t>((n0[0] * w0 + n1[0] * w1 + half) >> step_bits);
+  *dy = static_cast<int32_t>((n0[1] * w0 + n1[1] * w1 + half) >> step_bits);
+}
+
+void DistortionStage::InterpolateRow(int y, int32_t* dx, int32_t* dy) const {
+  for (int i = 0; i < grid_w_; ++i) NodeColumn(table_, grid_w_, step_bits_, y, i, dx + i, dy + i);
+}
+
+bool DistortionStage::SourcePosition(int x, int y, int c, int64_t* sx, int64_t* sy) const {
+  const int i = x >> step_bits_;
+  int32_t ax, ay, bx, by;
+  NodeColumn(table_, grid_w_, step_bits_, y, i, &ax, &ay);
+  NodeColumn(table_, grid_w_, step_bits_, y, i + 1, &bx, &by);
+  if (ax == kNoSource || bx == kNoSource) return false;
+  const int64_t fx = x & ((1 << step_bits_) - 1), w0 = (1 << step_bits_) - fx, half = (int64_t{1} << step_bits_) >> 1;
+  int64_t px = (int64_t{x} << 16) + ((ax * w0 + bx * fx + half) >> step_bits_);
+  int64_t py = (int64_t{y} << 16) + ((ay * w0 + by * fx + half) >> step_bits_);
+  if (scaled_[c]) {
+    constexpr int64_t kRound = int64_t{1} << (kScaleFracBits - 1);
+    px = centre_x_ + (((px - centre_x_) * scale_[c] + kRound) >> kScaleFracBits);
+    py = centre_y_ + (((py - centre_y_) * scale_[c] + kRound) >> kScaleFracBits);
+  }
+  *sx = px;
+  *sy = py;
+  return true;
+}
+
+template <int N>
+void DistortionStage::ProcessRowN(const RowArgs& a) const {
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(a.y, vdx, vdy);
+  const int width = a.width, y = a.y;
+  const Source src{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_};
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const bool site_only = site_only_;
+  const int step_bits = step_bits_, smask = (1 << step_bits) - 1;
+  const int64_t half = (int64_t{1} << step_bits) >> 1;
+  constexpr int64_t kRound = int64_t{1} << (kScaleFracBits - 1);
+  const bool any_scaled = scaled_[0] || scaled_[1] || scaled_[2];
+  for (int x = 0; x < width; ++x) {
+    const int i = x >> step_bits;
+    int c0 = 0, c1 = 3;
+    if (site_only) {
+      c0 = CfaColour(cfa, x, y);
+      c1 = c0 + 1;
+      for (int c = 0; c < 3; ++c) out[c][x] = 0;
+    }
+    if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+      for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      continue;
+    }
+    const int64_t fx = x & smask, w0 = (1 << step_bits) - fx;
+    const int64_t sx = (int64_t{x} << 16) + ((vdx[i] * w0 + vdx[i + 1] * fx + half) >> step_bits);
+    const int64_t sy = (int64_t{y} << 16) + ((vdy[i] * w0 + vdy[i + 1] * fx + half) >> step_bits);
+    Taps<N> t;
+    if (!any_scaled) {  // one position for every channel
+      if (SetUpTaps<N>(src, sx, sy, &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      } else {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      }
+      continue;
+    }
+    for (int c = c0; c < c1; ++c) {
+      int64_t px = sx, py = sy;
+      if (scaled_[c]) {
+        px = centre_x_ + (((sx - centre_x_) * scale_[c] + kRound) >> kScaleFracBits);
+        py = centre_y_ + (((sy - centre_y_) * scale_[c] + kRound) >> kScaleFracBits);
+      }
+      Taps<N> tc;
+      out[c][x] = SetUpTaps<N>(src, px, py, &tc) ? Filter<N>(src, c, tc) : 0;
+    }
+  }
+}
+
+void DistortionStage::ProcessRow(const RowArgs& a) const {
+  switch (taps_) {
+    case 2: ProcessRowN<2>(a); break;
+    case 4: ProcessRowN<4>(a); break;
+    default: ProcessRowN<6>(a); break;
+  }
+}
+
+}  // namespace camsim
