@@ -10,6 +10,7 @@
 
 #include "hal/clock.h"
 #include "hal/thread_pool.h"
+#include "host_tools/presets.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
@@ -229,6 +230,10 @@ int RunCommand(const RunOptions& o) {
   RunConfig rc;
   Origins origins;
   std::string error;
+  if (!o.preset.empty() && !ApplyPreset(o.preset, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
   if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
