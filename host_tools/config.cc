@@ -170,6 +170,19 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.black_level_dn; }));
     v.push_back(Bool("sensor", "shot_noise", "Poisson noise of photo and dark charge",
                      [](RunConfig& c) -> bool& { return c.core.sensor.shot_noise; }));
+    v.push_back(Number("sensor", "row_fpn_e", "row offset pattern, electrons rms (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.row_fpn_e; }));
+    v.push_back(Number("sensor", "column_fpn_e", "column offset pattern, electrons rms (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.column_fpn_e; }));
+    v.push_back(Number("sensor", "hot_pixel_fraction", "share of hot pixels (seeded map), 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_fraction; }));
+    v.push_back(Number("sensor", "hot_pixel_dark_e_per_s",
+                       "median dark current of hot pixels at the reference temperature, e-/s (spread 0.5x .. 1.5x)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_dark_e_per_s; }));
+    v.push_back(Number("sensor", "dead_pixel_fraction", "share of dead pixels (no photo or dark charge), 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dead_pixel_fraction; }));
+    v.push_back(Number("sensor", "stuck_pixel_fraction", "share of pixels stuck at full scale, 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.stuck_pixel_fraction; }));
 
     // [exposure]
     v.push_back(Number("exposure", "exposure_time_us", "exposure time, microseconds",

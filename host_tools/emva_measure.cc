@@ -181,7 +181,8 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   const double adc_e = (max_dn - s.black_level_dn) / f.system_gain;
   f.full_well_e = std::min(s.full_well_e, adc_e);
   f.saturation_e = EmvaSaturation(f.full_well_e, s.dark_noise_e) - dark_e;
-  f.dsnu_e = s.dsnu_e;
+  // EMVA's DSNU is the total spatial offset variance: pixel, row and column patterns together.
+  f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e);
   f.prnu_percent = s.prnu_percent;
   return f;
 }
