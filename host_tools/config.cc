@@ -105,7 +105,7 @@ const std::vector<Field>& Fields() {
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
                  "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
-                 "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
+                 "blooming, sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
       for (int i = 0; i < c.core.order_count; ++i)
@@ -183,6 +183,12 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.dead_pixel_fraction; }));
     v.push_back(Number("sensor", "stuck_pixel_fraction", "share of pixels stuck at full scale, 0 .. 0.01",
                        [](RunConfig& c) -> double& { return c.core.sensor.stuck_pixel_fraction; }));
+
+    // [blooming]
+    v.push_back(Bool("blooming", "enabled", "charge above the full well spills along columns (before the sensor)",
+                     [](RunConfig& c) -> bool& { return c.core.blooming.enabled; }));
+    v.push_back(Integer("blooming", "rows", "how far a spill is followed each way, rows (1 .. 64)",
+                        [](RunConfig& c) -> int& { return c.core.blooming.rows; }));
 
     // [exposure]
     v.push_back(Number("exposure", "exposure_time_us", "exposure time, microseconds",

@@ -9,7 +9,7 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "exposure", "vignetting", "cfa", "blooming", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -145,6 +145,7 @@ const Stage* Pipeline::StageFor(StageId id) const {
     case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
+    case StageId::kBlooming: return &blooming_;
     case StageId::kSensor: return &sensor_;
     case StageId::kBlackLevel: return &black_level_;
     case StageId::kWhiteBalance: return &white_balance_;
@@ -175,6 +176,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
+  CAMSIM_TRY(blooming_.Configure(config.blooming, config.sensor, g));
   CAMSIM_TRY(black_level_.Configure(config.black_level, g, config.sensor.black_level_dn));
   CAMSIM_TRY(white_balance_.Configure(config.white_balance, g));
   CAMSIM_TRY(demosaic_.Configure(config.demosaic, g));

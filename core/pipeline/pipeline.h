@@ -21,6 +21,7 @@
 #include "core/isp/white_balance.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
+#include "core/sensor/blooming.h"
 #include "core/sensor/cfa.h"
 #include "core/sensor/emva.h"
 
@@ -32,6 +33,7 @@ enum class StageId : uint8_t {
   kExposure,
   kVignetting,
   kCfa,
+  kBlooming,
   kSensor,
   kBlackLevel,
   kWhiteBalance,
@@ -57,14 +59,16 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
-                                StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
-                                StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
+  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting,  StageId::kCfa,
+                                StageId::kBlooming,   StageId::kSensor,      StageId::kBlackLevel,
+                                StageId::kWhiteBalance, StageId::kDemosaic,  StageId::kColorMatrix,
+                                StageId::kGamma};
   int order_count = kStageCount;
 
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
+  BloomingConfig blooming;
   SensorConfig sensor;
   BlackLevelConfig black_level;
   WhiteBalanceConfig white_balance;
@@ -173,6 +177,7 @@ class Pipeline {
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;
+  BloomingStage blooming_;
   SensorStage sensor_;
   BlackLevelStage black_level_;
   WhiteBalanceStage white_balance_;

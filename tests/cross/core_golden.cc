@@ -260,6 +260,7 @@ int main(int argc, char** argv) {
       {"demo", cross::DemoConfig, 1},
       {"mono", cross::MonoConfig, 2},
       {"bilinear_bg", cross::BilinearBgConfig, 1000003},
+      {"artefacts", cross::ArtefactsConfig, 11},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 
