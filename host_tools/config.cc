@@ -181,6 +181,13 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_dark_e_per_s; }));
     v.push_back(Number("sensor", "dead_pixel_fraction", "share of dead pixels (no photo or dark charge), 0 .. 0.01",
                        [](RunConfig& c) -> double& { return c.core.sensor.dead_pixel_fraction; }));
+    v.push_back(Number("sensor", "smear_row_transfer_us",
+                       "CCD smear: time a charge packet spends under each row during transfer, us (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.smear_row_transfer_us; }));
+    v.push_back(Number("sensor", "smear_leak",
+                       "CCD smear: share of the light reaching the transfer register (1 frame transfer, "
+                       "~1e-4 interline)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.smear_leak; }));
     v.push_back(Number("sensor", "stuck_pixel_fraction", "share of pixels stuck at full scale, 0 .. 0.01",
                        [](RunConfig& c) -> double& { return c.core.sensor.stuck_pixel_fraction; }));
 

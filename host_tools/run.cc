@@ -11,6 +11,7 @@
 #include "hal/clock.h"
 #include "hal/thread_pool.h"
 #include "host_tools/presets.h"
+#include "core/sensor/smear.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
@@ -319,7 +320,14 @@ int RunCommand(const RunOptions& o) {
       break;
     }
     PrepareInput(scene, pipeline.width(), pipeline.height(), rc.fit, &input);
-    const FrameInput view = input.View();
+    FrameInput view = input.View();
+    // Frame statistics pre-pass: CCD smear needs each column's total light.
+    std::vector<uint32_t> smear;
+    if (SmearEnabled(rc.core)) {
+      smear.resize(static_cast<size_t>(SmearEntries(rc.core)));
+      ComputeSmear(rc.core, view, Span<uint32_t>{smear.data(), smear.size()});
+      view.smear_e = smear.data();
+    }
     const Status cs = pipeline.CheckInput(view);
     if (!cs.ok()) {
       error = files[f] + ": " + cs.message();

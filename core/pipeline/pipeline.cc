@@ -286,6 +286,8 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
   }
+  if (config_.sensor.smear_row_transfer_us > 0 && input.smear_e == nullptr)
+    return InvalidArgument("sensor.smear_row_transfer_us", "smear needs FrameInput::smear_e (ComputeSmear)");
   return Status::Ok();
 }
 

@@ -52,6 +52,8 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+  const uint32_t* smear_e = nullptr;               // per column, Q24.8 e-: ComputeSmear (core/sensor/smear.h),
+                                                   // required when sensor smear is on
 };
 
 struct PipelineConfig {

@@ -1,6 +1,7 @@
 #include "core/sensor/emva.h"
 
 #include "core/base/detmath.h"
+#include "core/pipeline/pipeline.h"  // FrameInput (smear)
 
 namespace camsim {
 namespace {
@@ -66,6 +67,11 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
     return InvalidArgument("sensor.stuck_pixel_fraction", "must be in [0, 0.01]");
   if (!InRange(c.hot_pixel_dark_e_per_s, 0.0, 1e7))
     return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "must be in [0, 1e7] e-/s");
+  if (!InRange(c.smear_row_transfer_us, 0.0, 1000.0))
+    return InvalidArgument("sensor.smear_row_transfer_us", "must be in [0, 1000] us");
+  if (!InRange(c.smear_leak, 0.0, 1.0)) return InvalidArgument("sensor.smear_leak", "must be in [0, 1]");
+  if (c.smear_row_transfer_us > 0 && c.smear_row_transfer_us * c.smear_leak > exposure_time_us)
+    return InvalidArgument("sensor.smear_row_transfer_us", "leak * row transfer time must not exceed the exposure time");
   if (g.adc_bits < 8 || g.adc_bits > 16) return InvalidArgument("sensor.adc_bits", "must be 8 to 16");
   max_dn_ = (1 << g.adc_bits) - 1;
   if (!InRange(c.black_level_dn, 0.0, max_dn_ - 1.0))
@@ -88,6 +94,7 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   dark_q8_ = Q<24, 8>::FromDouble(dark_e_).raw;
   full_well_q8_ = Q<24, 8>::FromDouble(c.full_well_e).raw;
   black_ = Q<16, 0>::FromDouble(c.black_level_dn).raw;
+  smear_ = c.smear_row_transfer_us > 0 && c.smear_leak > 0;
   row_fpn_q8_ = Q<23, 8>::FromDouble(c.row_fpn_e).raw;
   col_fpn_q8_ = Q<23, 8>::FromDouble(c.column_fpn_e).raw;
   // Cumulative thresholds on a uniform 32-bit word; each fraction <= 0.01, so no overflow.
@@ -172,6 +179,9 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       row_offset = RoundShift(
           row_fpn_q8_ * gauss_.Sample(DrawBits(seed_, kStreamSensorRowColumn, 0, 0, y, 2 * channel + 1).v[0]), 16);
     const int32_t* column_offset = column_offset_ != nullptr ? column_offset_ + c * geometry_.width : nullptr;
+    // Smear charge per column (CheckInput makes sure it is there when on).
+    const uint32_t* smear = smear_ && a.input != nullptr && a.input->smear_e != nullptr
+                                ? a.input->smear_e + c * geometry_.width : nullptr;
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
@@ -205,6 +215,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           }
         }
         if (column_offset != nullptr) dsnu += column_offset[x0 + i];
+        if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
         const uint32_t mean_q8 = SatU32(mu + dark);
 
         // Collected charge, Q.8, clipped at the full well.

@@ -23,6 +23,9 @@
 //     dead  (h <= u < h + d):  no photo or dark charge (offsets and read noise remain);
 //     stuck (h + d <= u < h + d + s): output stuck at 2^bits - 1.
 //   h, d, s = the configured fractions times 2^32 (rounded down).
+//   smear: FrameInput::smear_e[c * width + x] (Q24.8 electrons, from the
+//     per-frame pre-pass ComputeSmear, core/sensor/smear.h) added to the mean
+//     charge before shot noise.
 //
 // Formats: in  Photons Q24.8, 1 channel (mosaic / mono) or 3 (one sensor per colour)
 //          out Digital DN integer, 1 or 3 channels
@@ -61,6 +64,9 @@ struct SensorConfig {
   double dead_pixel_fraction = 0.0;     // share of dead pixels, 0 .. 0.01
   double stuck_pixel_fraction = 0.0;    // share of pixels stuck at full scale, 0 .. 0.01
   double hot_pixel_dark_e_per_s = 2000.0;  // median hot-pixel dark current at the reference temperature
+  // CCD smear (core/sensor/smear.h): off when the row transfer time is 0.
+  double smear_row_transfer_us = 0.0;   // time a charge packet spends under each row during transfer
+  double smear_leak = 1.0;              // share of that light reaching the register (1: frame transfer)
 };
 
 // Randomness streams (the "channel" part of the counter key).
@@ -104,6 +110,7 @@ class SensorStage final : public Stage {
   UScale k_scale_;           // K
   int64_t black_ = 0;
   int max_dn_ = 0;
+  bool smear_ = false;
   GaussianTable gauss_;
   PoissonTable poisson_;
 };
