@@ -197,6 +197,81 @@ const std::vector<Field>& Fields() {
     v.push_back(Integer("blooming", "rows", "how far a spill is followed each way, rows (1 .. 64)",
                         [](RunConfig& c) -> int& { return c.core.blooming.rows; }));
 
+    // [auto_exposure]
+    v.push_back(Enum<AutoExposureMode>("auto_exposure", "mode",
+                                       "off, once (settle, then hold) or continuous; carried frame to frame by camsim run",
+                                       {"off", "once", "continuous"},
+                                       [](RunConfig& c) -> AutoExposureMode& { return c.auto_exposure.mode; }));
+    v.push_back(Number("auto_exposure", "target", "mean raw signal above black, fraction of the range (0.18: middle grey)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.target; }));
+    v.push_back(Enum<Metering>("auto_exposure", "metering", "weights: uniform, centre, spot or image",
+                               {"uniform", "centre", "spot", "image"},
+                               [](RunConfig& c) -> Metering& { return c.metering; }));
+    Field meter_image = Make("auto_exposure", "metering_image", Kind::kString,
+                             "metering = image: weight map (PNG or EXR), sensor-sized");
+    meter_image.get_text = [](const RunConfig& c) { return TomlString(c.metering_image); };
+    meter_image.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.metering_image = s[0];
+      return true;
+    };
+    v.push_back(meter_image);
+    v.push_back(Enum<bool>("auto_exposure", "source", "measure the raw output or the input (an ideal, noiseless sensor)",
+                           {"output", "input"}, [](RunConfig& c) -> bool& { return c.meter_input; }));
+    v.push_back(Number("auto_exposure", "ki", "integral gain per frame (0 .. 1)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.ki; }));
+    v.push_back(Number("auto_exposure", "kp", "proportional gain on the change of error (0 .. 1)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.kp; }));
+    v.push_back(Number("auto_exposure", "max_step_ev", "largest EV change per frame",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.max_step_ev; }));
+    v.push_back(Number("auto_exposure", "start_ev", "deadband: start moving above this error, EV",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.start_ev; }));
+    v.push_back(Number("auto_exposure", "settle_ev", "deadband: stop below this error, EV",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.settle_ev; }));
+    v.push_back(Integer("auto_exposure", "average_frames", "frames averaged (2 cancels alternating flicker), 1 .. 8",
+                        [](RunConfig& c) -> int& { return c.auto_exposure.average_frames; }));
+    v.push_back(Number("auto_exposure", "exposure_time_min_us", "shortest exposure time, us",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.exposure_time_min_us; }));
+    v.push_back(Number("auto_exposure", "exposure_time_max_us", "longest exposure time, us",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.exposure_time_max_us; }));
+    v.push_back(Number("auto_exposure", "gain_min_db", "least analog gain, dB",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.gain_min_db; }));
+    v.push_back(Number("auto_exposure", "gain_max_db", "most analog gain, dB",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.gain_max_db; }));
+    v.push_back(Number("auto_exposure", "f_number_min", "widest aperture; 0 with f_number_max 0: aperture fixed",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.f_number_min; }));
+    v.push_back(Number("auto_exposure", "f_number_max", "narrowest aperture; 0: fixed",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.f_number_max; }));
+    Field priority = Make("auto_exposure", "priority", Kind::kStringArray,
+                          "order in which time, gain and aperture take exposure from the darkest setting");
+    priority.get_text = [](const RunConfig& c) {
+      const char* names[3] = {"time", "gain", "aperture"};
+      std::string t = "[";
+      for (int i = 0; i < 3; ++i)
+        t += std::string(i ? ", \"" : "\"") + names[static_cast<int>(c.auto_exposure.priority[i])] + "\"";
+      return t + "]";
+    };
+    priority.set_text = [](RunConfig& c, const std::vector<std::string>& names, std::string* err) {
+      const char* known[3] = {"time", "gain", "aperture"};
+      bool seen[3] = {};
+      if (names.size() != 3) {
+        *err = "must list time, gain and aperture once each";
+        return false;
+      }
+      for (size_t i = 0; i < 3; ++i) {
+        int k = -1;
+        for (int j = 0; j < 3; ++j)
+          if (names[i] == known[j]) k = j;
+        if (k < 0 || seen[k]) {
+          *err = "must list time, gain and aperture once each";
+          return false;
+        }
+        seen[k] = true;
+        c.auto_exposure.priority[i] = static_cast<Actuator>(k);
+      }
+      return true;
+    };
+    v.push_back(priority);
+
     // [exposure]
     v.push_back(Number("exposure", "exposure_time_us", "exposure time, microseconds",
                        [](RunConfig& c) -> double& { return c.core.exposure.exposure_time_us; }));
@@ -648,6 +723,19 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
+  }
+  if (c->auto_exposure.mode != AutoExposureMode::kOff) {
+    AutoExposure ae;
+    const Status a = ae.Configure(c->auto_exposure, {p.exposure.exposure_time_us, p.sensor.gain_db, p.exposure.f_number});
+    if (!a.ok()) {
+      *error = DescribeStatus(a, origins);
+      return false;
+    }
+    if (c->metering == Metering::kImage && c->metering_image.empty()) {
+      *error = DescribeStatus(InvalidArgument("auto_exposure.metering_image", "metering = \"image\" needs a weight image"),
+                              origins);
+      return false;
+    }
   }
   return true;
 }

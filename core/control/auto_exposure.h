@@ -61,7 +61,7 @@ struct AutoExposureConfig {
   double settle_ev = 1.0 / 12.0;      // ... stop below this one
   int average_frames = 2;             // errors averaged for the start/settle decisions (1 .. 8)
   double black_fraction = 0.002;      // at or below: black frame
-  double saturated_fraction = 0.98;   // at or above: saturated frame
+  double saturated_fraction = 0.9;    // at or above: saturated frame (below 1: a full well may clip before the ADC)
   double exposure_time_min_us = 20.0;
   double exposure_time_max_us = 100000.0;
   double gain_min_db = 0.0;
