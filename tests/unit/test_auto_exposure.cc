@@ -136,6 +136,7 @@ TEST(AutoExposure, SaturatedFrameDoesNotWindUpAndRecovers) {
   StepFigures(back, -1, &frames, &overshoot);  // too dark at first
   EXPECT_LE(frames, 6);
   EXPECT_LE(overshoot, 0.05);
+  RecordProperty("saturated_recovery", "frames " + std::to_string(frames));
 }
 
 TEST(AutoExposure, FlickerDoesNotMakeItOscillate) {
