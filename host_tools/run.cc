@@ -136,6 +136,7 @@ void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
       t.count[c] += f.count[c];
       t.aux_sum[c] += f.aux_sum[c];
     }
+    t.skipped_px += f.skipped_px;
     t.ticks += f.ticks;
   }
 }
@@ -191,6 +192,13 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         first = false;
       }
       j << "}";
+      if (s.skipped_px > 0) {
+        // Time saved, estimated at the stage's measured cost per pixel it did work on.
+        const double px = static_cast<double>(p.width()) * p.height() * frames;
+        const double worked = px - static_cast<double>(s.skipped_px);
+        j << ", \"skipped_fraction\": " << Num(s.skipped_px / px) << ", \"time_saved_ms_per_frame_estimate\": "
+          << Num(worked > 0 ? s.ticks / 1e6 / worked * s.skipped_px / frames : 0.0);
+      }
       if (e.id == StageId::kSensor) {
         j << ", \"mean_electrons\": {";
         first = true;
@@ -244,6 +252,9 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
     const char* cn[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c)
       if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.sum[c] * unit / s.count[c]);
+    if (s.skipped_px > 0)
+      std::fprintf(stderr, "  skipped %.1f %% of pixels (not needed)",
+                   100.0 * static_cast<double>(s.skipped_px) / (static_cast<double>(p.width()) * p.height() * frames));
     if (e.id == StageId::kSensor) {
       std::fprintf(stderr, "  electrons");
       for (int c = 0; c < 3; ++c)

@@ -10,6 +10,7 @@ packages=(
   build-essential clang cmake pkg-config
   libopenexr-dev libimath-dev libpng-dev zlib1g-dev libtomlplusplus-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libopencv-dev   # test and bench peers only: never linked by the core or the tools
 )
 [ $# -eq 0 ] || packages=("$@")
 
