@@ -104,7 +104,7 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
+                 "stages in run order; a stage not listed does not run. All: flare, exposure, vignetting, cfa, "
                  "blooming, sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
@@ -196,6 +196,30 @@ const std::vector<Field>& Fields() {
                      [](RunConfig& c) -> bool& { return c.core.blooming.enabled; }));
     v.push_back(Integer("blooming", "rows", "how far a spill is followed each way, rows (1 .. 64)",
                         [](RunConfig& c) -> int& { return c.core.blooming.rows; }));
+
+    // [flare]
+    v.push_back(Bool("flare", "enabled", "lens flare from pixels above the threshold: glare, ghosts, veiling haze",
+                     [](RunConfig& c) -> bool& { return c.core.flare.enabled; }));
+    v.push_back(Number("flare", "threshold", "radiance above which a pixel sources flare",
+                       [](RunConfig& c) -> double& { return c.core.flare.threshold; }));
+    v.push_back(Number("flare", "glare_fraction", "share of the excess spread by the glare kernel (energy kept)",
+                       [](RunConfig& c) -> double& { return c.core.flare.glare_fraction; }));
+    v.push_back(Integer("flare", "glare_radius", "glare kernel radius, pixels (1 .. 32)",
+                        [](RunConfig& c) -> int& { return c.core.flare.glare_radius; }));
+    v.push_back(Integer("flare", "blades", "aperture blades: glare spikes and ghost polygons; 0 = round",
+                        [](RunConfig& c) -> int& { return c.core.flare.blades; }));
+    v.push_back(Number("flare", "haze", "veiling glare: share of the frame's total excess spread evenly",
+                       [](RunConfig& c) -> double& { return c.core.flare.haze; }));
+    v.push_back(Integer("flare", "ghost_count", "ghosts per bright tile, 0 .. 4",
+                        [](RunConfig& c) -> int& { return c.core.flare.ghost_count; }));
+    v.push_back(Array("flare", "ghost_scale", "ghost position = centre + scale * (source - centre); -1 = mirror",
+                      kMaxGhosts, kMaxGhosts, [](RunConfig& c) { return c.core.flare.ghost_scale; }));
+    v.push_back(Array("flare", "ghost_radius_px", "ghost radius, pixels (1 .. 64)", kMaxGhosts, kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_radius_px; }));
+    v.push_back(Array("flare", "ghost_intensity", "share of the source's excess in each ghost", kMaxGhosts, kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_intensity; }));
+    v.push_back(Array("flare", "ghost_tint", "R, G, B tint of each ghost (3 per ghost)", 3 * kMaxGhosts, 3 * kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_tint; }));
 
     // [auto_exposure]
     v.push_back(Enum<AutoExposureMode>("auto_exposure", "mode",

@@ -436,7 +436,16 @@ int RunCommand(const RunOptions& o) {
     }
     PrepareInput(scene, pipeline.width(), pipeline.height(), rc.fit, &input);
     FrameInput view = input.View();
-    // Frame statistics pre-pass: CCD smear needs each column's total light.
+    // Frame statistics pre-passes: flare needs the frame's bright tiles, CCD
+    // smear each column's total light.
+    std::vector<FlareSource> flare_sources;
+    FlareFrame flare_frame;
+    if (rc.core.flare.enabled) {
+      flare_sources.resize(static_cast<size_t>(FlareMaxSources(rc.core.geometry)));
+      ComputeFlare(rc.core.flare, rc.core.geometry, view, Span<FlareSource>{flare_sources.data(), flare_sources.size()},
+                   &flare_frame);
+      view.flare = &flare_frame;
+    }
     std::vector<uint32_t> smear;
     if (SmearEnabled(rc.core)) {
       smear.resize(static_cast<size_t>(SmearEntries(rc.core)));

@@ -9,7 +9,7 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "vignetting", "cfa", "blooming", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "flare", "exposure", "vignetting", "cfa", "blooming", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -153,6 +153,7 @@ Stage* Pipeline::StageFor(StageId id) {
 
 const Stage* Pipeline::StageFor(StageId id) const {
   switch (id) {
+    case StageId::kFlare: return &flare_;
     case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
@@ -183,6 +184,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   workers_ = workers;
 
   // Each stage validates its own section.
+  CAMSIM_TRY(flare_.Configure(config.flare, g));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
@@ -327,6 +329,8 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
   }
+  if (config_.flare.enabled && input.flare == nullptr)
+    return InvalidArgument("flare.enabled", "flare needs FrameInput::flare (ComputeFlare)");
   if (config_.sensor.smear_row_transfer_us > 0 && input.smear_e == nullptr)
     return InvalidArgument("sensor.smear_row_transfer_us", "smear needs FrameInput::smear_e (ComputeSmear)");
   return Status::Ok();

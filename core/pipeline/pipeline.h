@@ -20,6 +20,7 @@
 #include "core/isp/demosaic.h"
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
+#include "core/lens/flare.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/blooming.h"
@@ -31,6 +32,7 @@ namespace camsim {
 // The stages in their default order (also the order of the paper's Figure 2
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
+  kFlare,
   kExposure,
   kVignetting,
   kCfa,
@@ -51,6 +53,7 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+  const FlareFrame* flare = nullptr;               // ComputeFlare (core/lens/flare.h), when flare is on
   const uint32_t* smear_e = nullptr;               // per column, Q24.8 e-: ComputeSmear (core/sensor/smear.h),
                                                    // required when sensor smear is on
 };
@@ -60,12 +63,13 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting,  StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kFlare,      StageId::kExposure,    StageId::kVignetting,  StageId::kCfa,
                                 StageId::kBlooming,   StageId::kSensor,      StageId::kBlackLevel,
                                 StageId::kWhiteBalance, StageId::kDemosaic,  StageId::kColorMatrix,
                                 StageId::kGamma};
   int order_count = kStageCount;
 
+  FlareConfig flare;
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
@@ -182,6 +186,7 @@ class Pipeline {
   uint8_t* workers_base_ = nullptr;
   bool initialised_ = false;
 
+  FlareStage flare_;
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;

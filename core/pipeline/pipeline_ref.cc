@@ -1,5 +1,6 @@
 #include "core/pipeline/pipeline_ref.h"
 
+#include "core/lens/flare_ref.h"
 #include "core/sensor/blooming_ref.h"
 
 #include <algorithm>
@@ -53,6 +54,7 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
   StageFromName(name, &id);
   const auto at = [w](int x, int y) { return static_cast<size_t>(y) * w + x; };
   switch (id) {
+    case StageId::kFlare: return RefFlare(c.flare, g, in);
     case StageId::kExposure: {
       RefImage out = Like(in, in.planes.size());
       for (size_t k = 0; k < in.planes.size(); ++k)

@@ -1,37 +1,10 @@
 #include "core/sensor/smear.h"
 
 #include "core/aperture/exposure.h"
+#include "core/base/wide.h"
 
 namespace camsim {
 namespace {
-
-// round(v * s.mant / 2^s.shift), ties up, saturated to 32 bits: the 96-bit
-// product in two 64-bit words.
-uint32_t MulScale(uint64_t v, const UScale& s) {
-  if (s.mant == 0 || v == 0) return 0;
-  const uint64_t p_lo = (v & 0xFFFFFFFFu) * s.mant;
-  const uint64_t p_hi = (v >> 32) * s.mant;
-  uint64_t lo = p_lo + (p_hi << 32);
-  uint64_t hi = (p_hi >> 32) + (lo < p_lo ? 1 : 0);
-  const int shift = s.shift;
-  if (shift > 0) {  // + 2^(shift - 1)
-    if (shift - 1 < 64) {
-      const uint64_t r = uint64_t{1} << (shift - 1);
-      lo += r;
-      hi += lo < r ? 1 : 0;
-    } else {
-      hi += uint64_t{1} << (shift - 1 - 64);
-    }
-  }
-  uint64_t q;
-  if (shift >= 64) {
-    q = hi >> (shift - 64);
-  } else {
-    if (shift > 0 ? (hi >> shift) != 0 : hi != 0) return 0xFFFFFFFFu;
-    q = shift > 0 ? (lo >> shift) | (hi << (64 - shift)) : lo;
-  }
-  return SatU32(q);
-}
 
 bool HasCfaStage(const PipelineConfig& c) {
   for (int i = 0; i < c.order_count; ++i)
@@ -72,14 +45,14 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     for (int y = 0; y < g.height; ++y)
       for (int c = 0; c < 3; ++c) sum[y & 1][c] += in.radiance[c].row(y)[x];
     if (!cfa) {
-      for (int c = 0; c < 3; ++c) out[static_cast<size_t>(c) * g.width + x] = MulScale(sum[0][c] + sum[1][c], f3[c]);
+      for (int c = 0; c < 3; ++c) out[static_cast<size_t>(c) * g.width + x] = MulScaleU64(sum[0][c] + sum[1][c], f3[c]);
     } else if (g.cfa == Cfa::kMono) {
       uint64_t e = 0;
-      for (int c = 0; c < 3; ++c) e += MulScale(sum[0][c] + sum[1][c], fmono[c]);
+      for (int c = 0; c < 3; ++c) e += MulScaleU64(sum[0][c] + sum[1][c], fmono[c]);
       out[x] = SatU32(e);
     } else {
       const Colour c0 = CfaColour(g.cfa, x, 0), c1 = CfaColour(g.cfa, x, 1);
-      out[x] = SatU32(uint64_t{MulScale(sum[0][c0], f3[c0])} + MulScale(sum[1][c1], f3[c1]));
+      out[x] = SatU32(uint64_t{MulScaleU64(sum[0][c0], f3[c0])} + MulScaleU64(sum[1][c1], f3[c1]));
     }
   }
 }

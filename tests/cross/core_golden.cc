@@ -283,6 +283,8 @@ int main(int argc, char** argv) {
         c.order_count = n;
         auto p = std::make_unique<Pipeline>();
         const Status st = p->Configure(c, kWorkers, false);
+        // A cut whose every stage is left out (e.g. only flare, off) has no output.
+        if (!st.ok() && std::strcmp(st.message(), "every listed stage was left out") == 0) continue;
         if (!st.ok()) {
           std::printf("ERROR %s %dx%d cut %d: Configure: %s %s\n", cfg.name, w, h, n, st.field(), st.message());
           ++failures;

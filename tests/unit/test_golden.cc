@@ -71,6 +71,8 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       PipelineConfig c = full;
       c.order_count = n;
       auto b = test::Build(c);
+      // A cut whose every stage is left out (only flare, off) has no output.
+      if (!b->status.ok() && std::string(b->status.message()) == "every listed stage was left out") continue;
       ASSERT_TRUE(b->status.ok()) << b->status.message();
       if (!b->pipeline.plan().entries[n - 1].runs) continue;  // identical to the previous cut
       const std::string key = std::string(scene_name) + ":" + StageName(c.order[n - 1]);
