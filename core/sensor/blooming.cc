@@ -13,6 +13,12 @@ Status BloomingStage::Configure(const BloomingConfig& c, const SensorConfig& sen
   }
   const double w = sensor.full_well_e >= 1.0 && sensor.full_well_e <= 1e6 ? sensor.full_well_e : 1e6;
   full_well_q8_ = Q<24, 8>::FromDouble(w).raw;
+  // m = RoundShiftU(p * qe, 16) > W  <=>  p * qe >= (W + 1) * 2^16 - 2^15  <=>  p >= over (qe > 0).
+  for (int i = 0; i < 3; ++i) {
+    const uint64_t need = ((full_well_q8_ + 1) << 16) - (uint64_t{1} << 15);
+    const uint64_t over = qe_q16_[i] == 0 ? ~uint64_t{0} : (need + qe_q16_[i] - 1) / qe_q16_[i];
+    over_[i] = over > 0xFFFFFFFFu ? 0xFFFFFFFFu : static_cast<uint32_t>(over);
+  }
   return Status::Ok();
 }
 
@@ -33,10 +39,24 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
   const int n = last - first + 1;
   const int self = a.y - first;
   const uint64_t w = full_well_q8_;
+  uint8_t* spill_any = a.scratch;  // per column: some window pixel is above the well
   for (int c = 0; c < channels; ++c) {
     const uint32_t* const center = a.rows[R].ch[c];
     uint32_t* out = a.out[c];
+    for (int x = 0; x < a.width; ++x) spill_any[x] = 0;
+    for (int k = 0; k < n; ++k) {
+      const int row = first + k;
+      const uint32_t* in = a.rows[row - a.y + R].ch[c];
+      // Thresholds of even and odd columns of this row.
+      const uint32_t t0 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 0, row)];
+      const uint32_t t1 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 1, row)];
+      for (int x = 0; x < a.width; ++x) spill_any[x] |= static_cast<uint8_t>(in[x] >= ((x & 1) ? t1 : t0));
+    }
     for (int x = 0; x < a.width; ++x) {
+      if (!spill_any[x]) {
+        out[x] = center[x];
+        continue;
+      }
       // Charge of the window's pixels (Q.8 electrons) and whether any exceeds the well.
       uint64_t level[2 * kMaxBloomingRows + 1];
       uint64_t excess[2 * kMaxBloomingRows + 1];

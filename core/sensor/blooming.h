@@ -16,8 +16,10 @@
 // (R = rows) of its column, with no carry entering the window. That equals the
 // whole-column model wherever no spill that reaches y starts, or travels, more
 // than R rows away; the reference (blooming_ref.h) is the whole-column model,
-// and the tests check that they agree where spills stay inside the window. Columns whose window holds no pixel above
-// the full well are passed through unchanged (exactly).
+// and the tests check that they agree where spills stay inside the window.
+// Columns whose window holds no pixel above the full well are passed through
+// unchanged (exactly); they are found first, row by row over the window, by
+// comparing photons with a per-colour threshold (a vectorisable pass).
 //
 // Formats: in/out Photons Q24.8, 1 channel (mosaic or mono) or 3.
 //          charge Q.8 electrons in uint64: photons * QE (Q0.16), rounded ties up;
@@ -45,10 +47,12 @@ class BloomingStage final : public Stage {
   const char* IdentityReason() const override;
   int RowsAbove() const override { return config_.enabled ? config_.rows : 0; }
   int RowsBelow() const override { return config_.enabled ? config_.rows : 0; }
+  size_t ScratchBytes(int width) const override { return static_cast<size_t>(width); }
   void ProcessRow(const RowArgs& args) const override;
 
  private:
   BloomingConfig config_;
+  uint32_t over_[3] = {};  // per colour: photons at or above which the charge exceeds the well
   SensorGeometry geometry_;
   uint32_t qe_q16_[3] = {};
   uint64_t full_well_q8_ = 0;
