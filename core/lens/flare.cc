@@ -85,29 +85,30 @@ Status FlareStage::Init(Arena& tables) {
   if (k == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
   const int n = config_.blades;
   const int spikes = n < 3 ? 0 : (n % 2 == 0 ? n : 2 * n);
-  double w[(2 * kMaxGlareRadius + 1) * (2 * kMaxGlareRadius + 1)];
+  // Two passes (total, then the quantised weights) so no double table sits on
+  // the stack (33 KB at R = 32 would not suit small targets).
+  const auto weight = [&](int dx, int dy) {
+    const double d2 = double(dx) * dx + double(dy) * dy;
+    if (d2 > double(R) * R) return 0.0;
+    double v = 1.0 / (1.0 + d2 / 4.0);
+    for (int s = 0; s < spikes; ++s) {
+      const double theta = kPi / 2 + 2 * kPi * s / spikes;
+      const double along = dx * detmath::Cos(theta) + dy * detmath::Sin(theta);
+      const double perp = -dx * detmath::Sin(theta) + dy * detmath::Cos(theta);
+      if (along > 0) v += 2.0 * detmath::Exp(-perp * perp / 0.5) / (1.0 + along / 4.0);
+    }
+    return v;
+  };
   double total = 0;
   for (int dy = -R; dy <= R; ++dy)
-    for (int dx = -R; dx <= R; ++dx) {
-      const double d2 = double(dx) * dx + double(dy) * dy;
-      double v = 0;
-      if (d2 <= double(R) * R) {
-        v = 1.0 / (1.0 + d2 / 4.0);
-        for (int s = 0; s < spikes; ++s) {
-          const double theta = kPi / 2 + 2 * kPi * s / spikes;
-          const double along = dx * detmath::Cos(theta) + dy * detmath::Sin(theta);
-          const double perp = -dx * detmath::Sin(theta) + dy * detmath::Cos(theta);
-          if (along > 0) v += 2.0 * detmath::Exp(-perp * perp / 0.5) / (1.0 + along / 4.0);
-        }
-      }
-      w[(dy + R) * side + dx + R] = v;
-      total += v;
-    }
+    for (int dx = -R; dx <= R; ++dx) total += weight(dx, dy);
   uint64_t sum = 0;
-  for (int i = 0; i < side * side; ++i) {
-    k[i] = static_cast<uint32_t>(w[i] / total * 4294967296.0);  // floor: the sum stays <= 2^32
-    sum += k[i];
-  }
+  for (int dy = -R; dy <= R; ++dy)
+    for (int dx = -R; dx <= R; ++dx) {
+      uint32_t& q = k[(dy + R) * side + dx + R];
+      q = static_cast<uint32_t>(weight(dx, dy) / total * 4294967296.0);  // floor: the sum stays <= 2^32
+      sum += q;
+    }
   k[R * side + R] += static_cast<uint32_t>(4294967296ull - sum);
   kernel_ = k;
   // Ghost shapes: the half-width of each row of the aperture polygon (or disc), and its area.
