@@ -25,8 +25,9 @@
 #endif
 
 #include "bench/bench_common.h"
-#include "core/base/random.h"
 #include "bench/stage_bench.h"
+#include "core/base/random.h"
+#include "core/sensor/smear.h"
 #include "hal/thread_pool.h"
 #include "host_tools/config.h"
 #include "host_tools/io/exr_scene.h"
@@ -98,6 +99,9 @@ void BM_Prefix(benchmark::State& state) {
   state.SetLabel(StageName(c.order[c.order_count - 1]));
   RunPipeline(state, c, 1);
 }
+// Cuts after exposure, vignetting, cfa, sensor, black level, white balance,
+// demosaic and gamma (flare, blooming and the colour matrix are left out in
+// the demo camera).
 BENCHMARK(BM_Prefix)
     ->ArgsProduct({{640}, {480}, {1, 2, 3, 4, 5, 6, 7, 8}})
     ->ArgsProduct({{1920}, {1080}, {1, 2, 3, 4, 5, 6, 7, 8}})
@@ -256,6 +260,49 @@ BENCHMARK(BM_Stage)
     ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The demo camera with the issue-5 artefacts on: flare (its bright-tile
+// pre-pass included), blooming, CCD smear (its column pre-pass included), row
+// and column FPN and defect pixels. The difference to BM_Pipeline is their cost.
+void BM_Artefacts(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = Demo(w, h);
+  c.flare.enabled = true;
+  c.flare.threshold = 1.5;  // the bundled scene's lamps and highlights
+  c.blooming.enabled = true;
+  c.sensor.smear_row_transfer_us = 2.0;
+  c.sensor.smear_leak = 0.01;
+  c.sensor.row_fpn_e = 2.0;
+  c.sensor.column_fpn_e = 2.0;
+  c.sensor.hot_pixel_fraction = 1e-3;
+  c.sensor.dead_pixel_fraction = 1e-4;
+  c.sensor.stuck_pixel_fraction = 1e-4;
+  Pipeline p;
+  if (!p.Configure(c, 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  FrameInput in = Scene(w).View();
+  std::vector<uint8_t> out(static_cast<size_t>(w) * h * 3);
+  Tap tap;
+  tap.format = TapFormat::kU8;
+  tap.data = out.data();
+  tap.stride = static_cast<ptrdiff_t>(w) * 3;
+  std::vector<FlareSource> sources(static_cast<size_t>(FlareMaxSources(c.geometry)));
+  std::vector<uint32_t> smear(static_cast<size_t>(SmearEntries(c)));
+  FlareFrame flare;
+  uint32_t frame = 0;
+  for (auto _ : state) {
+    ComputeFlare(c.flare, c.geometry, in, Span<FlareSource>{sources.data(), sources.size()}, &flare);
+    ComputeSmear(c, in, Span<uint32_t>{smear.data(), smear.size()});
+    in.flare = &flare;
+    in.smear_e = smear.data();
+    p.ProcessFrame(in, frame++, 16, &tap, 1, nullptr, nullptr);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["bright_tiles"] = flare.count;
+  state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_Artefacts)->Args({640, 480})->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The sensor's random primitives per pixel (what bounds the sensor stage):
 // Philox4x32-10 for 16 lanes (4 words per pixel), a Gaussian table sample, and

@@ -1,6 +1,7 @@
 // camsim: command-line front end.
 //   camsim run --config FILE --input EXR... --out DIR [options]
-//   camsim config --default | --check FILE
+//   camsim config --default | --check FILE | --preset NAME | --presets
+//   camsim emva --preset NAME | --config FILE [--set k=v]... [--size N]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -14,6 +15,8 @@
 
 #include "host_tools/config.h"
 #include "host_tools/pattern.h"
+#include "host_tools/emva_measure.h"
+#include "host_tools/presets.h"
 #include "host_tools/report/tradeoff.h"
 #include "host_tools/run.h"
 
@@ -21,7 +24,7 @@ namespace {
 
 const char kUsage[] =
     "usage:\n"
-    "  camsim run --input EXR... --out DIR [--config FILE] [--depth EXR] [--threads N]\n"
+    "  camsim run --input EXR... --out DIR [--preset NAME] [--config FILE] [--depth EXR] [--threads N]\n"
     "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE]\n"
     "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
@@ -30,6 +33,10 @@ const char kUsage[] =
     "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"
     "                 [--width W] [--height H] [--cell PX] [--supersample N]\n"
     "      a calibration target (radiance, R = G = B) to run through camsim\n"
+    "  camsim config --preset NAME      print a camera preset (EMVA 1288 data of a real camera)\n"
+    "  camsim config --presets          list the camera presets\n"
+    "  camsim emva [--preset NAME] [--config FILE] [--set section.key=value]... [--size N]\n"
+    "      EMVA 1288 photon-transfer measurement of the emulated sensor, measured vs configured\n"
     "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"
     "      error against run time for every precision knob of the running stages:\n"
     "      DIR/tradeoff.csv, tradeoff.md and tradeoff.png\n"
@@ -57,6 +64,7 @@ int Run(int argc, char** argv) {
     };
     long n = 0;
     if (a == "--config") o.config_path = value("a file");
+    else if (a == "--preset") o.preset = value("a name");
     else if (a == "--input") {
       o.inputs.push_back(value("a file"));
       while (i + 1 < argc && argv[i + 1][0] != '-') o.inputs.push_back(argv[++i]);
@@ -116,6 +124,19 @@ int Config(int argc, char** argv) {
     std::printf("%s: ok\n", argv[3]);
     return 0;
   }
+  if (argc == 4 && std::strcmp(argv[2], "--preset") == 0) {
+    const camsim::host::Preset* p = camsim::host::FindPreset(argv[3]);
+    if (p == nullptr) {
+      std::fprintf(stderr, "camsim: unknown preset '%s' (camsim config --presets lists them)\n", argv[3]);
+      return 1;
+    }
+    std::fputs(p->toml, stdout);
+    return 0;
+  }
+  if (argc == 3 && std::strcmp(argv[2], "--presets") == 0) {
+    for (const camsim::host::Preset& p : camsim::host::Presets()) std::printf("%-22s %s\n", p.name, p.summary);
+    return 0;
+  }
   std::fputs(kUsage, stderr);
   return 1;
 }
@@ -141,6 +162,55 @@ int Tradeoff(int argc, char** argv) {
     }
   }
   return camsim::host::TradeoffCommand(o);
+}
+
+// EMVA 1288 measurement of a configured sensor (a preset, a file, overrides).
+int Emva(int argc, char** argv) {
+  camsim::host::RunConfig rc;
+  camsim::host::Origins origins;
+  camsim::host::EmvaOptions options;
+  std::string error, title;
+  std::vector<std::string> overrides;
+  std::string preset, config_path;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "camsim: %s needs a value\n%s", a.c_str(), kUsage);
+      return 1;
+    }
+    const char* v = argv[++i];
+    long n = 0;
+    if (a == "--preset") preset = v;
+    else if (a == "--config") config_path = v;
+    else if (a == "--set") overrides.push_back(v);
+    else if (a == "--size" && ParseInt(v, 16, 4096, &n)) options.size = static_cast<int>(n);
+    else if (a == "--levels" && ParseInt(v, 20, 1000, &n)) options.levels = static_cast<int>(n);
+    else {
+      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", a.c_str(), v, kUsage);
+      return 1;
+    }
+  }
+  if (!preset.empty() && !camsim::host::ApplyPreset(preset, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  if (!config_path.empty() && !camsim::host::LoadConfigFile(config_path, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  for (const std::string& s : overrides)
+    if (!camsim::host::ApplyOverride(s, &rc, &origins, &error)) {
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      return 1;
+    }
+  camsim::host::EmvaReport report;
+  if (!camsim::host::MeasureEmva(rc, options, &report, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  title = preset.empty() ? (config_path.empty() ? "default sensor" : config_path) : preset;
+  std::fputs(camsim::host::FormatEmvaReport(title, report).c_str(), stdout);
+  return 0;
 }
 
 // The "before" picture: what a perfect camera would show (no noise, no lens,
@@ -191,6 +261,7 @@ int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "pattern") == 0) return camsim::host::PatternCommand(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "tradeoff") == 0) return Tradeoff(argc, argv);
+  if (argc >= 2 && std::strcmp(argv[1], "emva") == 0) return Emva(argc, argv);
   std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
   return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;
 }

@@ -107,7 +107,7 @@ const std::vector<Field>& Fields() {
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
                  "stages in run order; a stage not listed does not run. All, in the default order: dof_gather, dof_rows, "
-                 "dof_columns, motion_blur, distortion, exposure, vignetting, cfa, "
+                 "dof_columns, motion_blur, distortion, flare, exposure, vignetting, cfa, blooming, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
@@ -173,6 +173,131 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.black_level_dn; }));
     v.push_back(Bool("sensor", "shot_noise", "Poisson noise of photo and dark charge",
                      [](RunConfig& c) -> bool& { return c.core.sensor.shot_noise; }));
+    v.push_back(Number("sensor", "row_fpn_e", "row offset pattern, electrons rms (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.row_fpn_e; }));
+    v.push_back(Number("sensor", "column_fpn_e", "column offset pattern, electrons rms (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.column_fpn_e; }));
+    v.push_back(Number("sensor", "hot_pixel_fraction", "share of hot pixels (seeded map), 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_fraction; }));
+    v.push_back(Number("sensor", "hot_pixel_dark_e_per_s",
+                       "median dark current of hot pixels at the reference temperature, e-/s (spread 0.5x .. 1.5x)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_dark_e_per_s; }));
+    v.push_back(Number("sensor", "dead_pixel_fraction", "share of dead pixels (no photo or dark charge), 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dead_pixel_fraction; }));
+    v.push_back(Number("sensor", "smear_row_transfer_us",
+                       "CCD smear: time a charge packet spends under each row during transfer, us (0 = off)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.smear_row_transfer_us; }));
+    v.push_back(Number("sensor", "smear_leak",
+                       "CCD smear: share of the light reaching the transfer register (1 frame transfer, "
+                       "~1e-4 interline)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.smear_leak; }));
+    v.push_back(Number("sensor", "stuck_pixel_fraction", "share of pixels stuck at full scale, 0 .. 0.01",
+                       [](RunConfig& c) -> double& { return c.core.sensor.stuck_pixel_fraction; }));
+
+    // [blooming]
+    v.push_back(Bool("blooming", "enabled", "charge above the full well spills along columns (before the sensor)",
+                     [](RunConfig& c) -> bool& { return c.core.blooming.enabled; }));
+    v.push_back(Integer("blooming", "rows", "how far a spill is followed each way, rows (1 .. 64)",
+                        [](RunConfig& c) -> int& { return c.core.blooming.rows; }));
+
+    // [flare]
+    v.push_back(Bool("flare", "enabled", "lens flare from pixels above the threshold: glare, ghosts, veiling haze",
+                     [](RunConfig& c) -> bool& { return c.core.flare.enabled; }));
+    v.push_back(Number("flare", "threshold", "radiance above which a pixel sources flare",
+                       [](RunConfig& c) -> double& { return c.core.flare.threshold; }));
+    v.push_back(Number("flare", "glare_fraction", "share of the excess spread by the glare kernel (energy kept)",
+                       [](RunConfig& c) -> double& { return c.core.flare.glare_fraction; }));
+    v.push_back(Integer("flare", "glare_radius", "glare kernel radius, pixels (1 .. 32)",
+                        [](RunConfig& c) -> int& { return c.core.flare.glare_radius; }));
+    v.push_back(Integer("flare", "blades", "aperture blades: glare spikes and ghost polygons; 0 = round",
+                        [](RunConfig& c) -> int& { return c.core.flare.blades; }));
+    v.push_back(Number("flare", "haze", "veiling glare: share of the frame's total excess spread evenly",
+                       [](RunConfig& c) -> double& { return c.core.flare.haze; }));
+    v.push_back(Integer("flare", "ghost_count", "ghosts per bright tile, 0 .. 4",
+                        [](RunConfig& c) -> int& { return c.core.flare.ghost_count; }));
+    v.push_back(Array("flare", "ghost_scale", "ghost position = centre + scale * (source - centre); -1 = mirror",
+                      kMaxGhosts, kMaxGhosts, [](RunConfig& c) { return c.core.flare.ghost_scale; }));
+    v.push_back(Array("flare", "ghost_radius_px", "ghost radius, pixels (1 .. 64)", kMaxGhosts, kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_radius_px; }));
+    v.push_back(Array("flare", "ghost_intensity", "share of the source's excess in each ghost", kMaxGhosts, kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_intensity; }));
+    v.push_back(Array("flare", "ghost_tint", "R, G, B tint of each ghost (3 per ghost)", 3 * kMaxGhosts, 3 * kMaxGhosts,
+                      [](RunConfig& c) { return c.core.flare.ghost_tint; }));
+
+    // [auto_exposure]
+    v.push_back(Enum<AutoExposureMode>("auto_exposure", "mode",
+                                       "off, once (settle, then hold) or continuous; carried frame to frame by camsim run",
+                                       {"off", "once", "continuous"},
+                                       [](RunConfig& c) -> AutoExposureMode& { return c.auto_exposure.mode; }));
+    v.push_back(Number("auto_exposure", "target", "mean raw signal above black, fraction of the range (0.18: middle grey)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.target; }));
+    v.push_back(Enum<Metering>("auto_exposure", "metering", "weights: uniform, centre, spot or image",
+                               {"uniform", "centre", "spot", "image"},
+                               [](RunConfig& c) -> Metering& { return c.metering; }));
+    Field meter_image = Make("auto_exposure", "metering_image", Kind::kString,
+                             "metering = image: weight map (PNG or EXR), sensor-sized");
+    meter_image.get_text = [](const RunConfig& c) { return TomlString(c.metering_image); };
+    meter_image.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.metering_image = s[0];
+      return true;
+    };
+    v.push_back(meter_image);
+    v.push_back(Enum<bool>("auto_exposure", "source", "measure the raw output or the input (an ideal, noiseless sensor)",
+                           {"output", "input"}, [](RunConfig& c) -> bool& { return c.meter_input; }));
+    v.push_back(Number("auto_exposure", "ki", "integral gain per frame (0 .. 1)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.ki; }));
+    v.push_back(Number("auto_exposure", "kp", "proportional gain on the change of error (0 .. 1)",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.kp; }));
+    v.push_back(Number("auto_exposure", "max_step_ev", "largest EV change per frame",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.max_step_ev; }));
+    v.push_back(Number("auto_exposure", "start_ev", "deadband: start moving above this error, EV",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.start_ev; }));
+    v.push_back(Number("auto_exposure", "settle_ev", "deadband: stop below this error, EV",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.settle_ev; }));
+    v.push_back(Integer("auto_exposure", "average_frames", "frames averaged (2 cancels alternating flicker), 1 .. 8",
+                        [](RunConfig& c) -> int& { return c.auto_exposure.average_frames; }));
+    v.push_back(Number("auto_exposure", "exposure_time_min_us", "shortest exposure time, us",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.exposure_time_min_us; }));
+    v.push_back(Number("auto_exposure", "exposure_time_max_us", "longest exposure time, us",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.exposure_time_max_us; }));
+    v.push_back(Number("auto_exposure", "gain_min_db", "least analog gain, dB",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.gain_min_db; }));
+    v.push_back(Number("auto_exposure", "gain_max_db", "most analog gain, dB",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.gain_max_db; }));
+    v.push_back(Number("auto_exposure", "f_number_min", "widest aperture; 0 with f_number_max 0: aperture fixed",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.f_number_min; }));
+    v.push_back(Number("auto_exposure", "f_number_max", "narrowest aperture; 0: fixed",
+                       [](RunConfig& c) -> double& { return c.auto_exposure.f_number_max; }));
+    Field priority = Make("auto_exposure", "priority", Kind::kStringArray,
+                          "order in which time, gain and aperture take exposure from the darkest setting");
+    priority.get_text = [](const RunConfig& c) {
+      const char* names[3] = {"time", "gain", "aperture"};
+      std::string t = "[";
+      for (int i = 0; i < 3; ++i)
+        t += std::string(i ? ", \"" : "\"") + names[static_cast<int>(c.auto_exposure.priority[i])] + "\"";
+      return t + "]";
+    };
+    priority.set_text = [](RunConfig& c, const std::vector<std::string>& names, std::string* err) {
+      const char* known[3] = {"time", "gain", "aperture"};
+      bool seen[3] = {};
+      if (names.size() != 3) {
+        *err = "must list time, gain and aperture once each";
+        return false;
+      }
+      for (size_t i = 0; i < 3; ++i) {
+        int k = -1;
+        for (int j = 0; j < 3; ++j)
+          if (names[i] == known[j]) k = j;
+        if (k < 0 || seen[k]) {
+          *err = "must list time, gain and aperture once each";
+          return false;
+        }
+        seen[k] = true;
+        c.auto_exposure.priority[i] = static_cast<Actuator>(k);
+      }
+      return true;
+    };
+    v.push_back(priority);
 
     // [exposure]
     v.push_back(Number("exposure", "exposure_time_us", "exposure time, microseconds",
@@ -774,6 +899,19 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
+  }
+  if (c->auto_exposure.mode != AutoExposureMode::kOff) {
+    AutoExposure ae;
+    const Status a = ae.Configure(c->auto_exposure, {p.exposure.exposure_time_us, p.sensor.gain_db, p.exposure.f_number});
+    if (!a.ok()) {
+      *error = DescribeStatus(a, origins);
+      return false;
+    }
+    if (c->metering == Metering::kImage && c->metering_image.empty()) {
+      *error = DescribeStatus(InvalidArgument("auto_exposure.metering_image", "metering = \"image\" needs a weight image"),
+                              origins);
+      return false;
+    }
   }
   return true;
 }

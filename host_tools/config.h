@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "core/control/auto_exposure.h"
+#include "core/control/metering.h"
 #include "core/pipeline/pipeline.h"
 
 namespace camsim::host {
@@ -34,6 +36,11 @@ struct RunConfig {
   // The loaded mesh, shared by copies (core.distortion.mesh points into it).
   std::shared_ptr<const std::vector<float>> mesh_data;
   int output_bits = 8;            // ISP output PNG depth: 8 or 16
+  // Auto exposure (core/control/auto_exposure.h), run frame to frame by `camsim run`.
+  AutoExposureConfig auto_exposure;
+  Metering metering = Metering::kUniform;
+  std::string metering_image;     // metering = "image": weight map (PNG or EXR), sensor-sized
+  bool meter_input = false;       // measure the input (ideal sensor) instead of the raw output
 };
 
 // Where each key was set, for error messages: "file:line" or "--set".

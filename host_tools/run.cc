@@ -10,6 +10,8 @@
 
 #include "hal/clock.h"
 #include "hal/thread_pool.h"
+#include "host_tools/presets.h"
+#include "core/sensor/smear.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
@@ -67,12 +69,64 @@ struct FrameRecord {
   std::string layout;
   bool has_depth = false, has_motion = false;    // loaded
   bool depth_used = false, motion_used = false;  // read by a running stage
+  bool has_ae = false;                          // auto exposure ran on this frame
+  double ae_brightness = 0, ae_error_ev = 0;
+  ExposureSettings ae_settings;                 // the settings this frame was taken with
 };
 
 struct Accumulated {
   WorkerStats stats;  // summed over frames and workers
   std::vector<FrameRecord> frames;
 };
+
+// Auto exposure's settings into the configuration of the next frame.
+bool ApplyExposure(const ExposureSettings& s, RunConfig* rc) {
+  rc->core.exposure.exposure_time_us = s.exposure_time_us;
+  rc->core.exposure.f_number = s.f_number;
+  rc->core.sensor.gain_db = s.gain_db;
+  return true;
+}
+
+// A metering weight image resampled to the sensor, Q0.16 (values clamped to [0, 1]).
+bool MeteringWeights(const io::FloatPlane& map, int width, int height, std::vector<uint16_t>* out, std::string* error) {
+  if (map.width < 1 || map.height < 1) {
+    *error = "auto_exposure.metering_image: empty image";
+    return false;
+  }
+  const io::FloatPlane fitted = FitPlane(map, width, height, SceneFit::kScale);
+  out->resize(fitted.data.size());
+  double total = 0;
+  for (size_t i = 0; i < out->size(); ++i) {
+    const float v = fitted.data[i];
+    const double c = v > 0 ? (v < 1 ? v : 1.0) : 0.0;  // NaN -> 0
+    (*out)[i] = static_cast<uint16_t>(c * 65535.0 + 0.5);
+    total += c;
+  }
+  if (!(total > 0)) {
+    *error = "auto_exposure.metering_image: all weights are 0";
+    return false;
+  }
+  return true;
+}
+
+// The brightness an ideal sensor (no noise, no patterns) would measure on the
+// input: weighted mean of the R, G, B radiance times photons per radiance, the
+// green QE and K, over the range above black, clipped at 1.
+double InputBrightness(const CoreInput& in, const RunConfig& rc, const std::vector<uint16_t>& weights) {
+  const double scale = ExposurePhotonsPerRadiance(rc.core.exposure) * rc.core.sensor.quantum_efficiency[kGreen] *
+                       rc.core.sensor.system_gain_dn_per_e * std::pow(10.0, rc.core.sensor.gain_db / 20.0) /
+                       ((1 << rc.core.geometry.adc_bits) - 1 - rc.core.sensor.black_level_dn) / 65536.0 / 3.0;
+  double weighted = 0, total = 0;
+  for (int y = 0; y < in.height; ++y)
+    for (int x = 0; x < in.width; ++x) {
+      const size_t i = static_cast<size_t>(y) * in.width + x;
+      const double w = rc.metering == Metering::kImage ? weights[i] : MeteringWeight(rc.metering, x, y, in.width, in.height);
+      const double v = (double(in.radiance[0][i]) + in.radiance[1][i] + in.radiance[2][i]) * scale;
+      weighted += w * (v < 1.0 ? v : 1.0);
+      total += w;
+    }
+  return total > 0 ? weighted / total : 0.0;
+}
 
 void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
   for (int i = 0; i < stages; ++i) {
@@ -169,7 +223,12 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
       << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? (f.depth_used ? "\"present, used\"" : "\"present, unused\"") : "null")
       << ", \"motion\": " << (f.has_motion ? (f.motion_used ? "\"present, used\"" : "\"present, unused\"") : "null") << ", \"outputs\": [";
     for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
-    j << "]}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
+    j << "]";
+    if (f.has_ae)
+      j << ", \"auto_exposure\": {\"exposure_time_us\": " << Num(f.ae_settings.exposure_time_us)
+        << ", \"gain_db\": " << Num(f.ae_settings.gain_db) << ", \"f_number\": " << Num(f.ae_settings.f_number)
+        << ", \"brightness\": " << Num(f.ae_brightness) << ", \"error_ev\": " << Num(f.ae_error_ev) << "}";
+    j << "}" << (i + 1 < acc.frames.size() ? ",\n" : "\n");
   }
   j << "  ],\n  \"error\": " << (error.empty() ? "null" : JsonString(error)) << "\n}\n";
   return j.str();
@@ -241,6 +300,10 @@ int RunCommand(const RunOptions& o) {
   RunConfig rc;
   Origins origins;
   std::string error;
+  if (!o.preset.empty() && !ApplyPreset(o.preset, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
   if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
@@ -284,6 +347,12 @@ int RunCommand(const RunOptions& o) {
   const bool tty = isatty(2) && !o.quiet && files.size() > 1;
   int exit_code = 0;
   int first_w = 0, first_h = 0;
+  // Auto exposure: the controller's state is carried from frame to frame; a
+  // new setting re-configures the pipeline before the next frame.
+  AutoExposure ae;
+  const bool ae_on = rc.auto_exposure.mode != AutoExposureMode::kOff;
+  bool ae_changed = false;
+  std::vector<uint16_t> metering_weights;
 
   for (size_t f = 0; f < files.size(); ++f) {
     io::SceneFrame scene;
@@ -296,6 +365,31 @@ int RunCommand(const RunOptions& o) {
       if (!FinishConfig(&rc, scene.width, scene.height, origins, o.threads, &error)) {
         exit_code = 1;
         break;
+      }
+      if (ae_on) {
+        const Status a = ae.Configure(rc.auto_exposure, {rc.core.exposure.exposure_time_us, rc.core.sensor.gain_db,
+                                                         rc.core.exposure.f_number});
+        if (!a.ok()) {
+          error = DescribeStatus(a, origins);
+          exit_code = 1;
+          break;
+        }
+        if (!ApplyExposure(ae.settings(), &rc)) {
+          error = "auto_exposure: initial settings out of range";
+          exit_code = 1;
+          break;
+        }
+        if (rc.metering == Metering::kImage) {
+          io::FloatPlane wmap;
+          if (!io::ReadMaskImage(rc.metering_image, &wmap, &error)) {
+            exit_code = 1;
+            break;
+          }
+          if (!MeteringWeights(wmap, rc.core.geometry.width, rc.core.geometry.height, &metering_weights, &error)) {
+            exit_code = 1;
+            break;
+          }
+        }
       }
       const Status s = pipeline.Configure(rc.core, o.threads, !rc.vignetting_mask.empty());
       if (!s.ok()) {
@@ -325,8 +419,40 @@ int RunCommand(const RunOptions& o) {
       exit_code = 1;
       break;
     }
+    if (f > 0 && ae_on && ae_changed) {
+      // The controller changed the exposure: the stages take the new settings.
+      const Status s = pipeline.Configure(rc.core, o.threads, !rc.vignetting_mask.empty());
+      if (!s.ok()) {
+        error = "auto_exposure: " + DescribeStatus(s, origins);
+        exit_code = 1;
+        break;
+      }
+      workspace.assign(pipeline.WorkspaceBytes(), 0);
+      const Status si = pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()});
+      if (!si.ok()) {
+        error = DescribeStatus(si, origins);
+        exit_code = 1;
+        break;
+      }
+    }
     PrepareInput(scene, pipeline.width(), pipeline.height(), rc.fit, &input);
-    const FrameInput view = input.View();
+    FrameInput view = input.View();
+    // Frame statistics pre-passes: flare needs the frame's bright tiles, CCD
+    // smear each column's total light.
+    std::vector<FlareSource> flare_sources;
+    FlareFrame flare_frame;
+    if (rc.core.flare.enabled) {
+      flare_sources.resize(static_cast<size_t>(FlareMaxSources(rc.core.geometry)));
+      ComputeFlare(rc.core.flare, rc.core.geometry, view, Span<FlareSource>{flare_sources.data(), flare_sources.size()},
+                   &flare_frame);
+      view.flare = &flare_frame;
+    }
+    std::vector<uint32_t> smear;
+    if (SmearEnabled(rc.core)) {
+      smear.resize(static_cast<size_t>(SmearEntries(rc.core)));
+      ComputeSmear(rc.core, view, Span<uint32_t>{smear.data(), smear.size()});
+      view.smear_e = smear.data();
+    }
     const Status cs = pipeline.CheckInput(view);
     if (!cs.ok()) {
       error = files[f] + ": " + cs.message();
@@ -406,6 +532,43 @@ int RunCommand(const RunOptions& o) {
       if (e.id == StageId::kMotionBlur && m.source == MotionSource::kVectors) rec.motion_used = true;
     }
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
+    if (ae_on) {
+      // Measure this frame, set the next one's exposure.
+      const int max_dn_ae = (1 << rc.core.geometry.adc_bits) - 1;
+      const int black_ae = static_cast<int>(rc.core.sensor.black_level_dn);
+      double y = 0;
+      const uint16_t* raw = raw_tap ? reinterpret_cast<const uint16_t*>(buffers[1].data())
+                                    : (final_is_raw ? reinterpret_cast<const uint16_t*>(buffers[0].data()) : nullptr);
+      const int raw_channels = sensor_index >= 0 ? formats[static_cast<size_t>(sensor_index)].channels : 1;
+      if (rc.meter_input || sensor_index < 0) {
+        y = InputBrightness(input, rc, metering_weights);
+      } else if (rc.metering == Metering::kUniform) {
+        // Free: the sensor stage's sums, gathered while its rows were hot.
+        int64_t sum = 0, count = 0;
+        for (const WorkerStats& ws : worker_stats)
+          for (int c = 0; c < 3; ++c) {
+            sum += ws.stage[sensor_index].sum[c];
+            count += ws.stage[sensor_index].count[c];
+          }
+        y = count > 0 ? (static_cast<double>(sum) / count - black_ae) / (max_dn_ae - black_ae) : 0.0;
+      } else {
+        y = WeightedBrightness(raw, w, h, static_cast<ptrdiff_t>(w) * raw_channels, raw_channels, black_ae, max_dn_ae,
+                               rc.metering, metering_weights.empty() ? nullptr : metering_weights.data());
+      }
+      const ExposureSettings before = ae.settings();
+      const ExposureSettings next = ae.Update(y);
+      ae_changed = next.exposure_time_us != before.exposure_time_us || next.gain_db != before.gain_db ||
+                   next.f_number != before.f_number;
+      rec.ae_brightness = y;
+      rec.ae_error_ev = ae.last_error_ev();
+      rec.ae_settings = before;
+      rec.has_ae = true;
+      if (!o.quiet)
+        std::fprintf(stderr, "auto exposure: frame %u at %.1f us, %.2f dB, f/%.2f: brightness %.4f (%+.2f EV) -> %.1f us, %.2f dB, f/%.2f\n",
+                     frame_index, before.exposure_time_us, before.gain_db, before.f_number, y, -ae.last_error_ev(),
+                     next.exposure_time_us, next.gain_db, next.f_number);
+      ApplyExposure(next, &rc);
+    }
 
     // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),
     // <stem>.exr (linear domains), <stem>.<i>_<stage>.exr (--dump-stages).

@@ -9,6 +9,7 @@
 namespace camsim::host {
 
 struct RunOptions {
+  std::string preset;                  // --preset NAME, applied before the config file
   std::string config_path;             // empty: defaults
   std::vector<std::string> inputs;     // files, directories or printf patterns
   std::string depth_path;              // separate depth file (single frame)

@@ -9,8 +9,8 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "dof_gather", "dof_rows", "dof_columns", "motion_blur", "distortion", "exposure", "vignetting", "cfa", "sensor",
-    "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "dof_gather", "dof_rows", "dof_columns", "motion_blur", "distortion", "flare", "exposure", "vignetting", "cfa",
+    "blooming", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -159,9 +159,11 @@ const Stage* Pipeline::StageFor(StageId id) const {
     case StageId::kDofColumns: return &dof_columns_;
     case StageId::kMotionBlur: return &motion_blur_;
     case StageId::kDistortion: return &distortion_;
+    case StageId::kFlare: return &flare_;
     case StageId::kExposure: return &exposure_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
+    case StageId::kBlooming: return &blooming_;
     case StageId::kSensor: return &sensor_;
     case StageId::kBlackLevel: return &black_level_;
     case StageId::kWhiteBalance: return &white_balance_;
@@ -193,10 +195,12 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
   CAMSIM_TRY(distortion_.Configure(config.distortion, g));
+  CAMSIM_TRY(flare_.Configure(config.flare, g));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
+  CAMSIM_TRY(blooming_.Configure(config.blooming, config.sensor, g));
   CAMSIM_TRY(black_level_.Configure(config.black_level, g, config.sensor.black_level_dn));
   CAMSIM_TRY(white_balance_.Configure(config.white_balance, g));
   CAMSIM_TRY(demosaic_.Configure(config.demosaic, g));
@@ -369,6 +373,10 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
       if (m.data == nullptr || m.width != w || m.height != h || m.channels != 1 || m.stride < w)
         return InvalidArgument("motion.source", "'vectors' needs sensor-sized motion vector planes (x and y)");
     }
+  if (config_.flare.enabled && input.flare == nullptr)
+    return InvalidArgument("flare.enabled", "flare needs FrameInput::flare (ComputeFlare)");
+  if (config_.sensor.smear_row_transfer_us > 0 && input.smear_e == nullptr)
+    return InvalidArgument("sensor.smear_row_transfer_us", "smear needs FrameInput::smear_e (ComputeSmear)");
   return Status::Ok();
 }
 

@@ -23,8 +23,10 @@
 #include "core/lens/motion_blur.h"
 #include "core/lens/dof.h"
 #include "core/lens/distortion.h"
+#include "core/lens/flare.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
+#include "core/sensor/blooming.h"
 #include "core/sensor/cfa.h"
 #include "core/sensor/emva.h"
 
@@ -38,9 +40,11 @@ enum class StageId : uint8_t {
   kDofColumns,
   kMotionBlur,
   kDistortion,
+  kFlare,
   kExposure,
   kVignetting,
   kCfa,
+  kBlooming,
   kSensor,
   kBlackLevel,
   kWhiteBalance,
@@ -62,6 +66,9 @@ struct FrameInput {
   ImageView<const uint32_t> inverse_depth;         // 1 / depth in 1/m, Q12.20
   // Renderer motion (motion blur with motion.source = vectors):
   ImageView<const int32_t> motion_vectors[2];      // x, y: px per frame interval, Q16.16, rows downwards
+  const FlareFrame* flare = nullptr;               // ComputeFlare (core/lens/flare.h), when flare is on
+  const uint32_t* smear_e = nullptr;               // per column, Q24.8 e-: ComputeSmear (core/sensor/smear.h),
+                                                   // required when sensor smear is on
 };
 
 struct PipelineConfig {
@@ -69,19 +76,22 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kDofGather,  StageId::kDofRows,     StageId::kDofColumns,
-                                StageId::kMotionBlur, StageId::kDistortion,  StageId::kExposure,
-                                StageId::kVignetting, StageId::kCfa,         StageId::kSensor,
-                                StageId::kBlackLevel, StageId::kWhiteBalance, StageId::kDemosaic,
-                                StageId::kColorMatrix, StageId::kGamma};
+  StageId order[kStageCount] = {StageId::kDofGather,   StageId::kDofRows,    StageId::kDofColumns,
+                                StageId::kMotionBlur,  StageId::kDistortion, StageId::kFlare,
+                                StageId::kExposure,    StageId::kVignetting, StageId::kCfa,
+                                StageId::kBlooming,    StageId::kSensor,     StageId::kBlackLevel,
+                                StageId::kWhiteBalance, StageId::kDemosaic,  StageId::kColorMatrix,
+                                StageId::kGamma};
   int order_count = kStageCount;
 
   DofConfig dof;  // depth of field and structural blur (dof_gather, dof_rows, dof_columns)
   MotionBlurConfig motion_blur;
   DistortionConfig distortion;
+  FlareConfig flare;
   ExposureConfig exposure;
   VignettingConfig vignetting;
   CfaConfig cfa;
+  BloomingConfig blooming;
   SensorConfig sensor;
   BlackLevelConfig black_level;
   WhiteBalanceConfig white_balance;
@@ -199,9 +209,11 @@ class Pipeline {
   DofColumnStage dof_columns_;
   MotionBlurStage motion_blur_;
   DistortionStage distortion_;
+  FlareStage flare_;
   ExposureStage exposure_;
   VignettingStage vignetting_;
   CfaStage cfa_;
+  BloomingStage blooming_;
   SensorStage sensor_;
   BlackLevelStage black_level_;
   WhiteBalanceStage white_balance_;

@@ -1,6 +1,8 @@
 #include "core/pipeline/pipeline_ref.h"
 
 #include "core/lens/dof_ref.h"
+#include "core/lens/flare_ref.h"
+#include "core/sensor/blooming_ref.h"
 
 #include <algorithm>
 #include <cmath>
@@ -89,6 +91,7 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
           }
       return out;
     }
+    case StageId::kFlare: return RefFlare(c.flare, g, in);
     case StageId::kExposure: {
       RefImage out = Like(in, in.planes.size());
       for (size_t k = 0; k < in.planes.size(); ++k)
@@ -147,6 +150,23 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
           out.planes[0][i] = g.cfa == Cfa::kMono
                                  ? weight[0] * in.planes[0][i] + weight[1] * in.planes[1][i] + weight[2] * in.planes[2][i]
                                  : in.planes[CfaColour(g.cfa, x, y)][i];
+        }
+      return out;
+    }
+    case StageId::kBlooming: {
+      // The whole-column model on each plane's charge (photons * QE of the site's colour).
+      RefImage out = Like(in, in.planes.size());
+      for (size_t k = 0; k < in.planes.size(); ++k)
+        for (int x = 0; x < w; ++x) {
+          std::vector<double> charge(static_cast<size_t>(h)), qe(static_cast<size_t>(h));
+          for (int y = 0; y < h; ++y) {
+            const Colour col = in.planes.size() == 3 ? static_cast<Colour>(k) : CfaColour(g.cfa, x, y);
+            qe[y] = c.sensor.quantum_efficiency[col];
+            charge[y] = in.planes[k][at(x, y)] * qe[y];
+          }
+          const std::vector<double> bloomed = RefBloomColumn(charge, c.sensor.full_well_e);
+          for (int y = 0; y < h; ++y)
+            out.planes[k][at(x, y)] = qe[y] > 0 ? bloomed[y] / qe[y] : in.planes[k][at(x, y)];
         }
       return out;
     }

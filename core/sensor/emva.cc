@@ -1,15 +1,20 @@
 #include "core/sensor/emva.h"
 
 #include "core/base/detmath.h"
+#include "core/pipeline/pipeline.h"  // FrameInput (smear)
 
 namespace camsim {
 namespace {
 
 constexpr double kMaxFullWell = 1e6;  // keeps v * K inside int64 (see header)
 
-double DarkElectrons(const SensorConfig& c, double exposure_time_us) {
+// Dark charge per exposure of a dark current (e-/s at the reference temperature).
+double DarkElectrons(const SensorConfig& c, double exposure_time_us, double e_per_s) {
   const double doublings = (c.temperature_c - c.dark_current_ref_c) / c.dark_current_doubling_c;
-  return c.dark_current_e_per_s * (exposure_time_us * 1e-6) * detmath::Exp2(doublings);
+  return e_per_s * (exposure_time_us * 1e-6) * detmath::Exp2(doublings);
+}
+double DarkElectrons(const SensorConfig& c, double exposure_time_us) {
+  return DarkElectrons(c, exposure_time_us, c.dark_current_e_per_s);
 }
 
 double SystemGain(const SensorConfig& c) {
@@ -51,6 +56,22 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
     return InvalidArgument("sensor.dark_current_doubling_c", "must be in [1, 100] kelvin");
   if (!InRange(c.dsnu_e, 0.0, 1000.0)) return InvalidArgument("sensor.dsnu_e", "must be in [0, 1000] electrons");
   if (!InRange(c.prnu_percent, 0.0, 50.0)) return InvalidArgument("sensor.prnu_percent", "must be in [0, 50] %");
+  if (!InRange(c.row_fpn_e, 0.0, 1000.0)) return InvalidArgument("sensor.row_fpn_e", "must be in [0, 1000] electrons");
+  if (!InRange(c.column_fpn_e, 0.0, 1000.0))
+    return InvalidArgument("sensor.column_fpn_e", "must be in [0, 1000] electrons");
+  if (!InRange(c.hot_pixel_fraction, 0.0, 0.01))
+    return InvalidArgument("sensor.hot_pixel_fraction", "must be in [0, 0.01]");
+  if (!InRange(c.dead_pixel_fraction, 0.0, 0.01))
+    return InvalidArgument("sensor.dead_pixel_fraction", "must be in [0, 0.01]");
+  if (!InRange(c.stuck_pixel_fraction, 0.0, 0.01))
+    return InvalidArgument("sensor.stuck_pixel_fraction", "must be in [0, 0.01]");
+  if (!InRange(c.hot_pixel_dark_e_per_s, 0.0, 1e7))
+    return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "must be in [0, 1e7] e-/s");
+  if (!InRange(c.smear_row_transfer_us, 0.0, 1000.0))
+    return InvalidArgument("sensor.smear_row_transfer_us", "must be in [0, 1000] us");
+  if (!InRange(c.smear_leak, 0.0, 1.0)) return InvalidArgument("sensor.smear_leak", "must be in [0, 1]");
+  if (c.smear_row_transfer_us > 0 && c.smear_row_transfer_us * c.smear_leak > exposure_time_us)
+    return InvalidArgument("sensor.smear_row_transfer_us", "leak * row transfer time must not exceed the exposure time");
   if (g.adc_bits < 8 || g.adc_bits > 16) return InvalidArgument("sensor.adc_bits", "must be 8 to 16");
   max_dn_ = (1 << g.adc_bits) - 1;
   if (!InRange(c.black_level_dn, 0.0, max_dn_ - 1.0))
@@ -73,6 +94,18 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   dark_q8_ = Q<24, 8>::FromDouble(dark_e_).raw;
   full_well_q8_ = Q<24, 8>::FromDouble(c.full_well_e).raw;
   black_ = Q<16, 0>::FromDouble(c.black_level_dn).raw;
+  smear_ = c.smear_row_transfer_us > 0 && c.smear_leak > 0;
+  row_fpn_q8_ = Q<23, 8>::FromDouble(c.row_fpn_e).raw;
+  col_fpn_q8_ = Q<23, 8>::FromDouble(c.column_fpn_e).raw;
+  // Cumulative thresholds on a uniform 32-bit word; each fraction <= 0.01, so no overflow.
+  const auto below = [](double fraction) { return static_cast<uint32_t>(fraction * 4294967296.0); };
+  hot_below_ = below(c.hot_pixel_fraction);
+  dead_below_ = hot_below_ + below(c.dead_pixel_fraction);
+  stuck_below_ = dead_below_ + below(c.stuck_pixel_fraction);
+  const double hot_e = DarkElectrons(c, exposure_time_us, c.hot_pixel_dark_e_per_s);
+  if (!InRange(hot_e, 0.0, kMaxFullWell))
+    return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "hot-pixel charge per exposure exceeds 1e6 electrons");
+  hot_q8_ = Q<24, 8>::FromDouble(hot_e).raw;
   return Status::Ok();
 }
 
@@ -84,6 +117,7 @@ Result<LineFormat> SensorStage::Plan(LineFormat in) const {
 void SensorStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(GaussianTable::kEntries);
   counter.Add<uint32_t>(PoissonTable::kEntries);
+  if (col_fpn_q8_ != 0) counter.Add<int32_t>(static_cast<size_t>(ColumnTableEntries()));
 }
 
 Status SensorStage::Init(Arena& tables) {
@@ -93,6 +127,19 @@ Status SensorStage::Init(Arena& tables) {
     return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
   CAMSIM_TRY(gauss_.Build(Span<int32_t>{g, GaussianTable::kEntries}));
   CAMSIM_TRY(poisson_.Build(Span<uint32_t>{p, PoissonTable::kEntries}));
+  column_offset_ = nullptr;
+  if (col_fpn_q8_ != 0) {
+    // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
+    int32_t* t = tables.Take<int32_t>(static_cast<size_t>(ColumnTableEntries()));
+    if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
+    for (int ch = 0; ch < kMaxChannels; ++ch)
+      for (int x = 0; x < geometry_.width; ++x) {
+        const RandomBits b = DrawBits(seed_, kStreamSensorRowColumn, 0, static_cast<uint32_t>(x), 0,
+                                      static_cast<uint32_t>(2 * ch));
+        t[ch * geometry_.width + x] = static_cast<int32_t>(RoundShift(col_fpn_q8_ * gauss_.Sample(b.v[0]), 16));
+      }
+    column_offset_ = t;
+  }
   return Status::Ok();
 }
 
@@ -111,7 +158,8 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   constexpr int kBlock = RandomLanes::kLanes;
   static_assert(kBlock % 2 == 0, "blocks start on even columns: lane parity is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
-  const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
+  const bool defects = stuck_below_ != 0;
+  const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0 || defects;
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
   // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
@@ -125,25 +173,50 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
     const Colour colour[2] = {channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, 0, a.y),
                               channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, 1, a.y)};
     const uint32_t qe[2] = {qe_q16_[colour[0]], qe_q16_[colour[1]]};
+    // Row FPN: one offset for the whole row (Q.8 electrons).
+    int64_t row_offset = 0;
+    if (row_fpn_q8_ != 0)
+      row_offset = RoundShift(
+          row_fpn_q8_ * gauss_.Sample(DrawBits(seed_, kStreamSensorRowColumn, 0, 0, y, 2 * channel + 1).v[0]), 16);
+    const int32_t* column_offset = column_offset_ != nullptr ? column_offset_ + c * geometry_.width : nullptr;
+    // Smear charge per column (CheckInput makes sure it is there when on).
+    const uint32_t* smear = smear_ && a.input != nullptr && a.input->smear_e != nullptr
+                                ? a.input->smear_e + c * geometry_.width : nullptr;
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
       RandomLanes t;  // temporal: Poisson u, Poisson z, read noise z
       DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, static_cast<uint32_t>(x0), y, channel, &t);
-      RandomLanes f;  // fixed pattern: PRNU z, DSNU z
+      RandomLanes f;  // fixed pattern: PRNU z, DSNU z, defect class u, hot-pixel strength u'
       if (patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x0), y, channel, &f);
       const uint32_t* in = a.rows[0].ch[c] + x0;
       uint32_t* out = a.out[c] + x0;
       for (int i = 0; i < n; ++i) {
         // Mean charge, Q24.8.
         uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
-        int64_t dsnu = 0;  // offset pattern, Q.8 electrons
+        int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
+        uint32_t dark = dark_q8_;
         if (patterns) {
           const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[0][i]), 16);  // Q1.16
           mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
-          dsnu = RoundShift(dsnu_q8_ * gauss_.Sample(f.v[1][i]), 16);
+          dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[1][i]), 16);
+          if (defects && f.v[2][i] < stuck_below_) {
+            if (f.v[2][i] < hot_below_) {
+              // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
+              const uint64_t factor = (uint64_t{1} << 31) + f.v[3][i];
+              dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
+            } else if (f.v[2][i] < dead_below_) {
+              mu = 0;
+              dark = 0;
+            } else {
+              out[i] = static_cast<uint32_t>(max_dn_);  // stuck
+              continue;
+            }
+          }
         }
-        const uint32_t mean_q8 = SatU32(mu + dark_q8_);
+        if (column_offset != nullptr) dsnu += column_offset[x0 + i];
+        if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
+        const uint32_t mean_q8 = SatU32(mu + dark);
 
         // Collected charge, Q.8, clipped at the full well.
         uint64_t n_q8 = shot_noise
@@ -152,7 +225,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
         if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
         electrons[i & 1] += static_cast<int64_t>(n_q8);
 
-        // Readout: offset pattern and read noise (electrons, Q.8), then K and black level.
+        // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
         const int64_t v = static_cast<int64_t>(n_q8) + dsnu + RoundShift(read_q8_ * gauss_.Sample(t.v[2][i]), 16);
         const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
         out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));

@@ -11,6 +11,22 @@
 // 7's "ISO" term). Quantisation noise (1/12 DN^2) comes from the rounding, so
 // the temporal variance is sigma_y^2 = K^2 (sigma_d^2 + mu_e) + 1/12.
 //
+// Artefacts beyond the EMVA model (all off by default):
+//   row / column FPN: offsets z_row(y) * row_fpn_e and z_col(x) * column_fpn_e
+//     added to v like the DSNU (fixed: keyed by (seed, y) and (seed, x) only;
+//     the column offsets are a table built at Init, one int32 per column).
+//   defect pixels (a seeded map): the fixed-pattern draw's third word u picks
+//     hot   (u < h):           extra dark charge hot_pixel_dark_e_per_s * t
+//                              * 2^((T - T_ref) / T_double) * (0.5 + u'),
+//                              u' uniform in [0, 1) from the fourth word (a
+//                              spread of hot-pixel strengths), with shot noise;
+//     dead  (h <= u < h + d):  no photo or dark charge (offsets and read noise remain);
+//     stuck (h + d <= u < h + d + s): output stuck at 2^bits - 1.
+//   h, d, s = the configured fractions times 2^32 (rounded down).
+//   smear: FrameInput::smear_e[c * width + x] (Q24.8 electrons, from the
+//     per-frame pre-pass ComputeSmear, core/sensor/smear.h) added to the mean
+//     charge before shot noise.
+//
 // Formats: in  Photons Q24.8, 1 channel (mosaic / mono) or 3 (one sensor per colour)
 //          out Digital DN integer, 1 or 3 channels
 //          QE, PRNU gain: Q0.16 / Q1.16 (64-bit products, rounded ties up)
@@ -41,11 +57,22 @@ struct SensorConfig {
   double prnu_percent = 0.5;            // photo response non-uniformity, % rms
   double black_level_dn = 64.0;         // offset added to the output, DN
   bool shot_noise = true;               // Poisson photon/dark-current noise
+  // Artefacts (off by default).
+  double row_fpn_e = 0.0;               // row offset pattern, electrons rms
+  double column_fpn_e = 0.0;            // column offset pattern, electrons rms
+  double hot_pixel_fraction = 0.0;      // share of hot pixels, 0 .. 0.01
+  double dead_pixel_fraction = 0.0;     // share of dead pixels, 0 .. 0.01
+  double stuck_pixel_fraction = 0.0;    // share of pixels stuck at full scale, 0 .. 0.01
+  double hot_pixel_dark_e_per_s = 2000.0;  // median hot-pixel dark current at the reference temperature
+  // CCD smear (core/sensor/smear.h): off when the row transfer time is 0.
+  double smear_row_transfer_us = 0.0;   // time a charge packet spends under each row during transfer
+  double smear_leak = 1.0;              // share of that light reaching the register (1: frame transfer)
 };
 
 // Randomness streams (the "channel" part of the counter key).
 inline constexpr uint32_t kStreamSensorTemporal = 1;
 inline constexpr uint32_t kStreamSensorFixedPattern = 2;
+inline constexpr uint32_t kStreamSensorRowColumn = 3;  // row FPN at (0, y), column FPN at (x, 0)
 
 class SensorStage final : public Stage {
  public:
@@ -63,6 +90,7 @@ class SensorStage final : public Stage {
   int max_dn() const { return max_dn_; }
 
  private:
+  int ColumnTableEntries() const { return kMaxChannels * geometry_.width; }
   SensorConfig config_;
   SensorGeometry geometry_;
   uint64_t seed_ = 0;
@@ -72,11 +100,17 @@ class SensorStage final : public Stage {
   int64_t prnu_q16_ = 0;     // PRNU sigma, Q.16 of gain
   int64_t dsnu_q8_ = 0;      // DSNU sigma, Q.8 electrons
   int64_t read_q8_ = 0;      // dark noise sigma, Q.8 electrons
+  int64_t row_fpn_q8_ = 0;   // row FPN sigma, Q.8 electrons
+  int64_t col_fpn_q8_ = 0;   // column FPN sigma, Q.8 electrons
+  uint32_t hot_below_ = 0, dead_below_ = 0, stuck_below_ = 0;  // defect thresholds on u (cumulative)
+  uint32_t hot_q8_ = 0;      // median hot-pixel extra dark charge per exposure, Q24.8
+  const int32_t* column_offset_ = nullptr;  // column FPN, Q.8 electrons (width entries; null when off)
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
   uint64_t full_well_q8_ = 0;
   UScale k_scale_;           // K
   int64_t black_ = 0;
   int max_dn_ = 0;
+  bool smear_ = false;
   GaussianTable gauss_;
   PoissonTable poisson_;
 };

@@ -178,4 +178,32 @@ inline uint32_t TexturedRadiance(int width, int height, int x, int y, int c) {
   return Q<16, 16>::FromDouble(v[c]).raw;
 }
 
+// The issue-5 effects: flare (the textured scene's bright spot is above the
+// threshold), BayerGR, blooming (the spot saturates), CCD smear, row and
+// column FPN, hot, dead and stuck pixels.
+inline PipelineConfig ArtefactsConfig(int width, int height) {
+  PipelineConfig c;
+  c.geometry.width = width;
+  c.geometry.height = height;
+  c.geometry.cfa = Cfa::kBayerGR;
+  c.geometry.adc_bits = 12;
+  c.seed = 11;
+  c.exposure.exposure_time_us = 20000.0;
+  c.exposure.f_number = 2.0;
+  c.flare.enabled = true;
+  c.flare.threshold = 50.0;
+  c.flare.ghost_count = 3;
+  c.blooming.enabled = true;
+  c.blooming.rows = 8;
+  c.sensor.smear_row_transfer_us = 2.0;
+  c.sensor.smear_leak = 0.01;
+  c.sensor.row_fpn_e = 2.0;
+  c.sensor.column_fpn_e = 1.5;
+  c.sensor.hot_pixel_fraction = 0.002;
+  c.sensor.dead_pixel_fraction = 0.001;
+  c.sensor.stuck_pixel_fraction = 0.001;
+  c.demosaic.method = DemosaicMethod::kMalvar;
+  return c;
+}
+
 }  // namespace camsim::cross

@@ -52,6 +52,7 @@
 #include "core/base/detmath.h"
 #include "core/base/random.h"
 #include "core/pipeline/pipeline.h"
+#include "core/sensor/smear.h"
 #include "tests/cross/cases.h"
 
 namespace {
@@ -215,7 +216,22 @@ std::vector<uint32_t> Run(const Pipeline& p, const Scene& scene, uint32_t frame,
   tap.format = TapFormat::kU32;
   tap.data = out.data();
   tap.stride = static_cast<ptrdiff_t>(p.width()) * channels;
-  const FrameInput in = scene.View();
+  FrameInput in = scene.View();
+  // The per-frame pre-passes of flare and smear, when on (as the host runs them).
+  const PipelineConfig& c = p.config();
+  std::vector<FlareSource> sources;
+  FlareFrame flare;
+  if (c.flare.enabled) {
+    sources.resize(static_cast<size_t>(FlareMaxSources(c.geometry)));
+    ComputeFlare(c.flare, c.geometry, in, Span<FlareSource>{sources.data(), sources.size()}, &flare);
+    in.flare = &flare;
+  }
+  std::vector<uint32_t> smear;
+  if (SmearEnabled(c)) {
+    smear.resize(static_cast<size_t>(SmearEntries(c)));
+    ComputeSmear(c, in, Span<uint32_t>{smear.data(), smear.size()});
+    in.smear_e = smear.data();
+  }
   int k = 0;
   for (int y = 0; y < p.height(); y += strip_rows, ++k)
     p.ProcessStrip(in, frame, y, y + strip_rows, alternate ? k % kWorkers : 0, &tap, 1, nullptr, nullptr);
@@ -282,6 +298,7 @@ int main(int argc, char** argv) {
       {"dof_gather", cross::DofGatherConfig, 1},
       {"structural_blur", cross::StructuralBlurConfig, 1},
       {"lens", cross::LensConfig, 5},
+      {"artefacts", cross::ArtefactsConfig, 11},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 

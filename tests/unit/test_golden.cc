@@ -123,9 +123,12 @@ TEST(Golden, StageOutputsOnBundledScenes) {
     ASSERT_FALSE(in.motion[0].empty());
     for (const MotionSource source : {MotionSource::kCamera, MotionSource::kVectors}) {
       PipelineConfig c = test::DemoConfig(in.width, in.height);
-      c.order_count = 6;  // dof_gather, dof_rows, dof_columns, motion_blur, distortion (off), exposure
-      ASSERT_EQ(c.order[3], StageId::kMotionBlur);
-      ASSERT_EQ(c.order[5], StageId::kExposure);
+      // Cut after exposure: the stages before it other than motion blur are off.
+      int exposure = 0, motion = -1;
+      for (; c.order[exposure] != StageId::kExposure; ++exposure)
+        if (c.order[exposure] == StageId::kMotionBlur) motion = exposure;
+      ASSERT_GE(motion, 0);
+      c.order_count = exposure + 1;
       MotionBlurConfig& m = c.motion_blur;
       m.source = source;
       m.angular_velocity_rad_s[0] = 0.2;
@@ -135,7 +138,7 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       m.vector_fps = 50.0;  // 10 ms of the 20 ms between frames: half the vectors
       auto b = test::Build(c);
       ASSERT_TRUE(b->status.ok()) << b->status.message();
-      ASSERT_TRUE(b->pipeline.plan().entries[3].runs);
+      ASSERT_TRUE(b->pipeline.plan().entries[motion].runs);
       std::vector<uint32_t> out(static_cast<size_t>(in.width) * in.height * 3);
       Tap t;
       t.format = TapFormat::kU32;

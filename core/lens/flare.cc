@@ -1,0 +1,227 @@
+#include "core/lens/flare.h"
+
+#include "core/base/detmath.h"
+#include "core/base/wide.h"
+#include "core/pipeline/pipeline.h"  // FrameInput
+
+namespace camsim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+uint32_t ThresholdQ16(const FlareConfig& c) { return Q<16, 16>::FromDouble(c.threshold).raw; }
+uint32_t GlareQ16(const FlareConfig& c) { return Q<1, 16>::FromDouble(c.glare_fraction).raw; }
+
+bool InRange(double v, double lo, double hi) { return v >= lo && v <= hi; }
+
+// The glare share of one sample: RoundShift(excess * f, 16), 0 below the threshold.
+inline uint32_t GlareShare(uint32_t v, uint32_t threshold, uint32_t f_q16) {
+  return v > threshold ? static_cast<uint32_t>(RoundShiftU(static_cast<uint64_t>(v - threshold) * f_q16, 16)) : 0;
+}
+
+// Is (dx, dy) inside the aperture shape of circumradius r: a disc (blades < 3)
+// or a regular polygon with a vertex straight up.
+bool InsideAperture(int dx, int dy, double r, int blades) {
+  if (blades < 3) return dx * dx + dy * dy <= r * r;
+  const double apothem = r * detmath::Cos(kPi / blades);
+  for (int k = 0; k < blades; ++k) {
+    const double phi = kPi / 2 + kPi / blades + 2 * kPi * k / blades;  // edge normals, between the vertices
+    if (dx * detmath::Cos(phi) + dy * detmath::Sin(phi) > apothem) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Status FlareStage::Configure(const FlareConfig& c, const SensorGeometry& g) {
+  if (!InRange(c.threshold, 0.01, 60000.0)) return InvalidArgument("flare.threshold", "must be in [0.01, 60000]");
+  if (!InRange(c.glare_fraction, 0.0, 1.0)) return InvalidArgument("flare.glare_fraction", "must be in [0, 1]");
+  if (c.glare_radius < 1 || c.glare_radius > kMaxGlareRadius)
+    return InvalidArgument("flare.glare_radius", "must be in [1, 32] pixels");
+  if (c.blades < 0 || c.blades > 16 || c.blades == 1 || c.blades == 2)
+    return InvalidArgument("flare.blades", "must be 0 (round) or 3 .. 16");
+  if (!InRange(c.haze, 0.0, 1.0)) return InvalidArgument("flare.haze", "must be in [0, 1]");
+  if (c.ghost_count < 0 || c.ghost_count > kMaxGhosts) return InvalidArgument("flare.ghost_count", "must be 0 .. 4");
+  for (int i = 0; i < c.ghost_count; ++i) {
+    if (!InRange(c.ghost_scale[i], -4.0, 4.0)) return InvalidArgument("flare.ghost_scale", "must be in [-4, 4]");
+    if (!InRange(c.ghost_radius_px[i], 1.0, kMaxGhostRadius))
+      return InvalidArgument("flare.ghost_radius_px", "must be in [1, 64] pixels");
+    if (!InRange(c.ghost_intensity[i], 0.0, 1.0)) return InvalidArgument("flare.ghost_intensity", "must be in [0, 1]");
+    for (int k = 0; k < 3; ++k)
+      if (!InRange(c.ghost_tint[3 * i + k], 0.0, 1.0)) return InvalidArgument("flare.ghost_tint", "must be in [0, 1]");
+  }
+  config_ = c;
+  geometry_ = g;
+  threshold_ = ThresholdQ16(c);
+  glare_q16_ = GlareQ16(c);
+  kernel_side_ = 2 * c.glare_radius + 1;
+  for (int i = 0; i < c.ghost_count; ++i) {
+    ghost_radius_[i] = static_cast<int>(c.ghost_radius_px[i]);
+    ghost_scale_q16_[i] = Q<15, 16, true>::FromDouble(c.ghost_scale[i]).raw;
+  }
+  return Status::Ok();
+}
+
+Result<LineFormat> FlareStage::Plan(LineFormat in) const {
+  if (in.domain != Domain::kRadiance || in.channels != 3)
+    return InvalidArgument("flare", "needs 3-channel radiance input (put it first)");
+  return in;
+}
+
+const char* FlareStage::IdentityReason() const {
+  return config_.enabled ? nullptr : "flare off (flare.enabled = false)";
+}
+
+void FlareStage::CountTables(WorkspaceCounter& counter) const {
+  counter.Add<uint32_t>(static_cast<size_t>(kernel_side_) * kernel_side_);
+  for (int i = 0; i < config_.ghost_count; ++i) counter.Add<int16_t>(static_cast<size_t>(2 * ghost_radius_[i] + 1));
+}
+
+Status FlareStage::Init(Arena& tables) {
+  // Glare kernel: a glow 1 / (1 + (d / 2)^2) plus diffraction spikes, then
+  // normalised to Q0.32 summing to exactly 2^32 (the remainder at the centre).
+  const int R = config_.glare_radius, side = kernel_side_;
+  uint32_t* k = tables.Take<uint32_t>(static_cast<size_t>(side) * side);
+  if (k == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
+  const int n = config_.blades;
+  const int spikes = n < 3 ? 0 : (n % 2 == 0 ? n : 2 * n);
+  // Two passes (total, then the quantised weights) so no double table sits on
+  // the stack (33 KB at R = 32 would not suit small targets).
+  const auto weight = [&](int dx, int dy) {
+    const double d2 = double(dx) * dx + double(dy) * dy;
+    if (d2 > double(R) * R) return 0.0;
+    double v = 1.0 / (1.0 + d2 / 4.0);
+    for (int s = 0; s < spikes; ++s) {
+      const double theta = kPi / 2 + 2 * kPi * s / spikes;
+      const double along = dx * detmath::Cos(theta) + dy * detmath::Sin(theta);
+      const double perp = -dx * detmath::Sin(theta) + dy * detmath::Cos(theta);
+      if (along > 0) v += 2.0 * detmath::Exp(-perp * perp / 0.5) / (1.0 + along / 4.0);
+    }
+    return v;
+  };
+  double total = 0;
+  for (int dy = -R; dy <= R; ++dy)
+    for (int dx = -R; dx <= R; ++dx) total += weight(dx, dy);
+  uint64_t sum = 0;
+  for (int dy = -R; dy <= R; ++dy)
+    for (int dx = -R; dx <= R; ++dx) {
+      uint32_t& q = k[(dy + R) * side + dx + R];
+      q = static_cast<uint32_t>(weight(dx, dy) / total * 4294967296.0);  // floor: the sum stays <= 2^32
+      sum += q;
+    }
+  k[R * side + R] += static_cast<uint32_t>(4294967296ull - sum);
+  kernel_ = k;
+  // Ghost shapes: the half-width of each row of the aperture polygon (or disc), and its area.
+  for (int i = 0; i < config_.ghost_count; ++i) {
+    const int r = ghost_radius_[i];
+    int16_t* hw = tables.Take<int16_t>(static_cast<size_t>(2 * r + 1));
+    if (hw == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
+    int64_t area = 0;
+    for (int dy = -r; dy <= r; ++dy) {
+      int half = -1;
+      for (int dx = 0; dx <= r; ++dx)
+        if (InsideAperture(dx, dy, config_.ghost_radius_px[i], n)) half = dx;
+      hw[dy + r] = static_cast<int16_t>(half);
+      area += half >= 0 ? 2 * half + 1 : 0;
+    }
+    ghost_half_width_[i] = hw;
+    for (int c = 0; c < 3; ++c) {
+      Result<UScale> f = UScale::FromDouble(
+          area > 0 ? config_.ghost_intensity[i] * config_.ghost_tint[3 * i + c] / double(area) : 0.0, "flare.ghost_intensity");
+      if (!f.ok()) return f.status();
+      ghost_factor_[i][c] = f.value();
+    }
+  }
+  return Status::Ok();
+}
+
+void FlareStage::ProcessRow(const RowArgs& a) const {
+  const FlareFrame* frame = a.input != nullptr ? a.input->flare : nullptr;
+  const int W = a.width, y = a.y;
+  // The pixel's own part: minus its glare share, plus the haze.
+  for (int c = 0; c < 3; ++c) {
+    const uint32_t* in = a.rows[0].ch[c];
+    uint32_t* out = a.out[c];
+    const uint32_t haze = frame != nullptr ? frame->haze[c] : 0;
+    for (int x = 0; x < W; ++x) out[x] = SatU32(uint64_t{in[x]} - GlareShare(in[x], threshold_, glare_q16_) + haze);
+  }
+  if (frame == nullptr || frame->count == 0) return;
+  const int R = config_.glare_radius, side = kernel_side_;
+  const int64_t cx2 = W - 1, cy2 = geometry_.height - 1;  // twice the optical centre
+  for (int s = 0; s < frame->count; ++s) {
+    const FlareSource& src = frame->sources[s];
+    // Glare around the source.
+    if (y >= src.y - R && y <= src.y + R) {
+      const uint32_t* krow = kernel_ + (y - src.y + R) * side;
+      const int x0 = src.x - R < 0 ? 0 : src.x - R, x1 = src.x + R >= W ? W - 1 : src.x + R;
+      for (int c = 0; c < 3; ++c) {
+        if (src.glare[c] == 0) continue;
+        uint32_t* out = a.out[c];
+        for (int x = x0; x <= x1; ++x) {
+          const uint32_t kw = krow[x - src.x + R];
+          if (kw != 0) out[x] = SatU32(uint64_t{out[x]} + MulScaleU64(src.glare[c], UScale{kw, 32}));
+        }
+      }
+    }
+    // Ghosts: centre + scale * (source - centre), in half pixels, rounded ties up.
+    for (int g = 0; g < config_.ghost_count; ++g) {
+      const int64_t m = ghost_scale_q16_[g];
+      const int gx = static_cast<int>(RoundShift(cx2 * 65536 + m * (2 * int64_t{src.x} - cx2), 17));
+      const int gy = static_cast<int>(RoundShift(cy2 * 65536 + m * (2 * int64_t{src.y} - cy2), 17));
+      const int r = ghost_radius_[g];
+      if (y < gy - r || y > gy + r) continue;
+      const int hw = ghost_half_width_[g][y - gy + r];
+      if (hw < 0) continue;
+      const int x0 = gx - hw < 0 ? 0 : gx - hw, x1 = gx + hw >= W ? W - 1 : gx + hw;
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t v = MulScaleU64(src.excess[c], ghost_factor_[g][c]);
+        if (v == 0) continue;
+        uint32_t* out = a.out[c];
+        for (int x = x0; x <= x1; ++x) out[x] = SatU32(uint64_t{out[x]} + v);
+      }
+    }
+  }
+}
+
+int FlareMaxSources(const SensorGeometry& g) {
+  return ((g.width + kFlareTile - 1) / kFlareTile) * ((g.height + kFlareTile - 1) / kFlareTile);
+}
+
+void ComputeFlare(const FlareConfig& c, const SensorGeometry& g, const FrameInput& in, Span<FlareSource> storage,
+                  FlareFrame* out) {
+  *out = FlareFrame{};
+  out->sources = storage.data;
+  if (!c.enabled) return;
+  const uint32_t threshold = ThresholdQ16(c), f = GlareQ16(c);
+  uint64_t total[3] = {};
+  int count = 0;
+  for (int ty = 0; ty < g.height; ty += kFlareTile)
+    for (int tx = 0; tx < g.width; tx += kFlareTile) {
+      FlareSource s;
+      uint64_t weight = 0, wx = 0, wy = 0;
+      for (int y = ty; y < ty + kFlareTile && y < g.height; ++y)
+        for (int x = tx; x < tx + kFlareTile && x < g.width; ++x) {
+          uint64_t e = 0;
+          for (int ch = 0; ch < 3; ++ch) {
+            const uint32_t v = in.radiance[ch].row(y)[x];
+            if (v <= threshold) continue;
+            s.excess[ch] += v - threshold;
+            s.glare[ch] += GlareShare(v, threshold, f);
+            e += v - threshold;
+          }
+          weight += e;
+          wx += e * static_cast<uint64_t>(x);
+          wy += e * static_cast<uint64_t>(y);
+        }
+      if (weight == 0) continue;
+      s.x = static_cast<int32_t>((wx + weight / 2) / weight);
+      s.y = static_cast<int32_t>((wy + weight / 2) / weight);
+      for (int ch = 0; ch < 3; ++ch) total[ch] += s.excess[ch];
+      if (static_cast<size_t>(count) < storage.size) storage[static_cast<size_t>(count++)] = s;
+    }
+  out->count = count;
+  Result<UScale> h = UScale::FromDouble(c.haze / (double(g.width) * g.height), "flare.haze");
+  for (int ch = 0; ch < 3; ++ch) out->haze[ch] = h.ok() ? MulScaleU64(total[ch], h.value()) : 0;
+}
+
+}  // namespace camsim

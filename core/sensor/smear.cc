@@ -1,0 +1,60 @@
+#include "core/sensor/smear.h"
+
+#include "core/aperture/exposure.h"
+#include "core/base/wide.h"
+
+namespace camsim {
+namespace {
+
+bool HasCfaStage(const PipelineConfig& c) {
+  for (int i = 0; i < c.order_count; ++i)
+    if (c.order[i] == StageId::kCfa) return true;
+  return false;
+}
+
+}  // namespace
+
+bool SmearEnabled(const PipelineConfig& c) { return c.sensor.smear_row_transfer_us > 0; }
+
+int SmearEntries(const PipelineConfig& c) { return kMaxChannels * c.geometry.width; }
+
+void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint32_t> out) {
+  const SensorGeometry& g = config.geometry;
+  const SensorConfig& s = config.sensor;
+  CAMSIM_DCHECK(out.size >= static_cast<size_t>(SmearEntries(config)));
+  for (size_t i = 0; i < out.size; ++i) out[i] = 0;
+  if (!SmearEnabled(config)) return;
+  // Radiance Q16.16 -> electrons Q24.8 for leak * t_row / t_exp of the light:
+  // a factor per (colour, weight); IEEE * and / only (the same everywhere).
+  const double base = s.smear_leak * (s.smear_row_transfer_us / config.exposure.exposure_time_us) *
+                      ExposurePhotonsPerRadiance(config.exposure) / 256.0;  // 2^-16 radiance * 2^8 charge
+  const auto factor = [&](double qe_weight) {
+    Result<UScale> r = UScale::FromDouble(base * qe_weight, "sensor.smear_row_transfer_us");
+    return r.ok() ? r.value() : UScale{};  // Configure bounds the factor; zero otherwise
+  };
+  const bool cfa = HasCfaStage(config);
+  const double* w = config.cfa.mono_weights;
+  const double wsum = w[0] + w[1] + w[2];
+  UScale f3[3], fmono[3];
+  for (int c = 0; c < 3; ++c) {
+    f3[c] = factor(s.quantum_efficiency[c]);
+    fmono[c] = factor(s.quantum_efficiency[kGreen] * w[c] / wsum);
+  }
+  for (int x = 0; x < g.width; ++x) {
+    uint64_t sum[2][3] = {};  // [row parity][colour]
+    for (int y = 0; y < g.height; ++y)
+      for (int c = 0; c < 3; ++c) sum[y & 1][c] += in.radiance[c].row(y)[x];
+    if (!cfa) {
+      for (int c = 0; c < 3; ++c) out[static_cast<size_t>(c) * g.width + x] = MulScaleU64(sum[0][c] + sum[1][c], f3[c]);
+    } else if (g.cfa == Cfa::kMono) {
+      uint64_t e = 0;
+      for (int c = 0; c < 3; ++c) e += MulScaleU64(sum[0][c] + sum[1][c], fmono[c]);
+      out[x] = SatU32(e);
+    } else {
+      const Colour c0 = CfaColour(g.cfa, x, 0), c1 = CfaColour(g.cfa, x, 1);
+      out[x] = SatU32(uint64_t{MulScaleU64(sum[0][c0], f3[c0])} + MulScaleU64(sum[1][c1], f3[c1]));
+    }
+  }
+}
+
+}  // namespace camsim

@@ -1,0 +1,297 @@
+#include "host_tools/emva_measure.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "core/aperture/exposure.h"
+
+namespace camsim::host {
+namespace {
+
+constexpr double kQuantisationVariance = 1.0 / 12.0;  // DN^2, uniform rounding
+constexpr double kFitFraction = 0.70;  // EMVA 1288: fit K and R below 70 % of saturation
+constexpr double kPrnuFraction = 0.50; // EMVA 1288: PRNU at 50 % of saturation
+
+// A configured pipeline of exposure and sensor only, and its flat-field input.
+class Bench {
+ public:
+  bool Init(const RunConfig& config, int size, std::string* error) {
+    PipelineConfig p = config.core;
+    p.geometry.width = size;
+    p.geometry.height = size;
+    p.geometry.cfa = Cfa::kBayerRG;  // unused: 3 planes, one sensor per colour
+    p.order[0] = StageId::kExposure;
+    p.order[1] = StageId::kSensor;
+    p.order_count = 2;
+    const Status s = pipeline_.Configure(p, 1, false);
+    if (!s.ok()) {
+      *error = DescribeStatus(s, Origins{});
+      return false;
+    }
+    workspace_.resize(pipeline_.WorkspaceBytes());
+    const Status i = pipeline_.Init(Span<uint8_t>{workspace_.data(), workspace_.size()});
+    if (!i.ok()) {
+      *error = i.message();
+      return false;
+    }
+    size_ = size;
+    photons_per_radiance_ = ExposurePhotonsPerRadiance(p.exposure);
+    for (auto& plane : planes_) plane.resize(static_cast<size_t>(size) * size);
+    out_.resize(static_cast<size_t>(size) * size * 3);
+    return true;
+  }
+
+  // Sets the flat field for a mean photon count per pixel; returns the exact
+  // photon count of the Q16.16 radiance actually used.
+  double SetPhotons(double photons) {
+    const double radiance = photons / photons_per_radiance_;
+    const uint32_t raw = static_cast<uint32_t>(std::min(std::llround(radiance * 65536.0), 0xFFFFFFFFll));
+    for (auto& plane : planes_) std::fill(plane.begin(), plane.end(), raw);
+    return raw / 65536.0 * photons_per_radiance_;
+  }
+
+  // One frame's output plane of channel c (after Run).
+  const std::vector<uint32_t>& Run(uint32_t frame) {
+    FrameInput in;
+    for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(planes_[c].data(), size_, size_);
+    Tap tap;
+    tap.format = TapFormat::kU32;
+    tap.data = out_.data();
+    tap.stride = static_cast<ptrdiff_t>(size_) * 3;
+    pipeline_.ProcessFrame(in, frame, 64, &tap, 1, nullptr, nullptr);
+    return out_;
+  }
+  int pixels() const { return size_ * size_; }
+
+ private:
+  Pipeline pipeline_;
+  std::vector<uint8_t> workspace_;
+  std::vector<uint32_t> planes_[3];
+  std::vector<uint32_t> out_;
+  double photons_per_radiance_ = 0;
+  int size_ = 0;
+};
+
+// Mean (of both frames) and temporal variance (difference / 2) of a frame pair, per channel.
+struct PairStats {
+  double photons = 0;
+  double mean[3] = {};
+  double var[3] = {};
+};
+
+PairStats MeasurePair(Bench& bench, double photons, uint32_t frame) {
+  PairStats s;
+  s.photons = bench.SetPhotons(photons);
+  const std::vector<uint32_t> a = bench.Run(frame);
+  const std::vector<uint32_t>& b = bench.Run(frame + 1);
+  const int n = bench.pixels();
+  for (int c = 0; c < 3; ++c) {
+    double sum = 0, dsum = 0, dsq = 0;
+    for (int i = 0; i < n; ++i) {
+      const double va = a[static_cast<size_t>(i) * 3 + c], vb = b[static_cast<size_t>(i) * 3 + c];
+      sum += va + vb;
+      dsum += va - vb;
+      dsq += (va - vb) * (va - vb);
+    }
+    s.mean[c] = sum / (2.0 * n);
+    const double dmean = dsum / n;
+    s.var[c] = (dsq / n - dmean * dmean) * n / (n - 1.0) / 2.0;
+  }
+  return s;
+}
+
+// Average of L frames: mean and spatial variance of the averaged image, per channel.
+struct AverageStats {
+  double mean[3] = {};
+  double spatial_var[3] = {};
+};
+
+AverageStats MeasureAverage(Bench& bench, double photons, int frames, uint32_t first_frame) {
+  bench.SetPhotons(photons);
+  const int n = bench.pixels();
+  std::vector<double> sum(static_cast<size_t>(n) * 3, 0.0);
+  for (int f = 0; f < frames; ++f) {
+    const std::vector<uint32_t>& img = bench.Run(first_frame + static_cast<uint32_t>(f));
+    for (size_t i = 0; i < sum.size(); ++i) sum[i] += img[i];
+  }
+  AverageStats s;
+  for (int c = 0; c < 3; ++c) {
+    double m = 0;
+    for (int i = 0; i < n; ++i) m += sum[static_cast<size_t>(i) * 3 + c] / frames;
+    m /= n;
+    double v = 0;
+    for (int i = 0; i < n; ++i) {
+      const double d = sum[static_cast<size_t>(i) * 3 + c] / frames - m;
+      v += d * d;
+    }
+    s.mean[c] = m;
+    s.spatial_var[c] = v / (n - 1.0);
+  }
+  return s;
+}
+
+// Least-squares slope through the origin.
+double SlopeThroughOrigin(const std::vector<double>& x, const std::vector<double>& y) {
+  double sxy = 0, sxx = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sxy += x[i] * y[i];
+    sxx += x[i] * x[i];
+  }
+  return sxx > 0 ? sxy / sxx : 0.0;
+}
+
+// Where EMVA 1288 puts saturation for a signal clipped at c (electrons): the
+// mean of min(X, c) at the maximum of its variance, X ~ N(m, m + read^2) (the
+// Poisson charge with read noise). A clipped signal's variance peaks a few
+// sigma below the clip (about 2.5 sigma for a 10 000 e- well), so an EMVA
+// saturation capacity is always somewhat less than the full well.
+double EmvaSaturation(double c, double read_e) {
+  double best_var = -1, best_mean = c;
+  const double s0 = std::sqrt(c + read_e * read_e);
+  for (double m = c - 8 * s0; m <= c + 2 * s0; m += s0 / 200) {
+    const double s = std::sqrt(std::max(m, 0.0) + read_e * read_e);
+    const double a = (c - m) / s;
+    const double phi = std::exp(-0.5 * a * a) / std::sqrt(2 * M_PI), Phi = 0.5 * std::erfc(-a / std::sqrt(2.0));
+    const double mean = m - s * (phi - a * (1 - Phi));
+    const double second = m * m * Phi - 2 * m * s * phi + s * s * (Phi - a * phi) + c * c * (1 - Phi);
+    const double var = second - mean * mean;
+    if (var > best_var) {
+      best_var = var;
+      best_mean = mean;
+    }
+  }
+  return best_mean;
+}
+
+}  // namespace
+
+EmvaFigures ConfiguredEmva(const RunConfig& config) {
+  const SensorConfig& s = config.core.sensor;
+  EmvaFigures f;
+  f.system_gain = s.system_gain_dn_per_e * std::pow(10.0, s.gain_db / 20.0);
+  for (int c = 0; c < 3; ++c) f.qe[c] = s.quantum_efficiency[c];
+  const double dark_e = s.dark_current_e_per_s * config.core.exposure.exposure_time_us * 1e-6 *
+                        std::pow(2.0, (s.temperature_c - s.dark_current_ref_c) / s.dark_current_doubling_c);
+  // Dark-current shot noise is temporal noise in the dark: EMVA folds it into sigma_d.
+  f.dark_noise_e = std::sqrt(s.dark_noise_e * s.dark_noise_e + (s.shot_noise ? dark_e : 0.0));
+  // Photo charge that fits: the well less the dark charge, or the ADC's range if that ends first.
+  const double max_dn = (1 << config.core.geometry.adc_bits) - 1;
+  const double adc_e = (max_dn - s.black_level_dn) / f.system_gain;
+  f.full_well_e = std::min(s.full_well_e, adc_e);
+  f.saturation_e = EmvaSaturation(f.full_well_e, s.dark_noise_e) - dark_e;
+  // EMVA's DSNU is the total spatial offset variance: pixel, row and column patterns together.
+  f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e);
+  f.prnu_percent = s.prnu_percent;
+  return f;
+}
+
+bool MeasureEmva(const RunConfig& config, const EmvaOptions& o, EmvaReport* report, std::string* error) {
+  if (o.size < 16 || o.size > 4096 || o.levels < 20 || o.levels > 1000 || o.average_frames < 2 ||
+      o.average_frames > 256) {
+    *error = "emva: size must be 16..4096, levels 20..1000, average frames 2..256";
+    return false;
+  }
+  Bench bench;
+  if (!bench.Init(config, o.size, error)) return false;
+  constexpr int kG = 1;
+  uint32_t frame = 0;  // every frame pair gets its own frame numbers (independent noise)
+  const PairStats dark = MeasurePair(bench, 0.0, frame);
+  frame += 2;
+
+  // Past saturation: the signal above dark stops doubling when the photons double.
+  double p_max = 16.0;
+  double previous = 0;
+  for (int i = 0; i < 40; ++i, p_max *= 2.0) {
+    const PairStats s = MeasurePair(bench, p_max, frame);
+    frame += 2;
+    const double signal = s.mean[kG] - dark.mean[kG];
+    if (i > 0 && signal < 1.2 * previous) break;
+    previous = signal;
+  }
+
+  std::vector<PairStats> points;
+  for (int i = 1; i <= o.levels; ++i) {
+    points.push_back(MeasurePair(bench, p_max * i / o.levels, frame));
+    frame += 2;
+  }
+
+  EmvaReport r;
+  r.configured = ConfiguredEmva(config);
+  size_t sat = 0;
+  for (size_t i = 1; i < points.size(); ++i)
+    if (points[i].var[kG] > points[sat].var[kG]) sat = i;
+  const double sat_signal = points[sat].mean[kG] - dark.mean[kG];
+  r.saturation_photons = points[sat].photons;
+
+  // K from G; responsivity per channel over the same range of the G signal.
+  std::vector<double> x, y;
+  for (size_t i = 0; i < sat; ++i) {
+    const double signal = points[i].mean[kG] - dark.mean[kG];
+    if (signal > kFitFraction * sat_signal) break;
+    x.push_back(signal);
+    y.push_back(points[i].var[kG] - dark.var[kG]);
+  }
+  r.fit_points = static_cast<int>(x.size());
+  if (r.fit_points < 5) {
+    *error = "emva: fewer than 5 levels below 70 % of saturation; raise levels";
+    return false;
+  }
+  const double K = SlopeThroughOrigin(x, y);
+  r.measured.system_gain = K;
+  for (int c = 0; c < 3; ++c) {
+    std::vector<double> p, s;
+    for (int i = 0; i < r.fit_points; ++i) {
+      p.push_back(points[static_cast<size_t>(i)].photons);
+      s.push_back(points[static_cast<size_t>(i)].mean[c] - dark.mean[c]);
+    }
+    r.measured.qe[c] = SlopeThroughOrigin(p, s) / K;
+  }
+  r.measured.dark_noise_e = std::sqrt(std::max(0.0, dark.var[kG] - kQuantisationVariance)) / K;
+  r.measured.saturation_e = sat_signal / K;
+
+  // DSNU and PRNU from averages of L frames.
+  const int L = o.average_frames;
+  const AverageStats dark_avg = MeasureAverage(bench, 0.0, L, frame);
+  frame += static_cast<uint32_t>(L);
+  const double p50 = kPrnuFraction * r.saturation_photons;
+  const PairStats half = MeasurePair(bench, p50, frame);
+  frame += 2;
+  const AverageStats half_avg = MeasureAverage(bench, p50, L, frame);
+  const double s2_dark = dark_avg.spatial_var[kG] - dark.var[kG] / L;
+  const double s2_half = half_avg.spatial_var[kG] - half.var[kG] / L;
+  r.measured.dsnu_e = std::sqrt(std::max(0.0, s2_dark)) / K;
+  r.measured.prnu_percent =
+      100.0 * std::sqrt(std::max(0.0, s2_half - s2_dark)) / (half_avg.mean[kG] - dark_avg.mean[kG]);
+  *report = r;
+  return true;
+}
+
+std::string FormatEmvaReport(const std::string& title, const EmvaReport& r) {
+  std::string t = "EMVA 1288 photon-transfer measurement: " + title + "\n";
+  char line[200];
+  std::snprintf(line, sizeof line, "%-30s %12s %12s %9s\n", "quantity", "configured", "measured", "error");
+  t += line;
+  const auto row = [&](const char* name, double configured, double measured) {
+    std::snprintf(line, sizeof line, "%-30s %12.4g %12.4g %+8.2f%%\n", name, configured, measured,
+                  configured != 0 ? 100.0 * (measured - configured) / configured : 0.0);
+    t += line;
+  };
+  row("system gain K (DN/e-)", r.configured.system_gain, r.measured.system_gain);
+  row("quantum efficiency R", r.configured.qe[0], r.measured.qe[0]);
+  row("quantum efficiency G", r.configured.qe[1], r.measured.qe[1]);
+  row("quantum efficiency B", r.configured.qe[2], r.measured.qe[2]);
+  row("temporal dark noise (e-)", r.configured.dark_noise_e, r.measured.dark_noise_e);
+  std::snprintf(line, sizeof line, "%-30s %12.4g\n", "full well or ADC clip (e-)", r.configured.full_well_e);
+  t += line;
+  row("saturation capacity (e-)", r.configured.saturation_e, r.measured.saturation_e);
+  row("DSNU (e-)", r.configured.dsnu_e, r.measured.dsnu_e);
+  row("PRNU (%)", r.configured.prnu_percent, r.measured.prnu_percent);
+  std::snprintf(line, sizeof line, "(saturation at %.0f photons; K and QE fitted on %d levels)\n",
+                r.saturation_photons, r.fit_points);
+  t += line;
+  return t;
+}
+
+}  // namespace camsim::host

@@ -1,0 +1,70 @@
+// An EMVA 1288 (Release 4, linear) photon-transfer measurement of the emulated
+// sensor: the camera is treated as a black box that is fed flat fields of a
+// known photon count and whose raw DN output is analysed exactly as a test lab
+// would analyse a real camera's. It shares no code with the sensor model; it
+// only knows photons per pixel (the exposure stage's double reference).
+//
+// Procedure (per colour channel; the sensor runs without a CFA, one sensor per
+// colour, so R, G and B are three independent planes; K, noise, saturation,
+// DSNU and PRNU are reported for G, which mono sensors use):
+//   1. Dark pair: mu_y.dark and sigma^2_y.dark (variance of the difference / 2).
+//   2. Find a photon level past saturation by doubling until the signal stops
+//      doubling; then `levels` equally spaced levels from 0 to it, a frame
+//      pair each: mean mu_y and temporal variance sigma^2_y.
+//   3. Saturation: the level of maximum temporal variance (EMVA 1288 4.0).
+//   4. K: least-squares slope through the origin of sigma^2_y - sigma^2_y.dark
+//      against mu_y - mu_y.dark, over points below 70 % of the saturation
+//      signal; responsivity R: the same of mu_y - mu_y.dark against mu_p;
+//      QE = R / K.
+//   5. Dark noise sigma_d = sqrt(sigma^2_y.dark - 1/12) / K (quantisation
+//      noise removed); saturation capacity mu_e.sat = (mu_y.sat - mu_y.dark) / K.
+//   6. DSNU, PRNU: `average_frames` frames averaged, dark and at 50 % of the
+//      saturation photon count; spatial variance of the average minus the
+//      temporal variance / L; DSNU = s_y.dark / K (electrons),
+//      PRNU = sqrt(s^2_y.50 - s^2_y.dark) / (mu_y.50 - mu_y.dark).
+#pragma once
+
+#include <string>
+
+#include "host_tools/config.h"
+
+namespace camsim::host {
+
+struct EmvaOptions {
+  int size = 256;           // frame side, pixels (256 x 256 = 65536 per estimate)
+  int levels = 100;         // photon levels between dark and past saturation
+  int average_frames = 16;  // L, frames averaged for DSNU and PRNU
+};
+
+// The EMVA 1288 quantities, measured or as configured.
+struct EmvaFigures {
+  double system_gain = 0;      // K, DN per electron (with the analog gain)
+  double qe[3] = {};           // R, G, B quantum efficiency, 0..1
+  double dark_noise_e = 0;     // temporal dark noise, electrons
+  double saturation_e = 0;     // saturation capacity (EMVA: at the variance maximum), electrons
+  double full_well_e = 0;      // configured only: the clip (well, or the ADC if it ends first)
+  double dsnu_e = 0;           // dark signal non-uniformity, electrons
+  double prnu_percent = 0;     // photo response non-uniformity, %
+};
+
+struct EmvaReport {
+  EmvaFigures measured;
+  EmvaFigures configured;  // what the configuration says the measurement should give
+  double saturation_photons = 0;  // mu_p.sat (G)
+  int fit_points = 0;             // levels used for K and R
+};
+
+// What an EMVA 1288 measurement of this configuration should give: the
+// sensor's parameters with the effects the standard folds in (dark-current
+// shot noise in the temporal dark noise; the ADC clipping before the well is
+// full; dark charge taking part of the well).
+EmvaFigures ConfiguredEmva(const RunConfig& config);
+
+// Measures the configuration's sensor (its [sensor] and [exposure] settings;
+// frame size, CFA and every other stage are replaced by the set-up above).
+bool MeasureEmva(const RunConfig& config, const EmvaOptions& options, EmvaReport* report, std::string* error);
+
+// The measured-versus-configured table as text.
+std::string FormatEmvaReport(const std::string& title, const EmvaReport& report);
+
+}  // namespace camsim::host

@@ -1,0 +1,157 @@
+// Blooming: charge above the full well spills along the column to where the
+// model says, charge is conserved (except what leaves the frame), the
+// streaming window matches the whole-column reference, and the stage is left
+// out when off.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/sensor/blooming.h"
+#include "core/sensor/blooming_ref.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+// Exposure (1000 photons per unit radiance), CFA, and optionally blooming: photons out.
+PipelineConfig PhotonPath(int w, int h, Cfa cfa, bool blooming) {
+  PipelineConfig c;
+  c.geometry = {w, h, cfa, 12};
+  c.exposure.exposure_time_us = 1000.0;
+  c.exposure.f_number = 1.0;
+  c.exposure.photons_per_radiance_ms = 1000.0;
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kCfa;
+  c.order[2] = StageId::kBlooming;
+  c.order_count = blooming ? 3 : 2;
+  c.blooming.enabled = blooming;
+  c.sensor.full_well_e = 1000.0;
+  c.sensor.quantum_efficiency[0] = 0.4;
+  c.sensor.quantum_efficiency[1] = 0.5;
+  c.sensor.quantum_efficiency[2] = 0.625;
+  return c;
+}
+
+TEST(Blooming, SpillGoesWhereTheModelSays) {
+  constexpr int kW = 4, kH = 64;
+  auto b = test::Build(PhotonPath(kW, kH, Cfa::kMono, true));
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  // Background 1000 photons = 500 e- (QE 0.5): every pixel has 500 e- of room.
+  test::Scene s = test::FlatScene(kW, kH, 1.0, 1.0, 1.0);
+  // Row 30: 5000 photons = 2500 e-: 1500 e- above the well, 750 e- each way.
+  for (int c = 0; c < 3; ++c)
+    for (int x = 0; x < kW; ++x) s.plane[c][30 * kW + x] = Q<16, 16>::FromDouble(5.0).raw;
+  const auto out = test::RunFrame(*b, s, 0, 5);
+  for (int y = 0; y < kH; ++y) {
+    double e = 500;
+    if (y == 30 || y == 31 || y == 29) e = 1000;  // full
+    if (y == 32 || y == 28) e = 750;              // the last 250 e- each way
+    for (int x = 0; x < kW; ++x) EXPECT_NEAR(out[y * kW + x] / 256.0 * 0.5, e, 0.01) << "y " << y << " x " << x;
+  }
+}
+
+// A Bayer scene of saturating blobs: the streamed stage against the
+// whole-column reference, charge conservation, and strip-height independence.
+TEST(Blooming, MatchesWholeColumnReferenceAndConservesCharge) {
+  constexpr int kW = 48, kH = 96;
+  const PipelineConfig with = PhotonPath(kW, kH, Cfa::kBayerRG, true);
+  auto bloom = test::Build(with);
+  auto plain = test::Build(PhotonPath(kW, kH, Cfa::kBayerRG, false));
+  ASSERT_TRUE(bloom->status.ok() && plain->status.ok());
+  // Background 0.8 (320..500 e-, so 500..680 e- of room), blobs of 1..2 rows
+  // of up to 3750 e- (5500 e- of excess: spills of <= 6 rows each way, well
+  // inside the R = 16 window), a different pattern per column; column 0's
+  // first blob touches the top row (charge leaves the frame).
+  test::Scene s = test::FlatScene(kW, kH, 0.8, 0.8, 0.8);
+  for (int x = 0; x < kW; ++x)
+    for (int blob = 0; blob < 3; ++blob) {
+      const int y0 = (x * 7 + blob * 37) % (kH - 3);
+      const int h = 1 + (x + blob) % 2;
+      const double r = 2.0 + (x * 13 + blob * 5) % 5;  // radiance 2..6: up to 6000 photons
+      for (int y = y0; y < y0 + h; ++y)
+        for (int c = 0; c < 3; ++c) s.plane[c][y * kW + x] = Q<16, 16>::FromDouble(r).raw;
+    }
+  const auto in = test::RunFrame(*plain, s, 0, 16);
+  const auto out = test::RunFrame(*bloom, s, 0, 16);
+  EXPECT_EQ(test::RunFrame(*bloom, s, 0, 1), out);
+  EXPECT_EQ(test::RunFrame(*bloom, s, 0, 37), out);
+  const double W = with.sensor.full_well_e;
+  double total_ref = 0, total_out = 0, max_err = 0;
+  int changed = 0;
+  for (int x = 0; x < kW; ++x) {
+    std::vector<double> charge(kH);
+    std::vector<double> qe(kH);
+    for (int y = 0; y < kH; ++y) {
+      // The core's QE (Q0.16) and charge: photons (Q24.8) times QE, rounded to Q.8.
+      const double qe_q16 = std::round(with.sensor.quantum_efficiency[CfaColour(Cfa::kBayerRG, x, y)] * 65536);
+      qe[y] = qe_q16 / 65536.0;
+      charge[y] = std::floor(in[y * kW + x] * qe_q16 / 65536.0 + 0.5) / 256.0;
+    }
+    const std::vector<double> ref = ref::RefBloomColumn(charge, W);
+    for (int y = 0; y < kH; ++y) {
+      const double got = out[y * kW + x] / 256.0 * qe[y];
+      max_err = std::max(max_err, std::abs(got - ref[y]));
+      total_ref += ref[y];
+      total_out += got;
+      changed += out[y * kW + x] != in[y * kW + x];
+      EXPECT_LE(got, W + 0.01);
+    }
+  }
+  EXPECT_GT(changed, kW * 4);  // blooming happened
+  // Back to photons rounds to 1/256 photon: < 0.01 e- per pixel.
+  EXPECT_LT(max_err, 0.01);
+  EXPECT_NEAR(total_out, total_ref, 0.01 * kW * kH);
+  RecordProperty("max_abs_error_e", std::to_string(max_err));
+}
+
+TEST(Blooming, ChargeIsConservedAwayFromTheBorders) {
+  // One column, one blob in the middle: nothing reaches the frame's ends.
+  std::vector<double> col(200, 300.0);
+  col[100] = 9000.0;
+  col[101] = 4000.0;
+  const std::vector<double> out = ref::RefBloomColumn(col, 1000.0);
+  double in_sum = 0, out_sum = 0;
+  for (size_t i = 0; i < col.size(); ++i) {
+    in_sum += col[i];
+    out_sum += out[i];
+    EXPECT_LE(out[i], 1000.0);
+  }
+  EXPECT_DOUBLE_EQ(out_sum, in_sum);
+  // 11000 e- of excess, 5500 e- each way, 700 e- of room per pixel: seven
+  // pixels filled and 600 e- into the eighth on each side.
+  for (int k = 1; k <= 7; ++k) {
+    EXPECT_EQ(out[100 - k], 1000.0) << k;
+    EXPECT_EQ(out[101 + k], 1000.0) << k;
+  }
+  EXPECT_EQ(out[92], 900.0);
+  EXPECT_EQ(out[109], 900.0);
+  EXPECT_EQ(out[91], 300.0);
+  EXPECT_EQ(out[110], 300.0);
+}
+
+TEST(Blooming, LeftOutWhenOff) {
+  PipelineConfig c = PhotonPath(8, 8, Cfa::kMono, false);
+  c.order_count = 3;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok());
+  const Plan& p = b->pipeline.plan();
+  bool found = false;
+  for (int i = 0; i < p.count; ++i)
+    if (p.entries[i].id == StageId::kBlooming) {
+      found = true;
+      EXPECT_FALSE(p.entries[i].runs);
+      EXPECT_NE(std::string(p.entries[i].reason).find("blooming"), std::string::npos);
+    }
+  EXPECT_TRUE(found);
+}
+
+TEST(Blooming, RowsOutOfRangeNameTheKey) {
+  PipelineConfig c = PhotonPath(8, 8, Cfa::kMono, true);
+  c.blooming.rows = 65;
+  auto b = test::Build(c);
+  EXPECT_FALSE(b->status.ok());
+  EXPECT_EQ(std::string(b->status.field()), "blooming.rows");
+}
+
+}  // namespace
+}  // namespace camsim

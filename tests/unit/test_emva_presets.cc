@@ -1,0 +1,91 @@
+// Camera presets and the EMVA 1288 photon-transfer measurement of the emulated
+// sensor: every preset is a valid configuration, and measuring it back as a
+// test lab would (host_tools/emva_measure.h) recovers its K, QE, dark noise,
+// saturation capacity, DSNU and PRNU within the tolerances below.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "host_tools/emva_measure.h"
+#include "host_tools/presets.h"
+
+namespace camsim::host {
+namespace {
+
+// Relative tolerances for a 128 x 128 measurement (16384 pixels: a variance
+// is known to sqrt(2 / 16384) = 1.1 % per level; K and QE average ~30 levels).
+constexpr double kGainTol = 0.02;        // K
+constexpr double kQeTol = 0.02;          // QE (R / K)
+constexpr double kDarkNoiseTol = 0.04;   // one dark pair: 1.1 % on the variance, more on small sigma
+constexpr double kSaturationTol = 0.04;  // level spacing (p_max / 100 <= 2 % of saturation) + peak noise
+constexpr double kNonUniformityTol = 0.06;  // DSNU, PRNU: spatial variance of a 16-frame average
+
+TEST(Presets, EveryPresetIsAValidConfiguration) {
+  ASSERT_GE(Presets().size(), 3u);
+  for (const Preset& p : Presets()) {
+    RunConfig rc;
+    Origins origins;
+    std::string error;
+    ASSERT_TRUE(ApplyPreset(p.name, &rc, &origins, &error)) << p.name << ": " << error;
+    EXPECT_TRUE(FinishConfig(&rc, 64, 64, origins, 1, &error)) << p.name << ": " << error;
+    // The preset changed the sensor from the defaults and cites a source.
+    EXPECT_NE(rc.core.sensor.full_well_e, SensorConfig{}.full_well_e) << p.name;
+    EXPECT_NE(std::string(p.toml).find("Source:"), std::string::npos) << p.name;
+  }
+}
+
+TEST(Presets, UnknownNameListsThePresets) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  EXPECT_FALSE(ApplyPreset("imx999", &rc, &origins, &error));
+  EXPECT_NE(error.find("imx999"), std::string::npos);
+  EXPECT_NE(error.find(Presets()[0].name), std::string::npos);
+}
+
+void ExpectNearRel(double measured, double configured, double tol, const std::string& what) {
+  EXPECT_NEAR(measured, configured, tol * configured) << what << ": measured " << measured << ", configured "
+                                                      << configured;
+}
+
+TEST(Emva, PhotonTransferRecoversEveryPreset) {
+  for (const Preset& p : Presets()) {
+    RunConfig rc;
+    Origins origins;
+    std::string error;
+    ASSERT_TRUE(ApplyPreset(p.name, &rc, &origins, &error)) << error;
+    EmvaOptions o;
+    o.size = 128;
+    EmvaReport r;
+    ASSERT_TRUE(MeasureEmva(rc, o, &r, &error)) << p.name << ": " << error;
+    const std::string n = p.name;
+    ExpectNearRel(r.measured.system_gain, r.configured.system_gain, kGainTol, n + " K");
+    for (int c = 0; c < 3; ++c) ExpectNearRel(r.measured.qe[c], r.configured.qe[c], kQeTol, n + " QE");
+    ExpectNearRel(r.measured.dark_noise_e, r.configured.dark_noise_e, kDarkNoiseTol, n + " dark noise");
+    ExpectNearRel(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol, n + " saturation");
+    ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, kNonUniformityTol, n + " DSNU");
+    ExpectNearRel(r.measured.prnu_percent, r.configured.prnu_percent, kNonUniformityTol, n + " PRNU");
+    RecordProperty("emva_" + n, FormatEmvaReport(n, r));
+  }
+}
+
+// The measurement is not a read-back of the configuration: changing the
+// camera's analog gain changes what it measures, by the gain.
+TEST(Emva, AnalogGainScalesTheMeasuredK) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
+  rc.core.sensor.gain_db = 6.0;  // x1.995
+  EmvaOptions o;
+  o.size = 96;
+  EmvaReport r;
+  ASSERT_TRUE(MeasureEmva(rc, o, &r, &error)) << error;
+  EXPECT_NEAR(r.measured.system_gain, 0.24 * std::pow(10.0, 6.0 / 20.0), 0.03 * 0.479);
+  // The ADC now clips first: (4095 - 64) / 0.479 = 8418 e-, well below the 14837 e- well.
+  EXPECT_LT(r.measured.saturation_e, 9000.0);
+  EXPECT_NEAR(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol * r.configured.saturation_e);
+}
+
+}  // namespace
+}  // namespace camsim::host

@@ -1,0 +1,175 @@
+// Lens flare: the ghost of a point source lands at the mirrored position,
+// glare conserves energy, the stage matches its double reference, a frame
+// without bright pixels passes unchanged, and the stage is left out when off.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/lens/flare.h"
+#include "core/lens/flare_ref.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+PipelineConfig FlareOnly(int w, int h, const FlareConfig& f) {
+  PipelineConfig c;
+  c.geometry = {w, h, Cfa::kBayerRG, 12};
+  c.order[0] = StageId::kFlare;
+  c.order_count = 1;
+  c.flare = f;
+  return c;
+}
+
+// Runs the flare stage with its pre-pass; radiance out (interleaved, Q16.16).
+std::vector<uint32_t> RunFlare(const test::Built& b, const test::Scene& s, int strip_rows, int* sources = nullptr) {
+  const PipelineConfig& c = b.pipeline.config();
+  std::vector<FlareSource> storage(static_cast<size_t>(FlareMaxSources(c.geometry)));
+  FlareFrame frame;
+  FrameInput in = s.View();
+  ComputeFlare(c.flare, c.geometry, in, Span<FlareSource>{storage.data(), storage.size()}, &frame);
+  in.flare = &frame;
+  if (sources) *sources = frame.count;
+  EXPECT_TRUE(b.pipeline.CheckInput(in).ok());
+  std::vector<uint32_t> out(static_cast<size_t>(s.width) * s.height * 3);
+  Tap t;
+  t.format = TapFormat::kU32;
+  t.data = out.data();
+  t.stride = s.width * 3;
+  b.pipeline.ProcessFrame(in, 0, strip_rows, &t, 1, nullptr, nullptr);
+  return out;
+}
+
+FlareConfig Bare() {
+  FlareConfig f;
+  f.enabled = true;
+  f.glare_fraction = 0;
+  f.haze = 0;
+  f.ghost_count = 0;
+  return f;
+}
+
+TEST(Flare, GhostLandsAtTheMirroredPosition) {
+  constexpr int kW = 64, kH = 48;
+  FlareConfig f = Bare();
+  f.ghost_count = 1;
+  f.ghost_scale[0] = -1.0;
+  f.ghost_radius_px[0] = 3;
+  f.ghost_intensity[0] = 0.01;
+  f.ghost_tint[0] = f.ghost_tint[1] = f.ghost_tint[2] = 1.0;
+  f.blades = 0;
+  auto b = test::Build(FlareOnly(kW, kH, f));
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  test::Scene s = test::FlatScene(kW, kH, 0.1, 0.1, 0.1);
+  for (int c = 0; c < 3; ++c) s.plane[c][8 * kW + 10] = Q<16, 16>::FromDouble(1000.0).raw;
+  const auto out = RunFlare(*b, s, 5);
+  double sum = 0, sx = 0, sy = 0;
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      const double d = (double(out[(y * kW + x) * 3 + 1]) - s.plane[1][y * kW + x]) / 65536.0;
+      if (d == 0) continue;
+      EXPECT_LE((x - 53) * (x - 53) + (y - 39) * (y - 39), 9) << x << "," << y;  // inside the ghost disc
+      sum += d;
+      sx += d * x;
+      sy += d * y;
+    }
+  // (10, 8) mirrored through the centre of 64 x 48: (63 - 10, 47 - 8) = (53, 39).
+  EXPECT_NEAR(sx / sum, 53.0, 1e-6);
+  EXPECT_NEAR(sy / sum, 39.0, 1e-6);
+  EXPECT_NEAR(sum, 0.01 * (1000.0 - 8.0), 1e-3);  // intensity times the excess over the threshold
+}
+
+TEST(Flare, GlareConservesEnergy) {
+  constexpr int kW = 96, kH = 80;
+  FlareConfig f = Bare();
+  f.glare_fraction = 0.3;
+  f.glare_radius = 20;
+  f.blades = 5;  // odd: 10 spikes
+  auto b = test::Build(FlareOnly(kW, kH, f));
+  ASSERT_TRUE(b->status.ok());
+  test::Scene s = test::FlatScene(kW, kH, 0.5, 0.5, 0.5);
+  for (int y = 38; y < 42; ++y)
+    for (int x = 46; x < 50; ++x)
+      for (int c = 0; c < 3; ++c) s.plane[c][y * kW + x] = Q<16, 16>::FromDouble(500.0 + 10 * c).raw;
+  const auto out = RunFlare(*b, s, 9);
+  for (int c = 0; c < 3; ++c) {
+    int64_t in_sum = 0, out_sum = 0;
+    for (int i = 0; i < kW * kH; ++i) {
+      in_sum += s.plane[c][i];
+      out_sum += out[i * 3 + c];
+    }
+    // Each of the (2R+1)^2 kernel terms rounds by at most half a Q16.16 unit.
+    EXPECT_LE(std::abs(out_sum - in_sum), 41 * 41 / 2 + 1) << c;
+  }
+  // The light moved: the source lost 30 % of its excess, the neighbourhood gained.
+  EXPECT_LT(out[(40 * kW + 47) * 3], s.plane[0][40 * kW + 47]);
+  EXPECT_GT(out[(40 * kW + 60) * 3], s.plane[0][40 * kW + 60]);
+}
+
+TEST(Flare, MatchesTheDoubleReference) {
+  constexpr int kW = 120, kH = 90;
+  FlareConfig f;
+  f.enabled = true;
+  f.ghost_count = 3;
+  auto b = test::Build(FlareOnly(kW, kH, f));
+  ASSERT_TRUE(b->status.ok());
+  test::Scene s = test::TexturedScene(kW, kH);  // has a bright spot
+  for (int c = 0; c < 3; ++c) {
+    s.plane[c][10 * kW + 100] = Q<16, 16>::FromDouble(3000.0).raw;
+    s.plane[c][70 * kW + 15] = Q<16, 16>::FromDouble(800.0 + 100 * c).raw;
+  }
+  int sources = 0;
+  const auto out = RunFlare(*b, s, 16, &sources);
+  EXPECT_GE(sources, 2);
+  EXPECT_EQ(RunFlare(*b, s, 1), out);  // any strip height
+  ref::RefImage in;
+  in.width = kW;
+  in.height = kH;
+  in.planes.assign(3, std::vector<double>(kW * kH));
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < kW * kH; ++i) in.planes[c][i] = s.plane[c][i] / 65536.0;
+  const ref::RefImage r = ref::RefFlare(f, b->pipeline.config().geometry, in);
+  // Q16.16 output, ~40 rounded spreads per pixel (< 1e-3 together), and the
+  // glare fraction quantised to Q0.16 (its error, <= 2^-17, times the excess).
+  double max_err = 0;
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < kW * kH; ++i) {
+      const double err = std::abs(out[i * 3 + c] / 65536.0 - r.planes[c][i]);
+      EXPECT_LE(err, 1e-3 + in.planes[c][i] / 131072.0) << "channel " << c << " pixel " << i;
+      max_err = std::max(max_err, err);
+    }
+  RecordProperty("max_abs_error", std::to_string(max_err));
+}
+
+TEST(Flare, NoBrightPixelPassesTheFrameUnchanged) {
+  FlareConfig f;
+  f.enabled = true;
+  auto b = test::Build(FlareOnly(40, 30, f));
+  ASSERT_TRUE(b->status.ok());
+  const test::Scene s = test::FlatScene(40, 30, 7.9, 2.0, 0.5);  // all below the threshold 8
+  int sources = -1;
+  const auto out = RunFlare(*b, s, 8, &sources);
+  EXPECT_EQ(sources, 0);
+  for (int i = 0; i < 40 * 30; ++i)
+    for (int c = 0; c < 3; ++c) ASSERT_EQ(out[i * 3 + c], s.plane[c][i]);
+}
+
+TEST(Flare, LeftOutWhenOffAndNeedsItsPrePass) {
+  auto off = test::Build(FlareOnly(16, 16, FlareConfig{}));
+  EXPECT_FALSE(off->status.ok());  // the only listed stage was left out
+  PipelineConfig c = FlareOnly(16, 16, FlareConfig{});
+  c.order[1] = StageId::kExposure;
+  c.order_count = 2;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok());
+  EXPECT_FALSE(b->pipeline.plan().entries[0].runs);
+  FlareConfig on;
+  on.enabled = true;
+  auto needs = test::Build(FlareOnly(16, 16, on));
+  ASSERT_TRUE(needs->status.ok());
+  const test::Scene s = test::FlatScene(16, 16, 1, 1, 1);
+  EXPECT_EQ(std::string(needs->pipeline.CheckInput(s.View()).field()), "flare.enabled");
+}
+
+}  // namespace
+}  // namespace camsim

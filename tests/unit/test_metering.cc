@@ -1,0 +1,49 @@
+// Metering weights and the weighted brightness auto exposure measures.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "core/control/metering.h"
+
+namespace camsim {
+namespace {
+
+TEST(Metering, WeightsFollowTheirShapes) {
+  constexpr int kW = 101, kH = 81;
+  // Centre: 1 at the centre, falling with r^2, 1/16 at the corners.
+  EXPECT_EQ(MeteringWeight(Metering::kCentre, 50, 40, kW, kH), 65536u);  // the centre pixel: r = 0
+  EXPECT_EQ(MeteringWeight(Metering::kCentre, 0, 0, kW, kH), 4096u);
+  EXPECT_GT(MeteringWeight(Metering::kCentre, 40, 40, kW, kH), MeteringWeight(Metering::kCentre, 20, 40, kW, kH));
+  // Spot: the disc r < 0.1 of the half-diagonal (64.5 px here: radius ~6.4 px).
+  EXPECT_EQ(MeteringWeight(Metering::kSpot, 50, 40, kW, kH), 65536u);
+  EXPECT_EQ(MeteringWeight(Metering::kSpot, 56, 40, kW, kH), 65536u);
+  EXPECT_EQ(MeteringWeight(Metering::kSpot, 58, 40, kW, kH), 0u);
+  EXPECT_EQ(MeteringWeight(Metering::kUniform, 0, 0, kW, kH), 65536u);
+}
+
+TEST(Metering, SpotSeesOnlyTheCentreAndUniformSeesTheMean) {
+  constexpr int kW = 64, kH = 48, kBlack = 64, kMax = 4095;
+  // Dark frame with a bright centre patch (12 x 12 at 1000 DN above black).
+  std::vector<uint16_t> raw(kW * kH, kBlack);
+  for (int y = 18; y < 30; ++y)
+    for (int x = 26; x < 38; ++x) raw[y * kW + x] = kBlack + 1000;
+  const double range = kMax - kBlack;
+  EXPECT_NEAR(WeightedBrightness(raw.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kSpot, nullptr), 1000 / range, 1e-12);
+  EXPECT_NEAR(WeightedBrightness(raw.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kUniform, nullptr),
+              1000 / range * 144 / (kW * kH), 1e-12);
+  const double centre = WeightedBrightness(raw.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kCentre, nullptr);
+  EXPECT_GT(centre, 1000 / range * 144 / (kW * kH));
+  EXPECT_LT(centre, 1000 / range);
+  // Image weights: only the left half counts.
+  std::vector<uint16_t> w(kW * kH, 0);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW / 2; ++x) w[y * kW + x] = 65535;
+  EXPECT_NEAR(WeightedBrightness(raw.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kImage, w.data()),
+              1000 / range * (6 * 12) / (kW / 2 * kH), 1e-12);
+  // Below black counts as 0, never negative.
+  std::vector<uint16_t> low(kW * kH, 10);
+  EXPECT_EQ(WeightedBrightness(low.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kUniform, nullptr), 0.0);
+}
+
+}  // namespace
+}  // namespace camsim

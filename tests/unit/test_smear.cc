@@ -1,0 +1,132 @@
+// CCD smear: the per-frame column pre-pass against its double reference (all
+// sensor layouts), the streak it makes (uniform along the column, only where
+// light fell), its dependence on exposure time, and the input check.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/sensor/smear.h"
+#include "core/sensor/smear_ref.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+PipelineConfig SmearPath(int w, int h, Cfa cfa, bool with_cfa_stage) {
+  PipelineConfig c;
+  c.geometry = {w, h, cfa, 12};
+  c.exposure.exposure_time_us = 1000.0;
+  c.exposure.f_number = 1.0;
+  c.exposure.photons_per_radiance_ms = 1000.0;  // 1000 photons per unit radiance
+  int n = 0;
+  c.order[n++] = StageId::kExposure;
+  if (with_cfa_stage) c.order[n++] = StageId::kCfa;
+  c.order[n++] = StageId::kSensor;
+  c.order_count = n;
+  c.sensor.shot_noise = false;
+  c.sensor.dark_noise_e = 0;
+  c.sensor.dsnu_e = 0;
+  c.sensor.prnu_percent = 0;
+  c.sensor.dark_current_e_per_s = 0;
+  c.sensor.system_gain_dn_per_e = 1.0;
+  c.sensor.black_level_dn = 100;
+  c.sensor.smear_row_transfer_us = 10.0;  // 1 % of the 1 ms exposure per row
+  c.sensor.smear_leak = 1.0;
+  return c;
+}
+
+std::vector<double> ToDouble(const std::vector<uint32_t>& q16) {
+  std::vector<double> d(q16.size());
+  for (size_t i = 0; i < q16.size(); ++i) d[i] = q16[i] / 65536.0;
+  return d;
+}
+
+void ExpectPrePassMatchesReference(const PipelineConfig& c, const test::Scene& s) {
+  std::vector<uint32_t> smear(static_cast<size_t>(SmearEntries(c)));
+  ComputeSmear(c, s.View(), Span<uint32_t>{smear.data(), smear.size()});
+  const std::vector<double> r[3] = {ToDouble(s.plane[0]), ToDouble(s.plane[1]), ToDouble(s.plane[2])};
+  const double* planes[3] = {r[0].data(), r[1].data(), r[2].data()};
+  bool three = true;
+  for (int i = 0; i < c.order_count; ++i) three &= c.order[i] != StageId::kCfa;
+  for (int ch = 0; ch < (three ? 3 : 1); ++ch)
+    for (int x = 0; x < c.geometry.width; ++x) {
+      const double ref = ref::RefSmear(c, planes, x, ch);
+      // Up to three rounded terms of 1/256 e- and Q16 weights: well under 0.05 e-.
+      EXPECT_NEAR(smear[static_cast<size_t>(ch) * c.geometry.width + x] / 256.0, ref, 0.05 + 1e-4 * ref)
+          << "x " << x << " channel " << ch;
+    }
+}
+
+TEST(Smear, PrePassMatchesReferenceForEveryLayout) {
+  const test::Scene s = test::TexturedScene(40, 30);
+  ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kBayerRG, true), s);
+  ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kBayerGB, true), s);
+  ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kMono, true), s);
+  ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kBayerRG, false), s);  // one sensor per colour
+}
+
+TEST(Smear, StreakIsUniformAlongLitColumnsOnly) {
+  constexpr int kW = 64, kH = 48;
+  const PipelineConfig c = SmearPath(kW, kH, Cfa::kBayerRG, true);
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  test::Scene s = test::FlatScene(kW, kH, 0, 0, 0);
+  for (int y = 10; y < 15; ++y)
+    for (int x = 20; x < 24; ++x)
+      for (int ch = 0; ch < 3; ++ch) s.plane[ch][y * kW + x] = Q<16, 16>::FromDouble(2.0).raw;
+  std::vector<uint32_t> smear(static_cast<size_t>(SmearEntries(c)));
+  FrameInput in = s.View();
+  ComputeSmear(c, in, Span<uint32_t>{smear.data(), smear.size()});
+  in.smear_e = smear.data();
+  ASSERT_TRUE(b->pipeline.CheckInput(in).ok());
+  std::vector<uint32_t> out(static_cast<size_t>(kW) * kH);
+  Tap tap;
+  tap.format = TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = kW;
+  b->pipeline.ProcessFrame(in, 0, 7, &tap, 1, nullptr, nullptr);
+  for (int x = 0; x < kW; ++x) {
+    const bool lit = x >= 20 && x < 24;
+    // 5 rows of 2000 photons (R or G on even columns, G or B on odd), 1 %: ~55..65 e-.
+    double expected = 0;
+    for (int y = 10; y < 15; ++y) expected += 2000.0 * c.sensor.quantum_efficiency[CfaColour(Cfa::kBayerRG, x, y)];
+    expected *= 0.01;
+    for (int y = 0; y < kH; ++y) {
+      if (y >= 10 && y < 15 && lit) continue;
+      const double got = out[y * kW + x] - 100.0;  // K = 1 DN/e-
+      if (lit) {
+        EXPECT_NEAR(got, expected, 0.51) << x << "," << y;
+      } else {
+        EXPECT_EQ(got, 0.0) << x << "," << y;
+      }
+    }
+  }
+}
+
+TEST(Smear, ShorterExposureForTheSameLightSmearsMore) {
+  // Same photons per pixel (photons_per_radiance doubled, time halved): the
+  // transfer takes as long, so the smear relative to the signal doubles.
+  PipelineConfig a = SmearPath(16, 16, Cfa::kMono, true);
+  PipelineConfig b = a;
+  b.exposure.exposure_time_us = 500.0;
+  b.exposure.photons_per_radiance_ms = 2000.0;
+  const test::Scene s = test::FlatScene(16, 16, 1.0, 1.0, 1.0);
+  std::vector<uint32_t> sa(static_cast<size_t>(SmearEntries(a))), sb(sa.size());
+  ComputeSmear(a, s.View(), Span<uint32_t>{sa.data(), sa.size()});
+  ComputeSmear(b, s.View(), Span<uint32_t>{sb.data(), sb.size()});
+  EXPECT_GT(sa[3], 0u);
+  EXPECT_NEAR(double(sb[3]), 2.0 * sa[3], 4.0);  // three terms rounded to 1/256 e- each
+}
+
+TEST(Smear, MissingPrePassIsAnInputError) {
+  const PipelineConfig c = SmearPath(8, 8, Cfa::kMono, true);
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok());
+  const test::Scene s = test::FlatScene(8, 8, 1, 1, 1);
+  const Status st = b->pipeline.CheckInput(s.View());
+  EXPECT_FALSE(st.ok());
+  EXPECT_EQ(std::string(st.field()), "sensor.smear_row_transfer_us");
+}
+
+}  // namespace
+}  // namespace camsim
