@@ -10,6 +10,8 @@ packages=(
   build-essential clang cmake pkg-config
   libopenexr-dev libimath-dev libpng-dev zlib1g-dev libtomlplusplus-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  # camsim-gige: Aravis (its pkg-config file needs libusb-1.0's), its CLI tools, libgpiod v1
+  libaravis-dev libusb-1.0-0-dev aravis-tools-cli libgpiod-dev
 )
 [ $# -eq 0 ] || packages=("$@")
 

@@ -1,0 +1,79 @@
+#include "host_tools/render.h"
+
+#include <atomic>
+
+#include "hal/clock.h"
+#include "host_tools/io/image_read.h"
+
+namespace camsim::host {
+
+FrameRenderer::FrameRenderer(int threads, int strip_rows)
+    : threads_(threads), strip_rows_(strip_rows), pipeline_(new Pipeline), pool_(threads),
+      clock_(hal::NanosecondClock()) {}
+
+bool FrameRenderer::Configure(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
+                              RunConfig* finished, std::string* error) {
+  RunConfig rc = config;
+  if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error)) return false;
+  std::unique_ptr<Pipeline> p(new Pipeline);
+  const Status s = p->Configure(rc.core, threads_, !rc.vignetting_mask.empty());
+  if (!s.ok()) {
+    *error = DescribeStatus(s, origins);
+    return false;
+  }
+  std::vector<uint8_t> workspace(p->WorkspaceBytes(), 0);
+  const Status si = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
+  if (!si.ok()) {
+    *error = DescribeStatus(si, origins);
+    return false;
+  }
+  if (!rc.vignetting_mask.empty()) {
+    if (mask_.data.empty() && !io::ReadMaskImage(rc.vignetting_mask, &mask_, error)) return false;
+    PrepareMask(mask_, p->width(), p->height(), &input_);
+  } else {
+    input_.mask.clear();
+  }
+  pipeline_ = std::move(p);
+  workspace_ = std::move(workspace);
+  fit_ = rc.fit;
+  if (finished) *finished = rc;
+  return true;
+}
+
+bool FrameRenderer::SetScene(const io::SceneFrame& scene, std::string* error) {
+  PrepareInput(scene, pipeline_->width(), pipeline_->height(), fit_, &input_);
+  const Status cs = pipeline_->CheckInput(input_.View());
+  if (!cs.ok()) {
+    *error = scene.source + ": " + cs.message();
+    return false;
+  }
+  return true;
+}
+
+void FrameRenderer::Render(uint32_t frame, const Tap* taps, int tap_count, std::vector<WorkerStats>* stats) {
+  // Strips go in order to whichever worker is free; the bytes do not depend on who takes which.
+  const FrameInput view = input_.View();
+  const int h = pipeline_->height();
+  std::atomic<int> next_strip{0};
+  pool_.Run([&](int worker) {
+    for (;;) {
+      const int y0 = next_strip.fetch_add(1) * strip_rows_;
+      if (y0 >= h) break;
+      pipeline_->ProcessStrip(view, frame, y0, y0 + strip_rows_, worker, taps, tap_count,
+                              stats ? &(*stats)[static_cast<size_t>(worker)] : nullptr, &clock_);
+    }
+  });
+}
+
+int FrameRenderer::SensorIndex() const {
+  const Plan& plan = pipeline_->plan();
+  int running = 0;
+  for (int i = 0; i < plan.count; ++i)
+    if (plan.entries[i].runs) {
+      if (plan.entries[i].id == StageId::kSensor) return running;
+      ++running;
+    }
+  return -1;
+}
+
+}  // namespace camsim::host
