@@ -393,12 +393,21 @@ bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages
   rc.core.order_count = 0;
   for (size_t i = 0; i < configured_stages_.size(); ++i)
     if (stages[i]) rc.core.order[rc.core.order_count++] = configured_stages_[i];
-  // Check on a scratch renderer first: the running one stays valid on failure.
-  host::FrameRenderer probe(1, 16);
-  if (!probe.Configure(rc, origins_, scenes_[0].width, scenes_[0].height, nullptr, error)) return false;
-  const LineFormat out = probe.pipeline().plan().output;
+  // Plan first (cheap, no tables): the running renderer stays as it is on failure.
+  host::RunConfig finished = rc;
+  if (!host::FinishConfig(&finished, scenes_[0].width, scenes_[0].height, origins_, 1, error)) return false;
+  Pipeline probe;
+  const Status ps = probe.Configure(finished.core, 1, !finished.vignetting_mask.empty());
+  if (!ps.ok()) {
+    *error = host::DescribeStatus(ps, origins_);
+    return false;
+  }
+  const LineFormat out = probe.plan().output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
-  if (r.at(kPixelFormat) == kRGB8 ? !rgb : probe.SensorIndex() < 0) {
+  bool has_sensor = false;
+  for (int i = 0; i < probe.plan().count; ++i)
+    has_sensor = has_sensor || (probe.plan().entries[i].runs && probe.plan().entries[i].id == StageId::kSensor);
+  if (r.at(kPixelFormat) == kRGB8 ? !rgb : !has_sensor) {
     *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
     return false;
   }
@@ -470,7 +479,12 @@ void GigeDevice::Sync() {
     bool pipeline = was_changed(kSimStageEnable) || was_changed(kPixelFormat) || was_changed(kGainRaw);
     for (uint32_t a : kPipelineRegisters) pipeline = pipeline || was_changed(a);
     std::string error;
-    if (pipeline && !Reconfigure(next, stages, &error)) {
+    const auto t_rc = std::chrono::steady_clock::now();
+    const bool rc_ok = !pipeline || Reconfigure(next, stages, &error);
+    if (std::getenv("CAMSIM_GIGE_DEBUG"))
+      std::fprintf(stderr, "camsim-gige: reconfigured in %.1f ms\n",
+                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_rc).count());
+    if (!rc_ok) {
       // The pipeline refuses the combination: back to the settings in use.
       std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
       for (const Feature* f : changed) refuse(f->address);

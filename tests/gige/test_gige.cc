@@ -22,6 +22,9 @@ using genicam::GigeDevice;
 namespace reg = genicam::reg;
 
 void Sleep(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+// Lets the device's register sync catch up: a pipeline setting rebuilds the
+// pipeline's tables (tens of ms on a busy machine), so allow plenty.
+void Settle() { Sleep(400); }
 
 // Waits until a feature reads `want` (the device's sync runs every 2 ms).
 int64_t ReadInt(Client& c, const char* name) { return arv_camera_get_integer(c.camera(), name, nullptr); }
@@ -251,10 +254,10 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
   SetFloat(c, "ExposureTimeAbs", 2500.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 2500.0);
   SetInt(c, "GainRaw", 65);
-  Sleep(30);
+  Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 6.5);
   SetFloat(c, "Gain", 3.0);
-  Sleep(30);
+  Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 3.0);
   EXPECT_EQ(ReadInt(c, "GainRaw"), 30);
   GError* e = nullptr;
@@ -277,7 +280,7 @@ TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
     SCOPED_TRACE(k.name);
     Set(c, "PixelFormat", k.name);
     SetInt(c, "SimFrameIndex", 7);
-    Sleep(20);
+    Settle();
     ASSERT_TRUE(c.OpenStream()) << c.last_error;
     Start(c);
     uint64_t id0 = 0, id1 = 0;
@@ -312,7 +315,7 @@ TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
     SCOPED_TRACE(name);
     Set(c, "PixelFormat", name);
     SetInt(c, "SimFrameIndex", 3);
-    Sleep(20);
+    Settle();
     ASSERT_TRUE(c.OpenStream());
     Start(c);
     uint32_t format = 0;
@@ -341,7 +344,7 @@ TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
   StartWith(o);
   Client& c = *client_;
   SetInt(c, "SimFrameIndex", 4);
-  Sleep(20);
+  Settle();
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   const auto f = c.Grab(3000);
@@ -380,12 +383,12 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   Set(c, "TriggerSource", "Line0");
   Set(c, "TriggerActivation", "RisingEdge");
   Set(c, "LineSelector", "Line1");
-  Sleep(20);
+  Settle();
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Output");
   Set(c, "LineSource", "ExposureActive");
   ASSERT_TRUE(c.OpenStream());
   Start(c);
-  Sleep(50);
+  Settle();
   GError* e = nullptr;
   arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // ignored: the source is Line0
   EXPECT_TRUE(c.Grab(300).empty());
@@ -397,7 +400,7 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   EXPECT_EQ(strobe.edges(), 2);  // high while the frame was made, then low
   EXPECT_FALSE(strobe.level());
   Set(c, "TriggerActivation", "FallingEdge");
-  Sleep(20);
+  Settle();
   trigger.Set(true, &err);
   EXPECT_TRUE(c.Grab(300).empty());
   trigger.Set(false, &err);
@@ -410,10 +413,10 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
   GError* e = nullptr;
   arv_camera_set_region(c.camera(), 8, 4, 32, 24, &e);
   ASSERT_EQ(e, nullptr);
-  Sleep(20);
+  Settle();
   EXPECT_EQ(ReadInt(c, "PayloadSize"), 32 * 24 * 2);
   SetInt(c, "SimFrameIndex", 0);
-  Sleep(20);
+  Settle();
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   uint64_t id = 0;
@@ -427,6 +430,7 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
   SetFloat(c, "ExposureTime", 4000.0);
   SetFloat(c, "Gain", 6.0);
   const std::vector<std::string> changed = {"exposure.exposure_time_us=4000.0", "sensor.gain_db=6.0"};
+  const std::vector<std::string> exposure_only = {"exposure.exposure_time_us=4000.0"};
   bool switched = false;
   int old_after_write = 0;
   for (int i = 0; i < 6; ++i) {
@@ -435,7 +439,9 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
     const uint32_t index = static_cast<uint32_t>(id - first_id);
     const bool is_new = f == Reference(index, code, 8, 4, 32, 24, changed);
     const bool is_old = f == Reference(index, code, 8, 4, 32, 24);
-    ASSERT_TRUE(is_new || is_old) << "frame " << index << " matches neither setting";
+    // The two writes may reach the device in different syncs.
+    const bool is_between = f == Reference(index, code, 8, 4, 32, 24, exposure_only);
+    ASSERT_TRUE(is_new || is_old || is_between) << "frame " << index << " matches no setting";
     if (switched) {
       EXPECT_TRUE(is_new) << "frame " << index << " went back to the old settings";
     }
@@ -446,7 +452,7 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
     }
   }
   EXPECT_TRUE(switched);
-  EXPECT_LE(old_after_write, 2) << "frames already queued may use the old settings; no more";
+  EXPECT_LE(old_after_write, 3) << "frames started before the sync may use the old settings; no more";
 }
 
 TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
@@ -462,7 +468,7 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   arv_device_write_register(dev, reg::kAcquisitionMode, 9, nullptr);
   uint8_t nan_bytes[8] = {0x7f, 0xf8, 0, 0, 0, 0, 0, 0};  // big-endian quiet NaN
   arv_device_write_memory(dev, reg::kBlackLevel, 8, nan_bytes, nullptr);
-  Sleep(50);
+  Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 10000.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 0.0);
   EXPECT_EQ(ReadInt(c, "Width"), 64);
@@ -472,9 +478,9 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   EXPECT_DOUBLE_EQ(ReadFloat(c, "BlackLevel"), 64.0);
   // A window that fits alone but not with the offset: the offset is refused.
   SetInt(c, "Width", 48);
-  Sleep(20);
+  Settle();
   SetInt(c, "OffsetX", 32);
-  Sleep(30);
+  Settle();
   EXPECT_EQ(ReadInt(c, "Width"), 48);
   EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
   SetInt(c, "Width", 64);
@@ -488,13 +494,13 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_DISABLE);
   // Still serving correct frames; geometry is frozen while acquiring.
   SetInt(c, "SimFrameIndex", 2);
-  Sleep(20);
+  Settle();
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   const auto f = c.Grab(3000);
   EXPECT_TRUE(f == Reference(2, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
   SetInt(c, "Width", 32);
-  Sleep(30);
+  Settle();
   EXPECT_EQ(ReadInt(c, "Width"), 64);
   EXPECT_FALSE(c.Grab(3000).empty());
 }
@@ -512,7 +518,7 @@ TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
   EXPECT_EQ(frames, 3);
   c.CloseStream();
   Set(c, "AcquisitionMode", "SingleFrame");
-  Sleep(20);
+  Settle();
   ASSERT_TRUE(c.OpenStream(8));
   Start(c);
   frames = 0;
@@ -526,17 +532,17 @@ TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
   Set(c, "SimStageSelector", "Stage_sensor");
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
   arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
-  Sleep(40);
+  Settle();
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr)) << "raw formats need the sensor";
   Set(c, "SimStageSelector", "Stage_vignetting");
   arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
-  Sleep(40);
+  Settle();
   EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
   Set(c, "SimStageSelector", "Stage_sensor");
-  Sleep(20);
+  Settle();
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
   SetInt(c, "SimFrameIndex", 1);
-  Sleep(20);
+  Settle();
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   const auto f = c.Grab(3000);
