@@ -193,7 +193,9 @@ void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
 bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
   switch (f.kind) {
     case Kind::kInteger: {
-      const double x = static_cast<double>(v);
+      // SCPS0: the size is the low 16 bits; the client may set flag bits
+      // (bit 31 fires a test packet during packet-size negotiation).
+      const double x = static_cast<double>(f.address == reg::kPacketSize ? (v & 0xffff) : v);
       return x >= f.min && x <= f.max && std::fmod(x - f.min, f.inc) == 0.0;
     }
     case Kind::kFloat: {

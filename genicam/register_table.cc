@@ -215,7 +215,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   payload.formula = "(W*H*((PF>>16)&255))/8";
   payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}};
   t.push_back(payload);
-  t.push_back(Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 4, "Stream packet size.", "B"));
+  t.push_back(Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 1, "Stream packet size.", "B"));
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
 
   const char* sim = "Simulation";
