@@ -2,6 +2,10 @@
 
 #include <arv.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -25,6 +29,9 @@ bool IsGeometry(uint32_t a) {
 }
 // GigE Vision bootstrap: control channel privilege (0 = no controlling client).
 constexpr uint32_t kControlChannelPrivilege = 0x0a00;
+// Stream channel 0: destination port (low 16 bits) and address.
+constexpr uint32_t kStreamPort = 0x0d00, kStreamDestAddress = 0x0d18;
+constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
 constexpr double kTriggerPollHz = 1000.0;
@@ -213,6 +220,7 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
 
 bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!LoadDeviceScenes(o, &base_config_, &origins_, &scenes_, error)) return false;
+  address_ = o.address;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
   host::RunConfig finished;
   if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
@@ -277,13 +285,21 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   }
   if (!io::WriteTextFile(xml_path_, xml, error)) return false;
 
-  gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
-  if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
-    *error = "cannot serve on " + o.address +
-             ": no network interface has that address, or another camera already uses its GVCP port 3956";
-    return false;
+  if (o.serve) {
+    gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
+    if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
+      *error = "cannot serve on " + o.address +
+               ": no network interface has that address, or another camera already uses its GVCP port 3956";
+      return false;
+    }
+    fake_ = arv_gv_fake_camera_get_fake_camera(gv_);
+  } else {
+    fake_ = arv_fake_camera_new_full(o.serial.c_str(), xml_path_.c_str());
+    if (!fake_) {
+      *error = "cannot create the register memory";
+      return false;
+    }
   }
-  fake_ = arv_gv_fake_camera_get_fake_camera(gv_);
   arv_fake_camera_set_trigger_frequency(fake_, kTriggerPollHz);
 
   // Bootstrap strings, then every register's initial value.
@@ -349,6 +365,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   Write(kTriggerSoftware, 0);
   WriteDerived();
   arv_fake_camera_set_fill_pattern(fake_, &GigeDevice::FillThunk, this);
+  if (!o.serve) return true;
   sync_thread_ = std::thread([this] { SyncLoop(); });
   if (trigger_) trigger_thread_ = std::thread([this] { TriggerLoop(); });
   return true;
@@ -359,7 +376,54 @@ GigeDevice::~GigeDevice() {
   if (sync_thread_.joinable()) sync_thread_.join();
   if (trigger_thread_.joinable()) trigger_thread_.join();
   if (gv_) g_object_unref(gv_);  // stops the fake camera's thread
+  else if (fake_) g_object_unref(fake_);
   if (own_xml_) unlink(xml_path_.c_str());
+}
+
+bool GigeDevice::WriteMemory(uint32_t address, const void* data, uint32_t size) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // The fake camera's own check (read-only XML after the registers) is a
+  // g_return_val_if_fail that would log a critical: refuse those here.
+  if (size == 0 || address >= ARV_FAKE_CAMERA_MEMORY_SIZE || size > ARV_FAKE_CAMERA_MEMORY_SIZE - address)
+    return false;
+  return arv_fake_camera_write_memory(fake_, address, size, data);
+}
+
+void GigeDevice::SyncNow() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Sync();
+}
+
+bool GigeDevice::RenderNow(std::vector<uint8_t>* frame) {
+  const size_t payload = arv_fake_camera_get_payload(fake_);
+  ArvBuffer* b = arv_buffer_new(payload, nullptr);
+  arv_fake_camera_fill_buffer(fake_, b, nullptr);  // calls Fill
+  const bool ok = arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS;
+  if (ok) {
+    const uint8_t* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, nullptr));
+    frame->assign(data, data + payload);
+  }
+  g_object_unref(b);
+  return ok;
+}
+
+std::string GigeDevice::CheckInvariants() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const Feature& f : table_) {
+    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
+        f.kind == Kind::kSwissKnife)
+      continue;
+    const uint64_t in_use = applied_.at(f.address);
+    if (!Valid(f, in_use)) return f.name + ": the value in use is invalid";
+    if (ReadFeature(f) != in_use) return f.name + ": the register differs from the value in use";
+  }
+  using namespace reg;
+  if (applied_.at(kWidth) + applied_.at(kOffsetX) > static_cast<uint64_t>(sensor_.width) ||
+      applied_.at(kHeight) + applied_.at(kOffsetY) > static_cast<uint64_t>(sensor_.height))
+    return "the window is off the sensor";
+  if (applied_.at(kGainRaw) != static_cast<uint64_t>(std::lround(AppliedDouble(kGain) * 10)))
+    return "Gain and GainRaw disagree";
+  return "";
 }
 
 std::string GigeDevice::line_error() const {
@@ -421,13 +485,26 @@ bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages
 void GigeDevice::Sync() {
   using namespace reg;
   const bool acquiring = Read(kAcquisition) != 0;
-  if (acquiring && Read(kControlChannelPrivilege) == 0) {
-    // The controlling client is gone (heartbeat timeout): stop, so the next
-    // client does not find a stream running to the old one's port.
+  // Clients that go away. The fake camera picks its stream destination when
+  // an acquisition starts and forgets it only when a control packet arrives
+  // while acquisition or privilege is 0.
+  const uint64_t dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
+  const bool controlled = Read(kControlChannelPrivilege) != 0;
+  if (acquiring && !controlled) {
+    // The controller's heartbeat timed out: stop, so the next client does
+    // not find a stream running.
     Write(kAcquisition, 0);
     Write(kTLParamsLocked, 0);
     applied_[kTLParamsLocked] = 0;
+  } else if (acquiring && sync_saw_acquiring_ && dest != stream_dest_) {
+    // A new client took control of a running acquisition (its predecessor was
+    // killed: the heartbeat timeout and the new client's control request were
+    // one packet) and set its own destination: make the fake camera re-read it
+    // (SyncLoop, outside the lock: the fake camera's thread may wait for it in Fill).
+    restart_stream_ = true;
   }
+  stream_dest_ = dest;
+  sync_saw_acquiring_ = acquiring;
   if (!acquiring) was_acquiring_ = false;
 
   Registers next = applied_;
@@ -509,12 +586,40 @@ void GigeDevice::Sync() {
   }
 }
 
+void GigeDevice::RestartStream() {
+  using namespace reg;
+  // Acquisition 0, then a GVCP read from here so the fake camera's thread
+  // handles a packet while it is 0 (and drops its stream), then back to 1.
+  Write(kAcquisition, 0);
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  if (fd >= 0) {
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(kGvcpPort);
+    inet_pton(AF_INET, address_.c_str(), &to.sin_addr);
+    // GVCP READREG_CMD of the version register: key 0x42, flags 0x01 (ack),
+    // command 0x0080, length 4, request id, address 0.
+    const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xca, 0x5e, 0, 0, 0, 0};
+    sendto(fd, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+    pollfd p{fd, POLLIN, 0};
+    uint8_t ack[64];
+    if (poll(&p, 1, 200) > 0) recv(fd, ack, sizeof ack, 0);  // handled: the stream is dropped right after
+    close(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  if (Read(kAcquisition) == 0) Write(kAcquisition, 1);
+}
+
 void GigeDevice::SyncLoop() {
   while (!stop_) {
+    bool restart = false;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       Sync();
+      restart = restart_stream_;
+      restart_stream_ = false;
     }
+    if (restart) RestartStream();
     std::this_thread::sleep_for(std::chrono::milliseconds(kSyncPeriodMs));
   }
 }

@@ -53,6 +53,9 @@ struct DeviceOptions {
   hal::OutputLine* strobe = nullptr;
   int threads = 2, strip_rows = 16;
   std::string xml_path;  // where the generated XML is written; empty: a file in $TMPDIR
+  // false: no network and no threads (register logic only: fuzzing, unit
+  // tests); drive it with WriteMemory / SyncNow / RenderNow.
+  bool serve = true;
 };
 
 // Names of --pattern scenes and the scene itself (deterministic, HDR).
@@ -85,6 +88,15 @@ class GigeDevice {
   // Last error of a GPIO line (empty when none).
   std::string line_error() const;
 
+  // Register access as a client's write would do it, one sync, one frame
+  // rendered into *frame (as the fake camera fills a buffer), and the device's
+  // invariants (empty when they hold: every writable register holds its value
+  // in use, every value in use is valid, the window is on the sensor).
+  bool WriteMemory(uint32_t address, const void* data, uint32_t size);
+  void SyncNow();
+  bool RenderNow(std::vector<uint8_t>* frame);
+  std::string CheckInvariants() const;
+
  private:
   using Registers = std::map<uint32_t, uint64_t>;  // address -> value (Float: the double's bits)
   GigeDevice() = default;
@@ -104,6 +116,7 @@ class GigeDevice {
   void WriteDerived();  // registers that follow from the applied values
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void AutoAdjust(double mean_fraction);  // under mutex_
+  void RestartStream();  // not under mutex_
   void SyncLoop();
   void TriggerLoop();
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
@@ -139,6 +152,10 @@ class GigeDevice {
   std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0};
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;
+  uint64_t stream_dest_ = 0;         // stream destination at the last sync
+  bool sync_saw_acquiring_ = false;  // acquisition at the last sync
+  bool restart_stream_ = false;
+  std::string address_;
 };
 
 }  // namespace camsim::genicam

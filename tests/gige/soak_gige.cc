@@ -56,9 +56,20 @@ int GrabFrames(int n, int connect_timeout_s) {
       arv_camera_set_integer(c.camera(), "SimFrameIndex", 0, &e);  // fails while another client has control
       if (!e && c.OpenStream()) {
         arv_camera_start_acquisition(c.camera(), &e);
+        if (e) std::printf("soak: start failed: %s\n", e->message);
         int got = 0;
         for (int i = 0; i < n + 5 && got < n; ++i)
           if (!c.Grab(2000).empty()) ++got;
+        if (got < n) {
+          guint32 acq = 0, ccp = 0, scda = 0, port = 0;
+          arv_device_read_register(c.device(), 0x124, &acq, nullptr);
+          arv_device_read_register(c.device(), 0xa00, &ccp, nullptr);
+          arv_device_read_register(c.device(), 0xd18, &scda, nullptr);
+          arv_device_read_register(c.device(), 0xd00, &port, nullptr);
+          std::printf("soak: %d of %d frames; acquisition %u, privilege %u, stream to %08x:%u, failed buffers %llu\n",
+                      got, n, acq, ccp, scda, port, static_cast<unsigned long long>(c.failed_buffers()));
+        }
+        g_clear_error(&e);
         return got;
       }
       g_clear_error(&e);

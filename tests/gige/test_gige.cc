@@ -208,6 +208,50 @@ TEST(GigeGpio, DeviceRefusesToStartWithAMissingTriggerLineOnly) {
   EXPECT_NE(d, nullptr) << error;
 }
 
+// ---------------------------------------------------------------- register logic without network
+
+TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  auto be32 = [](uint32_t v) {
+    return std::vector<uint8_t>{uint8_t(v >> 24), uint8_t(v >> 16), uint8_t(v >> 8), uint8_t(v)};
+  };
+  auto be64 = [](double x) {
+    uint64_t v;
+    std::memcpy(&v, &x, 8);
+    std::vector<uint8_t> b(8);
+    for (int i = 0; i < 8; ++i) b[i] = uint8_t(v >> (56 - 8 * i));
+    return b;
+  };
+  const std::vector<std::pair<uint32_t, std::vector<uint8_t>>> bad = {
+      {reg::kWidth, be32(65)},        {reg::kWidth, be32(0)},         {reg::kOffsetY, be32(47)},
+      {reg::kPixelFormat, be32(7)},   {reg::kGainRaw, be32(481)},     {reg::kTriggerSource, be32(5)},
+      {reg::kGain, be64(48.5)},       {reg::kExposureTime, be64(0.5)}, {reg::kSimFNumber, be64(-1.0)},
+      {reg::kAcquisitionFrameRateEnable, be32(2)}, {reg::kBlackLevel, be64(1e300)}};
+  for (const auto& w : bad) {
+    ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
+    d->SyncNow();
+    EXPECT_EQ(d->CheckInvariants(), "") << std::hex << w.first;
+  }
+  EXPECT_EQ(d->writes_refused(), bad.size());
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
+  // Valid: a 16x8 window at (2, 4) in 8-bit, and exposure 2 ms.
+  for (const auto& w : std::vector<std::pair<uint32_t, std::vector<uint8_t>>>{
+           {reg::kWidth, be32(16)}, {reg::kHeight, be32(8)}, {reg::kOffsetX, be32(2)}, {reg::kOffsetY, be32(4)},
+           {reg::kPixelFormat, be32(genicam::BayerCode(Cfa::kBayerRG, 8))}, {reg::kExposureTime, be64(2000.0)}})
+    ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(d->writes_refused(), bad.size());
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 1, genicam::BayerCode(Cfa::kBayerRG, 8), 2, 4, 16, 8,
+                                  {"exposure.exposure_time_us=2000.0"}));
+}
+
 // ---------------------------------------------------------------- end to end
 
 class GigeE2E : public ::testing::Test {
