@@ -572,6 +572,37 @@ TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
   EXPECT_EQ(frames, 1);
 }
 
+TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  // Mean raw level (above black, fraction of full scale) of a BayerRG12 frame.
+  auto mean_level = [](const std::vector<uint8_t>& f) {
+    double sum = 0;
+    for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
+    return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);  // black level 64 DN (demo camera)
+  };
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double before = mean_level(c.Grab(3000));
+  c.CloseStream();
+  SetFloat(c, "SimAutoTarget", 0.6 * before);
+  Set(c, "ExposureAuto", "Once");
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (int i = 0; i < 3; ++i) ASSERT_FALSE(c.Grab(3000).empty());
+  c.CloseStream();
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureAuto", nullptr), "Off") << "Once turns itself off";
+  const double exposure = ReadFloat(c, "ExposureTime");
+  EXPECT_LT(exposure, 10000.0 * 0.8);
+  EXPECT_GT(exposure, 10000.0 * 0.4);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double after = mean_level(c.Grab(3000));
+  EXPECT_NEAR(after / before, 0.6, 0.1) << "before " << before << " after " << after;
+}
+
 TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
   StartWith(SmallDevice());
   Client& c = *client_;
