@@ -8,7 +8,6 @@
 #include <sstream>
 
 #include "hal/clock.h"
-#include "hal/thread_pool.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
