@@ -13,6 +13,7 @@
 #include "host_tools/io/image_write.h"
 
 #include "host_tools/config.h"
+#include "host_tools/report/tradeoff.h"
 #include "host_tools/run.h"
 
 namespace {
@@ -25,6 +26,9 @@ const char kUsage[] =
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
+    "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"
+    "      error against run time for every precision knob of the running stages:\n"
+    "      DIR/tradeoff.csv, tradeoff.md and tradeoff.png\n"
     "  camsim preview --input EXR --out PNG [--scale S]\n"
     "      the ideal (perfect-camera) view of a scene: sRGB of radiance * S, clipped\n";
 
@@ -103,6 +107,29 @@ int Config(int argc, char** argv) {
   return 1;
 }
 
+int Tradeoff(int argc, char** argv) {
+  camsim::host::TradeoffOptions o;
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "camsim: %s needs a value\n%s", a.c_str(), kUsage);
+      return 1;
+    }
+    const char* v = argv[++i];
+    long n = 0;
+    if (a == "--input") o.input = v;
+    else if (a == "--out") o.out_dir = v;
+    else if (a == "--config") o.config_path = v;
+    else if (a == "--set") o.overrides.push_back(v);
+    else if (a == "--frames" && ParseInt(v, 1, 1000, &n)) o.frames = static_cast<int>(n);
+    else {
+      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", a.c_str(), v, kUsage);
+      return 1;
+    }
+  }
+  return camsim::host::TradeoffCommand(o);
+}
+
 // The "before" picture: what a perfect camera would show (no noise, no lens,
 // no mosaic): sRGB encoding of radiance * scale, clipped to [0, 1].
 int Preview(int argc, char** argv) {
@@ -149,6 +176,7 @@ int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "run") == 0) return Run(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "config") == 0) return Config(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
+  if (argc >= 2 && std::strcmp(argv[1], "tradeoff") == 0) return Tradeoff(argc, argv);
   std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
   return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;
 }

@@ -104,7 +104,7 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All: exposure, vignetting, cfa, "
+                 "stages in run order; a stage not listed does not run. All: exposure, motion_blur, vignetting, cfa, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";
@@ -183,6 +183,35 @@ const std::vector<Field>& Fields() {
     // [lens]
     v.push_back(Number("lens", "focal_length_mm", "focal length, mm",
                        [](RunConfig& c) -> double& { return c.focal_length_mm; }));
+
+    // [motion]
+    v.push_back(Enum<MotionSource>("motion", "source",
+                                   "motion blur and rolling shutter: off, camera (velocities below) or vectors "
+                                   "(the input's motion vectors)",
+                                   {"off", "camera", "vectors"},
+                                   [](RunConfig& c) -> MotionSource& { return c.core.motion_blur.source; }));
+    v.push_back(Array("motion", "angular_velocity_rad_s", "camera angular velocity wx, wy, wz, rad/s (x right, y down, z forward)",
+                      3, 3, [](RunConfig& c) { return c.core.motion_blur.angular_velocity_rad_s; }));
+    v.push_back(Array("motion", "linear_velocity_m_s", "camera linear velocity vx, vy, vz, m/s (needs the input's depth)",
+                      3, 3, [](RunConfig& c) { return c.core.motion_blur.linear_velocity_m_s; }));
+    v.push_back(Number("motion", "fx_px", "focal length x, pixels; 0 = lens.focal_length_mm / pixel pitch",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.fx_px; }));
+    v.push_back(Number("motion", "fy_px", "focal length y, pixels; 0 = lens.focal_length_mm / pixel pitch",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.fy_px; }));
+    v.push_back(Number("motion", "cx_px", "principal point x, pixels; negative = the centre",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.cx_px; }));
+    v.push_back(Number("motion", "cy_px", "principal point y, pixels; negative = the centre",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.cy_px; }));
+    v.push_back(Number("motion", "vector_fps", "vectors: frames per second of the render (the vectors span 1 / fps)",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.vector_fps; }));
+    v.push_back(Number("motion", "line_time_us", "rolling shutter: delay from one row's exposure to the next, us; 0 = global shutter",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.line_time_us; }));
+    v.push_back(Integer("motion", "max_displacement_px", "bound on each sample's offset, 1 .. 63 px (longer motion stops there)",
+                        [](RunConfig& c) -> int& { return c.core.motion_blur.max_displacement_px; }));
+    v.push_back(Number("motion", "samples_per_px", "samples per pixel of motion length (precision knob), 1/16 .. 16",
+                       [](RunConfig& c) -> double& { return c.core.motion_blur.samples_per_px; }));
+    v.push_back(Integer("motion", "max_samples", "bound on the samples per pixel, 1 .. 256",
+                        [](RunConfig& c) -> int& { return c.core.motion_blur.max_samples; }));
 
     // [vignetting]
     v.push_back(Enum<VignettingMode>("vignetting", "mode",
@@ -617,6 +646,8 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   }
   const double pitch_mm = c->pixel_pitch_um > 0 ? c->pixel_pitch_um / 1000.0 : 36.0 / p.geometry.width;
   if (p.vignetting.focal_length_px == 0.0) p.vignetting.focal_length_px = c->focal_length_mm / pitch_mm;
+  if (p.motion_blur.fx_px == 0.0) p.motion_blur.fx_px = c->focal_length_mm / pitch_mm;
+  if (p.motion_blur.fy_px == 0.0) p.motion_blur.fy_px = c->focal_length_mm / pitch_mm;
   Pipeline probe;
   const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
   if (!s.ok()) {

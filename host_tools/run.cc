@@ -64,7 +64,7 @@ struct FrameRecord {
   double wall_ms = 0;
   io::InputSanitizeStats radiance_stats;
   std::string layout;
-  bool has_depth = false, has_motion = false;  // loaded; no stage uses them yet
+  bool has_depth = false, has_motion = false;  // loaded but no running stage uses them
 };
 
 struct Accumulated {
@@ -81,6 +81,7 @@ void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
       t.count[c] += f.count[c];
       t.aux_sum[c] += f.aux_sum[c];
     }
+    t.skipped_px += f.skipped_px;
     t.ticks += f.ticks;
   }
 }
@@ -136,6 +137,13 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         first = false;
       }
       j << "}";
+      if (s.skipped_px > 0) {
+        // Time saved, estimated at the stage's measured cost per pixel it did work on.
+        const double px = static_cast<double>(p.width()) * p.height() * frames;
+        const double worked = px - static_cast<double>(s.skipped_px);
+        j << ", \"skipped_fraction\": " << Num(s.skipped_px / px) << ", \"time_saved_ms_per_frame_estimate\": "
+          << Num(worked > 0 ? s.ticks / 1e6 / worked * s.skipped_px / frames : 0.0);
+      }
       if (e.id == StageId::kSensor) {
         j << ", \"mean_electrons\": {";
         first = true;
@@ -184,6 +192,9 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
     const char* cn[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c)
       if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.sum[c] * unit / s.count[c]);
+    if (s.skipped_px > 0)
+      std::fprintf(stderr, "  skipped %.1f %% of pixels (not needed)",
+                   100.0 * static_cast<double>(s.skipped_px) / (static_cast<double>(p.width()) * p.height() * frames));
     if (e.id == StageId::kSensor) {
       std::fprintf(stderr, "  electrons");
       for (int c = 0; c < 3; ++c)
@@ -340,8 +351,17 @@ int RunCommand(const RunOptions& o) {
     rec.input = scene.source;
     rec.radiance_stats = scene.radiance_stats;
     rec.layout = scene.layout;
-    rec.has_depth = scene.has_depth;
-    rec.has_motion = scene.has_motion;
+    {
+      // Motion blur reads depth for camera translation and the vectors in vectors mode.
+      bool motion_runs = false;
+      for (int i = 0; i < plan.count; ++i)
+        motion_runs = motion_runs || (plan.entries[i].id == StageId::kMotionBlur && plan.entries[i].runs);
+      const MotionBlurConfig& m = rc.core.motion_blur;
+      const bool translating = m.linear_velocity_m_s[0] != 0.0 || m.linear_velocity_m_s[1] != 0.0 ||
+                               m.linear_velocity_m_s[2] != 0.0;
+      rec.has_depth = scene.has_depth && !(motion_runs && m.source == MotionSource::kCamera && translating);
+      rec.has_motion = scene.has_motion && !(motion_runs && m.source == MotionSource::kVectors);
+    }
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
 
     // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),

@@ -9,6 +9,10 @@ FrameInput CoreInput::View() const {
   FrameInput in;
   for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(radiance[c].data(), width, height);
   if (!mask.empty()) in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), width, height);
+  if (!inverse_depth.empty())
+    in.motion_inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
+  for (int c = 0; c < 2; ++c)
+    if (!motion[c].empty()) in.motion_vectors[c] = MakeImageView<const int32_t>(motion[c].data(), width, height);
   return in;
 }
 
@@ -65,6 +69,29 @@ void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit f
     const io::FloatPlane fitted = FitPlane(*planes[c], width, height, fit);
     out->radiance[c].resize(fitted.data.size());
     for (size_t i = 0; i < fitted.data.size(); ++i) out->radiance[c][i] = ToFixed(fitted.data[i], 16, 4294967295.0);
+  }
+  out->inverse_depth.clear();
+  if (scene.has_depth) {
+    io::FloatPlane inv = scene.depth;
+    for (float& d : inv.data) d = (d > 0.0f && std::isfinite(d)) ? 1.0f / d : 0.0f;
+    const io::FloatPlane fitted = FitPlane(inv, width, height, fit);
+    out->inverse_depth.resize(fitted.data.size());
+    for (size_t i = 0; i < fitted.data.size(); ++i) out->inverse_depth[i] = ToFixed(fitted.data[i], 24, 4294967295.0);
+  }
+  for (int c = 0; c < 2; ++c) out->motion[c].clear();
+  if (scene.has_motion) {
+    // Velocity, rows downwards: x = -Vector.X, y = +Vector.Y (see the header).
+    const double ratio[2] = {static_cast<double>(width) / scene.width, static_cast<double>(height) / scene.height};
+    const io::FloatPlane* vectors[2] = {&scene.motion_x, &scene.motion_y};
+    for (int c = 0; c < 2; ++c) {
+      const io::FloatPlane fitted = FitPlane(*vectors[c], width, height, fit);
+      const double scale = (c == 0 ? -1.0 : 1.0) * (fit == SceneFit::kScale ? ratio[c] : 1.0) * 65536.0;
+      out->motion[c].resize(fitted.data.size());
+      for (size_t i = 0; i < fitted.data.size(); ++i) {
+        const double v = std::floor(fitted.data[i] * scale + 0.5);
+        out->motion[c][i] = static_cast<int32_t>(std::clamp(v, -2147483648.0, 2147483647.0));
+      }
+    }
   }
 }
 

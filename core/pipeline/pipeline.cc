@@ -9,7 +9,7 @@ constexpr int kMaxDimension = 16384;  // keeps squared radii and offsets inside 
 constexpr int kMaxWorkers = 64;
 
 constexpr const char* kStageNames[kStageCount] = {
-    "exposure", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
+    "exposure", "motion_blur", "vignetting", "cfa", "sensor", "black_level", "white_balance", "demosaic", "color_matrix", "gamma"};
 
 // Sum of samples per colour for the report.
 void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa, int y, int width,
@@ -87,6 +87,17 @@ void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int 
   }
 }
 
+// The lowest and highest frame rows that a window reads once reflected.
+void ReflectedSpan(RowWindow w, int height, int* lo, int* hi) {
+  *lo = height;
+  *hi = -1;
+  for (int k = w.first; k <= w.last; ++k) {
+    const int r = Reflect101(k, height);
+    if (r < *lo) *lo = r;
+    if (r > *hi) *hi = r;
+  }
+}
+
 }  // namespace
 
 const char* StageName(StageId id) {
@@ -143,6 +154,7 @@ Stage* Pipeline::StageFor(StageId id) {
 const Stage* Pipeline::StageFor(StageId id) const {
   switch (id) {
     case StageId::kExposure: return &exposure_;
+    case StageId::kMotionBlur: return &motion_blur_;
     case StageId::kVignetting: return &vignetting_;
     case StageId::kCfa: return &cfa_;
     case StageId::kSensor: return &sensor_;
@@ -172,6 +184,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
 
   // Each stage validates its own section.
   CAMSIM_TRY(exposure_.Configure(config.exposure));
+  CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
   CAMSIM_TRY(cfa_.Configure(config.cfa, g));
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
@@ -215,17 +228,16 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   plan_.output = format;
 
   // Rings: the input ring (index 0) and each stage's output ring (index i + 1)
-  // hold as many rows as their consumer reads at once; the last stage's, one.
+  // hold as many rows as their consumer's widest window spans; the last
+  // stage's, one.
   margin_ = 0;
-  for (int i = 0; i < run_count_; ++i)
-    if (run_[i]->RowsAbove() > kMaxContextRows || run_[i]->RowsBelow() > kMaxContextRows)
-      return Status(StatusCode::kOutOfRange, "a stage reads more context rows than kMaxContextRows");
+  max_window_ = 1;
   for (int i = 0; i < run_count_; ++i)
     if (run_[i]->Margin() > margin_) margin_ = run_[i]->Margin();
   input_direct_ = run_[0]->Margin() == 0;
   for (int j = 0; j <= run_count_; ++j) {
-    const Stage* consumer = j < run_count_ ? run_[j] : nullptr;
-    ring_slots_[j] = consumer ? consumer->RowsAbove() + consumer->RowsBelow() + 1 : 1;
+    ring_slots_[j] = 1;
+    if (j < run_count_) CAMSIM_TRY(SizeRing(j, &ring_slots_[j], &max_window_));
   }
   if (input_direct_) ring_slots_[0] = 0;
 
@@ -252,7 +264,38 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     if (s > scratch_bytes_) scratch_bytes_ = s;
   }
   worker.AddBytes(scratch_bytes_);
+  worker.Add<RowIn>(static_cast<size_t>(max_window_));
   worker_bytes_ = worker.raw_bytes();
+  return Status::Ok();
+}
+
+// Checks running stage i's windows over every output row (each within
+// kMaxWindowRows, neither end going back as y grows) and gives the ring depth
+// its input needs: the widest span of reflected rows one output row reads.
+// Raises *widest to the widest window (in rows, before reflection).
+Status Pipeline::SizeRing(int i, int* slots, int* widest) const {
+  const int h = config_.geometry.height;
+  const Stage* stage = run_[i];
+  int span = 1, prev_lo = 0, prev_hi = 0;
+  RowWindow prev{};
+  for (int y = 0; y < h; ++y) {
+    const RowWindow w = stage->InputRows(y, h);
+    const int rows = w.last - w.first + 1;
+    if (rows < 1 || rows > kMaxWindowRows)
+      return Status(StatusCode::kOutOfRange, "reads a window of rows that is empty or wider than kMaxWindowRows (1024)",
+                    stage->name());
+    if (rows > *widest) *widest = rows;
+    int lo = 0, hi = 0;
+    ReflectedSpan(w, h, &lo, &hi);
+    if (y > 0 && (w.first < prev.first || w.last < prev.last || lo < prev_lo || hi < prev_hi))
+      return Status(StatusCode::kFailedPrecondition, "has a window of rows that moves backwards as y grows",
+                    stage->name());
+    if (hi - lo + 1 > span) span = hi - lo + 1;
+    prev = w;
+    prev_lo = lo;
+    prev_hi = hi;
+  }
+  *slots = span;
   return Status::Ok();
 }
 
@@ -284,6 +327,19 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
     if (m.data == nullptr || m.width != w || m.height != h || m.stride < w)
       return InvalidArgument("vignetting.mask", "mask must be sensor-sized");
   }
+  bool motion_runs = false;
+  for (int i = 0; i < run_count_; ++i) motion_runs = motion_runs || run_[i] == &motion_blur_;
+  if (motion_runs && motion_blur_.NeedsInverseDepth()) {
+    const ImageView<const uint32_t>& d = input.motion_inverse_depth;
+    if (d.data == nullptr || d.width != w || d.height != h || d.channels != 1 || d.stride < w)
+      return InvalidArgument("motion.linear_velocity_m_s", "camera translation needs a sensor-sized depth plane");
+  }
+  if (motion_runs && motion_blur_.NeedsVectors())
+    for (int c = 0; c < 2; ++c) {
+      const ImageView<const int32_t>& m = input.motion_vectors[c];
+      if (m.data == nullptr || m.width != w || m.height != h || m.channels != 1 || m.stride < w)
+        return InvalidArgument("motion.source", "'vectors' needs sensor-sized motion vector planes (x and y)");
+    }
   return Status::Ok();
 }
 
@@ -294,6 +350,7 @@ struct Pipeline::StripState {
   uint32_t frame;
   int y0, y1;
   uint8_t* scratch;
+  RowIn* rows;  // max_window_ slots: the window of the row being produced
   uint32_t* ring[kStageCount + 1];
   int32_t* tag[kStageCount + 1];
   int next[kStageCount + 1];
@@ -353,18 +410,15 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
   }
   const int h = config_.geometry.height, w = config_.geometry.width;
   const Stage* stage = run_[j - 1];
-  const int above = stage->RowsAbove(), below = stage->RowsBelow();
   for (; s.next[j] <= row; ++s.next[j]) {
     const int r = s.next[j];
     // The input rows this row reads, reflected into the frame.
-    int needed = 0;
-    for (int k = -above; k <= below; ++k) {
-      const int src = Reflect101(r + k, h);
-      if (src > needed) needed = src;
-    }
+    const RowWindow window = stage->InputRows(r, h);
+    int lowest = 0, needed = 0;
+    ReflectedSpan(window, h, &lowest, &needed);
     Produce(s, j - 1, needed);
-    RowIn rows[2 * kMaxContextRows + 1];  // only [0, above + below] are set and read
-    for (int k = -above; k <= below; ++k) rows[k + above] = RowOf(s, j - 1, Reflect101(r + k, h));
+    const int count = window.last - window.first + 1;
+    for (int k = 0; k < count; ++k) s.rows[k] = RowOf(s, j - 1, Reflect101(window.first + k, h));
 
     const bool in_strip = r >= s.y0 && r < s.y1;
     StageStats* st = (s.stats != nullptr && in_strip) ? &s.stats->stage[j - 1] : nullptr;
@@ -372,7 +426,9 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
     args.y = r;
     args.width = w;
     args.frame = s.frame;
-    args.rows = rows;
+    args.rows = s.rows;
+    args.first_row = window.first;
+    args.row_count = count;
     args.input = s.input;
     args.scratch = s.scratch;
     args.stats = st;
@@ -419,15 +475,17 @@ void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int
     for (int k = 0; k < ring_slots_[j]; ++k) s.tag[j][k] = -1;
   }
   s.scratch = arena.Take<uint8_t>(scratch_bytes_);
+  s.rows = arena.Take<RowIn>(static_cast<size_t>(max_window_));
 
-  // First row each ring must produce: the strip's top minus the context above
-  // of every later stage.
+  // First row each ring must produce: the lowest row the next stage's window
+  // reads for the first row it produces (windows never move back, so no
+  // later row reads lower).
   int first = y0;
   for (int j = run_count_; j >= 0; --j) {
     s.next[j] = first;
     if (j > 0) {
-      first -= run_[j - 1]->RowsAbove();
-      if (first < 0) first = 0;
+      int hi = 0;
+      ReflectedSpan(run_[j - 1]->InputRows(first, h), h, &first, &hi);
     }
   }
   for (int y = y0; y < y1; ++y) Produce(s, run_count_, y);

@@ -2,7 +2,8 @@
 // leaves out what the scene does not need, and a strip-streaming driver.
 //
 // Streaming: every stage keeps its output rows in a ring of line buffers just
-// deep enough for its consumer's vertical context (RowsAbove + RowsBelow + 1).
+// deep enough for the widest window of rows its consumer reads at once
+// (Stage::InputRows; RowsAbove + RowsBelow + 1 for a fixed neighbourhood).
 // A strip [y0, y1) of output rows is produced by pulling rows through the chain
 // in order; rows outside the frame are reflected (reflect-101). Each worker has
 // its own rings, so N workers run N strips at once. Because ProcessRow depends
@@ -19,6 +20,7 @@
 #include "core/isp/demosaic.h"
 #include "core/isp/gamma.h"
 #include "core/isp/white_balance.h"
+#include "core/lens/motion_blur.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/stage.h"
 #include "core/sensor/cfa.h"
@@ -30,6 +32,7 @@ namespace camsim {
 // for the ones it has). New stages are added here and in Pipeline's members.
 enum class StageId : uint8_t {
   kExposure,
+  kMotionBlur,
   kVignetting,
   kCfa,
   kSensor,
@@ -41,8 +44,6 @@ enum class StageId : uint8_t {
   kCount
 };
 inline constexpr int kStageCount = static_cast<int>(StageId::kCount);
-// The most rows above or below its own that a stage may read.
-inline constexpr int kMaxContextRows = 64;
 const char* StageName(StageId id);
 // Looks a stage up by its name; false when there is none.
 bool StageFromName(const char* name, StageId* id);
@@ -50,6 +51,9 @@ bool StageFromName(const char* name, StageId* id);
 struct FrameInput {
   ImageView<const uint32_t> radiance[3];           // R, G, B; Q16.16, required
   ImageView<const uint16_t> vignetting_mask;       // Q2.14 gain, optional
+  // Motion blur (core/lens/motion_blur.h), needed only when that stage asks:
+  ImageView<const uint32_t> motion_inverse_depth;  // 1 / depth in 1/m, Q8.24 (0 = infinitely far)
+  ImageView<const int32_t> motion_vectors[2];      // x, y: px per frame interval, Q16.16, rows downwards
 };
 
 struct PipelineConfig {
@@ -57,12 +61,13 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kExposure,   StageId::kVignetting, StageId::kCfa,
+  StageId order[kStageCount] = {StageId::kExposure,   StageId::kMotionBlur, StageId::kVignetting, StageId::kCfa,
                                 StageId::kSensor,     StageId::kBlackLevel, StageId::kWhiteBalance,
                                 StageId::kDemosaic,   StageId::kColorMatrix, StageId::kGamma};
   int order_count = kStageCount;
 
   ExposureConfig exposure;
+  MotionBlurConfig motion_blur;
   VignettingConfig vignetting;
   CfaConfig cfa;
   SensorConfig sensor;
@@ -141,12 +146,18 @@ class Pipeline {
   void ProcessFrame(const FrameInput& input, uint32_t frame, int strip_rows, const Tap* taps,
                     int tap_count, WorkerStats* stats, const Clock* clock) const;
 
+  // Running stage i (0 <= i < plan().running) and its output format, for
+  // tools that drive one stage alone (the per-stage benchmark).
+  const Stage& running_stage(int i) const { return *run_[i]; }
+  LineFormat running_format(int i) const { return run_format_[i]; }
+
   int width() const { return config_.geometry.width; }
   int height() const { return config_.geometry.height; }
   const PipelineConfig& config() const { return config_; }
 
  private:
   struct StripState;
+  Status SizeRing(int stage, int* slots, int* widest) const;
   uint32_t* RingRow(const StripState& s, int ring, int row, int channel) const;
   void FillMargins(uint32_t* row) const;
   RowIn RowOf(const StripState& s, int ring, int row) const;
@@ -164,6 +175,7 @@ class Pipeline {
   int run_count_ = 0;
   int ring_slots_[kStageCount + 1] = {};     // [0] = input ring, [i + 1] = stage i's output
   int ring_channels_[kStageCount + 1] = {};
+  int max_window_ = 1;              // the widest InputRows window: RowIn slots per worker
   size_t scratch_bytes_ = 0;
   size_t table_bytes_ = 0;
   size_t worker_bytes_ = 0;
@@ -171,6 +183,7 @@ class Pipeline {
   bool initialised_ = false;
 
   ExposureStage exposure_;
+  MotionBlurStage motion_blur_;
   VignettingStage vignetting_;
   CfaStage cfa_;
   SensorStage sensor_;

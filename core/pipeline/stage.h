@@ -5,9 +5,10 @@
 //                                   config value can be refused.
 //   2. Plan(in) / IdentityReason()  what line format it outputs, and whether it
 //                                   would change nothing (then it is left out).
-//   3. RowsAbove/RowsBelow, Margin, CountTables, ScratchBytes
-//                                   how much context and memory it needs,
-//                                   known before anything runs.
+//   3. InputRows (or RowsAbove/RowsBelow), Margin, CountTables, ScratchBytes
+//                                   which input rows each output row reads and
+//                                   how much memory it needs, known before
+//                                   anything runs.
 //   4. Init(tables)                 builds its read-only tables in the caller's
 //                                   workspace; can fail only if that is too small.
 //   5. ProcessRow(args)             produces one output row from a window of
@@ -96,14 +97,31 @@ struct StageStats {
   int64_t sum[3] = {};
   int64_t count[3] = {};
   int64_t aux_sum[3] = {};
+  // Pixels of running rows the stage copied through without its work because
+  // the scene did not need it there (e.g. no blur where the circle of
+  // confusion is negligible): the planner's savings within a frame.
+  int64_t skipped_px = 0;
   uint64_t ticks = 0;  // time spent, in the caller's clock units
 };
+
+// The input rows [first, last] that one output row reads, in the previous
+// stage's row numbers. Rows outside the frame are reflected (reflect-101).
+struct RowWindow {
+  int first = 0;
+  int last = 0;
+};
+// The most input rows one output row may read (last - first + 1).
+inline constexpr int kMaxWindowRows = 1024;
 
 struct RowArgs {
   int y = 0;
   int width = 0;
   uint32_t frame = 0;
-  const RowIn* rows = nullptr;  // rows[0 .. above + below]; rows[above] is row y
+  // rows[k] is input row first_row + k (reflected), 0 <= k < row_count. For a
+  // stage with the default InputRows, rows[RowsAbove()] is row y.
+  const RowIn* rows = nullptr;
+  int first_row = 0;
+  int row_count = 0;
   const FrameInput* input = nullptr;
   uint32_t* out[kMaxChannels] = {};
   uint8_t* scratch = nullptr;   // ScratchBytes() of per-worker memory
@@ -119,8 +137,14 @@ class Stage {
   // Why this stage would leave its input unchanged with its current config, or
   // nullptr when it does real work. Stages that convert domains return nullptr.
   virtual const char* IdentityReason() const { return nullptr; }
+  // A stage reading a fixed neighbourhood of row y states its size; one whose
+  // window moves otherwise (a remap, a gather along motion) overrides
+  // InputRows. Either way first and last must not decrease as y grows, and a
+  // window holds at most kMaxWindowRows rows: the driver checks both at
+  // Configure and sizes its line rings from the widest window.
   virtual int RowsAbove() const { return 0; }
   virtual int RowsBelow() const { return 0; }
+  virtual RowWindow InputRows(int y, int /*height*/) const { return {y - RowsAbove(), y + RowsBelow()}; }
   virtual int Margin() const { return 0; }  // columns read beyond each edge
   virtual void CountTables(WorkspaceCounter& /*counter*/) const {}
   virtual size_t ScratchBytes(int /*width*/) const { return 0; }

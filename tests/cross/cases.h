@@ -80,6 +80,33 @@ inline PipelineConfig BilinearBgConfig(int width, int height) {
   return c;
 }
 
+// The demo camera shaken and moving: camera-source motion blur with rotation
+// about every axis, translation (so the inverse depth plane below is read)
+// and a rolling shutter of 12 us per row.
+inline PipelineConfig MotionConfig(int width, int height) {
+  PipelineConfig c = DemoConfig(width, height);
+  c.motion_blur.source = MotionSource::kCamera;
+  c.motion_blur.angular_velocity_rad_s[0] = 0.3;
+  c.motion_blur.angular_velocity_rad_s[1] = -0.8;
+  c.motion_blur.angular_velocity_rad_s[2] = 0.5;
+  c.motion_blur.linear_velocity_m_s[0] = 0.4;
+  c.motion_blur.linear_velocity_m_s[1] = -0.1;
+  c.motion_blur.linear_velocity_m_s[2] = 1.2;
+  c.motion_blur.fx_px = c.vignetting.focal_length_px;
+  c.motion_blur.fy_px = c.vignetting.focal_length_px;
+  c.motion_blur.line_time_us = 12.0;
+  c.motion_blur.max_displacement_px = 24;
+  return c;
+}
+
+// Inverse depth for MotionConfig, Q8.24 1/m: depth 1 .. 16 m in diagonal
+// bands, and a sky (0) over the top fifth. Integer arithmetic only.
+inline uint32_t InverseDepth(int width, int height, int x, int y) {
+  (void)width;
+  if (5 * y < height) return 0;
+  return (1u << 24) / static_cast<uint32_t>(1 + (x + 2 * y) % 16);
+}
+
 // The radiance of the tests' TexturedScene (tests/support/test_support.cc
 // uses this too) at (x, y) for colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
 // bright (saturating) spot. IEEE basic operations only, so it is the same on

@@ -14,8 +14,9 @@
 // multiply-add) shows here even when rounding to integers hides it in the
 // pixel output.
 //
-// Cases, part 2: three pipeline configurations (tests/cross/cases.h: the demo
-// camera, a mono sensor, bilinear BayerBG with a colour matrix) x two synthetic scenes
+// Cases, part 2: four pipeline configurations (tests/cross/cases.h: the demo
+// camera, a mono sensor, bilinear BayerBG with a colour matrix, the demo
+// camera with motion blur and rolling shutter) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
 // pipeline after a running stage. Each case's output (uint32 samples, the
@@ -60,13 +61,22 @@ struct Scene {
   int width = 0;
   int height = 0;
   std::vector<uint32_t> plane[3];  // R, G, B radiance, Q16.16
+  std::vector<uint32_t> inverse_depth;  // cross::InverseDepth, read only by motion blur
 
   FrameInput View() const {
     FrameInput in;
     for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(plane[c].data(), width, height);
+    in.motion_inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), width, height);
     return in;
   }
 };
+
+void AddInverseDepth(Scene* s) {
+  s->inverse_depth.resize(static_cast<size_t>(s->width) * s->height);
+  for (int y = 0; y < s->height; ++y)
+    for (int x = 0; x < s->width; ++x)
+      s->inverse_depth[static_cast<size_t>(y) * s->width + x] = cross::InverseDepth(s->width, s->height, x, y);
+}
 
 Scene Textured(int width, int height) {
   Scene s;
@@ -78,6 +88,7 @@ Scene Textured(int width, int height) {
       for (int x = 0; x < width; ++x)
         s.plane[c][static_cast<size_t>(y) * width + x] = cross::TexturedRadiance(width, height, x, y, c);
   }
+  AddInverseDepth(&s);
   return s;
 }
 
@@ -88,6 +99,7 @@ Scene Flat(int width, int height) {
   s.width = width;
   s.height = height;
   for (int c = 0; c < 3; ++c) s.plane[c].assign(static_cast<size_t>(width) * height, Q<16, 16>::FromDouble(0.5).raw);
+  AddInverseDepth(&s);
   return s;
 }
 
@@ -260,6 +272,7 @@ int main(int argc, char** argv) {
       {"demo", cross::DemoConfig, 1},
       {"mono", cross::MonoConfig, 2},
       {"bilinear_bg", cross::BilinearBgConfig, 1000003},
+      {"motion", cross::MotionConfig, 3},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 

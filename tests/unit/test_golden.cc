@@ -77,6 +77,44 @@ TEST(Golden, StageOutputsOnBundledScenes) {
       got[key] = test::Hex64(HashSamples(test::RunFrame(*b, scene, 1, 32)));
     }
   }
+  // Motion blur and rolling shutter on aisle_0002 (the camera dollies forward
+  // between frames): the cut after motion_blur, from the camera's motion (with
+  // the scene's depth) and from the scene's Vector pass.
+  {
+    io::SceneFrame frame;
+    std::string error;
+    ASSERT_TRUE(io::LoadSceneExr(CAMSIM_SOURCE_DIR "/scenes/aisle_0002.exr", "", &frame, &error)) << error;
+    host::CoreInput in;
+    host::PrepareInput(frame, frame.width, frame.height, host::SceneFit::kCrop, &in);
+    ASSERT_FALSE(in.inverse_depth.empty());
+    ASSERT_FALSE(in.motion[0].empty());
+    for (const MotionSource source : {MotionSource::kCamera, MotionSource::kVectors}) {
+      PipelineConfig c = test::DemoConfig(in.width, in.height);
+      c.order_count = 2;  // exposure, motion_blur
+      ASSERT_EQ(c.order[1], StageId::kMotionBlur);
+      MotionBlurConfig& m = c.motion_blur;
+      m.source = source;
+      m.angular_velocity_rad_s[0] = 0.2;
+      m.angular_velocity_rad_s[1] = 0.6;
+      m.linear_velocity_m_s[2] = 2.0;
+      m.line_time_us = 20.0;
+      m.vector_fps = 50.0;  // 10 ms of the 20 ms between frames: half the vectors
+      auto b = test::Build(c);
+      ASSERT_TRUE(b->status.ok()) << b->status.message();
+      ASSERT_TRUE(b->pipeline.plan().entries[1].runs);
+      std::vector<uint32_t> out(static_cast<size_t>(in.width) * in.height * 3);
+      Tap t;
+      t.format = TapFormat::kU32;
+      t.data = out.data();
+      t.stride = static_cast<ptrdiff_t>(in.width) * 3;
+      const FrameInput view = in.View();
+      ASSERT_TRUE(b->pipeline.CheckInput(view).ok());
+      b->pipeline.ProcessFrame(view, 1, 32, &t, 1, nullptr, nullptr);
+      const std::string key = std::string("aisle_0002.exr:motion_blur.") +
+                              (source == MotionSource::kCamera ? "camera" : "vectors");
+      got[key] = test::Hex64(HashSamples(out));
+    }
+  }
   if (update) {
     WriteHashes(got);
     GTEST_SKIP() << "wrote " << got.size() << " hashes to " << kHashFile;

@@ -113,12 +113,11 @@ double MaxAbsError(const Image& got, const RefImage& want) {
 
 // Runs a stage over a whole image as the pipeline's driver does: each input
 // row padded by reflect-101 to Margin() columns each side, rows outside the
-// frame reflected, RowsAbove() + RowsBelow() + 1 rows per call. Every padded
+// frame reflected, the stage's InputRows window per call. Every padded
 // row, the row window and every output row is its own allocation of exactly
 // the size the contract allows, so ASan reports any access outside it.
 Image RunStage(const Stage& stage, const Image& in, int out_channels) {
   const int w = in.width, h = in.height, margin = stage.Margin();
-  const int above = stage.RowsAbove(), below = stage.RowsBelow();
   std::vector<std::vector<std::vector<uint32_t>>> padded(in.planes.size());
   for (size_t c = 0; c < in.planes.size(); ++c)
     for (int y = 0; y < h; ++y) {
@@ -130,14 +129,18 @@ Image RunStage(const Stage& stage, const Image& in, int out_channels) {
   Image out = MakeImage(w, h, out_channels);
   std::vector<std::vector<uint32_t>> out_rows(out_channels, std::vector<uint32_t>(w));
   for (int y = 0; y < h; ++y) {
-    std::vector<RowIn> rows(static_cast<size_t>(above + below + 1));
-    for (int k = -above; k <= below; ++k)
+    const RowWindow window = stage.InputRows(y, h);
+    const int count = window.last - window.first + 1;
+    std::vector<RowIn> rows(static_cast<size_t>(count));
+    for (int k = 0; k < count; ++k)
       for (size_t c = 0; c < in.planes.size(); ++c)
-        rows[k + above].ch[c] = padded[c][Reflect101(y + k, h)].data() + margin;
+        rows[k].ch[c] = padded[c][Reflect101(window.first + k, h)].data() + margin;
     RowArgs args;
     args.y = y;
     args.width = w;
     args.rows = rows.data();
+    args.first_row = window.first;
+    args.row_count = count;
     for (int c = 0; c < out_channels; ++c) args.out[c] = out_rows[c].data();
     stage.ProcessRow(args);
     for (int c = 0; c < out_channels; ++c)

@@ -1,0 +1,55 @@
+// The benchmark binary's main: Google Benchmark's console output, then a table
+// of camsim/peer time ratios (bench_common.h) and the demo pipeline against
+// the seed paper's 0.9 frames/s at 640x480 (Core 2 Duo P7350, 2 GHz; §6).
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <map>
+#include <string>
+
+#include "bench/bench_common.h"
+
+namespace {
+
+constexpr double kPaperFps = 0.9;  // the seed paper's simulator, 640x480
+
+// Keeps every run's real time per iteration, in milliseconds.
+class RecordingReporter : public benchmark::ConsoleReporter {
+ public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    for (const Run& run : runs) {
+      if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
+      std::string name = run.benchmark_name();
+      const std::string suffix = "/real_time";
+      if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
+        name.resize(name.size() - suffix.size());
+      ms[name] = run.GetAdjustedRealTime() * 1e3 / benchmark::GetTimeUnitMultiplier(run.time_unit);
+    }
+    ConsoleReporter::ReportRuns(runs);
+  }
+  std::map<std::string, double> ms;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  RecordingReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  benchmark::Shutdown();
+
+  bool header = false;
+  for (const camsim::bench::PeerPair& p : camsim::bench::PeerPairs()) {
+    const auto a = reporter.ms.find(p.camsim), b = reporter.ms.find(p.peer);
+    if (a == reporter.ms.end() || b == reporter.ms.end()) continue;
+    if (!header) std::printf("\n%-44s %10s %10s %8s\n", "camsim vs peer (1 thread)", "camsim ms", "peer ms", "ratio");
+    header = true;
+    std::printf("%-44s %10.2f %10.2f %8.2f  %s\n", p.what, a->second, b->second, a->second / b->second, p.error_note);
+  }
+  const auto demo = reporter.ms.find("BM_Pipeline/640/480/1");
+  if (demo != reporter.ms.end())
+    std::printf("\ndemo pipeline 640x480, 1 thread: %.1f frames/s = %.0f x the seed paper's %.1f frames/s\n",
+                1e3 / demo->second, 1e3 / demo->second / kPaperFps, kPaperFps);
+  return 0;
+}

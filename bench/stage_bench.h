@@ -1,0 +1,44 @@
+// One stage of a configured pipeline, driven alone over a captured frame of
+// its input: what the per-stage benchmarks time. The capture runs the pipeline
+// up to the stage once (untimed); the timed part is the stage's ProcessRow over
+// every row, split into strips over threads, exactly as the driver would call
+// it (reflect-101 rows and margins, the stage's own InputRows window).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+#include "hal/thread_pool.h"
+
+namespace camsim::bench {
+
+class StageRunner {
+ public:
+  // Captures the input of running stage `index` of `pipeline` for `input`.
+  StageRunner(const Pipeline& pipeline, int index, const FrameInput& input, int threads);
+  // Runs the stage over the whole frame once; rows land in a per-thread row buffer.
+  void RunFrame(uint32_t frame);
+  const Stage& stage() const { return stage_; }
+  // The captured input: interleaved channels, width x height.
+  const std::vector<uint32_t>& input_frame() const { return frame_; }
+  int input_channels() const { return channels_; }
+
+ private:
+  const Stage& stage_;
+  const FrameInput* input_;
+  int width_, height_, channels_, margin_;
+  int out_channels_;
+  std::vector<uint32_t> frame_;
+  // padded_[(y * channels + c)] : one input row with Margin() columns each side.
+  std::vector<std::vector<uint32_t>> padded_;
+  struct Worker {
+    std::vector<RowIn> rows;
+    std::vector<std::vector<uint32_t>> out;
+    std::vector<uint8_t> scratch;
+  };
+  std::vector<Worker> workers_;
+  hal::ThreadPool pool_;
+};
+
+}  // namespace camsim::bench

@@ -1,0 +1,136 @@
+#include "core/pipeline/pipeline_ref.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/lens/motion_blur_ref.h"
+
+namespace camsim::ref {
+namespace {
+
+// The largest value a Q24.8 photon sample holds (the stages saturate there).
+constexpr double kMaxPhotons = 4294967295.0 / 256.0;
+
+RefImage Like(const RefImage& in, size_t planes) {
+  RefImage out;
+  out.width = in.width;
+  out.height = in.height;
+  out.planes.assign(planes, std::vector<double>(static_cast<size_t>(in.width) * in.height, 0.0));
+  return out;
+}
+
+}  // namespace
+
+double SampleToReal(Domain d, uint32_t sample) {
+  switch (d) {
+    case Domain::kRadiance:
+    case Domain::kPhotons: return std::ldexp(static_cast<double>(sample), -DomainFracBits(d));
+    case Domain::kDigital:
+    case Domain::kLinear:
+    case Domain::kEncoded: return static_cast<double>(sample);
+  }
+  return 0.0;
+}
+
+RefImage SceneRadiance(const FrameInput& input, int w, int h) {
+  RefImage out;
+  out.width = w;
+  out.height = h;
+  out.planes.assign(3, std::vector<double>(static_cast<size_t>(w) * h));
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        out.planes[c][static_cast<size_t>(y) * w + x] = SampleToReal(Domain::kRadiance, input.radiance[c].row(y)[x]);
+  return out;
+}
+
+RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, const FrameInput& input) {
+  const PipelineConfig& c = p.config();
+  const SensorGeometry& g = c.geometry;
+  const int w = in.width, h = in.height;
+  const char* name = p.running_stage(index).name();
+  StageId id = StageId::kCount;
+  StageFromName(name, &id);
+  const auto at = [w](int x, int y) { return static_cast<size_t>(y) * w + x; };
+  switch (id) {
+    case StageId::kExposure: {
+      RefImage out = Like(in, in.planes.size());
+      for (size_t k = 0; k < in.planes.size(); ++k)
+        for (size_t i = 0; i < in.planes[k].size(); ++i)
+          out.planes[k][i] = std::min(ReferenceExposure(c.exposure, in.planes[k][i]), kMaxPhotons);
+      return out;
+    }
+    case StageId::kMotionBlur: {
+      // Inverse depth Q8.24 and vectors Q16.16 as doubles, when the stage reads them.
+      std::vector<double> iz, vec[2];
+      MotionRefInput mi;
+      mi.width = w;
+      mi.height = h;
+      for (int k = 0; k < 3; ++k) mi.plane[k] = &in.planes[static_cast<size_t>(k)];
+      if (input.motion_inverse_depth.data != nullptr) {
+        iz.resize(static_cast<size_t>(w) * h);
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) iz[at(x, y)] = std::ldexp(input.motion_inverse_depth.row(y)[x], -24);
+        mi.inverse_depth = &iz;
+      }
+      for (int k = 0; k < 2; ++k)
+        if (input.motion_vectors[k].data != nullptr) {
+          vec[k].resize(static_cast<size_t>(w) * h);
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) vec[k][at(x, y)] = std::ldexp(input.motion_vectors[k].row(y)[x], -16);
+          mi.vectors[k] = &vec[k];
+        }
+      RefImage out = Like(in, 3);
+      // The continuous time integral: the error includes max_samples' sampling.
+      out.planes = RefMotionBlur(c.motion_blur, mi, c.exposure.exposure_time_us, true);
+      return out;
+    }
+    case StageId::kVignetting: {
+      RefImage out = Like(in, in.planes.size());
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const double gain = c.vignetting.mode == VignettingMode::kMask
+                                  ? input.vignetting_mask.row(y)[x] / 16384.0  // Q2.14
+                                  : ReferenceVignettingGain(c.vignetting, g, x, y);
+          for (size_t k = 0; k < in.planes.size(); ++k)
+            out.planes[k][at(x, y)] = std::min(in.planes[k][at(x, y)] * gain, kMaxPhotons);
+        }
+      return out;
+    }
+    case StageId::kCfa: {
+      RefImage out = Like(in, 1);
+      double weight[3] = {0, 0, 0};
+      const double sum = c.cfa.mono_weights[0] + c.cfa.mono_weights[1] + c.cfa.mono_weights[2];
+      for (int k = 0; k < 3; ++k) weight[k] = c.cfa.mono_weights[k] / sum;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const size_t i = at(x, y);
+          out.planes[0][i] = g.cfa == Cfa::kMono
+                                 ? weight[0] * in.planes[0][i] + weight[1] * in.planes[1][i] + weight[2] * in.planes[2][i]
+                                 : in.planes[CfaColour(g.cfa, x, y)][i];
+        }
+      return out;
+    }
+    case StageId::kSensor: {
+      RefImage out = Like(in, 1);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          out.planes[0][at(x, y)] = ReferenceSensorMeanDn(c.sensor, g, c.exposure.exposure_time_us,
+                                                          CfaColour(g.cfa, x, y), in.planes[0][at(x, y)]);
+      return out;
+    }
+    case StageId::kBlackLevel: {
+      const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
+      return RefBlackLevel(in, bl, g.adc_bits);
+    }
+    case StageId::kWhiteBalance: return RefWhiteBalance(in, g.cfa, c.white_balance);
+    case StageId::kDemosaic:
+      return c.demosaic.method == DemosaicMethod::kMalvar ? RefDemosaicMalvar(in, g.cfa) : RefDemosaicBilinear(in, g.cfa);
+    case StageId::kColorMatrix: return RefColorMatrix(in, c.color_matrix.m);
+    case StageId::kGamma: return RefGamma(in, c.gamma);
+    case StageId::kCount: break;
+  }
+  return in;
+}
+
+}  // namespace camsim::ref

@@ -1,0 +1,329 @@
+#include "host_tools/report/tradeoff.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "core/pipeline/pipeline_ref.h"
+#include "hal/clock.h"
+#include "host_tools/config.h"
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/io/image_read.h"
+#include "host_tools/io/image_write.h"
+#include "host_tools/report/plot.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim::host {
+
+const std::vector<PrecisionKnob>& PrecisionKnobs() {
+  static const std::vector<PrecisionKnob> knobs = {
+      {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
+      {"motion_blur", "motion.samples_per_px", {"0.25", "0.5", "1", "2", "4"}, "time samples per pixel of motion"},
+  };
+  return knobs;
+}
+
+namespace {
+
+// The noise-free camera: what the references model.
+constexpr const char* kNoiseOff[] = {"sensor.shot_noise=false", "sensor.dark_noise_e=0", "sensor.dsnu_e=0",
+                                     "sensor.prnu_percent=0"};
+
+struct Error {
+  double max_abs = 0, rms = 0, psnr_db = 0;
+};
+
+struct StageResult {
+  std::string name;
+  std::string unit;
+  double ms = 0;  // per frame
+  Error error;
+};
+
+struct Setting {
+  std::string knob, value;  // "(as configured)" for the baseline
+  bool configured = false;  // the value the configuration has
+  double frame_ms = 0;
+  std::vector<StageResult> stages;
+  Error end_to_end;
+  std::string output_unit;
+  bool frontier = false;
+};
+
+// Full scale of a domain for PSNR: DN and Q0.16 have one; radiance and photons
+// take the reference's largest value.
+double Peak(Domain d, int adc_bits, const ref::RefImage& want) {
+  switch (d) {
+    case Domain::kDigital: return std::ldexp(1.0, adc_bits) - 1.0;
+    case Domain::kLinear:
+    case Domain::kEncoded: return 65535.0;
+    case Domain::kRadiance:
+    case Domain::kPhotons: break;
+  }
+  double peak = 0;
+  for (const auto& p : want.planes)
+    for (double v : p) peak = std::max(peak, v);
+  return peak > 0 ? peak : 1.0;
+}
+
+Error Compare(const std::vector<uint32_t>& got, Domain d, const ref::RefImage& want, double peak) {
+  Error e;
+  const size_t planes = want.planes.size(), n = want.planes.empty() ? 0 : want.planes[0].size();
+  double sum2 = 0;
+  for (size_t i = 0; i < n; ++i)
+    for (size_t c = 0; c < planes; ++c) {
+      const double diff = ref::SampleToReal(d, got[i * planes + c]) - want.planes[c][i];
+      e.max_abs = std::max(e.max_abs, std::fabs(diff));
+      sum2 += diff * diff;
+    }
+  e.rms = n ? std::sqrt(sum2 / static_cast<double>(n * planes)) : 0.0;
+  e.psnr_db = e.rms > 0 ? 20.0 * std::log10(peak / e.rms) : INFINITY;
+  return e;
+}
+
+ref::RefImage ToRef(const std::vector<uint32_t>& data, Domain d, int channels, int w, int h) {
+  ref::RefImage r;
+  r.width = w;
+  r.height = h;
+  r.planes.assign(static_cast<size_t>(channels), std::vector<double>(static_cast<size_t>(w) * h));
+  for (size_t i = 0; i < r.planes[0].size(); ++i)
+    for (int c = 0; c < channels; ++c) r.planes[c][i] = ref::SampleToReal(d, data[i * channels + c]);
+  return r;
+}
+
+const char* UnitName(Domain d) {
+  switch (d) {
+    case Domain::kRadiance: return "radiance";
+    case Domain::kPhotons: return "photons";
+    case Domain::kDigital: return "DN";
+    case Domain::kLinear: return "Q0.16 LSB";
+    case Domain::kEncoded: return "Q0.16 LSB";
+  }
+  return "";
+}
+
+// Runs one configuration: timing on one worker (the fastest of `frames`),
+// then one untimed run with every stage tapped for the errors.
+bool Measure(RunConfig rc, const io::SceneFrame& scene, const io::FloatPlane* mask, int frames, Setting* out,
+             std::string* error) {
+  Origins origins;
+  if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error)) return false;
+  Pipeline p;
+  const Status s = p.Configure(rc.core, 1, mask != nullptr);
+  if (!s.ok()) {
+    *error = DescribeStatus(s, origins);
+    return false;
+  }
+  std::vector<uint8_t> workspace(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) {
+    *error = "workspace";
+    return false;
+  }
+  CoreInput input;
+  PrepareInput(scene, p.width(), p.height(), rc.fit, &input);
+  if (mask != nullptr) PrepareMask(*mask, p.width(), p.height(), &input);
+  const FrameInput view = input.View();
+  const int w = p.width(), h = p.height(), n = p.plan().running;
+  constexpr int kStripRows = 16;
+
+  const Clock clock = hal::NanosecondClock();
+  p.ProcessFrame(view, 0, kStripRows, nullptr, 0, nullptr, nullptr);  // warm caches and tables
+  double best = INFINITY;
+  WorkerStats best_stats;
+  for (int f = 0; f < frames; ++f) {
+    WorkerStats stats;
+    const uint64_t t0 = hal::NowNs();
+    p.ProcessFrame(view, 0, kStripRows, nullptr, 0, &stats, &clock);
+    const double ms = (hal::NowNs() - t0) / 1e6;
+    if (ms < best) {
+      best = ms;
+      best_stats = stats;
+    }
+  }
+  out->frame_ms = best;
+
+  std::vector<std::vector<uint32_t>> taps(static_cast<size_t>(n));
+  std::vector<Tap> tap(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    taps[i].resize(static_cast<size_t>(w) * h * p.running_format(i).channels);
+    tap[i].stage = i;
+    tap[i].format = TapFormat::kU32;
+    tap[i].data = taps[i].data();
+    tap[i].stride = static_cast<ptrdiff_t>(w) * p.running_format(i).channels;
+  }
+  p.ProcessFrame(view, 0, kStripRows, tap.data(), n, nullptr, nullptr);
+
+  const int bits = rc.core.geometry.adc_bits;
+  ref::RefImage chain = ref::SceneRadiance(view, w, h);
+  out->stages.clear();
+  for (int i = 0; i < n; ++i) {
+    const LineFormat f = p.running_format(i);
+    const ref::RefImage in = i == 0 ? chain
+                                    : ToRef(taps[i - 1], p.running_format(i - 1).domain,
+                                            p.running_format(i - 1).channels, w, h);
+    const ref::RefImage want = ref::RunStageReference(p, i, i == 0 ? chain : in, view);
+    StageResult r;
+    r.name = p.running_stage(i).name();
+    r.unit = UnitName(f.domain);
+    r.ms = best_stats.stage[i].ticks / 1e6;
+    r.error = Compare(taps[i], f.domain, want, Peak(f.domain, bits, want));
+    out->stages.push_back(r);
+    chain = ref::RunStageReference(p, i, chain, view);
+  }
+  const LineFormat last = p.running_format(n - 1);
+  out->end_to_end = Compare(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain));
+  out->output_unit = UnitName(last.domain);
+  return true;
+}
+
+std::string Fmt(double v, const char* f = "%.4g") {
+  if (std::isinf(v)) return "inf";
+  char buf[48];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+}  // namespace
+
+int TradeoffCommand(const TradeoffOptions& o) {
+  std::string error;
+  RunConfig rc;
+  Origins origins;
+  if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  for (const std::string& a : o.overrides)
+    if (!ApplyOverride(a, &rc, &origins, &error)) {
+      std::fprintf(stderr, "camsim: --set %s: %s\n", a.c_str(), error.c_str());
+      return 1;
+    }
+  for (const char* a : kNoiseOff)
+    if (!ApplyOverride(a, &rc, &origins, &error)) {
+      std::fprintf(stderr, "camsim: %s: %s\n", a, error.c_str());
+      return 1;
+    }
+  if (o.input.empty() || o.out_dir.empty()) {
+    std::fprintf(stderr, "camsim: tradeoff needs --input EXR and --out DIR\n");
+    return 1;
+  }
+  io::SceneFrame scene;
+  if (!io::LoadSceneExr(o.input, "", &scene, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  io::FloatPlane mask;
+  const bool has_mask = !rc.vignetting_mask.empty();
+  if (has_mask && !io::ReadMaskImage(rc.vignetting_mask, &mask, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  mkdir(o.out_dir.c_str(), 0755);
+
+  // The configuration as given; it stays in the results only when no knob is
+  // swept (otherwise the knob's configured value is the same run).
+  std::vector<Setting> settings;
+  Setting base;
+  base.knob = "(as configured)";
+  base.configured = true;
+  if (!Measure(rc, scene, has_mask ? &mask : nullptr, o.frames, &base, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
+  settings.push_back(base);
+  std::vector<std::string> running;
+  for (const StageResult& s : base.stages) running.push_back(s.name);
+  std::vector<std::string> swept;
+  for (const PrecisionKnob& k : PrecisionKnobs()) {
+    if (std::find(running.begin(), running.end(), k.stage) == running.end()) continue;
+    swept.push_back(std::string(k.key) + " (" + k.what + ")");
+    for (const std::string& v : k.values) {
+      RunConfig variant = rc;
+      Origins vo = origins;
+      if (!ApplyOverride(std::string(k.key) + "=" + v, &variant, &vo, &error)) {
+        std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
+        return 1;
+      }
+      Setting s;
+      s.knob = k.key;
+      s.value = v;
+      s.configured = ConfigToToml(variant, false) == ConfigToToml(rc, false);
+      if (!Measure(variant, scene, has_mask ? &mask : nullptr, o.frames, &s, &error)) {
+        std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
+        return 1;
+      }
+      std::fprintf(stderr, "  %s=%s: %.2f ms, end-to-end rms %.4g %s\n", k.key, v.c_str(), s.frame_ms,
+                   s.end_to_end.rms, s.output_unit.c_str());
+      settings.push_back(s);
+    }
+  }
+  if (settings.size() > 1) settings.erase(settings.begin());
+  // The error-time frontier: settings no other setting beats on both.
+  for (Setting& a : settings) {
+    a.frontier = true;
+    for (const Setting& b : settings)
+      if (&a != &b && b.frame_ms <= a.frame_ms && b.end_to_end.rms <= a.end_to_end.rms &&
+          (b.frame_ms < a.frame_ms || b.end_to_end.rms < a.end_to_end.rms))
+        a.frontier = false;
+  }
+
+  std::ostringstream csv, md;
+  csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit\n";
+  for (const Setting& s : settings) {
+    csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << ",end_to_end," << Fmt(s.frame_ms) << ","
+        << Fmt(s.end_to_end.max_abs) << "," << Fmt(s.end_to_end.rms) << "," << Fmt(s.end_to_end.psnr_db) << ","
+        << s.output_unit << "\n";
+    for (const StageResult& r : s.stages)
+      csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << "," << r.name << "," << Fmt(r.ms) << ","
+          << Fmt(r.error.max_abs) << "," << Fmt(r.error.rms) << "," << Fmt(r.error.psnr_db) << "," << r.unit << "\n";
+  }
+  md << "# Error against run time\n\n";
+  md << "Generated by `camsim tradeoff` on `" << o.input << "` (" << scene.width << "x" << scene.height
+     << "), one thread, the fastest of " << o.frames
+     << " frames per setting. Errors are against the double-precision reference on the same input, with sensor "
+        "noise, DSNU and PRNU off. The reference does not round to whole DN, so the ADC's rounding sets the "
+        "floor of the end-to-end error.\n\n";
+  md << "Knobs swept" << (swept.empty() ? std::string(": none (no stage with a knob runs)") : ":") << "\n\n";
+  for (const std::string& k : swept) md << "- `" << k << "`\n";
+  md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | unit | frontier |\n"
+        "|---|---|---:|---:|---:|---:|---|---|\n";
+  for (const Setting& s : settings)
+    md << "| " << s.knob << " | " << s.value << (s.configured && !s.value.empty() ? " (configured)" : "") << " | "
+       << Fmt(s.frame_ms, "%.2f") << " | " << Fmt(s.end_to_end.max_abs) << " | " << Fmt(s.end_to_end.rms) << " | "
+       << Fmt(s.end_to_end.psnr_db, "%.1f") << " | " << s.output_unit << " | " << (s.frontier ? "yes" : "") << " |\n";
+  md << "\n## Per stage (each against its reference on its own fixed-point input)\n\n"
+        "| knob | value | stage | ms/frame | max abs | RMS | PSNR dB | unit |\n|---|---|---|---:|---:|---:|---:|---|\n";
+  for (const Setting& s : settings)
+    for (const StageResult& r : s.stages)
+      md << "| " << s.knob << " | " << s.value << " | " << r.name << " | " << Fmt(r.ms, "%.2f") << " | "
+         << Fmt(r.error.max_abs) << " | " << Fmt(r.error.rms) << " | " << Fmt(r.error.psnr_db, "%.1f") << " | "
+         << r.unit << " |\n";
+
+  std::vector<PlotPoint> points;
+  for (const Setting& s : settings) {
+    PlotPoint pt;
+    pt.x = s.frame_ms;
+    pt.y = s.end_to_end.rms;
+    pt.label = s.value.empty() ? "configured" : s.value;
+    pt.highlight = s.frontier;
+    points.push_back(pt);
+  }
+  PlotSpec spec;
+  spec.title = "Error against time per frame";
+  spec.x_label = "ms per frame (1 thread)";
+  spec.y_label = "RMS error, " + base.output_unit;
+  spec.log_y = true;
+  if (!io::WriteTextFile(o.out_dir + "/tradeoff.csv", csv.str(), &error) ||
+      !io::WriteTextFile(o.out_dir + "/tradeoff.md", md.str(), &error) ||
+      !WriteScatterPng(o.out_dir + "/tradeoff.png", spec, points, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 2;
+  }
+  std::fprintf(stderr, "camsim: wrote %s/tradeoff.{csv,md,png} (%zu settings)\n", o.out_dir.c_str(), settings.size());
+  return 0;
+}
+
+}  // namespace camsim::host

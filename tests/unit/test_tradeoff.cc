@@ -1,0 +1,153 @@
+// The whole-pipeline double reference (core/pipeline/pipeline_ref.h) and
+// `camsim tradeoff`, which measures every stage against it.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "core/pipeline/pipeline_ref.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+// The demo camera without noise, on a textured scene, every stage tapped.
+struct Tapped {
+  std::unique_ptr<test::Built> built;
+  test::Scene scene;
+  std::vector<std::vector<uint32_t>> out;
+};
+
+Tapped RunTapped(PipelineConfig c, int w, int h) {
+  c.sensor.shot_noise = false;
+  c.sensor.dark_noise_e = 0;
+  c.sensor.dsnu_e = 0;
+  c.sensor.prnu_percent = 0;
+  Tapped t;
+  t.built = test::Build(c);
+  EXPECT_TRUE(t.built->status.ok()) << t.built->status.message();
+  t.scene = test::TexturedScene(w, h);
+  const Pipeline& p = t.built->pipeline;
+  const int n = p.plan().running;
+  std::vector<Tap> taps(static_cast<size_t>(n));
+  t.out.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    t.out[i].resize(static_cast<size_t>(w) * h * p.running_format(i).channels);
+    taps[i].stage = i;
+    taps[i].format = TapFormat::kU32;
+    taps[i].data = t.out[i].data();
+    taps[i].stride = static_cast<ptrdiff_t>(w) * p.running_format(i).channels;
+  }
+  p.ProcessFrame(t.scene.View(), 0, 7, taps.data(), n, nullptr, nullptr);
+  return t;
+}
+
+ref::RefImage AsRef(const std::vector<uint32_t>& v, LineFormat f, int w, int h) {
+  ref::RefImage r{w, h, std::vector<std::vector<double>>(f.channels, std::vector<double>(static_cast<size_t>(w) * h))};
+  for (size_t i = 0; i < r.planes[0].size(); ++i)
+    for (int c = 0; c < f.channels; ++c) r.planes[c][i] = ref::SampleToReal(f.domain, v[i * f.channels + c]);
+  return r;
+}
+
+// Each stage's reference, on the stage's own fixed-point input, is within the
+// stage's stated rounding of its output: exposure and vignetting within
+// Q24.8 rounding plus the gain's relative quantisation, the CFA exact, the
+// sensor within half a DN plus the gain format's relative error, the ISP
+// stages within half an LSB.
+TEST(PipelineReference, EveryStageWithinItsStatedRounding) {
+  constexpr int kW = 61, kH = 37;
+  for (DemosaicMethod m : {DemosaicMethod::kBilinear, DemosaicMethod::kMalvar}) {
+    PipelineConfig c = test::DemoConfig(kW, kH);
+    c.demosaic.method = m;
+    c.color_matrix.m[1] = 0.1;  // make the colour matrix run
+    c.color_matrix.m[0] = 0.9;
+    const Tapped t = RunTapped(c, kW, kH);
+    const Pipeline& p = t.built->pipeline;
+    ASSERT_EQ(p.plan().running, 9);
+    const FrameInput view = t.scene.View();
+    for (int i = 0; i < p.plan().running; ++i) {
+      const LineFormat f = p.running_format(i);
+      const ref::RefImage in = i == 0 ? ref::SceneRadiance(view, kW, kH) : AsRef(t.out[i - 1], p.running_format(i - 1), kW, kH);
+      const ref::RefImage want = ref::RunStageReference(p, i, in, view);
+      ASSERT_EQ(static_cast<int>(want.planes.size()), f.channels) << p.running_stage(i).name();
+      const ref::RefImage got = AsRef(t.out[i], f, kW, kH);
+      double worst = 0;  // absolute, or relative above 1000 photons
+      for (size_t k = 0; k < want.planes.size(); ++k)
+        for (size_t j = 0; j < want.planes[k].size(); ++j) {
+          const double d = std::fabs(got.planes[k][j] - want.planes[k][j]);
+          worst = std::fmax(worst, f.domain == Domain::kPhotons && want.planes[k][j] > 1000 ? d / want.planes[k][j] * 1000 : d);
+        }
+      const std::string name = p.running_stage(i).name();
+      double bound = 0.5 + 1e-9;
+      // Photons, or 1000 x relative: the exposure factor's rounding; for
+      // vignetting also the curve's interpolation (< 1e-4, vignetting.h) and
+      // the Q2.14 gain step (3e-5).
+      if (name == "exposure") bound = 0.01;
+      if (name == "vignetting") bound = 0.15;
+      if (name == "cfa") bound = 0;
+      if (name == "sensor") bound = 0.53;
+      EXPECT_LE(worst, bound) << name;
+    }
+  }
+}
+
+// The chain of references from the scene ends near the fixed-point output:
+// the ADC's rounding (up to 0.5 DN, amplified by white balance and gamma) is
+// the only large difference.
+TEST(PipelineReference, ChainFromTheSceneEndsNearTheOutput) {
+  constexpr int kW = 40, kH = 30;
+  const Tapped t = RunTapped(test::DemoConfig(kW, kH), kW, kH);
+  const Pipeline& p = t.built->pipeline;
+  const FrameInput view = t.scene.View();
+  ref::RefImage chain = ref::SceneRadiance(view, kW, kH);
+  for (int i = 0; i < p.plan().running; ++i) chain = ref::RunStageReference(p, i, chain, view);
+  const int last = p.plan().running - 1;
+  const ref::RefImage got = AsRef(t.out[last], p.running_format(last), kW, kH);
+  double sum2 = 0;
+  size_t n = 0;
+  for (size_t k = 0; k < chain.planes.size(); ++k)
+    for (size_t j = 0; j < chain.planes[k].size(); ++j, ++n) sum2 += std::pow(got.planes[k][j] - chain.planes[k][j], 2);
+  const double rms = std::sqrt(sum2 / static_cast<double>(n));
+  EXPECT_GT(rms, 0.0);     // the ADC does round
+  EXPECT_LT(rms, 64.0);    // a quarter of an 8-bit step
+}
+
+TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
+  const std::string dir = testing::TempDir() + "camsim_tradeoff_" + std::to_string(getpid());
+  const std::string cmd = std::string(CAMSIM_BINARY) + " tradeoff --config " CAMSIM_SOURCE_DIR
+                          "/configs/camera.toml --input " CAMSIM_SOURCE_DIR "/scenes/aisle_0001.exr --set sensor.width=160"
+                          " --set sensor.height=120 --frames 1 --out '" + dir + "' 2>/dev/null";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  std::ifstream csv(dir + "/tradeoff.csv");
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit");
+  int end_to_end = 0, demosaic_rows = 0;
+  while (std::getline(csv, line)) {
+    std::stringstream s(line);
+    std::string f[9];
+    for (std::string& x : f) std::getline(s, x, ',');
+    if (f[3] == "end_to_end") ++end_to_end;
+    if (f[3] == "demosaic") {
+      ++demosaic_rows;
+      EXPECT_LE(std::stod(f[5]), 0.5 + 1e-9) << line;  // the demosaic rounds once
+      EXPECT_GT(std::stod(f[4]), 0.0) << line;          // it was timed
+    }
+  }
+  EXPECT_EQ(end_to_end, 2);  // demosaic.method = bilinear, malvar
+  EXPECT_EQ(demosaic_rows, 2);
+  std::ifstream png(dir + "/tradeoff.png", std::ios::binary);
+  char sig[8] = {};
+  png.read(sig, 8);
+  EXPECT_EQ(std::memcmp(sig, "\x89PNG\r\n\x1a\n", 8), 0);
+}
+
+}  // namespace
+}  // namespace camsim
