@@ -578,6 +578,7 @@ void GigeDevice::Sync() {
     stage_enabled_ = stages;
     WriteDerived();
   }
+  Write(kSimSyncCount, Read(kSimSyncCount) + 1);
   // TriggerSoftware: one frame when acquiring with TriggerSource Software.
   if (Read(kTriggerSoftware) != 0) {
     Write(kTriggerSoftware, 0);

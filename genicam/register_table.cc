@@ -232,6 +232,9 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   if (stages.empty()) stages.push_back({"Stage_none", 0});
   t.push_back(Enum("SimStageSelector", sim, kSimStageSelector, true, stages, "Configured stage SimStageEnable acts on."));
   t.push_back(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."));
+  t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
+                  "Register syncs completed: two more than when a write was sent means the write was checked "
+                  "and applied (or refused)."));
   t.push_back(Flt("SimAutoTarget", sim, kSimAutoTarget, 0.01, 0.99,
                   "Mean raw level (fraction of full scale) the Auto features aim for.", ""));
   return t;

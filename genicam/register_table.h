@@ -63,7 +63,8 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kLineMode = 0x8064, kLineSource = 0x8068, kLineStatus = 0x806c, kSimSceneFrame = 0x8080,
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
                           kSimStageSelector = 0x8094, kSimStageEnable = 0x8098,
-                          kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4, kSimAutoTarget = 0x80a8;
+                          kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4, kSimAutoTarget = 0x80a8,
+                          kSimSyncCount = 0x80b0;
 }  // namespace reg
 
 // Enumeration values of camsim's own enum registers.

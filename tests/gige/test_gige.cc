@@ -22,9 +22,18 @@ using genicam::GigeDevice;
 namespace reg = genicam::reg;
 
 void Sleep(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
-// Lets the device's register sync catch up: a pipeline setting rebuilds the
-// pipeline's tables (tens of ms on a busy machine), so allow plenty.
-void Settle() { Sleep(400); }
+// Waits until the device has checked the writes sent so far: two completed
+// register syncs after now (SimSyncCount; a pipeline rebuild inside a sync
+// takes tens of ms, more under sanitizers).
+Client* g_client = nullptr;
+void Settle() {
+  if (!g_client) return Sleep(400);
+  const int64_t start = arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr);
+  for (int i = 0; i < 2000; ++i) {
+    if (arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr) >= start + 2) return;
+    Sleep(5);
+  }
+}
 
 // Waits until a feature reads `want` (the device's sync runs every 2 ms).
 int64_t ReadInt(Client& c, const char* name) { return arv_camera_get_integer(c.camera(), name, nullptr); }
@@ -262,8 +271,10 @@ class GigeE2E : public ::testing::Test {
     ASSERT_NE(device_, nullptr);
     client_ = std::make_unique<Client>("127.0.0.1");
     ASSERT_TRUE(client_->ok()) << client_->last_error;
+    g_client = client_.get();
   }
   void TearDown() override {
+    g_client = nullptr;
     client_.reset();
     device_.reset();
   }
