@@ -3,19 +3,17 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
 #include "hal/clock.h"
-#include "hal/thread_pool.h"
 #include "host_tools/presets.h"
-#include "core/sensor/smear.h"
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
 #include "host_tools/io/sequence.h"
+#include "host_tools/render.h"
 #include "host_tools/scene_input.h"
 
 namespace camsim::host {
@@ -337,13 +335,9 @@ int RunCommand(const RunOptions& o) {
     return 2;
   }
 
-  Pipeline pipeline;
-  std::vector<uint8_t> workspace;
-  io::FloatPlane mask;
-  CoreInput input;
+  FrameRenderer renderer(o.threads, o.strip_rows);
+  const RunConfig user_config = rc;  // rc becomes the finished configuration
   Accumulated acc;
-  hal::ThreadPool pool(o.threads);
-  const Clock clock = hal::NanosecondClock();
   const bool tty = isatty(2) && !o.quiet && files.size() > 1;
   int exit_code = 0;
   int first_w = 0, first_h = 0;
@@ -362,7 +356,7 @@ int RunCommand(const RunOptions& o) {
       break;
     }
     if (f == 0) {
-      if (!FinishConfig(&rc, scene.width, scene.height, origins, o.threads, &error)) {
+      if (!renderer.Configure(user_config, origins, scene.width, scene.height, &rc, &error)) {
         exit_code = 1;
         break;
       }
@@ -390,26 +384,10 @@ int RunCommand(const RunOptions& o) {
             break;
           }
         }
-      }
-      const Status s = pipeline.Configure(rc.core, o.threads, !rc.vignetting_mask.empty());
-      if (!s.ok()) {
-        error = DescribeStatus(s, origins);
-        exit_code = 1;
-        break;
-      }
-      workspace.assign(pipeline.WorkspaceBytes(), 0);
-      const Status si = pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()});
-      if (!si.ok()) {
-        error = DescribeStatus(si, origins);
-        exit_code = 1;
-        break;
-      }
-      if (!rc.vignetting_mask.empty()) {
-        if (!io::ReadMaskImage(rc.vignetting_mask, &mask, &error)) {
+        if (!renderer.Configure(rc, origins, scene.width, scene.height, &rc, &error)) {
           exit_code = 1;
           break;
         }
-        PrepareMask(mask, pipeline.width(), pipeline.height(), &input);
       }
       first_w = scene.width;
       first_h = scene.height;
@@ -419,46 +397,18 @@ int RunCommand(const RunOptions& o) {
       exit_code = 1;
       break;
     }
-    if (f > 0 && ae_on && ae_changed) {
+    if (f > 0 && ae_on && ae_changed &&
+        !renderer.Configure(rc, origins, scene.width, scene.height, &rc, &error)) {
       // The controller changed the exposure: the stages take the new settings.
-      const Status s = pipeline.Configure(rc.core, o.threads, !rc.vignetting_mask.empty());
-      if (!s.ok()) {
-        error = "auto_exposure: " + DescribeStatus(s, origins);
-        exit_code = 1;
-        break;
-      }
-      workspace.assign(pipeline.WorkspaceBytes(), 0);
-      const Status si = pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()});
-      if (!si.ok()) {
-        error = DescribeStatus(si, origins);
-        exit_code = 1;
-        break;
-      }
-    }
-    PrepareInput(scene, pipeline.width(), pipeline.height(), rc.fit, &input);
-    FrameInput view = input.View();
-    // Frame statistics pre-passes: flare needs the frame's bright tiles, CCD
-    // smear each column's total light.
-    std::vector<FlareSource> flare_sources;
-    FlareFrame flare_frame;
-    if (rc.core.flare.enabled) {
-      flare_sources.resize(static_cast<size_t>(FlareMaxSources(rc.core.geometry)));
-      ComputeFlare(rc.core.flare, rc.core.geometry, view, Span<FlareSource>{flare_sources.data(), flare_sources.size()},
-                   &flare_frame);
-      view.flare = &flare_frame;
-    }
-    std::vector<uint32_t> smear;
-    if (SmearEnabled(rc.core)) {
-      smear.resize(static_cast<size_t>(SmearEntries(rc.core)));
-      ComputeSmear(rc.core, view, Span<uint32_t>{smear.data(), smear.size()});
-      view.smear_e = smear.data();
-    }
-    const Status cs = pipeline.CheckInput(view);
-    if (!cs.ok()) {
-      error = files[f] + ": " + cs.message();
+      error = "auto_exposure: " + error;
       exit_code = 1;
       break;
     }
+    if (!renderer.SetScene(scene, &error)) {
+      exit_code = 1;
+      break;
+    }
+    const Pipeline& pipeline = renderer.pipeline();
 
     // Taps: the raw sensor output (when the sensor runs before the end), the
     // final output, and with --dump-stages every running stage.
@@ -497,20 +447,10 @@ int RunCommand(const RunOptions& o) {
     if (o.dump_stages)
       for (int i = 0; i < plan.running; ++i) add_tap(i, TapFormat::kU32);
 
-    // Strips are handed out in order to whichever worker is free; the bytes
-    // do not depend on who takes which.
     std::vector<WorkerStats> worker_stats(static_cast<size_t>(o.threads));
-    std::atomic<int> next_strip{0};
     const uint32_t frame_index = o.first_frame + static_cast<uint32_t>(f);
     const uint64_t t0 = hal::NowNs();
-    pool.Run([&](int worker) {
-      for (;;) {
-        const int y0 = next_strip.fetch_add(1) * o.strip_rows;
-        if (y0 >= h) break;
-        pipeline.ProcessStrip(view, frame_index, y0, y0 + o.strip_rows, worker, taps.data(),
-                              static_cast<int>(taps.size()), &worker_stats[static_cast<size_t>(worker)], &clock);
-      }
-    });
+    renderer.Render(frame_index, taps.data(), static_cast<int>(taps.size()), &worker_stats);
     FrameRecord rec;
     rec.wall_ms = (hal::NowNs() - t0) / 1e6;
     rec.input = scene.source;
@@ -541,7 +481,7 @@ int RunCommand(const RunOptions& o) {
                                     : (final_is_raw ? reinterpret_cast<const uint16_t*>(buffers[0].data()) : nullptr);
       const int raw_channels = sensor_index >= 0 ? formats[static_cast<size_t>(sensor_index)].channels : 1;
       if (rc.meter_input || sensor_index < 0) {
-        y = InputBrightness(input, rc, metering_weights);
+        y = InputBrightness(renderer.input(), rc, metering_weights);
       } else if (rc.metering == Metering::kUniform) {
         // Free: the sensor stage's sums, gathered while its rows were hot.
         int64_t sum = 0, count = 0;
@@ -628,7 +568,7 @@ int RunCommand(const RunOptions& o) {
 
   if (exit_code != 0) std::fprintf(stderr, "camsim: %s\n", error.c_str());
   if (!acc.frames.empty() || exit_code == 0) {
-    if (!o.quiet) PrintPlan(pipeline, acc);
+    if (!o.quiet) PrintPlan(renderer.pipeline(), acc);
     if (!o.quiet && !acc.frames.empty()) {
       double total = 0;
       for (const FrameRecord& r : acc.frames) total += r.wall_ms;
@@ -641,9 +581,9 @@ int RunCommand(const RunOptions& o) {
                    total / acc.frames.size(), o.threads, o.out_dir.c_str());
     }
   }
-  if (!o.report_path.empty() && pipeline.plan().count > 0) {
+  if (!o.report_path.empty() && renderer.pipeline().plan().count > 0) {
     std::string werr;
-    if (!io::WriteTextFile(o.report_path, ReportJson(o, rc, pipeline, o.threads, acc, error), &werr)) {
+    if (!io::WriteTextFile(o.report_path, ReportJson(o, rc, renderer.pipeline(), o.threads, acc, error), &werr)) {
       std::fprintf(stderr, "camsim: %s\n", werr.c_str());
       if (exit_code == 0) exit_code = 2;
     }

@@ -11,6 +11,8 @@ packages=(
   libopenexr-dev libimath-dev libpng-dev zlib1g-dev libtomlplusplus-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libopencv-dev   # test and bench peers only: never linked by the core or the tools
+  # camsim-gige: Aravis (its pkg-config file needs libusb-1.0's), its CLI tools, libgpiod v1
+  libaravis-dev libusb-1.0-0-dev aravis-tools-cli libgpiod-dev
 )
 [ $# -eq 0 ] || packages=("$@")
 

@@ -1,0 +1,750 @@
+#include "genicam/device.h"
+
+#include <arv.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+#include "host_tools/io/image_write.h"
+#include "host_tools/io/sequence.h"
+
+namespace camsim::genicam {
+namespace {
+
+// Registers the pipeline depends on: a change reconfigures it.
+constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain, reg::kBlackLevel, reg::kSimFNumber,
+                                           reg::kSimSeed};
+// Window registers: frozen while acquiring (the payload size is fixed then).
+bool IsGeometry(uint32_t a) {
+  return a == reg::kWidth || a == reg::kHeight || a == reg::kOffsetX || a == reg::kOffsetY || a == reg::kPixelFormat;
+}
+// GigE Vision bootstrap: control channel privilege (0 = no controlling client).
+constexpr uint32_t kControlChannelPrivilege = 0x0a00;
+// Stream channel 0: destination port (low 16 bits) and address.
+constexpr uint32_t kStreamPort = 0x0d00, kStreamDestAddress = 0x0d18;
+constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
+// The fake camera polls its software-trigger register at this rate when in
+// trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
+constexpr double kTriggerPollHz = 1000.0;
+// Auto exposure: one step changes the exposure by at most this factor.
+constexpr double kAutoMaxStep = 8.0;
+
+uint64_t DoubleBits(double v) {
+  uint64_t b;
+  std::memcpy(&b, &v, 8);
+  return b;
+}
+double BitsDouble(uint64_t b) {
+  double v;
+  std::memcpy(&v, &b, 8);
+  return v;
+}
+
+}  // namespace
+
+std::vector<std::string> ScenePatternNames() { return {"gradient", "checker", "flat"}; }
+
+bool MakePatternScene(const std::string& name, int width, int height, io::SceneFrame* out, std::string* error) {
+  if (width < 2 || height < 2 || width > 16384 || height > 16384) {
+    *error = "--pattern: size must be 2..16384 (set [sensor] width and height)";
+    return false;
+  }
+  io::SceneFrame s;
+  s.width = width;
+  s.height = height;
+  s.source = "pattern:" + name;
+  s.layout = "pattern";
+  for (io::FloatPlane* p : {&s.r, &s.g, &s.b}) {
+    p->width = width;
+    p->height = height;
+    p->data.assign(static_cast<size_t>(width) * height, 0.0f);
+  }
+  // Radiance levels: mid grey 0.18 is a normal exposure for the demo camera;
+  // the gradient's highlights (2.0) clip, so both ends of the range show.
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const size_t i = static_cast<size_t>(y) * width + x;
+      float r = 0.18f, g = 0.18f, b = 0.18f;
+      if (name == "gradient") {
+        const float fx = static_cast<float>(x) / (width - 1), fy = static_cast<float>(y) / (height - 1);
+        r = 2.0f * fx;
+        g = 2.0f * fx * (1.0f - 0.5f * fy);
+        b = 2.0f * (1.0f - fx) * fy;
+      } else if (name == "checker") {
+        const bool on = ((x / 32) + (y / 32)) % 2 == 0;
+        r = g = b = on ? 0.8f : 0.05f;
+      } else if (name != "flat") {
+        *error = "--pattern: unknown pattern '" + name + "' (gradient, checker, flat)";
+        return false;
+      }
+      s.r.data[i] = r;
+      s.g.data[i] = g;
+      s.b.data[i] = b;
+    }
+  *out = std::move(s);
+  return true;
+}
+
+bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* rc, host::Origins* origins,
+                      std::vector<io::SceneFrame>* scenes, std::string* error) {
+  if (!o.config_path.empty() && !host::LoadConfigFile(o.config_path, rc, origins, error)) return false;
+  for (const std::string& s : o.overrides)
+    if (!host::ApplyOverride(s, rc, origins, error)) return false;
+  if (o.inputs.empty() == o.pattern.empty()) {
+    *error = "give either --input EXR... or --pattern NAME";
+    return false;
+  }
+  scenes->clear();
+  if (!o.pattern.empty()) {
+    io::SceneFrame s;
+    const int w = rc->width > 0 ? rc->width : o.pattern_width, h = rc->height > 0 ? rc->height : o.pattern_height;
+    if (!MakePatternScene(o.pattern, w, h, &s, error)) return false;
+    scenes->push_back(std::move(s));
+    return true;
+  }
+  std::vector<std::string> files;
+  if (!io::ExpandInputs(o.inputs, &files, error)) return false;
+  for (const std::string& f : files) {
+    io::SceneFrame s;
+    if (!io::LoadSceneExr(f, "", &s, error)) return false;
+    if (!scenes->empty() && (s.width != scenes->front().width || s.height != scenes->front().height)) {
+      *error = f + ": is " + std::to_string(s.width) + "x" + std::to_string(s.height) + " but the first input is " +
+               std::to_string(scenes->front().width) + "x" + std::to_string(scenes->front().height);
+      return false;
+    }
+    scenes->push_back(std::move(s));
+  }
+  return true;
+}
+
+void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
+                   int y, int w, int h, uint8_t* out) {
+  if (format == kRGB8) {
+    for (int r = 0; r < h; ++r)
+      std::memcpy(out + static_cast<size_t>(r) * w * 3, rgb + (static_cast<size_t>(y + r) * sensor_width + x) * 3,
+                  static_cast<size_t>(w) * 3);
+    return;
+  }
+  const int bits = SampleBits(format);
+  for (int r = 0; r < h; ++r) {
+    const uint16_t* src = raw + static_cast<size_t>(y + r) * sensor_width + x;
+    if (bits == 8) {
+      // The top 8 ADC bits (truncated, as a sensor's 8-bit mode drops LSBs).
+      const int shift = adc_bits - 8;
+      uint8_t* dst = out + static_cast<size_t>(r) * w;
+      for (int i = 0; i < w; ++i) dst[i] = static_cast<uint8_t>(src[i] >> shift);
+    } else {
+      // 12-bit: the DN at 12 bits; 16-bit: MSB-aligned. Little-endian words.
+      const int shift = bits - adc_bits;
+      uint8_t* dst = out + static_cast<size_t>(r) * w * 2;
+      for (int i = 0; i < w; ++i) {
+        const uint16_t v = static_cast<uint16_t>(src[i] << shift);
+        dst[2 * i] = static_cast<uint8_t>(v & 0xff);
+        dst[2 * i + 1] = static_cast<uint8_t>(v >> 8);
+      }
+    }
+  }
+}
+
+std::unique_ptr<GigeDevice> GigeDevice::Start(const DeviceOptions& o, std::string* error) {
+  std::unique_ptr<GigeDevice> d(new GigeDevice);
+  if (!d->Init(o, error)) return nullptr;
+  return d;
+}
+
+uint32_t GigeDevice::Read(uint32_t address) const {
+  guint32 v = 0;
+  arv_fake_camera_read_register(fake_, address, &v);
+  return v;
+}
+void GigeDevice::Write(uint32_t address, uint32_t value) { arv_fake_camera_write_register(fake_, address, value); }
+double GigeDevice::ReadDouble(uint32_t address) const {
+  uint8_t b[8];
+  arv_fake_camera_read_memory(fake_, address, 8, b);
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | b[i];
+  return BitsDouble(v);
+}
+void GigeDevice::WriteDouble(uint32_t address, double value) {
+  const uint64_t v = DoubleBits(value);
+  uint8_t b[8];
+  for (int i = 0; i < 8; ++i) b[i] = static_cast<uint8_t>(v >> (56 - 8 * i));
+  arv_fake_camera_write_memory(fake_, address, 8, b);
+}
+uint64_t GigeDevice::ReadFeature(const Feature& f) const {
+  return f.kind == Kind::kFloat ? DoubleBits(ReadDouble(f.address)) : Read(f.address);
+}
+void GigeDevice::WriteFeature(const Feature& f, uint64_t v) {
+  if (f.kind == Kind::kFloat) WriteDouble(f.address, BitsDouble(v));
+  else Write(f.address, static_cast<uint32_t>(v));
+}
+double GigeDevice::AppliedDouble(uint32_t address) const { return BitsDouble(applied_.at(address)); }
+void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
+  applied_[address] = value;
+  for (const Feature& f : table_)
+    if (f.address == address && f.alias_of.empty() && f.kind != Kind::kString && f.kind != Kind::kSwissKnife) {
+      WriteFeature(f, value);
+      return;
+    }
+}
+
+bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
+  switch (f.kind) {
+    case Kind::kInteger: {
+      // SCPS0: the size is the low 16 bits; the client may set flag bits
+      // (bit 31 fires a test packet during packet-size negotiation).
+      const double x = static_cast<double>(f.address == reg::kPacketSize ? (v & 0xffff) : v);
+      return x >= f.min && x <= f.max && std::fmod(x - f.min, f.inc) == 0.0;
+    }
+    case Kind::kFloat: {
+      const double x = BitsDouble(v);
+      return std::isfinite(x) && x >= f.min && x <= f.max;
+    }
+    case Kind::kEnum:
+      for (const EnumEntry& e : f.entries)
+        if (static_cast<uint64_t>(e.value) == v) return true;
+      return false;
+    case Kind::kBoolean: return v <= 1;
+    default: return false;
+  }
+}
+
+bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
+  if (!LoadDeviceScenes(o, &base_config_, &origins_, &scenes_, error)) return false;
+  address_ = o.address;
+  renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
+  host::RunConfig finished;
+  if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
+    return false;
+  const Pipeline& p = renderer_->pipeline();
+  if (renderer_->SensorIndex() < 0) {
+    *error = "[pipeline] stages: camsim-gige needs the sensor stage";
+    return false;
+  }
+  for (int i = 0; i < base_config_.core.order_count; ++i) configured_stages_.push_back(base_config_.core.order[i]);
+  stage_enabled_.assign(configured_stages_.size(), true);
+
+  sensor_.width = p.width();
+  sensor_.height = p.height();
+  sensor_.cfa = finished.core.geometry.cfa;
+  sensor_.adc_bits = finished.core.geometry.adc_bits;
+  // BlackLevel range: up to a quarter of full scale, or the configured value if higher.
+  sensor_.max_black_level_dn =
+      std::max(std::floor(((1 << sensor_.adc_bits) - 1) / 4.0), finished.core.sensor.black_level_dn);
+  sensor_.scene_count = static_cast<int>(scenes_.size());
+  const LineFormat out = p.plan().output;
+  sensor_.has_isp_rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
+  for (StageId id : configured_stages_) sensor_.stage_names.push_back(StageName(id));
+  if (sensor_.width % 2 || sensor_.height % 2) {
+    if (sensor_.cfa != Cfa::kMono) {
+      *error = "sensor size " + std::to_string(sensor_.width) + "x" + std::to_string(sensor_.height) +
+               ": a Bayer camera needs an even width and height";
+      return false;
+    }
+  }
+  table_ = RegisterTable(sensor_);
+  raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
+  rgb_.assign(static_cast<size_t>(sensor_.width) * sensor_.height * 3, 0);
+
+  // Lines: a requested line that cannot be opened is an error; none is fine.
+  trigger_ = o.trigger;
+  strobe_ = o.strobe;
+  if (!o.trigger_line.empty()) {
+    own_trigger_ = hal::OpenGpiodInput(o.trigger_line, "camsim-gige trigger", error);
+    if (!own_trigger_) return false;
+    trigger_ = own_trigger_.get();
+  }
+  if (!o.strobe_line.empty()) {
+    own_strobe_ = hal::OpenGpiodOutput(o.strobe_line, "camsim-gige strobe", error);
+    if (!own_strobe_) return false;
+    strobe_ = own_strobe_.get();
+  }
+
+  DeviceStrings strings;
+  strings.serial = o.serial;
+  if (o.serial.empty() || o.serial.size() > 15) {
+    *error = "--serial: 1..15 characters";
+    return false;
+  }
+  const std::string xml = GenerateXml(table_, strings);
+  xml_path_ = o.xml_path;
+  if (xml_path_.empty()) {
+    const char* tmp = std::getenv("TMPDIR");
+    xml_path_ = std::string(tmp && *tmp ? tmp : "/tmp") + "/camsim-gige-" + o.serial + "-" +
+                std::to_string(getpid()) + ".xml";
+    own_xml_ = true;
+  }
+  if (!io::WriteTextFile(xml_path_, xml, error)) return false;
+
+  if (o.serve) {
+    gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
+    if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
+      *error = "cannot serve on " + o.address +
+               ": no network interface has that address, or another camera already uses its GVCP port 3956";
+      return false;
+    }
+    fake_ = arv_gv_fake_camera_get_fake_camera(gv_);
+  } else {
+    fake_ = arv_fake_camera_new_full(o.serial.c_str(), xml_path_.c_str());
+    if (!fake_) {
+      *error = "cannot create the register memory";
+      return false;
+    }
+  }
+  arv_fake_camera_set_trigger_frequency(fake_, kTriggerPollHz);
+
+  // Bootstrap strings, then every register's initial value.
+  auto put_string = [&](uint32_t address, const std::string& s, size_t size) {
+    std::vector<char> b(size, 0);
+    std::memcpy(b.data(), s.data(), std::min(s.size(), size - 1));
+    arv_fake_camera_write_memory(fake_, address, static_cast<guint32>(size), b.data());
+  };
+  put_string(reg::kVendorName, strings.vendor, 32);
+  put_string(reg::kModelName, strings.model, 32);
+  put_string(reg::kDeviceVersion, strings.version, 32);
+  put_string(reg::kManufacturerInfo, "camsim camera emulator", 48);
+  put_string(reg::kUserId, "", 16);
+
+  using namespace reg;
+  const auto& c = finished.core;
+  const double exposure = std::min(std::max(c.exposure.exposure_time_us, 1.0), 1e6);
+  const uint64_t initial[][2] = {
+      {kSensorWidth, static_cast<uint64_t>(sensor_.width)},
+      {kSensorHeight, static_cast<uint64_t>(sensor_.height)},
+      {kWidthMax, static_cast<uint64_t>(sensor_.width)},
+      {kHeightMax, static_cast<uint64_t>(sensor_.height)},
+      {kWidth, static_cast<uint64_t>(sensor_.width)},
+      {kHeight, static_cast<uint64_t>(sensor_.height)},
+      {kOffsetX, 0},
+      {kOffsetY, 0},
+      {kPixelFormat, static_cast<uint64_t>(FindFeature(table_, "PixelFormat")->entries[0].value)},
+      {kAcquisitionMode, kContinuous},
+      {kAcquisitionFrameCount, 1},
+      {kAcquisitionFrameRate, DoubleBits(25.0)},  // Aravis's fake camera default
+      {kAcquisitionFrameRateEnable, 1},
+      {kExposureTime, DoubleBits(exposure)},
+      {kExposureAuto, kAutoOff},
+      {kTriggerSelector, 0},
+      {kTriggerMode, 0},
+      {kTriggerSource, kSourceSoftware},
+      {kTriggerActivation, 0},
+      {kGain, DoubleBits(c.sensor.gain_db)},
+      {kGainRaw, static_cast<uint64_t>(std::lround(c.sensor.gain_db * 10))},
+      {kGainAuto, kAutoOff},
+      {kBlackLevel, DoubleBits(c.sensor.black_level_dn)},
+      {kLineSelector, 0},
+      {kLineSource, kLineSourceOff},
+      {kPacketSize, 1400},  // the fake camera's default (fits a 1500-byte MTU)
+      {kTLParamsLocked, 0},
+      {kSimSceneCount, static_cast<uint64_t>(sensor_.scene_count)},
+      {kSimSceneFrame, 0},
+      {kSimFrameIndex, 0},
+      {kSimFNumber, DoubleBits(c.exposure.f_number)},
+      {kSimSeed, c.seed & 0x7fffffff},
+      {kSimStageSelector, 0},
+      {kSimStageEnable, 1},
+      {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
+  };
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const auto& iv : initial) {
+    applied_[static_cast<uint32_t>(iv[0])] = iv[1];
+    for (const Feature& f : table_)
+      if (f.address == iv[0] && f.alias_of.empty()) WriteFeature(f, iv[1]);
+  }
+  seed_register_at_start_ = applied_[kSimSeed];
+  Write(kAcquisition, 0);
+  Write(kTriggerSoftware, 0);
+  WriteDerived();
+  arv_fake_camera_set_fill_pattern(fake_, &GigeDevice::FillThunk, this);
+  if (!o.serve) return true;
+  sync_thread_ = std::thread([this] { SyncLoop(); });
+  if (trigger_) trigger_thread_ = std::thread([this] { TriggerLoop(); });
+  return true;
+}
+
+GigeDevice::~GigeDevice() {
+  stop_ = true;
+  if (sync_thread_.joinable()) sync_thread_.join();
+  if (trigger_thread_.joinable()) trigger_thread_.join();
+  if (gv_) g_object_unref(gv_);  // stops the fake camera's thread
+  else if (fake_) g_object_unref(fake_);
+  if (own_xml_) unlink(xml_path_.c_str());
+}
+
+bool GigeDevice::WriteMemory(uint32_t address, const void* data, uint32_t size) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // The fake camera's own check (read-only XML after the registers) is a
+  // g_return_val_if_fail that would log a critical: refuse those here.
+  if (size == 0 || address >= ARV_FAKE_CAMERA_MEMORY_SIZE || size > ARV_FAKE_CAMERA_MEMORY_SIZE - address)
+    return false;
+  return arv_fake_camera_write_memory(fake_, address, size, data);
+}
+
+void GigeDevice::SyncNow() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Sync();
+}
+
+bool GigeDevice::RenderNow(std::vector<uint8_t>* frame) {
+  const size_t payload = arv_fake_camera_get_payload(fake_);
+  ArvBuffer* b = arv_buffer_new(payload, nullptr);
+  arv_fake_camera_fill_buffer(fake_, b, nullptr);  // calls Fill
+  const bool ok = arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS;
+  if (ok) {
+    const uint8_t* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, nullptr));
+    frame->assign(data, data + payload);
+  }
+  g_object_unref(b);
+  return ok;
+}
+
+std::string GigeDevice::CheckInvariants() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const Feature& f : table_) {
+    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
+        f.kind == Kind::kSwissKnife)
+      continue;
+    const uint64_t in_use = applied_.at(f.address);
+    if (!Valid(f, in_use)) return f.name + ": the value in use is invalid";
+    if (ReadFeature(f) != in_use) return f.name + ": the register differs from the value in use";
+  }
+  using namespace reg;
+  if (applied_.at(kWidth) + applied_.at(kOffsetX) > static_cast<uint64_t>(sensor_.width) ||
+      applied_.at(kHeight) + applied_.at(kOffsetY) > static_cast<uint64_t>(sensor_.height))
+    return "the window is off the sensor";
+  if (applied_.at(kGainRaw) != static_cast<uint64_t>(std::lround(AppliedDouble(kGain) * 10)))
+    return "Gain and GainRaw disagree";
+  return "";
+}
+
+std::string GigeDevice::line_error() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return line_error_;
+}
+
+void GigeDevice::WriteDerived() {
+  using namespace reg;
+  // The fake camera's own registers follow camsim's.
+  const bool rate_on = Applied(kAcquisitionFrameRateEnable) != 0;
+  // Frame rate off: a 1 us period, so frames go out as fast as they are rendered.
+  const double period_us = rate_on ? std::max(1.0, std::round(1e6 / AppliedDouble(kAcquisitionFrameRate))) : 1.0;
+  Write(kFakeFramePeriodUs, static_cast<uint32_t>(period_us));
+  Write(kFakeTriggerMode, Applied(kTriggerMode));
+  Write(kFakeTriggerSource, 1);  // the fake camera's "Software": camsim forwards both sources to it
+  Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
+  const uint32_t line = Applied(kLineSelector);
+  Write(kLineMode, line == 0 ? 0 : 1);
+  Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
+  Write(kSimStageEnable, stage_enabled_.empty() ? 0 : (stage_enabled_[Applied(kSimStageSelector)] ? 1 : 0));
+  applied_[kSimStageEnable] = Read(kSimStageEnable);
+}
+
+bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error) {
+  using namespace reg;
+  host::RunConfig rc = base_config_;
+  rc.core.exposure.exposure_time_us = BitsDouble(r.at(kExposureTime));
+  rc.core.exposure.f_number = BitsDouble(r.at(kSimFNumber));
+  rc.core.sensor.gain_db = BitsDouble(r.at(kGain));
+  rc.core.sensor.black_level_dn = BitsDouble(r.at(kBlackLevel));
+  if (r.at(kSimSeed) != seed_register_at_start_) rc.core.seed = r.at(kSimSeed);
+  rc.core.order_count = 0;
+  for (size_t i = 0; i < configured_stages_.size(); ++i)
+    if (stages[i]) rc.core.order[rc.core.order_count++] = configured_stages_[i];
+  // Plan first (cheap, no tables): the running renderer stays as it is on failure.
+  host::RunConfig finished = rc;
+  if (!host::FinishConfig(&finished, scenes_[0].width, scenes_[0].height, origins_, 1, error)) return false;
+  Pipeline probe;
+  const Status ps = probe.Configure(finished.core, 1, !finished.vignetting_mask.empty());
+  if (!ps.ok()) {
+    *error = host::DescribeStatus(ps, origins_);
+    return false;
+  }
+  const LineFormat out = probe.plan().output;
+  const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
+  bool has_sensor = false;
+  for (int i = 0; i < probe.plan().count; ++i)
+    has_sensor = has_sensor || (probe.plan().entries[i].runs && probe.plan().entries[i].id == StageId::kSensor);
+  if (r.at(kPixelFormat) == kRGB8 ? !rgb : !has_sensor) {
+    *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
+    return false;
+  }
+  if (!renderer_->Configure(rc, origins_, scenes_[0].width, scenes_[0].height, nullptr, error)) return false;
+  current_scene_ = -1;  // the input is prepared again for the new pipeline
+  return true;
+}
+
+void GigeDevice::Sync() {
+  using namespace reg;
+  const bool acquiring = Read(kAcquisition) != 0;
+  // Clients that go away. The fake camera picks its stream destination when
+  // an acquisition starts and forgets it only when a control packet arrives
+  // while acquisition or privilege is 0.
+  const uint64_t dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
+  const bool controlled = Read(kControlChannelPrivilege) != 0;
+  if (acquiring && !controlled) {
+    // The controller's heartbeat timed out: stop, so the next client does
+    // not find a stream running.
+    Write(kAcquisition, 0);
+    Write(kTLParamsLocked, 0);
+    applied_[kTLParamsLocked] = 0;
+  } else if (acquiring && sync_saw_acquiring_ && dest != stream_dest_) {
+    // A new client took control of a running acquisition (its predecessor was
+    // killed: the heartbeat timeout and the new client's control request were
+    // one packet) and set its own destination: make the fake camera re-read it
+    // (SyncLoop, outside the lock: the fake camera's thread may wait for it in Fill).
+    restart_stream_ = true;
+  }
+  stream_dest_ = dest;
+  sync_saw_acquiring_ = acquiring;
+  if (!acquiring) was_acquiring_ = false;
+
+  Registers next = applied_;
+  std::vector<bool> stages = stage_enabled_;
+  std::vector<const Feature*> changed;
+  for (const Feature& f : table_) {
+    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
+        f.kind == Kind::kSwissKnife)
+      continue;
+    const uint64_t v = ReadFeature(f);
+    if (v == applied_.at(f.address)) continue;
+    if (Valid(f, v) && !(acquiring && IsGeometry(f.address))) {
+      next[f.address] = v;
+      changed.push_back(&f);
+    } else {
+      WriteFeature(f, applied_.at(f.address));
+      ++writes_refused_;
+    }
+  }
+  if (changed.empty()) {
+    // Nothing new; only commands.
+  } else {
+    auto was_changed = [&](uint32_t a) {
+      for (const Feature* f : changed)
+        if (f->address == a) return true;
+      return false;
+    };
+    auto refuse = [&](uint32_t a) {
+      next[a] = applied_.at(a);
+      for (const Feature& f : table_)
+        if (f.address == a && f.alias_of.empty()) WriteFeature(f, applied_.at(a));
+      ++writes_refused_;
+    };
+    // The window must stay on the sensor: refuse the offset, then the size.
+    const std::pair<uint32_t, uint32_t> axes[2] = {{kWidth, kOffsetX}, {kHeight, kOffsetY}};
+    const int limits[2] = {sensor_.width, sensor_.height};
+    for (int a = 0; a < 2; ++a) {
+      if (next[axes[a].first] + next[axes[a].second] <= static_cast<uint64_t>(limits[a])) continue;
+      if (was_changed(axes[a].second)) refuse(axes[a].second);
+      if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
+    }
+    // Gain and GainRaw are one setting in two units.
+    if (was_changed(kGain)) {
+      next[kGainRaw] = static_cast<uint64_t>(std::lround(BitsDouble(next[kGain]) * 10));
+      Write(kGainRaw, static_cast<uint32_t>(next[kGainRaw]));
+    } else if (was_changed(kGainRaw)) {
+      next[kGain] = DoubleBits(static_cast<double>(next[kGainRaw]) / 10.0);
+      WriteDouble(kGain, BitsDouble(next[kGain]));
+    }
+    if (was_changed(kSimStageEnable)) stages[next[kSimStageSelector]] = next[kSimStageEnable] != 0;
+    bool pipeline = was_changed(kSimStageEnable) || was_changed(kPixelFormat) || was_changed(kGainRaw);
+    for (uint32_t a : kPipelineRegisters) pipeline = pipeline || was_changed(a);
+    std::string error;
+    const auto t_rc = std::chrono::steady_clock::now();
+    const bool rc_ok = !pipeline || Reconfigure(next, stages, &error);
+    if (std::getenv("CAMSIM_GIGE_DEBUG"))
+      std::fprintf(stderr, "camsim-gige: reconfigured in %.1f ms\n",
+                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_rc).count());
+    if (!rc_ok) {
+      // The pipeline refuses the combination: back to the settings in use.
+      std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
+      for (const Feature* f : changed) refuse(f->address);
+      if (was_changed(kGain) || was_changed(kGainRaw)) {  // both units back
+        Write(kGainRaw, static_cast<uint32_t>(applied_.at(kGainRaw)));
+        WriteDouble(kGain, AppliedDouble(kGain));
+      }
+      next = applied_;
+      stages = stage_enabled_;
+    }
+    applied_ = next;
+    stage_enabled_ = stages;
+    WriteDerived();
+  }
+  Write(kSimSyncCount, Read(kSimSyncCount) + 1);
+  // TriggerSoftware: one frame when acquiring with TriggerSource Software.
+  if (Read(kTriggerSoftware) != 0) {
+    Write(kTriggerSoftware, 0);
+    if (acquiring && Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceSoftware)
+      Write(kFakeTriggerSoftware, 1);
+  }
+}
+
+void GigeDevice::RestartStream() {
+  using namespace reg;
+  // Acquisition 0, then a GVCP read from here so the fake camera's thread
+  // handles a packet while it is 0 (and drops its stream), then back to 1.
+  Write(kAcquisition, 0);
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  if (fd >= 0) {
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(kGvcpPort);
+    inet_pton(AF_INET, address_.c_str(), &to.sin_addr);
+    // GVCP READREG_CMD of the version register: key 0x42, flags 0x01 (ack),
+    // command 0x0080, length 4, request id, address 0.
+    const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xca, 0x5e, 0, 0, 0, 0};
+    sendto(fd, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+    pollfd p{fd, POLLIN, 0};
+    uint8_t ack[64];
+    if (poll(&p, 1, 200) > 0) recv(fd, ack, sizeof ack, 0);  // handled: the stream is dropped right after
+    close(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  if (Read(kAcquisition) == 0) Write(kAcquisition, 1);
+}
+
+void GigeDevice::SyncLoop() {
+  while (!stop_) {
+    bool restart = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      Sync();
+      restart = restart_stream_;
+      restart_stream_ = false;
+    }
+    if (restart) RestartStream();
+    std::this_thread::sleep_for(std::chrono::milliseconds(kSyncPeriodMs));
+  }
+}
+
+void GigeDevice::TriggerLoop() {
+  while (!stop_) {
+    hal::Edge edge;
+    std::string error;
+    const int r = trigger_->WaitEdge(50, &edge, &error);
+    if (r < 0) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      line_error_ = error;
+      std::fprintf(stderr, "camsim-gige: trigger line stopped: %s\n", error.c_str());
+      return;
+    }
+    if (r == 0) continue;
+    std::lock_guard<std::mutex> lock(mutex_);
+    const hal::Edge want = Applied(reg::kTriggerActivation) == 0 ? hal::Edge::kRising : hal::Edge::kFalling;
+    if (edge == want && Read(reg::kAcquisition) != 0 && Applied(reg::kTriggerMode) == 1 &&
+        Applied(reg::kTriggerSource) == kSourceLine0)
+      Write(reg::kFakeTriggerSoftware, 1);
+  }
+}
+
+void GigeDevice::FillThunk(ArvBuffer* buffer, void* self, uint32_t, uint32_t, uint32_t pixel_format) {
+  static_cast<GigeDevice*>(self)->Fill(buffer, pixel_format);
+}
+
+void GigeDevice::AutoAdjust(double frac) {
+  using namespace reg;
+  const uint32_t ea = Applied(kExposureAuto), ga = Applied(kGainAuto);
+  if (ea == kAutoOff && ga == kAutoOff) return;
+  const double target = AppliedDouble(kSimAutoTarget);
+  double want = target / std::max(frac, 1e-4);
+  want = std::min(std::max(want, 1.0 / kAutoMaxStep), kAutoMaxStep);
+  Registers next = applied_;
+  const Feature* ef = FindFeature(table_, "ExposureTime");
+  const Feature* gf = FindFeature(table_, "Gain");
+  double rest = want;
+  if (ea != kAutoOff) {
+    const double e0 = AppliedDouble(kExposureTime);
+    const double e1 = std::min(std::max(e0 * want, ef->min), ef->max);
+    next[kExposureTime] = DoubleBits(e1);
+    rest = want * e0 / e1;
+  }
+  if (ga != kAutoOff && std::fabs(rest - 1.0) > 0.01) {
+    const double g0 = AppliedDouble(kGain);
+    const double g1 = std::min(std::max(g0 + 20.0 * std::log10(rest), gf->min), gf->max);
+    next[kGain] = DoubleBits(std::round(g1 * 10) / 10);
+    next[kGainRaw] = static_cast<uint64_t>(std::lround(g1 * 10));
+  }
+  if (ea == kAutoOnce) next[kExposureAuto] = kAutoOff;
+  if (ga == kAutoOnce) next[kGainAuto] = kAutoOff;
+  std::string error;
+  if (next == applied_ || !Reconfigure(next, stage_enabled_, &error)) return;
+  for (const auto& kv : next)
+    if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
+}
+
+void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
+  using namespace reg;
+  std::lock_guard<std::mutex> lock(mutex_);
+  Sync();
+  if (!was_acquiring_) {
+    was_acquiring_ = true;
+    frames_in_acquisition_ = 0;
+  }
+  size_t size = 0;
+  uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));
+  const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
+  const int x = arv_buffer_get_image_x(buffer), y = arv_buffer_get_image_y(buffer);
+  if (static_cast<uint32_t>(w) != Applied(kWidth) || static_cast<uint32_t>(h) != Applied(kHeight) ||
+      static_cast<uint32_t>(x) != Applied(kOffsetX) || static_cast<uint32_t>(y) != Applied(kOffsetY) ||
+      pixel_format != Applied(kPixelFormat)) {
+    // A refused write was in the registers when the fake camera read them: send black.
+    std::memset(data, 0, static_cast<size_t>(w) * h * PixelBits(pixel_format) / 8);
+    return;
+  }
+  const uint32_t index = Applied(kSimFrameIndex);
+  const int scene = static_cast<int>(index % scenes_.size());
+  if (scene != current_scene_) {
+    std::string error;
+    if (!renderer_->SetScene(scenes_[static_cast<size_t>(scene)], &error))
+      std::fprintf(stderr, "camsim-gige: %s\n", error.c_str());  // sizes were checked at start: not expected
+    current_scene_ = scene;
+  }
+  const Plan& plan = renderer_->pipeline().plan();
+  Tap taps[2];
+  int n = 0;
+  taps[n].stage = renderer_->SensorIndex();
+  taps[n].format = TapFormat::kU16;
+  taps[n].data = raw_.data();
+  taps[n].stride = sensor_.width;
+  ++n;
+  if (pixel_format == kRGB8) {
+    taps[n].stage = plan.running - 1;
+    taps[n].format = TapFormat::kU8;
+    taps[n].data = rgb_.data();
+    taps[n].stride = static_cast<ptrdiff_t>(sensor_.width) * 3;
+    ++n;
+  }
+  const bool strobe = strobe_ && Applied(kLineSource) == kLineSourceExposureActive;
+  std::string line_error;
+  if (strobe && !strobe_->Set(true, &line_error)) line_error_ = line_error;
+  renderer_->Render(index, taps, n, nullptr);
+  if (strobe && !strobe_->Set(false, &line_error)) line_error_ = line_error;
+  ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
+
+  // Mean raw level in the window, for the Auto features.
+  if (Applied(kExposureAuto) != kAutoOff || Applied(kGainAuto) != kAutoOff) {
+    uint64_t sum = 0;
+    for (int r = 0; r < h; ++r)
+      for (int i = 0; i < w; ++i) sum += raw_[static_cast<size_t>(y + r) * sensor_.width + x + i];
+    const double black = AppliedDouble(kBlackLevel), full = (1 << sensor_.adc_bits) - 1;
+    AutoAdjust((static_cast<double>(sum) / (static_cast<double>(w) * h) - black) / (full - black));
+  }
+  SetApplied(kSimFrameIndex, (index + 1) & 0x7fffffff);
+  WriteDerived();
+  ++frames_in_acquisition_;
+  const uint32_t mode = Applied(kAcquisitionMode);
+  if ((mode == kSingleFrame && frames_in_acquisition_ >= 1) ||
+      (mode == kMultiFrame && frames_in_acquisition_ >= Applied(kAcquisitionFrameCount)))
+    Write(kAcquisition, 0);
+  ++frames_sent_;
+}
+
+}  // namespace camsim::genicam

@@ -1,0 +1,161 @@
+// camsim-gige's device: an Aravis fake GigE Vision camera (GVCP + GVSP on
+// one address) whose frames come from the core pipeline.
+//
+// Register writes arrive at the fake camera's memory without a hook, so the
+// device checks them itself: a sync step (every kSyncPeriodMs, and before
+// every frame) compares each writable register with the setting in use,
+// takes valid new values and writes the old value back over invalid ones
+// (out of range, off the increment, not an enum entry, NaN, a geometry change
+// during acquisition). A refused write therefore reads back as the previous
+// value and never reaches the pipeline. Settings apply from the next frame.
+//
+// Frames: the whole sensor is rendered (FrameRenderer, the code `camsim run`
+// uses) and the Width x Height window at OffsetX/OffsetY is sent. Raw formats
+// carry the sensor's DN (see genicam/register_table.cc PixelFormat), RGB8 the
+// ISP's 8-bit output; 16-bit samples are little-endian (GigE Vision).
+// Frame index i (SimFrameIndex) renders scene i mod SimSceneCount and keys
+// the noise, as `camsim run --first-frame i` does for its first input.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "genicam/register_table.h"
+#include "hal/gpio.h"
+#include "host_tools/config.h"
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/render.h"
+
+typedef struct _ArvGvFakeCamera ArvGvFakeCamera;
+typedef struct _ArvFakeCamera ArvFakeCamera;
+typedef struct _ArvBuffer ArvBuffer;
+
+namespace camsim::genicam {
+
+inline constexpr int kSyncPeriodMs = 2;
+
+struct DeviceOptions {
+  std::string config_path;              // empty: defaults
+  std::vector<std::string> overrides;   // section.key=value
+  std::vector<std::string> inputs;      // EXR files / directories / patterns
+  std::string pattern;                  // or a synthetic scene (ScenePatternNames)
+  int pattern_width = 640, pattern_height = 480;  // pattern size when [sensor] gives none
+  std::string address = "127.0.0.1";
+  std::string serial = "CS0001";
+  std::string trigger_line, strobe_line;  // CHIP:OFFSET (libgpiod); empty: none
+  hal::InputLine* trigger = nullptr;      // or lines owned by the caller (tests, rigs)
+  hal::OutputLine* strobe = nullptr;
+  int threads = 2, strip_rows = 16;
+  std::string xml_path;  // where the generated XML is written; empty: a file in $TMPDIR
+  // false: no network and no threads (register logic only: fuzzing, unit
+  // tests); drive it with WriteMemory / SyncNow / RenderNow.
+  bool serve = true;
+};
+
+// Names of --pattern scenes and the scene itself (deterministic, HDR).
+std::vector<std::string> ScenePatternNames();
+bool MakePatternScene(const std::string& name, int width, int height, io::SceneFrame* out, std::string* error);
+
+// Loads the scenes a DeviceOptions names (inputs or pattern) and the finished
+// configuration; shared by the device and the tests' reference renders.
+bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* config, host::Origins* origins,
+                      std::vector<io::SceneFrame>* scenes, std::string* error);
+
+// Converts one frame's taps to the wire format: window (x, y, w, h) of a
+// full-sensor raw tap (uint16 DN, adc_bits) or RGB tap (uint8 x3). out must
+// hold w * h * PixelBits(format) / 8 bytes.
+void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
+                   int y, int w, int h, uint8_t* out);
+
+class GigeDevice {
+ public:
+  static std::unique_ptr<GigeDevice> Start(const DeviceOptions& options, std::string* error);
+  ~GigeDevice();
+  GigeDevice(const GigeDevice&) = delete;
+  GigeDevice& operator=(const GigeDevice&) = delete;
+
+  const std::vector<Feature>& table() const { return table_; }
+  const std::string& xml_path() const { return xml_path_; }
+  const SensorInfo& sensor() const { return sensor_; }
+  uint64_t frames_sent() const { return frames_sent_.load(); }
+  uint64_t writes_refused() const { return writes_refused_.load(); }
+  // Last error of a GPIO line (empty when none).
+  std::string line_error() const;
+
+  // Register access as a client's write would do it, one sync, one frame
+  // rendered into *frame (as the fake camera fills a buffer), and the device's
+  // invariants (empty when they hold: every writable register holds its value
+  // in use, every value in use is valid, the window is on the sensor).
+  bool WriteMemory(uint32_t address, const void* data, uint32_t size);
+  void SyncNow();
+  bool RenderNow(std::vector<uint8_t>* frame);
+  std::string CheckInvariants() const;
+
+ private:
+  using Registers = std::map<uint32_t, uint64_t>;  // address -> value (Float: the double's bits)
+  GigeDevice() = default;
+  bool Init(const DeviceOptions& o, std::string* error);
+  uint32_t Read(uint32_t address) const;
+  void Write(uint32_t address, uint32_t value);
+  double ReadDouble(uint32_t address) const;
+  void WriteDouble(uint32_t address, double value);
+  uint64_t ReadFeature(const Feature& f) const;
+  void WriteFeature(const Feature& f, uint64_t value);
+  bool Valid(const Feature& f, uint64_t value) const;
+  double AppliedDouble(uint32_t address) const;
+  uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
+  void SetApplied(uint32_t address, uint64_t value);  // register and applied value
+  void Sync();                                            // under mutex_
+  bool Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error);  // under mutex_
+  void WriteDerived();  // registers that follow from the applied values
+  void Fill(ArvBuffer* buffer, uint32_t pixel_format);
+  void AutoAdjust(double mean_fraction);  // under mutex_
+  void RestartStream();  // not under mutex_
+  void SyncLoop();
+  void TriggerLoop();
+  static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
+
+  std::vector<Feature> table_;
+  SensorInfo sensor_;
+  std::string xml_path_;
+  bool own_xml_ = false;
+  host::RunConfig base_config_;  // as loaded (unfinished)
+  host::Origins origins_;
+  std::vector<io::SceneFrame> scenes_;
+  int current_scene_ = -1;
+  std::vector<StageId> configured_stages_;
+  std::unique_ptr<host::FrameRenderer> renderer_;
+  Registers applied_;
+  std::vector<bool> stage_enabled_;
+  uint64_t seed_register_at_start_ = 0;
+  std::vector<uint16_t> raw_;   // full-sensor taps
+  std::vector<uint8_t> rgb_;
+  bool has_rgb_ = false;
+
+  std::unique_ptr<hal::InputLine> own_trigger_;
+  std::unique_ptr<hal::OutputLine> own_strobe_;
+  hal::InputLine* trigger_ = nullptr;
+  hal::OutputLine* strobe_ = nullptr;
+  std::string line_error_;
+
+  ArvGvFakeCamera* gv_ = nullptr;
+  ArvFakeCamera* fake_ = nullptr;
+  mutable std::mutex mutex_;
+  std::thread sync_thread_, trigger_thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0};
+  uint32_t frames_in_acquisition_ = 0;
+  bool was_acquiring_ = false;
+  uint64_t stream_dest_ = 0;         // stream destination at the last sync
+  bool sync_saw_acquiring_ = false;  // acquisition at the last sync
+  bool restart_stream_ = false;
+  std::string address_;
+};
+
+}  // namespace camsim::genicam

@@ -1,0 +1,352 @@
+#include "genicam/register_table.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace camsim::genicam {
+namespace {
+
+Feature Int(const char* name, const char* cat, uint32_t addr, bool rw, double min, double max, double inc,
+            const char* desc, const char* unit = "") {
+  Feature f;
+  f.name = name;
+  f.category = cat;
+  f.description = desc;
+  f.kind = Kind::kInteger;
+  f.address = addr;
+  f.writable = rw;
+  f.min = min;
+  f.max = max;
+  f.inc = inc;
+  f.unit = unit;
+  return f;
+}
+
+Feature Flt(const char* name, const char* cat, uint32_t addr, double min, double max, const char* desc,
+            const char* unit) {
+  Feature f = Int(name, cat, addr, true, min, max, 0, desc, unit);
+  f.kind = Kind::kFloat;
+  f.length = 8;
+  return f;
+}
+
+Feature Enum(const char* name, const char* cat, uint32_t addr, bool rw, std::vector<EnumEntry> entries,
+             const char* desc) {
+  Feature f = Int(name, cat, addr, rw, 0, 0, 1, desc);
+  f.kind = Kind::kEnum;
+  f.entries = std::move(entries);
+  return f;
+}
+
+Feature Bool(const char* name, const char* cat, uint32_t addr, bool rw, const char* desc) {
+  Feature f = Int(name, cat, addr, rw, 0, 1, 1, desc);
+  f.kind = Kind::kBoolean;
+  return f;
+}
+
+Feature Cmd(const char* name, const char* cat, uint32_t addr, int64_t value, const char* desc) {
+  Feature f = Int(name, cat, addr, true, 0, 0, 1, desc);
+  f.kind = Kind::kCommand;
+  f.command_value = value;
+  return f;
+}
+
+Feature Str(const char* name, const char* cat, uint32_t addr, uint32_t length, bool rw, const char* desc) {
+  Feature f = Int(name, cat, addr, rw, 0, 0, 1, desc);
+  f.kind = Kind::kString;
+  f.length = length;
+  return f;
+}
+
+Feature Alias(const Feature& of, const char* name, const char* desc) {
+  Feature f = of;
+  f.name = name;
+  f.description = desc;
+  f.alias_of = of.name;
+  return f;
+}
+
+std::string Xml(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '<') out += "&lt;";
+    else if (c == '>') out += "&gt;";
+    else if (c == '&') out += "&amp;";
+    else if (c == '"') out += "&quot;";
+    else out += c;
+  }
+  return out;
+}
+
+std::string Num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+std::string Hex(uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%x", v);
+  return buf;
+}
+
+bool IsStandard(const std::string& name) {
+  return name.rfind("Sim", 0) != 0 && name != "ExposureTimeAbs" && name != "GainRaw";
+}
+
+}  // namespace
+
+uint32_t BayerCode(Cfa cfa, int bits) {
+  // PFNC: 8-bit GR 0x08, RG 0x09, GB 0x0a, BG 0x0b; 12-bit 0x10..0x13; 16-bit 0x2e..0x31.
+  int phase = 0;
+  switch (cfa) {
+    case Cfa::kBayerGR: phase = 0; break;
+    case Cfa::kBayerRG: phase = 1; break;
+    case Cfa::kBayerGB: phase = 2; break;
+    case Cfa::kBayerBG: phase = 3; break;
+    case Cfa::kMono: return 0;
+  }
+  if (bits == 8) return 0x01080008u + phase;
+  if (bits == 12) return 0x01100010u + phase;
+  return 0x0110002eu + phase;
+}
+
+int SampleBits(uint32_t code) {
+  if (code == kMono12 || (code >= 0x01100010u && code <= 0x01100013u)) return 12;
+  return code == kRGB8 ? 8 : PixelBits(code);
+}
+
+std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
+  std::vector<EnumEntry> out;
+  const bool mono = s.cfa == Cfa::kMono;
+  const std::string base = mono ? "Mono" : CfaName(s.cfa);
+  auto code = [&](int bits) -> int64_t {
+    if (!mono) return BayerCode(s.cfa, bits);
+    return bits == 8 ? kMono8 : (bits == 12 ? kMono12 : kMono16);
+  };
+  // The raw format at the ADC's depth first (the default), then the others.
+  const int native = s.adc_bits <= 8 ? 8 : (s.adc_bits == 12 ? 12 : 16);
+  out.push_back({base + std::to_string(native), code(native)});
+  for (int bits : {8, 12, 16}) {
+    if (bits == native) continue;
+    if (bits == 12 && s.adc_bits > 12) continue;  // 12-bit would drop ADC bits
+    out.push_back({base + std::to_string(bits), code(bits)});
+  }
+  if (s.has_isp_rgb) out.push_back({"RGB8", kRGB8});
+  return out;
+}
+
+std::vector<Feature> RegisterTable(const SensorInfo& s) {
+  using namespace reg;
+  std::vector<Feature> t;
+  const char* dc = "DeviceControl";
+  t.push_back(Str("DeviceVendorName", dc, kVendorName, 32, false, "Vendor of the device."));
+  t.push_back(Str("DeviceModelName", dc, kModelName, 32, false, "Model of the device."));
+  t.push_back(Str("DeviceVersion", dc, kDeviceVersion, 32, false, "Version of the device."));
+  t.push_back(Str("DeviceManufacturerInfo", dc, kManufacturerInfo, 48, false, "Manufacturer information."));
+  t.push_back(Str("DeviceSerialNumber", dc, kSerialNumber, 16, false, "Serial number of the device."));
+  t.push_back(Alias(t.back(), "DeviceID", "Serial number (GigE Vision 1.x name)."));
+  t.push_back(Str("DeviceUserID", dc, kUserId, 16, true, "User-programmable device identifier."));
+
+  // Bayer ROIs keep the CFA phase: even offsets and sizes.
+  const double step = s.cfa == Cfa::kMono ? 1 : 2;
+  const char* ifc = "ImageFormatControl";
+  t.push_back(Int("SensorWidth", ifc, kSensorWidth, false, s.width, s.width, 1, "Simulated sensor width.", "px"));
+  t.push_back(Int("SensorHeight", ifc, kSensorHeight, false, s.height, s.height, 1, "Simulated sensor height.", "px"));
+  t.push_back(Int("WidthMax", ifc, kWidthMax, false, s.width, s.width, 1, "Largest Width.", "px"));
+  t.push_back(Int("HeightMax", ifc, kHeightMax, false, s.height, s.height, 1, "Largest Height.", "px"));
+  t.push_back(Int("Width", ifc, kWidth, true, step, s.width, step,
+                  "Width of the image window (OffsetX + Width <= SensorWidth).", "px"));
+  t.push_back(Int("Height", ifc, kHeight, true, step, s.height, step,
+                  "Height of the image window (OffsetY + Height <= SensorHeight).", "px"));
+  t.push_back(Int("OffsetX", ifc, kOffsetX, true, 0, s.width - step, step, "Left edge of the image window.", "px"));
+  t.push_back(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"));
+  t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
+                   "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
+                   "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
+
+  const char* ac = "AcquisitionControl";
+  t.push_back(Enum("AcquisitionMode", ac, kAcquisitionMode, true,
+                   {{"Continuous", kContinuous}, {"SingleFrame", kSingleFrame}, {"MultiFrame", kMultiFrame}},
+                   "Number of frames to acquire after AcquisitionStart."));
+  t.push_back(Int("AcquisitionFrameCount", ac, kAcquisitionFrameCount, true, 1, 65535, 1,
+                  "Frames to acquire in MultiFrame mode."));
+  t.push_back(Cmd("AcquisitionStart", ac, kAcquisition, 1, "Starts the acquisition."));
+  t.push_back(Alias(t.back(), "AcquisitionStop", "Stops the acquisition."));
+  t.back().command_value = 0;
+  t.push_back(Flt("AcquisitionFrameRate", ac, kAcquisitionFrameRate, 0.1, 1000.0,
+                  "Free-run frame rate when AcquisitionFrameRateEnable is on.", "Hz"));
+  t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,
+                   "On: free-run at AcquisitionFrameRate; off: as fast as frames are rendered."));
+  t.push_back(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e6, "Exposure time.", "us"));
+  t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));
+  t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
+                   {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
+                   "Automatic exposure: scales ExposureTime so the mean raw level reaches SimAutoTarget."));
+  t.push_back(Enum("TriggerSelector", ac, kTriggerSelector, true, {{"FrameStart", 0}},
+                   "The trigger the other Trigger features configure."));
+  t.push_back(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
+                   "On: one frame per trigger; off: free run."));
+  t.push_back(Enum("TriggerSource", ac, kTriggerSource, true, {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
+                   "Software (TriggerSoftware) or Line0 (the GPIO line given by --trigger-line)."));
+  t.push_back(Enum("TriggerActivation", ac, kTriggerActivation, true, {{"RisingEdge", 0}, {"FallingEdge", 1}},
+                   "Edge of Line0 that triggers."));
+  t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1, "One frame, when TriggerSource is Software."));
+
+  const char* an = "AnalogControl";
+  t.push_back(Flt("Gain", an, kGain, 0.0, 48.0, "Analog gain (amplifies signal and noise).", "dB"));
+  t.push_back(Int("GainRaw", an, kGainRaw, true, 0, 480, 1, "Analog gain in 0.1 dB steps (Aravis fake camera name)."));
+  t.push_back(Enum("GainAuto", an, kGainAuto, true, {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
+                   "Automatic gain, used when ExposureAuto alone cannot reach SimAutoTarget."));
+  t.push_back(Flt("BlackLevel", an, kBlackLevel, 0.0, s.max_black_level_dn, "Offset added by the sensor.", "DN"));
+
+  const char* io = "DigitalIOControl";
+  t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
+                   "Line0: trigger input; Line1: strobe output."));
+  t.push_back(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}}, "Direction of the selected line."));
+  t.push_back(Enum("LineSource", io, kLineSource, true, {{"Off", kLineSourceOff}, {"ExposureActive", kLineSourceExposureActive}},
+                   "What drives the strobe output (Line1)."));
+  t.push_back(Bool("LineStatus", io, kLineStatus, false, "Level of the selected line."));
+
+  const char* tl = "TransportLayerControl";
+  // Computed by the client from the registers it has just written: never stale.
+  Feature payload = Int("PayloadSize", tl, 0, false, 0, 0, 1, "Bytes per frame: Width * Height * bits per pixel / 8.");
+  payload.kind = Kind::kSwissKnife;
+  payload.formula = "(W*H*((PF>>16)&255))/8";
+  payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}};
+  t.push_back(payload);
+  t.push_back(Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 1, "Stream packet size.", "B"));
+  t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
+
+  const char* sim = "Simulation";
+  t.push_back(Int("SimSceneCount", sim, kSimSceneCount, false, s.scene_count, s.scene_count, 1, "Scenes loaded."));
+  t.push_back(Int("SimSceneFrame", sim, kSimSceneFrame, false, 0, s.scene_count - 1, 1,
+                  "Scene the next frame is rendered from: SimFrameIndex modulo SimSceneCount (as `camsim run`)."));
+  t.push_back(Int("SimFrameIndex", sim, kSimFrameIndex, true, 0, 0x7fffffff, 1,
+                  "Frame index of the next frame (keys the noise; `camsim run --first-frame`)."));
+  t.push_back(Flt("SimFNumber", sim, kSimFNumber, 0.5, 128.0, "Lens f-number.", ""));
+  t.push_back(Int("SimSeed", sim, kSimSeed, true, 0, 0x7fffffff, 1, "Seed of all randomness."));
+  std::vector<EnumEntry> stages;
+  for (size_t i = 0; i < s.stage_names.size(); ++i)
+    stages.push_back({"Stage_" + s.stage_names[i], static_cast<int64_t>(i)});
+  if (stages.empty()) stages.push_back({"Stage_none", 0});
+  t.push_back(Enum("SimStageSelector", sim, kSimStageSelector, true, stages, "Configured stage SimStageEnable acts on."));
+  t.push_back(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."));
+  t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
+                  "Register syncs completed: two more than when a write was sent means the write was checked "
+                  "and applied (or refused)."));
+  t.push_back(Flt("SimAutoTarget", sim, kSimAutoTarget, 0.01, 0.99,
+                  "Mean raw level (fraction of full scale) the Auto features aim for.", ""));
+  return t;
+}
+
+const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name) {
+  for (const Feature& f : table)
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& d) {
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+    << "<!-- Generated by camsim-gige from genicam/register_table.cc; do not edit. -->\n"
+    << "<RegisterDescription ModelName=\"" << Xml(d.model) << "\" VendorName=\"" << Xml(d.vendor)
+    << "\" StandardNameSpace=\"GEV\" SchemaMajorVersion=\"1\" SchemaMinorVersion=\"0\" SchemaSubMinorVersion=\"1\""
+    << " MajorVersion=\"0\" MinorVersion=\"1\" SubMinorVersion=\"0\" ToolTip=\"camsim emulated camera\""
+    << " ProductGuid=\"5e1c0a52-6d1f-4c4e-9a3e-63616d73696d\" VersionGuid=\"5e1c0a52-6d1f-4c4e-9a3e-000000000100\""
+    << " xmlns=\"http://www.genicam.org/GenApi/Version_1_0\""
+    << " xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\""
+    << " xsi:schemaLocation=\"http://www.genicam.org/GenApi/Version_1_0 GenApiSchema.xsd\">\n";
+  std::vector<std::string> categories;
+  for (const Feature& f : table) {
+    bool seen = false;
+    for (const std::string& c : categories) seen = seen || c == f.category;
+    if (!seen) categories.push_back(f.category);
+  }
+  x << "  <Category Name=\"Root\" NameSpace=\"Standard\">\n";
+  for (const std::string& c : categories)
+    x << "    <pFeature>" << c << "</pFeature>\n";
+  x << "  </Category>\n";
+  for (const std::string& c : categories) {
+    x << "  <Category Name=\"" << c << "\" NameSpace=\"" << (c == "Simulation" ? "Custom" : "Standard") << "\">\n";
+    for (const Feature& f : table)
+      if (f.category == c) x << "    <pFeature>" << f.name << "</pFeature>\n";
+    x << "  </Category>\n";
+  }
+  for (const Feature& f : table) {
+    const std::string ns = IsStandard(f.name) ? "Standard" : "Custom";
+    const std::string regname = (f.alias_of.empty() ? f.name : f.alias_of) + "Reg";
+    const std::string access = f.writable ? "RW" : "RO";
+    const std::string head = "  <!-- " + Hex(f.address) + " -->\n";
+    if (f.kind == Kind::kSwissKnife) {
+      x << "  <IntSwissKnife Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+        << "    <Description>" << Xml(f.description) << "</Description>\n";
+      for (const auto& v : f.variables)
+        x << "    <pVariable Name=\"" << v.first << "\">" << v.second << "Reg</pVariable>\n";
+      x << "    <Formula>" << Xml(f.formula) << "</Formula>\n  </IntSwissKnife>\n";
+      continue;
+    }
+    if (f.kind == Kind::kString) {
+      x << head << "  <StringReg Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+        << "    <Description>" << Xml(f.description) << "</Description>\n"
+        << "    <Address>" << Hex(f.address) << "</Address>\n    <Length>" << f.length << "</Length>\n"
+        << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>Device</pPort>\n"
+        << "  </StringReg>\n";
+      continue;
+    }
+    x << head;
+    switch (f.kind) {
+      case Kind::kInteger:
+        x << "  <Integer Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <pValue>" << regname << "</pValue>\n"
+          << "    <Min>" << static_cast<int64_t>(f.min) << "</Min>\n    <Max>" << static_cast<int64_t>(f.max)
+          << "</Max>\n    <Inc>" << static_cast<int64_t>(f.inc) << "</Inc>\n";
+        if (!f.unit.empty()) x << "    <Unit>" << f.unit << "</Unit>\n";
+        x << "  </Integer>\n";
+        break;
+      case Kind::kFloat:
+        x << "  <Float Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <pValue>" << regname << "</pValue>\n"
+          << "    <Min>" << Num(f.min) << "</Min>\n    <Max>" << Num(f.max) << "</Max>\n";
+        if (!f.unit.empty()) x << "    <Unit>" << f.unit << "</Unit>\n";
+        x << "  </Float>\n";
+        break;
+      case Kind::kEnum:
+        x << "  <Enumeration Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n";
+        for (const EnumEntry& e : f.entries)
+          x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\"" << (IsStandard(f.name) ? "Standard" : "Custom")
+            << "\">\n      <Value>" << e.value << "</Value>\n    </EnumEntry>\n";
+        x << "    <pValue>" << regname << "</pValue>\n  </Enumeration>\n";
+        break;
+      case Kind::kBoolean:
+        x << "  <Boolean Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <pValue>" << regname << "</pValue>\n    <OnValue>1</OnValue>\n    <OffValue>0</OffValue>\n"
+          << "  </Boolean>\n";
+        break;
+      case Kind::kCommand:
+        x << "  <Command Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <pValue>" << regname << "</pValue>\n    <CommandValue>" << f.command_value << "</CommandValue>\n"
+          << "  </Command>\n";
+        break;
+      case Kind::kString:
+      case Kind::kSwissKnife: break;
+    }
+    if (!f.alias_of.empty()) continue;  // the register node is the original's
+    const bool is_float = f.kind == Kind::kFloat;
+    x << "  <" << (is_float ? "FloatReg" : "IntReg") << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
+      << "    <Address>" << Hex(f.address) << "</Address>\n    <Length>" << f.length << "</Length>\n"
+      << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>Device</pPort>\n"
+      << "    <Cachable>NoCache</Cachable>\n";
+    if (!is_float) x << "    <Sign>Unsigned</Sign>\n";
+    x << "    <Endianess>BigEndian</Endianess>\n  </" << (is_float ? "FloatReg" : "IntReg") << ">\n";
+  }
+  x << "  <Port Name=\"Device\" NameSpace=\"Standard\"/>\n</RegisterDescription>\n";
+  return x.str();
+}
+
+}  // namespace camsim::genicam

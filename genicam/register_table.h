@@ -1,0 +1,108 @@
+// The register map of the emulated GigE Vision camera: one table from which
+// the GenICam XML is generated (GenerateXml) and which the device uses to
+// read, check and refuse register writes (genicam/device.cc).
+//
+// Addresses: the GigE Vision bootstrap registers (strings at 0x48..0xf7,
+// packet size at 0xd04), the registers Aravis's fake camera itself acts on
+// (0x100..0x138: geometry, pixel format, acquisition, GainRaw; 0x300..0x30c:
+// its trigger), and camsim's own registers from 0x8000 (inside the fake
+// camera's 64 KiB register memory). Registers are big-endian; Float features
+// are 8-byte IEEE doubles.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/pipeline/stage.h"
+
+namespace camsim::genicam {
+
+// kSwissKnife: a read-only integer the client computes from other registers (no address).
+enum class Kind : uint8_t { kInteger, kFloat, kEnum, kBoolean, kCommand, kString, kSwissKnife };
+
+struct EnumEntry {
+  std::string name;
+  int64_t value;
+};
+
+struct Feature {
+  std::string name;
+  std::string category;
+  std::string description;
+  Kind kind = Kind::kInteger;
+  uint32_t address = 0;
+  uint32_t length = 4;
+  bool writable = false;
+  double min = 0, max = 0, inc = 1;  // Integer and Float ranges (inclusive); Integer increment
+  std::string unit;
+  std::vector<EnumEntry> entries;    // Enumeration entries
+  int64_t command_value = 1;         // Command
+  std::string alias_of;              // another feature sharing this register (same checks)
+  std::string formula;               // kSwissKnife: formula over the variables
+  std::vector<std::pair<std::string, std::string>> variables;  // kSwissKnife: (variable, feature)
+};
+
+// Register addresses (named once, used by the table, the device and the tests).
+namespace reg {
+inline constexpr uint32_t kVendorName = 0x48, kModelName = 0x68, kDeviceVersion = 0x88, kManufacturerInfo = 0xa8,
+                          kSerialNumber = 0xd8, kUserId = 0xe8;  // GigE Vision bootstrap strings
+inline constexpr uint32_t kPacketSize = 0xd04;                    // bootstrap SCPS0
+// Registers Aravis's fake camera reads (arvfakecamera.h).
+inline constexpr uint32_t kWidth = 0x100, kHeight = 0x104, kGainRaw = 0x110, kGainAuto = 0x114,
+                          kSensorHeight = 0x118, kSensorWidth = 0x11c, kFakeExposureUs = 0x120,
+                          kAcquisition = 0x124, kPixelFormat = 0x128, kAcquisitionMode = 0x12c, kOffsetX = 0x130,
+                          kOffsetY = 0x134, kFakeFramePeriodUs = 0x138, kFakeTriggerMode = 0x300,
+                          kFakeTriggerSource = 0x304, kFakeTriggerActivation = 0x308, kFakeTriggerSoftware = 0x30c;
+// camsim's own registers.
+inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionFrameCount = 0x8008,
+                          kAcquisitionFrameRate = 0x8010, kAcquisitionFrameRateEnable = 0x8018,
+                          kExposureTime = 0x8020, kExposureAuto = 0x8028, kTriggerSelector = 0x8030,
+                          kTriggerMode = 0x8034, kTriggerSource = 0x8038, kTriggerActivation = 0x803c,
+                          kTriggerSoftware = 0x8040, kGain = 0x8048, kBlackLevel = 0x8050, kLineSelector = 0x8060,
+                          kLineMode = 0x8064, kLineSource = 0x8068, kLineStatus = 0x806c, kSimSceneFrame = 0x8080,
+                          kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
+                          kSimStageSelector = 0x8094, kSimStageEnable = 0x8098,
+                          kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4, kSimAutoTarget = 0x80a8,
+                          kSimSyncCount = 0x80b0;
+}  // namespace reg
+
+// Enumeration values of camsim's own enum registers.
+enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiFrame = 2 };
+enum AutoValue : int64_t { kAutoOff = 0, kAutoOnce = 1, kAutoContinuous = 2 };
+enum TriggerSourceValue : int64_t { kSourceSoftware = 0, kSourceLine0 = 1 };
+enum LineSourceValue : int64_t { kLineSourceOff = 0, kLineSourceExposureActive = 1 };
+
+// PFNC pixel format codes (GigE Vision values).
+inline constexpr uint32_t kMono8 = 0x01080001, kMono12 = 0x01100005, kMono16 = 0x01100007, kRGB8 = 0x02180014;
+// Bayer<phase><bits>; bits 8, 12 or 16 (12 unpacked: one 16-bit word per sample).
+uint32_t BayerCode(Cfa cfa, int bits);
+// Bits per pixel of a code (its bits 16..23), 0 when unknown.
+inline int PixelBits(uint32_t code) { return static_cast<int>((code >> 16) & 0xff); }
+// Significant bits per sample: 12 for the unpacked 12-bit formats, else PixelBits (per channel for RGB8).
+int SampleBits(uint32_t code);
+
+// What the table depends on: the simulated sensor.
+struct SensorInfo {
+  int width = 0, height = 0;
+  Cfa cfa = Cfa::kBayerRG;
+  int adc_bits = 12;
+  double max_black_level_dn = 0;  // 2^adc_bits - 1 quarter: leaves headroom for signal
+  int scene_count = 1;
+  bool has_isp_rgb = false;  // the configured pipeline ends in an 8-bit RGB image
+  std::vector<std::string> stage_names;  // configured stages (SimStageSelector entries)
+};
+
+// Pixel formats offered for a sensor, first = default (the raw format at the ADC depth).
+std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
+
+std::vector<Feature> RegisterTable(const SensorInfo& sensor);
+const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);
+
+struct DeviceStrings {
+  std::string vendor = "camsim", model = "camsim-gige", version = "0.1.0", serial = "CS0001";
+};
+// The GenICam XML (GenApi schema 1.0) for the table.
+std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& strings);
+
+}  // namespace camsim::genicam

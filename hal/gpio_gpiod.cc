@@ -1,0 +1,171 @@
+// libgpiod v1 backend of hal/gpio.h.
+#include <gpiod.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+
+#include "hal/gpio.h"
+
+namespace camsim::hal {
+namespace {
+
+std::string Reason() { return std::strerror(errno); }
+
+struct Opened {
+  gpiod_chip* chip = nullptr;
+  gpiod_line* line = nullptr;
+};
+
+bool Open(const std::string& spec, Opened* out, std::string* error) {
+  std::string chip;
+  unsigned offset = 0;
+  if (!ParseLineSpec(spec, &chip, &offset, error)) return false;
+  errno = 0;
+  out->chip = gpiod_chip_open_lookup(chip.c_str());
+  if (!out->chip) {
+    *error = "GPIO line '" + spec + "': cannot open chip '" + chip + "': " + Reason();
+    return false;
+  }
+  const unsigned lines = gpiod_chip_num_lines(out->chip);
+  if (offset >= lines) {
+    *error = "GPIO line '" + spec + "': chip '" + chip + "' has " + std::to_string(lines) + " lines";
+    gpiod_chip_close(out->chip);
+    return false;
+  }
+  out->line = gpiod_chip_get_line(out->chip, offset);
+  if (!out->line) {
+    *error = "GPIO line '" + spec + "': " + Reason();
+    gpiod_chip_close(out->chip);
+    return false;
+  }
+  return true;
+}
+
+class GpiodInput : public InputLine {
+ public:
+  GpiodInput(std::string spec, Opened o) : spec_(std::move(spec)), o_(o) {}
+  ~GpiodInput() override {
+    gpiod_line_release(o_.line);
+    gpiod_chip_close(o_.chip);
+  }
+  int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override {
+    const timespec ts{timeout_ms / 1000, (timeout_ms % 1000) * 1000000L};
+    const int r = gpiod_line_event_wait(o_.line, &ts);
+    if (r <= 0) {
+      if (r < 0) *error = "GPIO line '" + spec_ + "': " + Reason();
+      return r;
+    }
+    gpiod_line_event ev;
+    if (gpiod_line_event_read(o_.line, &ev) != 0) {
+      *error = "GPIO line '" + spec_ + "': " + Reason();
+      return -1;
+    }
+    *edge = ev.event_type == GPIOD_LINE_EVENT_RISING_EDGE ? Edge::kRising : Edge::kFalling;
+    return 1;
+  }
+  std::string Name() const override { return spec_; }
+
+ private:
+  std::string spec_;
+  Opened o_;
+};
+
+class GpiodOutput : public OutputLine {
+ public:
+  GpiodOutput(std::string spec, Opened o) : spec_(std::move(spec)), o_(o) {}
+  ~GpiodOutput() override {
+    gpiod_line_release(o_.line);
+    gpiod_chip_close(o_.chip);
+  }
+  bool Set(bool high, std::string* error) override {
+    if (gpiod_line_set_value(o_.line, high ? 1 : 0) != 0) {
+      *error = "GPIO line '" + spec_ + "': " + Reason();
+      return false;
+    }
+    return true;
+  }
+  std::string Name() const override { return spec_; }
+
+ private:
+  std::string spec_;
+  Opened o_;
+};
+
+}  // namespace
+
+bool ParseLineSpec(const std::string& spec, std::string* chip, unsigned* offset, std::string* error) {
+  const size_t colon = spec.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size()) {
+    *error = "GPIO line '" + spec + "': expected CHIP:OFFSET (e.g. gpiochip0:17)";
+    return false;
+  }
+  const std::string num = spec.substr(colon + 1);
+  char* end = nullptr;
+  errno = 0;
+  const unsigned long v = std::strtoul(num.c_str(), &end, 10);
+  if (*end != '\0' || num[0] == '-' || errno != 0 || v > 65535) {
+    *error = "GPIO line '" + spec + "': offset '" + num + "' is not a line number (0..65535)";
+    return false;
+  }
+  *chip = spec.substr(0, colon);
+  *offset = static_cast<unsigned>(v);
+  return true;
+}
+
+std::unique_ptr<InputLine> OpenGpiodInput(const std::string& spec, const std::string& consumer, std::string* error) {
+  Opened o;
+  if (!Open(spec, &o, error)) return nullptr;
+  // Both edges: TriggerActivation may change while the line is held.
+  if (gpiod_line_request_both_edges_events(o.line, consumer.c_str()) != 0) {
+    *error = "GPIO line '" + spec + "': cannot request edge events: " + Reason();
+    gpiod_chip_close(o.chip);
+    return nullptr;
+  }
+  return std::make_unique<GpiodInput>(spec, o);
+}
+
+std::unique_ptr<OutputLine> OpenGpiodOutput(const std::string& spec, const std::string& consumer,
+                                            std::string* error) {
+  Opened o;
+  if (!Open(spec, &o, error)) return nullptr;
+  if (gpiod_line_request_output(o.line, consumer.c_str(), 0) != 0) {
+    *error = "GPIO line '" + spec + "': cannot request as output: " + Reason();
+    gpiod_chip_close(o.chip);
+    return nullptr;
+  }
+  return std::make_unique<GpiodOutput>(spec, o);
+}
+
+int MemoryLine::WaitEdge(int timeout_ms, Edge* edge, std::string*) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (!changed_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return consumed_ < edges_; })) return 0;
+  ++consumed_;
+  *edge = last_;
+  return 1;
+}
+
+bool MemoryLine::Set(bool high, std::string*) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (high == level_) return true;
+    level_ = high;
+    last_ = high ? Edge::kRising : Edge::kFalling;
+    ++edges_;
+  }
+  changed_.notify_all();
+  return true;
+}
+
+bool MemoryLine::level() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return level_;
+}
+
+int MemoryLine::edges() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return edges_;
+}
+
+}  // namespace camsim::hal

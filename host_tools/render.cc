@@ -1,0 +1,108 @@
+#include "host_tools/render.h"
+
+#include <atomic>
+
+#include "core/sensor/smear.h"
+#include "hal/clock.h"
+#include "host_tools/io/image_read.h"
+
+namespace camsim::host {
+
+FrameRenderer::FrameRenderer(int threads, int strip_rows)
+    : threads_(threads), strip_rows_(strip_rows), pipeline_(new Pipeline), pool_(threads),
+      clock_(hal::NanosecondClock()) {}
+
+bool FrameRenderer::Configure(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
+                              RunConfig* finished, std::string* error) {
+  RunConfig rc = config;
+  if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error)) return false;
+  std::unique_ptr<Pipeline> p(new Pipeline);
+  const Status s = p->Configure(rc.core, threads_, !rc.vignetting_mask.empty());
+  if (!s.ok()) {
+    *error = DescribeStatus(s, origins);
+    return false;
+  }
+  std::vector<uint8_t> workspace(p->WorkspaceBytes(), 0);
+  const Status si = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
+  if (!si.ok()) {
+    *error = DescribeStatus(si, origins);
+    return false;
+  }
+  if (!rc.vignetting_mask.empty()) {
+    if (mask_.data.empty() && !io::ReadMaskImage(rc.vignetting_mask, &mask_, error)) return false;
+    PrepareMask(mask_, p->width(), p->height(), &input_);
+  } else {
+    input_.mask.clear();
+  }
+  pipeline_ = std::move(p);
+  workspace_ = std::move(workspace);
+  fit_ = rc.fit;
+  // The scene stays when its size still fits; the pre-passes follow the new
+  // settings (smear depends on the exposure time, flare on its threshold).
+  has_scene_ = has_scene_ && input_.width == pipeline_->width() && input_.height == pipeline_->height();
+  if (has_scene_) RunPrepasses();
+  if (finished) *finished = rc;
+  return true;
+}
+
+void FrameRenderer::RunPrepasses() {
+  const PipelineConfig& c = pipeline_->config();
+  const FrameInput plain = input_.View();
+  flare_sources_.clear();
+  if (c.flare.enabled) {
+    flare_sources_.resize(static_cast<size_t>(FlareMaxSources(c.geometry)));
+    ComputeFlare(c.flare, c.geometry, plain, Span<FlareSource>{flare_sources_.data(), flare_sources_.size()}, &flare_);
+  }
+  smear_.clear();
+  if (SmearEnabled(c)) {
+    smear_.resize(static_cast<size_t>(SmearEntries(c)));
+    ComputeSmear(c, plain, Span<uint32_t>{smear_.data(), smear_.size()});
+  }
+}
+
+FrameInput FrameRenderer::View() const {
+  FrameInput view = input_.View();
+  if (!flare_sources_.empty()) view.flare = &flare_;
+  if (!smear_.empty()) view.smear_e = smear_.data();
+  return view;
+}
+
+bool FrameRenderer::SetScene(const io::SceneFrame& scene, std::string* error) {
+  PrepareInput(scene, pipeline_->width(), pipeline_->height(), fit_, &input_);
+  has_scene_ = true;
+  RunPrepasses();
+  const Status cs = pipeline_->CheckInput(View());
+  if (!cs.ok()) {
+    *error = scene.source + ": " + cs.message();
+    return false;
+  }
+  return true;
+}
+
+void FrameRenderer::Render(uint32_t frame, const Tap* taps, int tap_count, std::vector<WorkerStats>* stats) {
+  // Strips go in order to whichever worker is free; the bytes do not depend on who takes which.
+  const FrameInput view = View();
+  const int h = pipeline_->height();
+  std::atomic<int> next_strip{0};
+  pool_.Run([&](int worker) {
+    for (;;) {
+      const int y0 = next_strip.fetch_add(1) * strip_rows_;
+      if (y0 >= h) break;
+      pipeline_->ProcessStrip(view, frame, y0, y0 + strip_rows_, worker, taps, tap_count,
+                              stats ? &(*stats)[static_cast<size_t>(worker)] : nullptr, &clock_);
+    }
+  });
+}
+
+int FrameRenderer::SensorIndex() const {
+  const Plan& plan = pipeline_->plan();
+  int running = 0;
+  for (int i = 0; i < plan.count; ++i)
+    if (plan.entries[i].runs) {
+      if (plan.entries[i].id == StageId::kSensor) return running;
+      ++running;
+    }
+  return -1;
+}
+
+}  // namespace camsim::host

@@ -1,0 +1,64 @@
+// One frame of a scene through the configured core pipeline into taps: the
+// part of `camsim run` that `camsim-gige` shares, so both give the same bytes
+// for the same configuration, scene and frame index. It also runs the
+// per-frame pre-passes some stages need (flare's bright tiles, CCD smear's
+// column sums) whenever the scene or the configuration changes.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/lens/flare.h"
+#include "hal/thread_pool.h"
+#include "host_tools/config.h"
+#include "host_tools/io/float_plane.h"
+#include "host_tools/scene_input.h"
+
+namespace camsim::host {
+
+class FrameRenderer {
+ public:
+  FrameRenderer(int threads, int strip_rows);
+
+  // Finishes a copy of `config` for a scene of scene_width x scene_height,
+  // configures and initialises the pipeline and loads the vignetting mask.
+  // *finished (optional) receives the finished configuration.
+  bool Configure(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
+                 RunConfig* finished, std::string* error);
+
+  // Fits a scene to the sensor, runs the pre-passes and checks the frame
+  // against the configuration.
+  bool SetScene(const io::SceneFrame& scene, std::string* error);
+
+  // Renders frame `frame` of the current scene into the taps; per-worker
+  // statistics are added to *stats when it is non-null (size >= threads).
+  void Render(uint32_t frame, const Tap* taps, int tap_count, std::vector<WorkerStats>* stats);
+
+  const Pipeline& pipeline() const { return *pipeline_; }
+  const CoreInput& input() const { return input_; }
+  // The frame as the core sees it: the scene's planes and the pre-passes' results.
+  FrameInput View() const;
+  int threads() const { return threads_; }
+  // Running index of the sensor stage, -1 when it does not run.
+  int SensorIndex() const;
+
+ private:
+  int threads_, strip_rows_;
+  std::unique_ptr<Pipeline> pipeline_;
+  std::vector<uint8_t> workspace_;
+  io::FloatPlane mask_;
+  void RunPrepasses();
+
+  CoreInput input_;
+  bool has_scene_ = false;
+  std::vector<FlareSource> flare_sources_;  // ComputeFlare's bright tiles
+  FlareFrame flare_;
+  std::vector<uint32_t> smear_;             // ComputeSmear's column sums
+  SceneFit fit_ = SceneFit::kCrop;
+  hal::ThreadPool pool_;
+  Clock clock_;
+};
+
+}  // namespace camsim::host

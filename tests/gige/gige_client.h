@@ -1,0 +1,48 @@
+// Test helpers: a camsim-gige device in this process and an Aravis client
+// connected to it by address over loopback.
+#pragma once
+
+#include <arv.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "genicam/device.h"
+
+namespace camsim::gigetest {
+
+// Device options for a small sensor on the demo configuration.
+genicam::DeviceOptions SmallDevice(int width = 64, int height = 48);
+
+// The frame the device should send for `index` with the given window and
+// format, rendered without the network (same renderer and conversion).
+std::vector<uint8_t> ReferenceFrame(const genicam::DeviceOptions& o, uint32_t index, uint32_t format, int x, int y,
+                                    int w, int h, const std::vector<std::string>& extra_overrides = {});
+
+class Client {
+ public:
+  // Connects to address (no packet socket: see README, loopback pitfalls).
+  explicit Client(const std::string& address = "127.0.0.1");
+  ~Client();
+  bool ok() const { return camera_ != nullptr; }
+  ArvCamera* camera() { return camera_; }
+  ArvDevice* device() { return arv_camera_get_device(camera_); }
+  // Creates the stream with n buffers of the current payload and a 4 MiB socket buffer.
+  bool OpenStream(int buffers = 4);
+  // The next complete frame's bytes (empty on timeout or a failed buffer);
+  // *frame_id receives the GVSP block id.
+  std::vector<uint8_t> Grab(int timeout_ms, uint64_t* frame_id = nullptr, int* width = nullptr,
+                            uint32_t* format = nullptr);
+  void CloseStream();
+  uint64_t failed_buffers() const { return failed_; }
+  std::string last_error;
+
+ private:
+  ArvCamera* camera_ = nullptr;
+  ArvStream* stream_ = nullptr;
+  uint64_t failed_ = 0;
+};
+
+}  // namespace camsim::gigetest

@@ -1,0 +1,650 @@
+// camsim-gige: the register table and its XML, the wire format, the GPIO HAL,
+// and end-to-end runs of the device on 127.0.0.1 with Aravis's client API.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <thread>
+
+#include "tests/gige/gige_client.h"
+
+namespace camsim::gigetest {
+namespace {
+
+using genicam::DeviceOptions;
+using genicam::GigeDevice;
+namespace reg = genicam::reg;
+
+void Sleep(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+// Waits until the device has checked the writes sent so far: two completed
+// register syncs after now (SimSyncCount; a pipeline rebuild inside a sync
+// takes tens of ms, more under sanitizers).
+Client* g_client = nullptr;
+void Settle() {
+  if (!g_client) return Sleep(400);
+  const int64_t start = arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr);
+  for (int i = 0; i < 2000; ++i) {
+    if (arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr) >= start + 2) return;
+    Sleep(5);
+  }
+}
+
+// Waits until a feature reads `want` (the device's sync runs every 2 ms).
+int64_t ReadInt(Client& c, const char* name) { return arv_camera_get_integer(c.camera(), name, nullptr); }
+double ReadFloat(Client& c, const char* name) { return arv_camera_get_float(c.camera(), name, nullptr); }
+
+std::unique_ptr<GigeDevice> StartDevice(const DeviceOptions& o) {
+  std::string error;
+  auto d = GigeDevice::Start(o, &error);
+  EXPECT_NE(d, nullptr) << error;
+  return d;
+}
+
+void Set(Client& c, const char* feature, const char* value) {
+  GError* e = nullptr;
+  arv_camera_set_string(c.camera(), feature, value, &e);
+  ASSERT_EQ(e, nullptr) << feature << "=" << value << ": " << e->message;
+}
+void SetInt(Client& c, const char* feature, int64_t value) {
+  GError* e = nullptr;
+  arv_camera_set_integer(c.camera(), feature, value, &e);
+  ASSERT_EQ(e, nullptr) << feature << ": " << e->message;
+}
+void SetFloat(Client& c, const char* feature, double value) {
+  GError* e = nullptr;
+  arv_camera_set_float(c.camera(), feature, value, &e);
+  ASSERT_EQ(e, nullptr) << feature << ": " << e->message;
+}
+void Start(Client& c) {
+  GError* e = nullptr;
+  arv_camera_start_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+}
+
+// ---------------------------------------------------------------- XML / table
+
+TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
+  genicam::SensorInfo s;
+  s.width = 1920;
+  s.height = 1080;
+  s.cfa = Cfa::kBayerGB;
+  s.adc_bits = 12;
+  s.max_black_level_dn = 1023;
+  s.scene_count = 3;
+  s.has_isp_rgb = true;
+  s.stage_names = {"exposure", "sensor", "gamma"};
+  const auto table = genicam::RegisterTable(s);
+  const std::string xml = genicam::GenerateXml(table, genicam::DeviceStrings());
+  ArvGc* gc = arv_gc_new(nullptr, xml.data(), xml.size());
+  ASSERT_NE(gc, nullptr);
+  int checked = 0;
+  for (const genicam::Feature& f : table) {
+    ArvGcNode* node = arv_gc_get_node(gc, f.name.c_str());
+    ASSERT_NE(node, nullptr) << f.name;
+    if (f.kind == genicam::Kind::kSwissKnife) continue;
+    if (f.kind == genicam::Kind::kString) {
+      ASSERT_TRUE(ARV_IS_GC_REGISTER(node)) << f.name;
+      EXPECT_EQ(arv_gc_register_get_address(ARV_GC_REGISTER(node), nullptr), f.address) << f.name;
+      ++checked;
+      continue;
+    }
+    const std::string reg_name = (f.alias_of.empty() ? f.name : f.alias_of) + "Reg";
+    ArvGcNode* r = arv_gc_get_node(gc, reg_name.c_str());
+    ASSERT_NE(r, nullptr) << reg_name;
+    ASSERT_TRUE(ARV_IS_GC_REGISTER(r)) << reg_name;
+    EXPECT_EQ(arv_gc_register_get_address(ARV_GC_REGISTER(r), nullptr), f.address) << f.name;
+    if (f.kind == genicam::Kind::kInteger) {
+      EXPECT_EQ(arv_gc_integer_get_min(ARV_GC_INTEGER(node), nullptr), static_cast<int64_t>(f.min)) << f.name;
+      EXPECT_EQ(arv_gc_integer_get_max(ARV_GC_INTEGER(node), nullptr), static_cast<int64_t>(f.max)) << f.name;
+      EXPECT_EQ(arv_gc_integer_get_inc(ARV_GC_INTEGER(node), nullptr), static_cast<int64_t>(f.inc)) << f.name;
+    }
+    if (f.kind == genicam::Kind::kFloat) {
+      EXPECT_EQ(arv_gc_float_get_min(ARV_GC_FLOAT(node), nullptr), f.min) << f.name;
+      EXPECT_EQ(arv_gc_float_get_max(ARV_GC_FLOAT(node), nullptr), f.max) << f.name;
+    }
+    if (f.kind == genicam::Kind::kEnum) {
+      // Aravis keeps the entries in reverse order: compare as name -> value maps.
+      std::map<std::string, int64_t> got, want;
+      for (const GSList* e = arv_gc_enumeration_get_entries(ARV_GC_ENUMERATION(node)); e; e = e->next)
+        got[arv_gc_feature_node_get_name(ARV_GC_FEATURE_NODE(e->data))] =
+            arv_gc_enum_entry_get_value(ARV_GC_ENUM_ENTRY(e->data), nullptr);
+      for (const genicam::EnumEntry& e : f.entries) want[e.name] = e.value;
+      EXPECT_EQ(got, want) << f.name;
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 40);
+  // Pixel formats for this sensor: the PFNC codes Aravis knows.
+  const genicam::Feature* pf = genicam::FindFeature(table, "PixelFormat");
+  ASSERT_NE(pf, nullptr);
+  std::vector<std::string> names;
+  for (const auto& e : pf->entries) names.push_back(e.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"BayerGB12", "BayerGB8", "BayerGB16", "RGB8"}));
+  EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGB, 12), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GB_12));
+  EXPECT_EQ(genicam::BayerCode(Cfa::kBayerRG, 8), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_RG_8));
+  EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 16), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_16));
+  EXPECT_EQ(genicam::kRGB8, static_cast<uint32_t>(ARV_PIXEL_FORMAT_RGB_8_PACKED));
+  EXPECT_EQ(genicam::kMono12, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_12));
+  g_object_unref(gc);
+}
+
+TEST(GigeRegisterTable, AddressesDoNotOverlap) {
+  genicam::SensorInfo s;
+  s.width = 64;
+  s.height = 48;
+  const auto t = genicam::RegisterTable(s);
+  for (size_t i = 0; i < t.size(); ++i)
+    for (size_t j = i + 1; j < t.size(); ++j) {
+      if (!t[i].alias_of.empty() || !t[j].alias_of.empty()) continue;
+      if (t[i].kind == genicam::Kind::kSwissKnife || t[j].kind == genicam::Kind::kSwissKnife) continue;
+      const bool apart = t[i].address + t[i].length <= t[j].address || t[j].address + t[j].length <= t[i].address;
+      EXPECT_TRUE(apart) << t[i].name << " and " << t[j].name;
+    }
+}
+
+// ---------------------------------------------------------------- wire format
+
+TEST(GigeWireFormat, ConvertsDnToEachFormat) {
+  // A 4x2 sensor of 12-bit DN; window x=1, y=1, 2x1.
+  const uint16_t raw[8] = {0, 1, 2, 3, 4, 4095, 0x800, 7};
+  uint8_t out[4] = {};
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 8), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  EXPECT_EQ(out[0], 255);   // 4095 >> 4
+  EXPECT_EQ(out[1], 0x80);  // 0x800 >> 4
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 12), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  EXPECT_EQ(out[0], 0xff);  // 4095 little-endian
+  EXPECT_EQ(out[1], 0x0f);
+  EXPECT_EQ(out[2], 0x00);
+  EXPECT_EQ(out[3], 0x08);
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 16), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  EXPECT_EQ(out[0], 0xf0);  // 4095 << 4 = 0xfff0
+  EXPECT_EQ(out[1], 0xff);
+  EXPECT_EQ(out[2], 0x00);
+  EXPECT_EQ(out[3], 0x80);
+  const uint8_t rgb[2 * 2 * 3] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+  uint8_t o3[3];
+  genicam::ConvertWindow(genicam::kRGB8, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
+  EXPECT_EQ(o3[0], 10);
+  EXPECT_EQ(o3[2], 12);
+}
+
+// ---------------------------------------------------------------- GPIO HAL
+
+TEST(GigeGpio, LineSpecsAreChecked) {
+  std::string chip, error;
+  unsigned offset = 0;
+  EXPECT_TRUE(hal::ParseLineSpec("gpiochip0:17", &chip, &offset, &error));
+  EXPECT_EQ(chip, "gpiochip0");
+  EXPECT_EQ(offset, 17u);
+  EXPECT_TRUE(hal::ParseLineSpec("/dev/gpiochip2:0", &chip, &offset, &error));
+  EXPECT_EQ(chip, "/dev/gpiochip2");
+  for (const char* bad : {"gpiochip0", "gpiochip0:", ":3", "gpiochip0:x", "gpiochip0:-1", "gpiochip0:70000"}) {
+    error.clear();
+    EXPECT_FALSE(hal::ParseLineSpec(bad, &chip, &offset, &error)) << bad;
+    EXPECT_NE(error.find(bad), std::string::npos) << error;
+  }
+}
+
+TEST(GigeGpio, MissingChipGivesAClearError) {
+  // A chip name no system has: libgpiod really tries to open it.
+  std::string error;
+  EXPECT_EQ(hal::OpenGpiodInput("camsim-no-such-chip:3", "test", &error), nullptr);
+  EXPECT_NE(error.find("camsim-no-such-chip:3"), std::string::npos) << error;
+  EXPECT_NE(error.find("cannot open chip"), std::string::npos) << error;
+  error.clear();
+  EXPECT_EQ(hal::OpenGpiodOutput("/dev/null:0", "test", &error), nullptr);  // not a GPIO chip
+  EXPECT_NE(error.find("/dev/null"), std::string::npos) << error;
+}
+
+TEST(GigeGpio, DeviceRefusesToStartWithAMissingTriggerLineOnly) {
+  DeviceOptions o = SmallDevice();
+  o.trigger_line = "camsim-no-such-chip:1";
+  std::string error;
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("camsim-no-such-chip:1"), std::string::npos) << error;
+  o.trigger_line.clear();
+  o.strobe_line = "camsim-no-such-chip:2";
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("camsim-no-such-chip:2"), std::string::npos) << error;
+  o.strobe_line.clear();
+  auto d = GigeDevice::Start(o, &error);  // no lines: starts
+  EXPECT_NE(d, nullptr) << error;
+}
+
+// ---------------------------------------------------------------- register logic without network
+
+TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  auto be32 = [](uint32_t v) {
+    return std::vector<uint8_t>{uint8_t(v >> 24), uint8_t(v >> 16), uint8_t(v >> 8), uint8_t(v)};
+  };
+  auto be64 = [](double x) {
+    uint64_t v;
+    std::memcpy(&v, &x, 8);
+    std::vector<uint8_t> b(8);
+    for (int i = 0; i < 8; ++i) b[i] = uint8_t(v >> (56 - 8 * i));
+    return b;
+  };
+  const std::vector<std::pair<uint32_t, std::vector<uint8_t>>> bad = {
+      {reg::kWidth, be32(65)},        {reg::kWidth, be32(0)},         {reg::kOffsetY, be32(47)},
+      {reg::kPixelFormat, be32(7)},   {reg::kGainRaw, be32(481)},     {reg::kTriggerSource, be32(5)},
+      {reg::kGain, be64(48.5)},       {reg::kExposureTime, be64(0.5)}, {reg::kSimFNumber, be64(-1.0)},
+      {reg::kAcquisitionFrameRateEnable, be32(2)}, {reg::kBlackLevel, be64(1e300)}};
+  for (const auto& w : bad) {
+    ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
+    d->SyncNow();
+    EXPECT_EQ(d->CheckInvariants(), "") << std::hex << w.first;
+  }
+  EXPECT_EQ(d->writes_refused(), bad.size());
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
+  // Valid: a 16x8 window at (2, 4) in 8-bit, and exposure 2 ms.
+  for (const auto& w : std::vector<std::pair<uint32_t, std::vector<uint8_t>>>{
+           {reg::kWidth, be32(16)}, {reg::kHeight, be32(8)}, {reg::kOffsetX, be32(2)}, {reg::kOffsetY, be32(4)},
+           {reg::kPixelFormat, be32(genicam::BayerCode(Cfa::kBayerRG, 8))}, {reg::kExposureTime, be64(2000.0)}})
+    ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(d->writes_refused(), bad.size());
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 1, genicam::BayerCode(Cfa::kBayerRG, 8), 2, 4, 16, 8,
+                                  {"exposure.exposure_time_us=2000.0"}));
+}
+
+// ---------------------------------------------------------------- end to end
+
+class GigeE2E : public ::testing::Test {
+ protected:
+  void StartWith(const DeviceOptions& o) {
+    options_ = o;
+    device_ = StartDevice(o);
+    ASSERT_NE(device_, nullptr);
+    client_ = std::make_unique<Client>("127.0.0.1");
+    ASSERT_TRUE(client_->ok()) << client_->last_error;
+    g_client = client_.get();
+  }
+  void TearDown() override {
+    g_client = nullptr;
+    client_.reset();
+    device_.reset();
+  }
+  std::vector<uint8_t> Reference(uint32_t index, uint32_t format, int x, int y, int w, int h,
+                                 const std::vector<std::string>& extra = {}) {
+    return ReferenceFrame(options_, index, format, x, y, w, h, extra);
+  }
+  DeviceOptions options_;
+  hal::MemoryLine trigger_{"test-trigger"}, strobe_{"test-strobe"};  // outlive the device
+  std::unique_ptr<GigeDevice> device_;
+  std::unique_ptr<Client> client_;
+};
+
+TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  EXPECT_STREQ(arv_camera_get_vendor_name(c.camera(), nullptr), "camsim");
+  EXPECT_STREQ(arv_camera_get_model_name(c.camera(), nullptr), "camsim-gige");
+  EXPECT_STREQ(arv_camera_get_device_serial_number(c.camera(), nullptr), "CS0001");
+  EXPECT_EQ(ReadInt(c, "SensorWidth"), 64);
+  EXPECT_EQ(ReadInt(c, "HeightMax"), 48);
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 64 * 48 * 2);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 10000.0);  // configs/camera.toml
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "SimFNumber"), 2.8);
+  guint n = 0;
+  const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
+  std::vector<std::string> names(formats, formats + n);
+  g_free(formats);
+  EXPECT_EQ(names, (std::vector<std::string>{"BayerRG12", "BayerRG8", "BayerRG16", "RGB8"}));
+  // The fake camera's names keep working: ExposureTimeAbs is ExposureTime, GainRaw is Gain in 0.1 dB.
+  SetFloat(c, "ExposureTimeAbs", 2500.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 2500.0);
+  SetInt(c, "GainRaw", 65);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 6.5);
+  SetFloat(c, "Gain", 3.0);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 3.0);
+  EXPECT_EQ(ReadInt(c, "GainRaw"), 30);
+  GError* e = nullptr;
+  arv_camera_set_string(c.camera(), "DeviceUserID", "left", &e);
+  EXPECT_EQ(e, nullptr);
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "DeviceUserID", nullptr), "left");
+}
+
+TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  struct Case {
+    const char* name;
+    uint32_t code;
+  } cases[] = {{"BayerRG12", genicam::BayerCode(Cfa::kBayerRG, 12)},
+               {"BayerRG8", genicam::BayerCode(Cfa::kBayerRG, 8)},
+               {"BayerRG16", genicam::BayerCode(Cfa::kBayerRG, 16)},
+               {"RGB8", genicam::kRGB8}};
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.name);
+    Set(c, "PixelFormat", k.name);
+    SetInt(c, "SimFrameIndex", 7);
+    Settle();
+    ASSERT_TRUE(c.OpenStream()) << c.last_error;
+    Start(c);
+    uint64_t id0 = 0, id1 = 0;
+    uint32_t format = 0;
+    const std::vector<uint8_t> f0 = c.Grab(3000, &id0, nullptr, &format);
+    const std::vector<uint8_t> f1 = c.Grab(3000, &id1);
+    c.CloseStream();
+    ASSERT_FALSE(f0.empty());
+    ASSERT_FALSE(f1.empty());
+    EXPECT_EQ(format, k.code);
+    EXPECT_EQ(id1, id0 + 1);
+    const auto r7 = Reference(7, k.code, 0, 0, 64, 48), r8 = Reference(8, k.code, 0, 0, 64, 48);
+    ASSERT_EQ(f0.size(), r7.size());
+    EXPECT_TRUE(f0 == r7) << "frame 7 differs from the core's output";
+    EXPECT_TRUE(f1 == r8) << "frame 8 differs from the core's output";
+    EXPECT_FALSE(r7 == r8) << "noise must differ between frames";
+  }
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
+TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
+  DeviceOptions o = SmallDevice(32, 24);
+  o.overrides.push_back("sensor.cfa=\"Mono\"");
+  StartWith(o);
+  Client& c = *client_;
+  guint n = 0;
+  const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
+  std::vector<std::string> names(formats, formats + n);
+  g_free(formats);
+  EXPECT_EQ(names, (std::vector<std::string>{"Mono12", "Mono8", "Mono16"}));
+  for (const char* name : {"Mono12", "Mono8", "Mono16"}) {
+    SCOPED_TRACE(name);
+    Set(c, "PixelFormat", name);
+    SetInt(c, "SimFrameIndex", 3);
+    Settle();
+    ASSERT_TRUE(c.OpenStream());
+    Start(c);
+    uint32_t format = 0;
+    const auto f = c.Grab(3000, nullptr, nullptr, &format);
+    c.CloseStream();
+    ASSERT_FALSE(f.empty());
+    EXPECT_TRUE(f == Reference(3, format, 0, 0, 32, 24));
+  }
+}
+
+TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
+  // The bundled scene through `camsim run` and through the camera: same bytes.
+  DeviceOptions o = SmallDevice();
+  o.pattern.clear();
+  o.inputs = {std::string(CAMSIM_SOURCE_DIR) + "/scenes/aisle_0001.exr"};
+  o.overrides = {"sensor.width=96", "sensor.height=64"};
+  const std::string dir = testing::TempDir() + "camsim_gige_run";
+  mkdir(dir.c_str(), 0755);
+  const std::string cmd = std::string(CAMSIM_BINARY) + " run --quiet --config " + o.config_path +
+                          " --set sensor.width=96 --set sensor.height=64 --first-frame 4 --input " + o.inputs[0] +
+                          " --out " + dir;
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream raw(dir + "/aisle_0001.raw", std::ios::binary);
+  const std::vector<uint8_t> expected((std::istreambuf_iterator<char>(raw)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(expected.size(), 96u * 64u * 2u);
+  StartWith(o);
+  Client& c = *client_;
+  SetInt(c, "SimFrameIndex", 4);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const auto f = c.Grab(3000);
+  ASSERT_EQ(f.size(), expected.size());
+  EXPECT_TRUE(f == expected) << "BayerRG12 frame 4 differs from camsim run's .raw";
+}
+
+TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  Set(c, "TriggerSelector", "FrameStart");
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Software");
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  EXPECT_TRUE(c.Grab(300).empty()) << "a frame without a trigger";
+  for (int i = 0; i < 3; ++i) {
+    GError* e = nullptr;
+    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+    ASSERT_EQ(e, nullptr);
+    EXPECT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
+    EXPECT_TRUE(c.Grab(400).empty()) << "more than one frame for trigger " << i;
+  }
+  EXPECT_EQ(device_->frames_sent(), 3u);
+}
+
+TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
+  hal::MemoryLine& trigger = trigger_;
+  hal::MemoryLine& strobe = strobe_;
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger;
+  o.strobe = &strobe;
+  StartWith(o);
+  Client& c = *client_;
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  Set(c, "LineSelector", "Line1");
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Output");
+  Set(c, "LineSource", "ExposureActive");
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  GError* e = nullptr;
+  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // ignored: the source is Line0
+  EXPECT_TRUE(c.Grab(300).empty());
+  std::string err;
+  trigger.Set(true, &err);  // rising edge: one frame
+  EXPECT_FALSE(c.Grab(3000).empty());
+  trigger.Set(false, &err);  // falling edge: none
+  EXPECT_TRUE(c.Grab(300).empty());
+  EXPECT_EQ(strobe.edges(), 2);  // high while the frame was made, then low
+  EXPECT_FALSE(strobe.level());
+  Set(c, "TriggerActivation", "FallingEdge");
+  Settle();
+  trigger.Set(true, &err);
+  EXPECT_TRUE(c.Grab(300).empty());
+  trigger.Set(false, &err);
+  EXPECT_FALSE(c.Grab(3000).empty());
+}
+
+TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), 8, 4, 32, 24, &e);
+  ASSERT_EQ(e, nullptr);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 32 * 24 * 2);
+  SetInt(c, "SimFrameIndex", 0);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  uint64_t id = 0;
+  int width = 0;
+  auto f = c.Grab(3000, &id, &width);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  EXPECT_EQ(width, 32);
+  EXPECT_TRUE(f == Reference(0, code, 8, 4, 32, 24));
+  // While acquiring: new exposure and gain apply from the next frame on.
+  const uint64_t first_id = id;
+  SetFloat(c, "ExposureTime", 4000.0);
+  SetFloat(c, "Gain", 6.0);
+  const std::vector<std::string> changed = {"exposure.exposure_time_us=4000.0", "sensor.gain_db=6.0"};
+  const std::vector<std::string> exposure_only = {"exposure.exposure_time_us=4000.0"};
+  bool switched = false;
+  int old_after_write = 0;
+  // Comparing with three references per frame is slower than the stream:
+  // frames the client had no buffer for are dropped; the index follows the id.
+  int good = 0;
+  for (int i = 0; i < 16 && good < 6; ++i) {
+    f = c.Grab(3000, &id);
+    if (f.empty()) continue;
+    ++good;
+    const uint32_t index = static_cast<uint32_t>(id - first_id);
+    const bool is_new = f == Reference(index, code, 8, 4, 32, 24, changed);
+    const bool is_old = f == Reference(index, code, 8, 4, 32, 24);
+    // The two writes may reach the device in different syncs.
+    const bool is_between = f == Reference(index, code, 8, 4, 32, 24, exposure_only);
+    ASSERT_TRUE(is_new || is_old || is_between) << "frame " << index << " matches no setting";
+    if (switched) {
+      EXPECT_TRUE(is_new) << "frame " << index << " went back to the old settings";
+    }
+    if (is_new) {
+      switched = true;
+    } else {
+      ++old_after_write;
+    }
+  }
+  EXPECT_EQ(good, 6);
+  EXPECT_TRUE(switched);
+  // Old frames: those already in the client's 4 buffers or being rendered
+  // when the write landed; no more.
+  EXPECT_LE(old_after_write, 4 + 1) << "old settings after the write was applied";
+}
+
+TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  ArvDevice* dev = c.device();
+  // Aravis's default range-check policy is off, so these reach the device.
+  SetFloat(c, "ExposureTime", 5e7);
+  SetFloat(c, "Gain", -3.0);
+  SetInt(c, "Width", 1000);
+  SetInt(c, "OffsetX", 3);  // off the Bayer increment
+  arv_device_write_register(dev, reg::kPixelFormat, 0x12345, nullptr);
+  arv_device_write_register(dev, reg::kAcquisitionMode, 9, nullptr);
+  uint8_t nan_bytes[8] = {0x7f, 0xf8, 0, 0, 0, 0, 0, 0};  // big-endian quiet NaN
+  arv_device_write_memory(dev, reg::kBlackLevel, 8, nan_bytes, nullptr);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 10000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 0.0);
+  EXPECT_EQ(ReadInt(c, "Width"), 64);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "AcquisitionMode", nullptr), "Continuous");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BlackLevel"), 64.0);
+  // A window that fits alone but not with the offset: the offset is refused.
+  SetInt(c, "Width", 48);
+  Settle();
+  SetInt(c, "OffsetX", 32);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 48);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
+  SetInt(c, "Width", 64);
+  EXPECT_GE(device_->writes_refused(), 8u);
+  // With Aravis's range checks on, the XML's limits refuse on the client already.
+  arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_ENABLE);
+  GError* e = nullptr;
+  arv_camera_set_float(c.camera(), "ExposureTime", 5e7, &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_DISABLE);
+  // Still serving correct frames; geometry is frozen while acquiring.
+  SetInt(c, "SimFrameIndex", 2);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const auto f = c.Grab(3000);
+  EXPECT_TRUE(f == Reference(2, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
+  SetInt(c, "Width", 32);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 64);
+  EXPECT_FALSE(c.Grab(3000).empty());
+}
+
+TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  SetFloat(c, "AcquisitionFrameRate", 100.0);
+  Set(c, "AcquisitionMode", "MultiFrame");
+  SetInt(c, "AcquisitionFrameCount", 3);
+  ASSERT_TRUE(c.OpenStream(8));
+  Start(c);
+  int frames = 0;
+  while (!c.Grab(500).empty()) ++frames;
+  EXPECT_EQ(frames, 3);
+  c.CloseStream();
+  Set(c, "AcquisitionMode", "SingleFrame");
+  Settle();
+  ASSERT_TRUE(c.OpenStream(8));
+  Start(c);
+  frames = 0;
+  while (!c.Grab(500).empty()) ++frames;
+  EXPECT_EQ(frames, 1);
+}
+
+TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  // Mean raw level (above black, fraction of full scale) of a BayerRG12 frame.
+  auto mean_level = [](const std::vector<uint8_t>& f) {
+    double sum = 0;
+    for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
+    return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);  // black level 64 DN (demo camera)
+  };
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double before = mean_level(c.Grab(3000));
+  c.CloseStream();
+  SetFloat(c, "SimAutoTarget", 0.6 * before);
+  Set(c, "ExposureAuto", "Once");
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (int i = 0; i < 3; ++i) ASSERT_FALSE(c.Grab(3000).empty());
+  c.CloseStream();
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureAuto", nullptr), "Off") << "Once turns itself off";
+  const double exposure = ReadFloat(c, "ExposureTime");
+  EXPECT_LT(exposure, 10000.0 * 0.8);
+  EXPECT_GT(exposure, 10000.0 * 0.4);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double after = mean_level(c.Grab(3000));
+  EXPECT_NEAR(after / before, 0.6, 0.1) << "before " << before << " after " << after;
+}
+
+TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  Set(c, "SimStageSelector", "Stage_sensor");
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
+  arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
+  Settle();
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr)) << "raw formats need the sensor";
+  Set(c, "SimStageSelector", "Stage_vignetting");
+  arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
+  Settle();
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
+  Set(c, "SimStageSelector", "Stage_sensor");
+  Settle();
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
+  SetInt(c, "SimFrameIndex", 1);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const auto f = c.Grab(3000);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  EXPECT_TRUE(f == Reference(1, code, 0, 0, 64, 48, {"vignetting.mode=\"off\""}) ||
+              f == Reference(1, code, 0, 0, 64, 48, {"pipeline.stages=[\"exposure\",\"cfa\",\"sensor\"]"}))
+      << "frame without vignetting";
+  EXPECT_FALSE(f == Reference(1, code, 0, 0, 64, 48));
+}
+
+}  // namespace
+}  // namespace camsim::gigetest
