@@ -238,7 +238,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
     if (rn > rd_nodes) rd_nodes = rn;
     if (rf > rd_frame) rd_frame = rf;
   }
-  branch_ = LensAnalyse(m, rd_nodes);
+  branch_ = m.model == DistortionModel::kOff ? LensBranch() : LensAnalyse(m, rd_nodes);  // off: no inverse to solve
   if (branch_.folds && branch_.rd_max < rd_frame)
     return InvalidArgument(m.model == DistortionModel::kFisheye ? "distortion.k1" : "distortion.k1",
                            "the radial model folds over (stops increasing) inside the frame, so those pixels "
