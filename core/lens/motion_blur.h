@@ -37,7 +37,8 @@
 // window is clamped into the frame too. For camera rotation without
 // translation the vertical reach is known at configure time (the rotational
 // field is linear in x along a row): the vertical bound, and so the window and
-// the line rings, shrink to that reach + 1 row (a pan reads 3 or 4 rows).
+// the line rings, shrink to that reach + 1 row (a 10 px pan at 640x480:
+// 8 rows instead of 66).
 //
 // Formats: in/out kRadiance Q16.16 or kPhotons Q24.8, 3 channels (not mosaic);
 //   the stage is linear in the samples, so units pass through.
