@@ -7,10 +7,11 @@
 //   byte  width  = 1 + b % 64           byte  height = 1 + b % 64
 //   byte  cfa    = b % 6  (5 is not a Cfa: the core must refuse it or cope)
 //   byte  adc_bits = 12 for 0, else 6 + b % 13  (6..18; the valid range is 8..16)
-//   byte  order mode: even -> the default order filtered by a 9-bit mask
-//         (2 bytes follow; an empty mask means every stage); odd ->
-//         (b >> 1) % 11 stage ids follow, each byte % 10 (9 is not a stage);
-//         counts 0 and 10 are out of range
+//   byte  order mode: even -> the default order filtered by a kStageCount-bit
+//         mask (2 bytes follow; an empty mask means every stage); odd ->
+//         (b >> 1) % (kStageCount + 2) stage ids follow, each byte %
+//         (kStageCount + 1) (kStageCount is not a stage); counts 0 and
+//         kStageCount + 1 are out of range
 //   2 bytes seed
 //   enum bytes (vignetting mode % 5, table count % 66, demosaic method % 3,
 //   gamma curve % 4, shot noise: b != 1, vignetting mask & 1), then one number
@@ -18,7 +19,11 @@
 //   each sample is 4 little-endian bytes (any uint32, 0xFFFFFFFF included);
 //   when the blob runs out, the samples already read repeat (a blob without
 //   samples gives a ramp through 0 and 0xFFFFFFFF). The optional Q2.14
-//   vignetting mask is derived from the radiance.
+//   vignetting mask, the inverse depth plane (any uint32, the invalid marker
+//   included) and the motion vectors (any int32) are derived from the radiance.
+//   The enum bytes of the later stages (dof method, structural-only, motion
+//   source, distortion model, resampling filter, blooming on) follow the
+//   numbers, before the samples.
 //
 // A number byte b: 0 keeps the default; 1..8 are specials {NaN, +inf, -inf, 0,
 // -0, -1, lo, hi}; 9..15 lie just outside or far outside [lo, hi]; 16..254 map
@@ -120,6 +125,20 @@ inline const std::vector<NumberParam>& Params() {
       CAMSIM_FUZZ_PARAM("m7", -16.0, 16.0, false, c.color_matrix.m[7]),
       CAMSIM_FUZZ_PARAM("m8", -16.0, 16.0, false, c.color_matrix.m[8]),
       CAMSIM_FUZZ_PARAM("gamma", 0.1, 10.0, true, c.gamma.gamma),
+      CAMSIM_FUZZ_PARAM("dof_focus_distance_m", 0.01, 1e6, true, c.dof.focus_distance_m),
+      CAMSIM_FUZZ_PARAM("dof_max_coc_px", 0.25, 1023.0, true, c.dof.max_coc_px),
+      CAMSIM_FUZZ_PARAM("dof_pixel_pitch_um", 0.1, 1000.0, true, c.dof.pixel_pitch_um),
+      CAMSIM_FUZZ_PARAM("dof_structural_poly0", 0.0, 1023.0, false, c.dof.structural_poly[0]),
+      CAMSIM_FUZZ_PARAM("motion_wx", -100.0, 100.0, false, c.motion_blur.angular_velocity_rad_s[0]),
+      CAMSIM_FUZZ_PARAM("motion_wy", -100.0, 100.0, false, c.motion_blur.angular_velocity_rad_s[1]),
+      CAMSIM_FUZZ_PARAM("motion_vz", -100.0, 100.0, false, c.motion_blur.linear_velocity_m_s[2]),
+      CAMSIM_FUZZ_PARAM("motion_fx_px", 1.0, 1e5, true, c.motion_blur.fx_px),
+      CAMSIM_FUZZ_PARAM("motion_line_time_us", 0.0, 1e4, false, c.motion_blur.line_time_us),
+      CAMSIM_FUZZ_PARAM("lens_fx", 1.0, 1e5, true, c.distortion.lens.fx),
+      CAMSIM_FUZZ_PARAM("lens_k1", -2.0, 2.0, false, c.distortion.lens.k[0]),
+      CAMSIM_FUZZ_PARAM("lens_k2", -2.0, 2.0, false, c.distortion.lens.k[1]),
+      CAMSIM_FUZZ_PARAM("lens_p1", -0.1, 0.1, false, c.distortion.lens.p1),
+      CAMSIM_FUZZ_PARAM("chromatic_r", 0.9, 1.1, false, c.distortion.chromatic_scale[0]),
   };
   return params;
 }
@@ -157,12 +176,17 @@ struct CoreCase {
   bool has_mask = false;
   std::vector<uint32_t> radiance[3];
   std::vector<uint16_t> mask;
+  std::vector<uint32_t> inverse_depth;
+  std::vector<int32_t> motion[2];
 
   FrameInput View() const {
     FrameInput in;
     const int w = config.geometry.width, h = config.geometry.height;
     for (int c = 0; c < 3; ++c) in.radiance[c] = MakeImageView<const uint32_t>(radiance[c].data(), w, h);
     if (has_mask) in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), w, h);
+    if (!inverse_depth.empty()) in.inverse_depth = MakeImageView<const uint32_t>(inverse_depth.data(), w, h);
+    for (int d = 0; d < 2; ++d)
+      if (!motion[d].empty()) in.motion_vectors[d] = MakeImageView<const int32_t>(motion[d].data(), w, h);
     return in;
   }
 };
@@ -178,15 +202,16 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   c.geometry.adc_bits = bits == 0 ? 12 : 6 + bits % 13;
   const uint8_t mode = r.Byte();
   if (mode % 2 == 0) {
-    uint32_t mask = (r.Byte() | (uint32_t{r.Byte()} << 8)) & 0x1FFu;
-    if (mask == 0) mask = 0x1FFu;
+    constexpr uint32_t kAll = (1u << kStageCount) - 1;
+    uint32_t mask = (r.Byte() | (uint32_t{r.Byte()} << 8)) & kAll;
+    if (mask == 0) mask = kAll;
     c.order_count = 0;
     for (int i = 0; i < kStageCount; ++i)
       if (mask & (1u << i)) c.order[c.order_count++] = static_cast<StageId>(i);
   } else {
-    c.order_count = (mode >> 1) % 11;
+    c.order_count = (mode >> 1) % (kStageCount + 2);
     for (int i = 0; i < c.order_count; ++i) {
-      const StageId id = static_cast<StageId>(r.Byte() % 10);
+      const StageId id = static_cast<StageId>(r.Byte() % (kStageCount + 1));
       if (i < kStageCount) c.order[i] = id;
     }
   }
@@ -197,7 +222,21 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   c.gamma.curve = static_cast<GammaCurve>(r.Byte() % 4);
   c.sensor.shot_noise = r.Byte() != 1;
   k.has_mask = r.Byte() & 1;
+  // Defaults the host would fill in (so that a stage switched on below can run).
+  c.dof.pixel_pitch_um = 5.0;
+  c.motion_blur.fx_px = c.motion_blur.fy_px = 100.0;
+  c.distortion.lens.fx = c.distortion.lens.fy = c.geometry.width;
+  c.distortion.lens.cx = (c.geometry.width - 1) / 2.0;
+  c.distortion.lens.cy = (c.geometry.height - 1) / 2.0;
   for (const NumberParam& p : Params()) p.ref(c) = DecodeNumber(r, p, p.ref(c));
+  c.dof.method = static_cast<DofMethod>(r.Byte() % 3);
+  c.dof.structural_only = r.Byte() & 1;
+  if (c.dof.structural_poly[0] != 0.0) c.dof.structural_poly_count = 1;
+  c.motion_blur.source = static_cast<MotionSource>(r.Byte() % 3);
+  c.distortion.lens.model = static_cast<DistortionModel>(r.Byte() % 3);
+  c.distortion.lens.fy = c.distortion.lens.fx;
+  c.distortion.filter = static_cast<ResampleFilter>(r.Byte() % 3);
+  c.blooming.enabled = r.Byte() & 1;
   // Table entries not named in Params() repeat the decoded ones.
   for (int i = 3; i < VignettingConfig::kMaxTable - 1; ++i) c.vignetting.table[i] = c.vignetting.table[i % 3];
 
@@ -215,6 +254,12 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   }
   k.mask.resize(n);
   for (size_t i = 0; i < n; ++i) k.mask[i] = static_cast<uint16_t>(k.radiance[0][i] ^ (k.radiance[1][i] >> 16));
+  k.inverse_depth.resize(n);
+  for (size_t i = 0; i < n; ++i) k.inverse_depth[i] = k.radiance[2][i] ^ (k.radiance[0][i] << 7);
+  for (int d = 0; d < 2; ++d) {
+    k.motion[d].resize(n);
+    for (size_t i = 0; i < n; ++i) k.motion[d][i] = static_cast<int32_t>(k.radiance[d][i] * 2654435761u);
+  }
   return k;
 }
 
@@ -244,6 +289,12 @@ inline std::vector<uint8_t> EncodeCoreCase(const PipelineConfig& config, bool ha
     std::memcpy(raw, &p.ref(c), 8);
     b.insert(b.end(), raw, raw + 8);
   }
+  b.push_back(static_cast<uint8_t>(c.dof.method));
+  b.push_back(c.dof.structural_only ? 1 : 0);
+  b.push_back(static_cast<uint8_t>(c.motion_blur.source));
+  b.push_back(static_cast<uint8_t>(c.distortion.lens.model));
+  b.push_back(static_cast<uint8_t>(c.distortion.filter));
+  b.push_back(c.blooming.enabled ? 1 : 0);
   for (uint32_t s : samples)
     for (int i = 0; i < 4; ++i) b.push_back(static_cast<uint8_t>(s >> (8 * i)));
   return b;

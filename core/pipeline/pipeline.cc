@@ -514,11 +514,14 @@ void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int
   s.scratch = arena.Take<uint8_t>(scratch_bytes_);
   s.rows = arena.Take<RowIn>(static_cast<size_t>(max_window_));
 
-  // First row each ring must produce: the lowest row the next stage's window
-  // reads for the first row it produces (windows never move back, so no
-  // later row reads lower).
+  // Every ring produces at least the strip's rows [y0, y1) (its taps and
+  // statistics cover them even where no later stage reads them, e.g. rows a
+  // distortion window skips), plus what the next stage's windows read. The
+  // first row a ring produces: the lower of y0 and the lowest row the next
+  // stage reads for its own first row (windows never move back).
   int first = y0;
   for (int j = run_count_; j >= 0; --j) {
+    if (first > y0) first = y0;
     s.next[j] = first;
     if (j > 0) {
       int hi = 0;
@@ -526,6 +529,9 @@ void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int
     }
   }
   for (int y = y0; y < y1; ++y) Produce(s, run_count_, y);
+  // Rows of the strip no later stage needed: from the last ring down, so a
+  // ring only moves on once every stage reading it is done.
+  for (int j = run_count_ - 1; j >= 1; --j) Produce(s, j, y1 - 1);
 }
 
 void Pipeline::ProcessFrame(const FrameInput& input, uint32_t frame, int strip_rows, const Tap* taps,
