@@ -237,6 +237,13 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     run_[run_count_++] = stage;
   }
   if (run_count_ == 0) return InvalidArgument("pipeline.stages", "every listed stage was left out");
+  // dof_columns reads the coefficient tables dof_rows builds at Init (found by fuzz_core).
+  bool rows_run = false;
+  for (int i = 0; i < run_count_; ++i) {
+    if (run_[i] == &dof_rows_) rows_run = true;
+    if (run_[i] == &dof_columns_ && !rows_run)
+      return InvalidArgument("pipeline.stages", "dof_columns needs dof_rows running before it");
+  }
   plan_.running = run_count_;
   plan_.output = format;
   // Distortion followed, through pointwise stages only, by a Bayer CFA
