@@ -99,6 +99,24 @@ std::string Short(double v) {
   return buf;
 }
 
+// A tick step of 1, 2 or 5 times a power of ten giving about `divisions` steps.
+double NiceStep(double span, int divisions) {
+  const double raw = span / divisions;
+  const double decade = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0})
+    if (m * decade >= raw) return m * decade;
+  return 10.0 * decade;
+}
+
+// Series colours, distinct on white; the frontier keeps its own red.
+constexpr uint8_t kSeriesColours[][3] = {{40, 90, 200},  {30, 150, 70}, {150, 60, 190}, {220, 130, 20},
+                                         {20, 160, 170}, {120, 80, 40}, {90, 90, 90},   {200, 70, 150}};
+
+struct Rect {
+  int x0, y0, x1, y1;
+  bool Overlaps(const Rect& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
+};
+
 }  // namespace
 
 bool WriteScatterPng(const std::string& path, const PlotSpec& spec, const std::vector<PlotPoint>& points,
@@ -129,35 +147,49 @@ bool WriteScatterPng(const std::string& path, const PlotSpec& spec, const std::v
   auto px = [&](double x) { return left + static_cast<int>(std::lround((x - x0) / (x1 - x0) * pw)); };
   auto py = [&](double y) { return top + ph - static_cast<int>(std::lround((ty(y) - y0) / (y1 - y0) * ph)); };
 
-  // Grid and tick labels: 5 divisions per axis (decades on a log axis).
-  for (int i = 0; i <= 5; ++i) {
-    const double xv = x0 + (x1 - x0) * i / 5;
+  // Grid and tick labels. x: steps of 1, 2 or 5 times a power of ten;
+  // y on a log axis: 1, 2 and 5 times each decade. Tick labels end left of the axis.
+  constexpr int kTickScale = 2, kGlyphAdvance = 4;
+  const double xstep = NiceStep(x1 - x0, 5);
+  for (double xv = std::ceil(x0 / xstep) * xstep; xv <= x1 + 1e-9 * xstep; xv += xstep) {
     const int gx = px(xv);
+    const std::string t = Short(std::fabs(xv) < 1e-9 * xstep ? 0.0 : xv);
     cv.Line(gx, top, gx, top + ph, kGrid);
-    cv.Text(gx - 12, top + ph + 8, Short(xv), 2, kInk);
+    cv.Text(gx - static_cast<int>(t.size()) * kGlyphAdvance * kTickScale / 2, top + ph + 8, t, kTickScale, kInk);
   }
-  if (spec.log_y) {  // ticks at 1, 2 and 5 times each decade
+  auto y_tick = [&](double v) {
+    const int gy = py(v);
+    const std::string t = Short(v);
+    cv.Line(left, gy, left + pw, gy, kGrid);
+    cv.Text(left - 8 - static_cast<int>(t.size()) * kGlyphAdvance * kTickScale, gy - 5, t, kTickScale, kInk);
+  };
+  if (spec.log_y) {
     for (int d = static_cast<int>(std::floor(y0)); d <= static_cast<int>(std::ceil(y1)); ++d)
       for (double m : {1.0, 2.0, 5.0}) {
         const double v = m * std::pow(10.0, d);
-        if (std::log10(v) < y0 || std::log10(v) > y1) continue;
-        const int gy = py(v);
-        cv.Line(left, gy, left + pw, gy, kGrid);
-        cv.Text(8, gy - 5, Short(v), 2, kInk);
+        if (std::log10(v) >= y0 && std::log10(v) <= y1) y_tick(v);
       }
   } else {
-    for (int i = 0; i <= 5; ++i) {
-      const double yv = y0 + (y1 - y0) * i / 5;
-      const int gy = py(yv);
-      cv.Line(left, gy, left + pw, gy, kGrid);
-      cv.Text(8, gy - 5, Short(yv), 2, kInk);
-    }
+    const double ystep = NiceStep(y1 - y0, 5);
+    for (double yv = std::ceil(y0 / ystep) * ystep; yv <= y1 + 1e-9 * ystep; yv += ystep) y_tick(yv);
   }
   cv.Line(left, top, left, top + ph, kInk);
   cv.Line(left, top + ph, left + pw, top + ph, kInk);
   cv.Text(left, 12, spec.title, 3, kInk);
-  cv.Text(left + pw / 2 - 80, spec.height - 36, spec.x_label, 2, kInk);
-  cv.Text(20, top + ph - 20, spec.y_label, 2, kInk, /*vertical=*/true);
+  cv.Text(left + pw / 2 - static_cast<int>(spec.x_label.size()) * kGlyphAdvance, spec.height - 36, spec.x_label, 2,
+          kInk);
+  cv.Text(6, top + ph / 2 + static_cast<int>(spec.y_label.size()) * kGlyphAdvance, spec.y_label, 2, kInk,
+          /*vertical=*/true);
+
+  // Series in order of first appearance, each with a colour and a legend entry.
+  std::vector<std::string> series;
+  for (const PlotPoint& p : points)
+    if (!p.series.empty() && std::find(series.begin(), series.end(), p.series) == series.end())
+      series.push_back(p.series);
+  auto colour_of = [&](const PlotPoint& p) -> const uint8_t* {
+    const size_t i = static_cast<size_t>(std::find(series.begin(), series.end(), p.series) - series.begin());
+    return kSeriesColours[i % (sizeof kSeriesColours / sizeof kSeriesColours[0])];
+  };
 
   // The frontier: highlighted points joined in order of x.
   std::vector<const PlotPoint*> front;
@@ -166,9 +198,49 @@ bool WriteScatterPng(const std::string& path, const PlotSpec& spec, const std::v
   std::sort(front.begin(), front.end(), [](const PlotPoint* a, const PlotPoint* b) { return a->x < b->x; });
   for (size_t i = 1; i < front.size(); ++i)
     cv.Line(px(front[i - 1]->x), py(front[i - 1]->y), px(front[i]->x), py(front[i]->y), kFront);
+
+  // Points: hollow, or filled with a red ring on the frontier. Labels
+  // (scale 2) go right, left, above or below the point, whichever covers no
+  // earlier label or legend; a label with no free place is left out.
+  constexpr int kLabelScale = 2, kMarker = 4;
+  std::vector<Rect> taken;
+  const int legend_x = left + pw - 260;
+  int legend_y = top + 6;
+  for (const std::string& name : series) {
+    const uint8_t* col = kSeriesColours[(&name - series.data()) % (sizeof kSeriesColours / sizeof kSeriesColours[0])];
+    cv.Box(legend_x + 6, legend_y + 5, kMarker, true, col);
+    const int w = cv.Text(legend_x + 18, legend_y, name, kLabelScale, kInk);
+    taken.push_back({legend_x, legend_y - 2, legend_x + 18 + w, legend_y + 12});
+    legend_y += 16;
+  }
+  if (!front.empty()) {
+    cv.Line(legend_x, legend_y + 5, legend_x + 12, legend_y + 5, kFront);
+    const int w = cv.Text(legend_x + 18, legend_y, "frontier", kLabelScale, kInk);
+    taken.push_back({legend_x, legend_y - 2, legend_x + 18 + w, legend_y + 12});
+  }
   for (const PlotPoint& p : points) {
-    cv.Box(px(p.x), py(p.y), 4, p.highlight, p.highlight ? kFront : kPoint);
-    if (!p.label.empty()) cv.Text(px(p.x) + 8, py(p.y) - 4, p.label, 1, kInk);
+    const int cx = px(p.x), cy = py(p.y);
+    const uint8_t* col = series.empty() ? kPoint : colour_of(p);
+    cv.Box(cx, cy, kMarker, p.highlight, col);
+    if (p.highlight) cv.Box(cx, cy, kMarker + 2, false, kFront);
+    taken.push_back({cx - kMarker - 2, cy - kMarker - 2, cx + kMarker + 3, cy + kMarker + 3});
+  }
+  for (const PlotPoint& p : points) {
+    if (p.label.empty()) continue;
+    const int cx = px(p.x), cy = py(p.y);
+    const int w = static_cast<int>(p.label.size()) * kGlyphAdvance * kLabelScale, h = 5 * kLabelScale;
+    const Rect places[] = {{cx + 10, cy - h / 2, cx + 10 + w, cy + h / 2 + 1},
+                           {cx - 10 - w, cy - h / 2, cx - 10, cy + h / 2 + 1},
+                           {cx - w / 2, cy - 10 - h, cx + w / 2, cy - 9},
+                           {cx - w / 2, cy + 10, cx + w / 2, cy + 11 + h}};
+    for (const Rect& r : places) {
+      bool free = r.x0 >= left && r.x1 <= left + pw && r.y0 >= top && r.y1 <= top + ph;
+      for (const Rect& t : taken) free = free && !r.Overlaps(t);
+      if (!free) continue;
+      cv.Text(r.x0, r.y0, p.label, kLabelScale, kInk);
+      taken.push_back(r);
+      break;
+    }
   }
   return io::WritePng(path, cv.rgb.data(), spec.width, spec.height, 3, 8, static_cast<ptrdiff_t>(spec.width) * 3, error);
 }

@@ -10,7 +10,8 @@ namespace camsim::host {
 
 struct PlotPoint {
   double x = 0, y = 0;
-  std::string label;  // drawn beside the point (may be empty)
+  std::string series;  // points of one series share a colour, named in the legend
+  std::string label;   // drawn beside the point unless it would cover another label
   bool highlight = false;  // drawn filled and joined by the frontier line
 };
 

@@ -313,6 +313,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
     PlotPoint pt;
     pt.x = s.frame_ms;
     pt.y = s.end_to_end.rms;
+    pt.series = s.knob.empty() ? "configured" : s.knob;
     pt.label = s.value.empty() ? "configured" : s.value;
     pt.highlight = s.frontier;
     points.push_back(pt);
