@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -54,6 +55,33 @@ double BitsDouble(uint64_t b) {
   double v;
   std::memcpy(&v, &b, 8);
   return v;
+}
+
+// Aravis's fake camera starts even when it cannot bind its GVCP port (it
+// then answers nobody), so the address is tried first: one camera per
+// address, and only addresses an interface has.
+bool CheckGvcpAddress(const std::string& address, std::string* error) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(kGvcpPort);
+  if (inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) {
+    *error = "--address '" + address + "': not an IPv4 address";
+    return false;
+  }
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return true;  // let the fake camera report it
+  const int r = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  const int e = errno;
+  close(fd);
+  if (r == 0) return true;
+  if (e == EADDRINUSE)
+    *error = "cannot serve on " + address + ": its GVCP port 3956 is in use (another camera on this address?)";
+  else if (e == EADDRNOTAVAIL)
+    *error = "cannot serve on " + address + ": no network interface has that address (on Linux: ip addr add " +
+             address + "/8 dev lo, or a private namespace, see scripts/netns-run.sh)";
+  else
+    *error = "cannot serve on " + address + ": GVCP port 3956: " + std::strerror(e);
+  return false;
 }
 
 }  // namespace
@@ -294,6 +322,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!io::WriteTextFile(xml_path_, xml, error)) return false;
 
   if (o.serve) {
+    if (!CheckGvcpAddress(o.address, error)) return false;
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
     if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
       *error = "cannot serve on " + o.address +

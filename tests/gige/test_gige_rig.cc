@@ -213,5 +213,24 @@ TEST_F(GigeRig, MasterStrobeDrivesTheBus) {
   }
 }
 
+TEST(GigeRigAddresses, OneCameraPerAddressAndOnlyLocalAddresses) {
+  DeviceOptions o = SmallDevice();
+  o.address = "127.0.0.2";
+  std::string error;
+  auto first = GigeDevice::Start(o, &error);
+  ASSERT_NE(first, nullptr) << error;
+  o.serial = "OTHER";
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr) << "a second camera on 127.0.0.2";
+  EXPECT_NE(error.find("127.0.0.2"), std::string::npos) << error;
+  EXPECT_NE(error.find("in use"), std::string::npos) << error;
+  o.address = "127.0.0.9";  // routed to lo, but no interface has it
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("127.0.0.9"), std::string::npos) << error;
+  EXPECT_NE(error.find("no network interface"), std::string::npos) << error;
+  o.address = "camera.local";
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("not an IPv4 address"), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace camsim::gigetest
