@@ -15,6 +15,7 @@ packages=(
   libopencv-dev   # test and bench peers only: never linked by the core or the tools
   # camsim-gige: Aravis (its pkg-config file needs libusb-1.0's), its CLI tools, libgpiod v1
   libaravis-dev libusb-1.0-0-dev aravis-tools-cli libgpiod-dev
+  iproute2   # scripts/netns-run.sh: 127.0.0.2/.3 for the rig and arv-tool tests (with util-linux's unshare)
 )
 # scripts/viewer-screenshot.sh: arv-viewer-0.8 and the GStreamer elements it
 # needs (appsrc/videoconvert, videoflip, gtksink), Xvfb, xdotool, ImageMagick's import.
