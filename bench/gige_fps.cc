@@ -1,7 +1,9 @@
 // camsim_gige_fps: frames per second a camsim-gige device delivers to an
 // Aravis client over loopback, and how many frames were lost on the way.
 //   camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]
-//                   [--frames N] [--threads T] [--packet-size B] [--config FILE]
+//                   [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]
+// --prime 0 turns off the device's first-frame leader (GigeDevice::PrimeReceiver)
+// to show the first frame lost to the default socket buffer.
 // The device runs in this process (its render threads + Aravis's GVCP/GVSP
 // thread) with the demo configuration (every stage on) and a free-running
 // frame rate (AcquisitionFrameRateEnable off: as fast as frames are made).
@@ -29,6 +31,7 @@ int main(int argc, char** argv) {
     else if (a == "--threads") o.threads = std::atoi(v.c_str());
     else if (a == "--packet-size") packet = std::atoi(v.c_str());
     else if (a == "--config") o.config_path = v;
+    else if (a == "--prime") o.prime_first_frame = v != "0";
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       return 1;
@@ -90,11 +93,15 @@ int main(int argc, char** argv) {
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   guint64 completed = 0, stream_failures = 0, underruns = 0;
   arv_stream_get_statistics(stream, &completed, &stream_failures, &underruns);
+  // Missing packets: lost in the socket buffer; duplicated: the primed leader (one per stream).
+  const guint64 missing = arv_stream_get_info_uint64_by_name(stream, "n_missing_packets");
+  const guint64 duplicated = arv_stream_get_info_uint64_by_name(stream, "n_duplicated_packets");
   arv_camera_stop_acquisition(cam, nullptr);
   std::printf("%dx%d %s, %d thread(s), packet %d B: %d frames in %.2f s = %.2f fps, %.1f MB/s; "
-              "failed buffers %d, frame-id gaps %llu, underruns %llu\n",
+              "failed buffers %d, frame-id gaps %llu, underruns %llu, missing packets %llu, duplicated %llu\n",
               width, height, format.c_str(), o.threads, packet, ok, s, ok / s, ok * (payload / 1e6) / s, failed,
-              static_cast<unsigned long long>(gaps), static_cast<unsigned long long>(underruns));
+              static_cast<unsigned long long>(gaps), static_cast<unsigned long long>(underruns),
+              static_cast<unsigned long long>(missing), static_cast<unsigned long long>(duplicated));
   g_object_unref(stream);
   g_object_unref(cam);
   return failed == 0 && gaps == 0 ? 0 : 2;

@@ -14,12 +14,14 @@ namespace {
 
 const char kUsage[] =
     "usage: camsim-gige (--input EXR... | --pattern NAME) [--config FILE] [--set section.key=value]...\n"
-    "                   [--address 127.0.0.1] [--serial CS0001] [--trigger-line CHIP:OFFSET]\n"
-    "                   [--strobe-line CHIP:OFFSET] [--threads N] [--xml-out FILE] [--frames N]\n"
+    "                   [--address 127.0.0.1] [--serial CS0001] [--trigger-line CHIP:OFFSET|unix:DIR]\n"
+    "                   [--strobe-line CHIP:OFFSET|unix:DIR] [--threads N] [--xml-out FILE] [--frames N]\n"
     "  Serves the pipeline's frames as an Aravis fake GigE Vision camera on ADDRESS\n"
     "  (connect by that address). NAME: gradient, checker, flat (size from [sensor]\n"
     "  width/height, else 640x480). --frames N: exit after N frames (0 = run until\n"
-    "  SIGINT/SIGTERM). Receivers at 1080p need a 4 MiB socket buffer: see README.\n";
+    "  SIGINT/SIGTERM). Lines: a GPIO line (libgpiod) or unix:DIR, a loopback trigger\n"
+    "  bus shared by a rig of cameras (fire it with camsim-trigger). Receivers at\n"
+    "  1080p need a 4 MiB socket buffer: see docs/gige.md.\n";
 
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }

@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -35,6 +36,13 @@ constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
 constexpr double kTriggerPollHz = 1000.0;
+// The first frame of a stream: the leader goes out this long before the
+// frame's burst (PrimeReceiver). Aravis's receiver gives up on a frame whose
+// next packet is 20 ms late (packet-timeout default; it then asks for resends)
+// and drops it after 100 ms (frame-retention): 10 ms is well inside both and
+// far longer than a receiver thread's wake-up.
+constexpr int kPrimeDelayMs = 10;
+constexpr int kGvspLeaderBytes = 8 + 36;  // GVSP header + image data leader
 // Auto exposure: one step changes the exposure by at most this factor.
 constexpr double kAutoMaxStep = 8.0;
 
@@ -47,6 +55,33 @@ double BitsDouble(uint64_t b) {
   double v;
   std::memcpy(&v, &b, 8);
   return v;
+}
+
+// Aravis's fake camera starts even when it cannot bind its GVCP port (it
+// then answers nobody), so the address is tried first: one camera per
+// address, and only addresses an interface has.
+bool CheckGvcpAddress(const std::string& address, std::string* error) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(kGvcpPort);
+  if (inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) {
+    *error = "--address '" + address + "': not an IPv4 address";
+    return false;
+  }
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return true;  // let the fake camera report it
+  const int r = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  const int e = errno;
+  close(fd);
+  if (r == 0) return true;
+  if (e == EADDRINUSE)
+    *error = "cannot serve on " + address + ": its GVCP port 3956 is in use (another camera on this address?)";
+  else if (e == EADDRNOTAVAIL)
+    *error = "cannot serve on " + address + ": no network interface has that address (on Linux: ip addr add " +
+             address + "/8 dev lo, or a private namespace, see scripts/netns-run.sh)";
+  else
+    *error = "cannot serve on " + address + ": GVCP port 3956: " + std::strerror(e);
+  return false;
 }
 
 }  // namespace
@@ -221,6 +256,7 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
 bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!LoadDeviceScenes(o, &base_config_, &origins_, &scenes_, error)) return false;
   address_ = o.address;
+  prime_first_frame_ = o.prime_first_frame;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
   host::RunConfig finished;
   if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
@@ -259,12 +295,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   trigger_ = o.trigger;
   strobe_ = o.strobe;
   if (!o.trigger_line.empty()) {
-    own_trigger_ = hal::OpenGpiodInput(o.trigger_line, "camsim-gige trigger", error);
+    own_trigger_ = hal::OpenInputLine(o.trigger_line, "camsim-gige trigger", error);
     if (!own_trigger_) return false;
     trigger_ = own_trigger_.get();
   }
   if (!o.strobe_line.empty()) {
-    own_strobe_ = hal::OpenGpiodOutput(o.strobe_line, "camsim-gige strobe", error);
+    own_strobe_ = hal::OpenOutputLine(o.strobe_line, "camsim-gige strobe", error);
     if (!own_strobe_) return false;
     strobe_ = own_strobe_.get();
   }
@@ -286,6 +322,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!io::WriteTextFile(xml_path_, xml, error)) return false;
 
   if (o.serve) {
+    if (!CheckGvcpAddress(o.address, error)) return false;
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
     if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
       *error = "cannot serve on " + o.address +
@@ -640,8 +677,16 @@ void GigeDevice::TriggerLoop() {
     std::lock_guard<std::mutex> lock(mutex_);
     const hal::Edge want = Applied(reg::kTriggerActivation) == 0 ? hal::Edge::kRising : hal::Edge::kFalling;
     if (edge == want && Read(reg::kAcquisition) != 0 && Applied(reg::kTriggerMode) == 1 &&
-        Applied(reg::kTriggerSource) == kSourceLine0)
+        Applied(reg::kTriggerSource) == kSourceLine0) {
+      // A trigger bus pulse names the frame to take: every camera of the rig
+      // renders the same frame index, also after a missed pulse.
+      uint32_t index = 0;
+      if (trigger_->LastEdgeIndex(&index)) {
+        SetApplied(reg::kSimFrameIndex, index & 0x7fffffff);
+        WriteDerived();
+      }
       Write(reg::kFakeTriggerSoftware, 1);
+    }
   }
 }
 
@@ -681,8 +726,68 @@ void GigeDevice::AutoAdjust(double frac) {
 }
 
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
+  uint64_t dest = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const bool first = !was_acquiring_;
+    FillLocked(buffer, pixel_format);
+    dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
+    if (!gv_ || !prime_first_frame_ || dest == 0 || (!first && dest == primed_dest_)) return;
+    primed_dest_ = dest;
+  }
+  PrimeReceiver(buffer, dest);
+}
+
+void GigeDevice::PrimeReceiver(ArvBuffer* buffer, uint64_t dest) {
+  // Aravis's receiver (arvgvstream.c, 0.8.26) sets its socket buffer size
+  // (the stream's socket-buffer-size) only when the first packet of a frame
+  // arrives. The fake camera sends a frame as one burst right after this
+  // callback, so the first frame of a stream would meet the default
+  // net.core.rmem_default buffer (212992 B: about 16 packets of 9000 B) and
+  // lose the rest. Sending that frame's leader now, and waiting, lets the
+  // receiver grow its buffer first; the fake camera's own leader then arrives
+  // as a duplicate, which receivers ignore.
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return;
+  sockaddr_in from{}, to{};
+  from.sin_family = to.sin_family = AF_INET;
+  inet_pton(AF_INET, address_.c_str(), &from.sin_addr);  // from the camera's address
+  to.sin_addr.s_addr = htonl(static_cast<uint32_t>(dest >> 16));
+  to.sin_port = htons(static_cast<uint16_t>(dest & 0xffff));
+  uint8_t p[kGvspLeaderBytes] = {};
+  auto put16 = [&](int at, uint32_t v) {
+    p[at] = static_cast<uint8_t>(v >> 8);
+    p[at + 1] = static_cast<uint8_t>(v);
+  };
+  auto put32 = [&](int at, uint32_t v) {
+    put16(at, v >> 16);
+    put16(at + 2, v & 0xffff);
+  };
+  // GVSP header (GigE Vision 1.x, standard ids): status 0, block id, then
+  // packet format 1 (data leader) in the top byte of a word whose low 24 bits
+  // are the packet id 0.
+  put16(2, static_cast<uint32_t>(arv_buffer_get_frame_id(buffer) & 0xffff));
+  p[4] = 0x01;
+  // Image data leader: flags 0, payload type 1 (image), 64-bit timestamp,
+  // pixel format, size x/y, offset x/y, padding x/y 0 -- the values the fake
+  // camera puts in its own leader.
+  put16(10, 0x0001);
+  const uint64_t ts = arv_buffer_get_timestamp(buffer);
+  put32(12, static_cast<uint32_t>(ts >> 32));
+  put32(16, static_cast<uint32_t>(ts & 0xffffffff));
+  put32(20, arv_buffer_get_image_pixel_format(buffer));
+  put32(24, static_cast<uint32_t>(arv_buffer_get_image_width(buffer)));
+  put32(28, static_cast<uint32_t>(arv_buffer_get_image_height(buffer)));
+  put32(32, static_cast<uint32_t>(arv_buffer_get_image_x(buffer)));
+  put32(36, static_cast<uint32_t>(arv_buffer_get_image_y(buffer)));
+  if (bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from) == 0)
+    sendto(fd, p, sizeof p, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+  close(fd);
+  std::this_thread::sleep_for(std::chrono::milliseconds(kPrimeDelayMs));
+}
+
+void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   using namespace reg;
-  std::lock_guard<std::mutex> lock(mutex_);
   Sync();
   if (!was_acquiring_) {
     was_acquiring_ = true;
@@ -724,6 +829,7 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
   }
   const bool strobe = strobe_ && Applied(kLineSource) == kLineSourceExposureActive;
   std::string line_error;
+  if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   if (strobe && !strobe_->Set(true, &line_error)) line_error_ = line_error;
   renderer_->Render(index, taps, n, nullptr);
   if (strobe && !strobe_->Set(false, &line_error)) line_error_ = line_error;

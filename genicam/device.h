@@ -53,6 +53,9 @@ struct DeviceOptions {
   hal::OutputLine* strobe = nullptr;
   int threads = 2, strip_rows = 16;
   std::string xml_path;  // where the generated XML is written; empty: a file in $TMPDIR
+  // Send the first frame's GVSP leader ahead of the frame so an Aravis
+  // receiver has grown its socket buffer before the burst (GigeDevice::PrimeReceiver).
+  bool prime_first_frame = true;
   // false: no network and no threads (register logic only: fuzzing, unit
   // tests); drive it with WriteMemory / SyncNow / RenderNow.
   bool serve = true;
@@ -115,6 +118,8 @@ class GigeDevice {
   bool Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
+  void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
+  void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
   void AutoAdjust(double mean_fraction);  // under mutex_
   void RestartStream();  // not under mutex_
   void SyncLoop();
@@ -156,6 +161,8 @@ class GigeDevice {
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
   bool restart_stream_ = false;
   std::string address_;
+  bool prime_first_frame_ = true;
+  uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
 };
 
 }  // namespace camsim::genicam

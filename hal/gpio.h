@@ -1,9 +1,12 @@
 // Trigger input and strobe output lines. The device sees only these
 // interfaces; OpenGpiod* back them with libgpiod (v1 API, Linux GPIO
-// character devices), MemoryLine with a variable (tests, rigs in one process).
+// character devices), OpenBus* with a loopback trigger bus (UNIX datagram
+// sockets in a directory: a multi-camera rig on one host), MemoryLine with a
+// variable (tests).
 #pragma once
 
 #include <condition_variable>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -19,6 +22,9 @@ class InputLine {
   // -1: the line failed (error text in *error).
   virtual int WaitEdge(int timeout_ms, Edge* edge, std::string* error) = 0;
   virtual std::string Name() const = 0;
+  // The frame index the last edge WaitEdge returned carried (a trigger bus
+  // pulse does); false for lines without one (GPIO).
+  virtual bool LastEdgeIndex(uint32_t* /*index*/) const { return false; }
 };
 
 class OutputLine {
@@ -26,6 +32,8 @@ class OutputLine {
   virtual ~OutputLine() = default;
   virtual bool Set(bool high, std::string* error) = 0;
   virtual std::string Name() const = 0;
+  // The frame index the next edges carry (a trigger bus sends it; GPIO ignores it).
+  virtual void SetEdgeIndex(uint32_t /*index*/) {}
 };
 
 // "CHIP:OFFSET": CHIP is a gpiochip name (gpiochip0), number (0) or path
@@ -36,6 +44,55 @@ bool ParseLineSpec(const std::string& spec, std::string* chip, unsigned* offset,
 // cannot be opened or requested.
 std::unique_ptr<InputLine> OpenGpiodInput(const std::string& spec, const std::string& consumer, std::string* error);
 std::unique_ptr<OutputLine> OpenGpiodOutput(const std::string& spec, const std::string& consumer, std::string* error);
+
+// Any line by its spec: "unix:DIR" is a trigger bus (below), anything else
+// CHIP:OFFSET for libgpiod.
+std::unique_ptr<InputLine> OpenInputLine(const std::string& spec, const std::string& consumer, std::string* error);
+std::unique_ptr<OutputLine> OpenOutputLine(const std::string& spec, const std::string& consumer, std::string* error);
+
+// Loopback trigger bus "unix:DIR": a stand-in for a trigger wire shared by the
+// cameras of a rig where no GPIO chip exists. Each input (a camera's Line0)
+// binds a datagram socket DIR/line-<pid>-<n>.sock (DIR is created if missing,
+// its parent must exist); an output (camsim-trigger, or a master camera's
+// strobe) sends every edge to all sockets in DIR. An edge is one datagram
+// (TriggerBusMessage) carrying its level and a frame index, so a camera that
+// missed pulses still renders the same frame index as the others.
+inline constexpr char kBusScheme[] = "unix:";
+bool IsBusSpec(const std::string& spec);
+// The directory of "unix:DIR"; false and a message naming the spec if it is not one.
+bool ParseBusSpec(const std::string& spec, std::string* dir, std::string* error);
+
+// One edge on the bus: 16 bytes, little-endian.
+struct TriggerBusMessage {
+  static constexpr uint32_t kMagic = 0x42545343;  // "CSTB" (camsim trigger bus)
+  static constexpr uint8_t kVersion = 1;
+  bool rising = true;
+  uint32_t frame_index = 0;
+  uint32_t sequence = 0;  // the sender's edge count (diagnostics)
+  void Encode(uint8_t out[16]) const;
+  static bool Decode(const uint8_t* data, size_t size, TriggerBusMessage* out);
+};
+
+std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* error);
+
+class BusOutput : public OutputLine {
+ public:
+  BusOutput(std::string spec, std::string dir) : spec_(std::move(spec)), dir_(std::move(dir)) {}
+  ~BusOutput() override;
+  // Sends the edge to every input on the bus (no edge when the level is unchanged).
+  bool Set(bool high, std::string* error) override;
+  std::string Name() const override { return spec_; }
+  void SetEdgeIndex(uint32_t index) override { index_ = index; }
+  int last_receivers() const { return receivers_; }  // inputs the last edge reached
+
+ private:
+  std::string spec_, dir_;
+  int fd_ = -1;
+  bool level_ = false;
+  uint32_t index_ = 0, sequence_ = 0;
+  int receivers_ = 0;
+};
+std::unique_ptr<BusOutput> OpenBusOutput(const std::string& spec, std::string* error);
 
 // A line in memory: Set() on it (as an output) wakes WaitEdge() (as an input).
 class MemoryLine : public InputLine, public OutputLine {

@@ -4,6 +4,8 @@
 #   scripts/install-deps.sh              the native build's packages
 #   scripts/install-deps.sh PACKAGE...   these instead (scripts/cross.sh and
 #                                        scripts/baremetal.sh pass their toolchains)
+#   scripts/install-deps.sh --doc        optional doc tooling, not CI: Aravis's viewer
+#                                        under Xvfb for scripts/viewer-screenshot.sh
 set -euo pipefail
 
 packages=(
@@ -13,8 +15,16 @@ packages=(
   libopencv-dev   # test and bench peers only: never linked by the core or the tools
   # camsim-gige: Aravis (its pkg-config file needs libusb-1.0's), its CLI tools, libgpiod v1
   libaravis-dev libusb-1.0-0-dev aravis-tools-cli libgpiod-dev
+  iproute2   # scripts/netns-run.sh: 127.0.0.2/.3 for the rig and arv-tool tests (with util-linux's unshare)
 )
-[ $# -eq 0 ] || packages=("$@")
+# scripts/viewer-screenshot.sh: arv-viewer-0.8 and the GStreamer elements it
+# needs (appsrc/videoconvert, videoflip, gtksink), Xvfb, xdotool, ImageMagick's import.
+doc_packages=(
+  aravis-tools gstreamer1.0-plugins-base gstreamer1.0-plugins-good gstreamer1.0-gtk3
+  xvfb x11-apps xdotool imagemagick
+)
+if [ "${1:-}" = "--doc" ]; then packages=("${doc_packages[@]}")
+elif [ $# -gt 0 ]; then packages=("$@"); fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -29,6 +29,7 @@ class Client {
   bool ok() const { return camera_ != nullptr; }
   ArvCamera* camera() { return camera_; }
   ArvDevice* device() { return arv_camera_get_device(camera_); }
+  ArvStream* stream() { return stream_; }
   // Creates the stream with n buffers of the current payload and a 4 MiB socket buffer.
   bool OpenStream(int buffers = 4);
   // The next complete frame's bytes (empty on timeout or a failed buffer);

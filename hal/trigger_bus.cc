@@ -1,0 +1,223 @@
+// Loopback trigger bus backend of hal/gpio.h: UNIX datagram sockets in one
+// directory stand for a trigger wire shared by the cameras of a rig.
+#include <dirent.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+
+#include "hal/gpio.h"
+
+namespace camsim::hal {
+namespace {
+
+std::string Reason() { return std::strerror(errno); }
+
+void Put32(uint8_t* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+uint32_t Get32(const uint8_t* p) {
+  return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 | static_cast<uint32_t>(p[2]) << 16 |
+         static_cast<uint32_t>(p[3]) << 24;
+}
+
+// A socket path fits sockaddr_un's sun_path (108 bytes on Linux, with the NUL).
+bool MakeAddress(const std::string& path, sockaddr_un* a) {
+  if (path.size() + 1 > sizeof a->sun_path) return false;
+  std::memset(a, 0, sizeof *a);
+  a->sun_family = AF_UNIX;
+  std::memcpy(a->sun_path, path.c_str(), path.size() + 1);
+  return true;
+}
+
+// Socket names of the inputs: line-<pid>-<n>.sock (n counts the process's inputs).
+std::atomic<unsigned> g_input_count{0};
+constexpr char kInputPrefix[] = "line-", kInputSuffix[] = ".sock";
+
+class BusInput : public InputLine {
+ public:
+  BusInput(std::string spec, std::string path, int fd) : spec_(std::move(spec)), path_(std::move(path)), fd_(fd) {}
+  ~BusInput() override {
+    close(fd_);
+    unlink(path_.c_str());
+  }
+  int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override {
+    for (;;) {
+      pollfd p{fd_, POLLIN, 0};
+      const int r = poll(&p, 1, timeout_ms);
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) {
+        *error = "trigger bus '" + spec_ + "': " + Reason();
+        return -1;
+      }
+      if (r == 0) return 0;
+      uint8_t buf[64];
+      const ssize_t n = recv(fd_, buf, sizeof buf, 0);
+      if (n < 0) {
+        if (errno == EINTR || errno == EAGAIN) continue;
+        *error = "trigger bus '" + spec_ + "': " + Reason();
+        return -1;
+      }
+      TriggerBusMessage m;
+      if (!TriggerBusMessage::Decode(buf, static_cast<size_t>(n), &m)) continue;  // not a bus edge: ignored
+      *edge = m.rising ? Edge::kRising : Edge::kFalling;
+      index_ = m.frame_index;
+      return 1;
+    }
+  }
+  std::string Name() const override { return spec_; }
+  bool LastEdgeIndex(uint32_t* index) const override {
+    *index = index_;
+    return true;
+  }
+
+ private:
+  std::string spec_, path_;
+  int fd_;
+  uint32_t index_ = 0;
+};
+
+}  // namespace
+
+void TriggerBusMessage::Encode(uint8_t out[16]) const {
+  Put32(out, kMagic);
+  out[4] = kVersion;
+  out[5] = rising ? 1 : 0;
+  out[6] = out[7] = 0;
+  Put32(out + 8, frame_index);
+  Put32(out + 12, sequence);
+}
+
+bool TriggerBusMessage::Decode(const uint8_t* data, size_t size, TriggerBusMessage* out) {
+  if (size != 16 || Get32(data) != kMagic || data[4] != kVersion || data[5] > 1) return false;
+  out->rising = data[5] == 1;
+  out->frame_index = Get32(data + 8);
+  out->sequence = Get32(data + 12);
+  return true;
+}
+
+bool IsBusSpec(const std::string& spec) { return spec.rfind(kBusScheme, 0) == 0; }
+
+bool ParseBusSpec(const std::string& spec, std::string* dir, std::string* error) {
+  if (!IsBusSpec(spec) || spec.size() == sizeof kBusScheme - 1) {
+    *error = "trigger bus '" + spec + "': expected unix:DIR (a directory for the bus's sockets)";
+    return false;
+  }
+  *dir = spec.substr(sizeof kBusScheme - 1);
+  while (dir->size() > 1 && dir->back() == '/') dir->pop_back();
+  return true;
+}
+
+std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* error) {
+  std::string dir;
+  if (!ParseBusSpec(spec, &dir, error)) return nullptr;
+  // The first member creates the bus directory; its parent must exist.
+  if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    *error = "trigger bus '" + spec + "': cannot create directory '" + dir + "': " + Reason();
+    return nullptr;
+  }
+  struct stat st;
+  if (stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    *error = "trigger bus '" + spec + "': '" + dir + "' is not a directory";
+    return nullptr;
+  }
+  const std::string path = dir + "/" + kInputPrefix + std::to_string(getpid()) + "-" +
+                           std::to_string(g_input_count++) + kInputSuffix;
+  sockaddr_un a;
+  if (!MakeAddress(path, &a)) {
+    *error = "trigger bus '" + spec + "': socket path '" + path + "' is longer than " +
+             std::to_string(sizeof a.sun_path - 1) + " bytes";
+    return nullptr;
+  }
+  const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    *error = "trigger bus '" + spec + "': socket: " + Reason();
+    return nullptr;
+  }
+  unlink(path.c_str());  // a stale socket of a killed process with this pid
+  if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    *error = "trigger bus '" + spec + "': cannot bind '" + path + "': " + Reason();
+    close(fd);
+    return nullptr;
+  }
+  return std::make_unique<BusInput>(spec, path, fd);
+}
+
+BusOutput::~BusOutput() {
+  if (fd_ >= 0) close(fd_);
+}
+
+bool BusOutput::Set(bool high, std::string* error) {
+  if (high == level_) return true;
+  level_ = high;
+  TriggerBusMessage m;
+  m.rising = high;
+  m.frame_index = index_;
+  m.sequence = ++sequence_;
+  uint8_t msg[16];
+  m.Encode(msg);
+  if (fd_ < 0) fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  DIR* d = opendir(dir_.c_str());
+  if (fd_ < 0 || !d) {
+    *error = "trigger bus '" + spec_ + "': cannot open directory '" + dir_ + "': " + Reason();
+    if (d) closedir(d);
+    return false;
+  }
+  receivers_ = 0;
+  const size_t prefix = sizeof kInputPrefix - 1, suffix = sizeof kInputSuffix - 1;
+  while (const dirent* e = readdir(d)) {
+    const std::string name = e->d_name;
+    if (name.size() <= prefix + suffix || name.compare(0, prefix, kInputPrefix) != 0 ||
+        name.compare(name.size() - suffix, suffix, kInputSuffix) != 0)
+      continue;
+    sockaddr_un a;
+    if (!MakeAddress(dir_ + "/" + name, &a)) continue;
+    // A socket left by a killed process refuses (ECONNREFUSED): skipped.
+    if (sendto(fd_, msg, sizeof msg, MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&a), sizeof a) == sizeof msg)
+      ++receivers_;
+  }
+  closedir(d);
+  return true;
+}
+
+std::unique_ptr<BusOutput> OpenBusOutput(const std::string& spec, std::string* error) {
+  std::string dir;
+  if (!ParseBusSpec(spec, &dir, error)) return nullptr;
+  struct stat st;
+  if (stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    *error = "trigger bus '" + spec + "': no bus directory '" + dir + "' (start a camera on it first)";
+    return nullptr;
+  }
+  return std::make_unique<BusOutput>(spec, dir);
+}
+
+// "udp:..." and the like: a scheme that is not ours (a gpiochip name has no scheme).
+bool UnknownScheme(const std::string& spec, std::string* error) {
+  for (const char* s : {"udp:", "tcp:", "unix-stream:", "bus:"})
+    if (spec.rfind(s, 0) == 0) {
+      *error = "line '" + spec + "': unknown kind '" + std::string(s) +
+               "'; a trigger bus is unix:DIR, a GPIO line CHIP:OFFSET";
+      return true;
+    }
+  return false;
+}
+
+std::unique_ptr<InputLine> OpenInputLine(const std::string& spec, const std::string& consumer, std::string* error) {
+  if (IsBusSpec(spec)) return OpenBusInput(spec, error);
+  if (UnknownScheme(spec, error)) return nullptr;
+  return OpenGpiodInput(spec, consumer, error);
+}
+
+std::unique_ptr<OutputLine> OpenOutputLine(const std::string& spec, const std::string& consumer,
+                                           std::string* error) {
+  if (IsBusSpec(spec)) return OpenBusOutput(spec, error);
+  if (UnknownScheme(spec, error)) return nullptr;
+  return OpenGpiodOutput(spec, consumer, error);
+}
+
+}  // namespace camsim::hal
