@@ -196,51 +196,59 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
       const uint32_t* in = a.rows[0].ch[c] + x0;
       uint32_t* out = a.out[c] + x0;
-      for (int i = 0; i < n; ++i) {
-        const int lane = i >> 1, w = (i & 1) * 2;  // this pixel's words: w and w + 1 of its lane
-        // Mean charge, Q24.8.
-        uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
-        int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
-        uint32_t dark = dark_q8_;
-        if (patterns) {
-          const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[w][lane]), 16);  // Q1.16
-          mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
-          dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[w + 1][lane]), 16);
-        }
-        if (defects && d.v[w][lane] < stuck_below_) {
-          const uint32_t u = d.v[w][lane];
-          if (u < hot_below_) {
-            // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
-            const uint64_t factor = (uint64_t{1} << 31) + d.v[w + 1][lane];
-            dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
-          } else if (u < dead_below_) {
-            mu = 0;
-            dark = 0;
-          } else {
-            out[i] = static_cast<uint32_t>(max_dn_);  // stuck
-            continue;
+      // Pixel pairs: unrolled over the parity, so that each copy has its
+      // words (w, w + 1) and its colour's QE fixed.
+      for (int lane = 0; 2 * lane < n; ++lane) {
+#pragma GCC unroll 2
+        for (int parity = 0; parity < 2; ++parity) {
+          const int i = 2 * lane + parity;
+          if (i >= n) break;
+          const int w = parity * 2;  // this pixel's words: w and w + 1 of its lane
+          // Mean charge, Q24.8.
+          uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
+          int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
+          uint32_t dark = dark_q8_;
+          if (patterns) {
+            const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[w][lane]), 16);  // Q1.16
+            mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
+            dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[w + 1][lane]), 16);
           }
+          if (defects && d.v[w][lane] < stuck_below_) {
+            const uint32_t u = d.v[w][lane];
+            if (u < hot_below_) {
+              // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
+              const uint64_t factor = (uint64_t{1} << 31) + d.v[w + 1][lane];
+              dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
+            } else if (u < dead_below_) {
+              mu = 0;
+              dark = 0;
+            } else {
+              out[i] = static_cast<uint32_t>(max_dn_);  // stuck
+              continue;
+            }
+          }
+          if (column_offset != nullptr) dsnu += column_offset[x0 + i];
+          if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
+          const uint32_t mean_q8 = SatU32(mu + dark);
+
+          // Collected charge, Q.8, clipped at the full well.
+          // One word drives the Poisson draw: as u below 12 e- (inverse
+          // transform), as z = Gaussian(u) above (the normal approximation).
+          const uint32_t pu = t.v[w][lane];
+          uint64_t n_q8 = shot_noise
+                              ? static_cast<uint64_t>(mean_q8 < PoissonTable::kSmallQ8
+                                                          ? poisson_.Sample(mean_q8, pu, 0)
+                                                          : poisson_.Sample(mean_q8, pu, gauss_.Sample(pu))) << 8
+                              : mean_q8;
+          if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
+          electrons[i & 1] += static_cast<int64_t>(n_q8);
+
+          // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
+          const int64_t read = RoundShift(read_q8_ * gauss_.Sample(t.v[w + 1][lane]), 16);
+          const int64_t v = static_cast<int64_t>(n_q8) + dsnu + read;
+          const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
+          out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
         }
-        if (column_offset != nullptr) dsnu += column_offset[x0 + i];
-        if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
-        const uint32_t mean_q8 = SatU32(mu + dark);
-
-        // Collected charge, Q.8, clipped at the full well.
-        // One word drives the Poisson draw: as u below 12 e- (inverse
-        // transform), as z = Gaussian(u) above (the normal approximation).
-        const uint32_t pu = t.v[w][lane];
-        uint64_t n_q8 = shot_noise
-                            ? static_cast<uint64_t>(mean_q8 < PoissonTable::kSmallQ8
-                                                        ? poisson_.Sample(mean_q8, pu, 0)
-                                                        : poisson_.Sample(mean_q8, pu, gauss_.Sample(pu))) << 8
-                            : mean_q8;
-        if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
-        electrons[i & 1] += static_cast<int64_t>(n_q8);
-
-        // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
-        const int64_t v = static_cast<int64_t>(n_q8) + dsnu + RoundShift(read_q8_ * gauss_.Sample(t.v[w + 1][lane]), 16);
-        const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
-        out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
       }
     }
     if (a.stats != nullptr) {
