@@ -201,6 +201,56 @@ void BM_PipelineLens(benchmark::State& state) {
 }
 BENCHMARK(BM_PipelineLens)->Args({1920, 1080, 1})->Args({1920, 1080, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The "sensor path" to raw Bayer: the demo camera behind the typical
+// lens (distortion Lanczos-3), cut after the sensor: distortion (CFA site
+// only), exposure, vignetting cos4, CFA, sensor (EMVA noise, PRNU/DSNU,
+// ADC). Raw 12-bit Bayer written to memory. Target: >= 120 fps on one thread.
+PipelineConfig SensorPath(int w, int h) {
+  PipelineConfig c = Demo(w, h);
+  c.distortion.lens = TypicalLens(w, h);
+  c.distortion.filter = ResampleFilter::kLanczos3;
+  for (int i = 0; i < c.order_count; ++i)
+    if (c.order[i] == StageId::kSensor) c.order_count = i + 1;
+  return c;
+}
+void BM_SensorPath(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  RunPipeline(state, SensorPath(w, h), static_cast<int>(state.range(2)));
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_SensorPath)
+    ->Args({1920, 1080, 1})
+    ->Args({1920, 1080, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// Each running stage of the sensor path alone (StageRunner, one thread), so
+// the rows of SensorPathStage/1920/1080/i add up to about SensorPath.
+void BM_SensorPathStage(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  const int index = static_cast<int>(state.range(2));
+  Pipeline p;
+  if (!p.Configure(SensorPath(w, h), 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  if (index >= p.plan().running) {
+    state.SkipWithError("the sensor path has fewer running stages");
+    return;
+  }
+  const FrameInput in = Scene(w).View();
+  bench::StageRunner runner(p, index, in, 1);
+  uint32_t frame = 0;
+  for (auto _ : state) runner.RunFrame(frame++);
+  state.SetLabel(runner.stage().name());
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_SensorPathStage)
+    ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 #ifdef CAMSIM_BENCH_OPENCV
 // OpenCV's cv::remap on the same machine, one thread (cv::setNumThreads(1)),
 // 1920x1080 3-channel float, maps from cv::initUndistortRectifyMap with the

@@ -143,23 +143,25 @@ Status SensorStage::Init(Arena& tables) {
   return Status::Ok();
 }
 
-// Pixels go in blocks of kBlock: the Philox words of a whole block are drawn
-// first (DrawBitsLanes: vectorised, the lanes overlap), then each pixel
-// consumes its words. Lanes of a last, partial block beyond the row's end are
+// Pixels go in blocks of kBlock = 2 lanes: one Philox4x32 call (4 words)
+// serves two neighbouring pixels, x using words 2 (x & 1) and 2 (x & 1) + 1
+// of the call with counter x >> 1 (emva.h, "Random words"). The words of a
+// whole block are drawn first (DrawBitsLanes: vectorised, the lanes
+// overlap), then each pixel consumes its words. Lanes of a last, partial block beyond the row's end are
 // drawn and never used (every word is a pure function of its key, so that
 // changes nothing). Even and odd columns have one CFA colour each (x0 is a
-// multiple of kBlock, so column parity is lane parity): qe and the electron
+// multiple of kBlock, so column parity is the parity of i): qe and the electron
 // sums are indexed by parity. The arithmetic is bit for bit the model in
 // emva.h; without patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu *
 // 65536 < 2^49 rounds back to mu) and the DSNU term 0, so both are skipped.
 // The two switches are tested per pixel but never change within a row, so the
 // branches cost nothing (specialised copies of the loop measured no faster).
 void SensorStage::ProcessRow(const RowArgs& a) const {
-  constexpr int kBlock = RandomLanes::kLanes;
-  static_assert(kBlock % 2 == 0, "blocks start on even columns: lane parity is column parity");
+  constexpr int kBlock = 2 * RandomLanes::kLanes;
+  static_assert(kBlock % 2 == 0, "blocks start on even columns: the parity of i is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
   const bool defects = stuck_below_ != 0;
-  const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0 || defects;
+  const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
   // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
@@ -185,27 +187,39 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
-      RandomLanes t;  // temporal: Poisson u, Poisson z, read noise z
-      DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, static_cast<uint32_t>(x0), y, channel, &t);
-      RandomLanes f;  // fixed pattern: PRNU z, DSNU z, defect class u, hot-pixel strength u'
-      if (patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x0), y, channel, &f);
+      const uint32_t pair0 = static_cast<uint32_t>(x0) >> 1;  // counter of the block's first pixel pair
+      RandomLanes t;  // temporal: Poisson word, read noise z
+      DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, pair0, y, channel, &t);
+      RandomLanes f;  // fixed pattern: PRNU z, DSNU z
+      if (patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
+      RandomLanes d;  // defects: class u, hot-pixel strength u'
+      if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
       const uint32_t* in = a.rows[0].ch[c] + x0;
       uint32_t* out = a.out[c] + x0;
-      for (int i = 0; i < n; ++i) {
-        // Mean charge, Q24.8.
-        uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
-        int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
-        uint32_t dark = dark_q8_;
-        if (patterns) {
-          const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[0][i]), 16);  // Q1.16
-          mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
-          dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[1][i]), 16);
-          if (defects && f.v[2][i] < stuck_below_) {
-            if (f.v[2][i] < hot_below_) {
+      // Pixel pairs: unrolled over the parity, so that each copy has its
+      // words (w, w + 1) and its colour's QE fixed.
+      for (int lane = 0; 2 * lane < n; ++lane) {
+#pragma GCC unroll 2
+        for (int parity = 0; parity < 2; ++parity) {
+          const int i = 2 * lane + parity;
+          if (i >= n) break;
+          const int w = parity * 2;  // this pixel's words: w and w + 1 of its lane
+          // Mean charge, Q24.8.
+          uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
+          int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
+          uint32_t dark = dark_q8_;
+          if (patterns) {
+            const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[w][lane]), 16);  // Q1.16
+            mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
+            dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[w + 1][lane]), 16);
+          }
+          if (defects && d.v[w][lane] < stuck_below_) {
+            const uint32_t u = d.v[w][lane];
+            if (u < hot_below_) {
               // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
-              const uint64_t factor = (uint64_t{1} << 31) + f.v[3][i];
+              const uint64_t factor = (uint64_t{1} << 31) + d.v[w + 1][lane];
               dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
-            } else if (f.v[2][i] < dead_below_) {
+            } else if (u < dead_below_) {
               mu = 0;
               dark = 0;
             } else {
@@ -213,22 +227,28 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
               continue;
             }
           }
+          if (column_offset != nullptr) dsnu += column_offset[x0 + i];
+          if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
+          const uint32_t mean_q8 = SatU32(mu + dark);
+
+          // Collected charge, Q.8, clipped at the full well.
+          // One word drives the Poisson draw: as u below 12 e- (inverse
+          // transform), as z = Gaussian(u) above (the normal approximation).
+          const uint32_t pu = t.v[w][lane];
+          uint64_t n_q8 = shot_noise
+                              ? static_cast<uint64_t>(mean_q8 < PoissonTable::kSmallQ8
+                                                          ? poisson_.Sample(mean_q8, pu, 0)
+                                                          : poisson_.Sample(mean_q8, pu, gauss_.Sample(pu))) << 8
+                              : mean_q8;
+          if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
+          electrons[i & 1] += static_cast<int64_t>(n_q8);
+
+          // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
+          const int64_t read = RoundShift(read_q8_ * gauss_.Sample(t.v[w + 1][lane]), 16);
+          const int64_t v = static_cast<int64_t>(n_q8) + dsnu + read;
+          const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
+          out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
         }
-        if (column_offset != nullptr) dsnu += column_offset[x0 + i];
-        if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
-        const uint32_t mean_q8 = SatU32(mu + dark);
-
-        // Collected charge, Q.8, clipped at the full well.
-        uint64_t n_q8 = shot_noise
-                            ? static_cast<uint64_t>(poisson_.Sample(mean_q8, t.v[0][i], gauss_.Sample(t.v[1][i]))) << 8
-                            : mean_q8;
-        if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
-        electrons[i & 1] += static_cast<int64_t>(n_q8);
-
-        // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
-        const int64_t v = static_cast<int64_t>(n_q8) + dsnu + RoundShift(read_q8_ * gauss_.Sample(t.v[2][i]), 16);
-        const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
-        out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
       }
     }
     if (a.stats != nullptr) {

@@ -6,7 +6,21 @@
 //   v     = n + dsnu * z2 + dark_noise * z3             offset pattern, read noise
 //   DN    = clamp(round(K * v) + black_level, 0, 2^bits - 1)
 // z1, z2: fixed-pattern normals keyed by (seed, x, y) only, the same every
-// frame; z3 and the Poisson draw: keyed by (seed, frame, x, y). K is the
+// frame; z3 and the Poisson draw: keyed by (seed, frame, x, y).
+//
+// Random words: one Philox4x32 call (4 words) serves the pixel pair
+// (2j, 2j + 1) of a row: pixel x takes words 2 (x & 1) and 2 (x & 1) + 1 of
+// DrawBits(seed, stream, frame, x >> 1, y, channel), per stream:
+//   temporal (frame):   Poisson word p, read noise z3 = G(next word);
+//                       p is u of the exact inverse transform below 12 e-,
+//                       and gives the normal approximation's z = G(p) above
+//                       (one of the two is used, never both);
+//   fixed pattern (0):  z1 = G(word), z2 = G(next word), drawn only when
+//                       PRNU or DSNU is on;
+//   defects (0):        class u, strength u' (below), drawn only when a
+//                       defect fraction is on.
+// G = GaussianTable::Sample. Sharing a call between two pixels halves the
+// Philox work (the sensor's largest cost: docs/performance.md). K is the
 // system gain at 0 dB times 10^(gain_db / 20) (the analog gain, which is eq.
 // 7's "ISO" term). Quantisation noise (1/12 DN^2) comes from the rounding, so
 // the temporal variance is sigma_y^2 = K^2 (sigma_d^2 + mu_e) + 1/12.
@@ -15,10 +29,10 @@
 //   row / column FPN: offsets z_row(y) * row_fpn_e and z_col(x) * column_fpn_e
 //     added to v like the DSNU (fixed: keyed by (seed, y) and (seed, x) only;
 //     the column offsets are a table built at Init, one int32 per column).
-//   defect pixels (a seeded map): the fixed-pattern draw's third word u picks
+//   defect pixels (a seeded map): the defect draw's first word u picks
 //     hot   (u < h):           extra dark charge hot_pixel_dark_e_per_s * t
 //                              * 2^((T - T_ref) / T_double) * (0.5 + u'),
-//                              u' uniform in [0, 1) from the fourth word (a
+//                              u' uniform in [0, 1) from its second word (a
 //                              spread of hot-pixel strengths), with shot noise;
 //     dead  (h <= u < h + d):  no photo or dark charge (offsets and read noise remain);
 //     stuck (h + d <= u < h + d + s): output stuck at 2^bits - 1.
@@ -73,6 +87,7 @@ struct SensorConfig {
 inline constexpr uint32_t kStreamSensorTemporal = 1;
 inline constexpr uint32_t kStreamSensorFixedPattern = 2;
 inline constexpr uint32_t kStreamSensorRowColumn = 3;  // row FPN at (0, y), column FPN at (x, 0)
+inline constexpr uint32_t kStreamSensorDefects = 4;    // defect class and hot-pixel strength
 
 class SensorStage final : public Stage {
  public:

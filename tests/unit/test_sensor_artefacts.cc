@@ -62,6 +62,34 @@ TEST(SensorArtefacts, RowAndColumnFpnMeasureAsConfigured) {
   for (int x = 0; x < kW; ++x) EXPECT_NEAR(img[3 * kW + x] - col_mean[x], row_mean[3] - 200.0, 1.5) << x;
 }
 
+// Defect words come from their own stream (emva.h, "Random words"): turning
+// defects on leaves the PRNU/DSNU pattern and the temporal noise of every
+// other pixel exactly as it was, and changes the defect pixels only.
+TEST(SensorArtefacts, DefectsLeaveOtherPixelsUnchanged) {
+  constexpr int kW = 256, kH = 128;
+  PipelineConfig c = SensorPath(kW, kH);
+  c.sensor.prnu_percent = 2.0;
+  c.sensor.dsnu_e = 3.0;
+  auto plain = test::Build(c);
+  c.sensor.dead_pixel_fraction = 0.01;
+  auto with_defects = test::Build(c);
+  ASSERT_TRUE(plain->status.ok()) << plain->status.message();
+  ASSERT_TRUE(with_defects->status.ok()) << with_defects->status.message();
+  const test::Scene lit = test::FlatScene(kW, kH, 6, 6, 6);  // ~3900 e-: dead pixels stand out
+  const auto a = test::RunFrame(*plain, lit, 4, 16);
+  const auto b = test::RunFrame(*with_defects, lit, 4, 16);
+  ASSERT_EQ(a.size(), b.size());
+  int changed = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i] == b[i]) continue;
+    ++changed;
+    EXPECT_LT(b[i], c.sensor.black_level_dn + 30) << i;  // a changed pixel is a dead one
+  }
+  // Binomial: N p = 327.68, sd ~ 18; 4 sd.
+  const double n = kW * kH * 0.01;
+  EXPECT_NEAR(changed, n, 4 * std::sqrt(n));
+}
+
 struct DefectCounts {
   int hot = 0, dead = 0, stuck = 0;
 };
