@@ -532,5 +532,28 @@ TEST(DofPipelineTest, MissingDepthIsAnErrorNamingTheKey) {
   EXPECT_EQ(std::string(st.field()), "dof.method");
 }
 
+// fuzz_core found an order with dof_columns but not dof_rows: the column pass
+// then read coefficient tables nobody had built. It is a configuration error.
+TEST(DofPipelineTest, ColumnsWithoutRowsIsAnErrorNamingTheKey) {
+  for (const bool rows_after : {false, true}) {
+    PipelineConfig p = DofPipeline(16, 16, DofMethod::kDiffusion);
+    if (rows_after) {  // both run, but in the wrong order
+      p.order[0] = StageId::kDofColumns;
+      p.order[1] = StageId::kDofRows;
+      p.order_count = 2;
+    } else {
+      p.order[0] = StageId::kDofColumns;
+      p.order_count = 1;
+    }
+    auto b = test::Build(p);
+    ASSERT_FALSE(b->status.ok()) << (rows_after ? "columns before rows" : "columns alone");
+    EXPECT_EQ(std::string(b->status.field()), "pipeline.stages");
+    EXPECT_NE(std::string(b->status.message()).find("dof_columns needs dof_rows"), std::string::npos)
+        << b->status.message();
+  }
+  // The same stages in the right order configure.
+  EXPECT_TRUE(test::Build(DofPipeline(16, 16, DofMethod::kDiffusion))->status.ok());
+}
+
 }  // namespace
 }  // namespace camsim
