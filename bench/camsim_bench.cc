@@ -24,6 +24,7 @@
 #include <opencv2/imgproc.hpp>
 #endif
 
+#include "tests/support/fixtures.h"
 #include "bench/bench_common.h"
 #include "bench/stage_bench.h"
 #include "core/base/random.h"
@@ -151,21 +152,6 @@ BENCHMARK(BM_MotionBlur)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
-// A typical calibration scaled to the frame (OpenCV sample magnitudes):
-// barrel k1 -0.28, k2 0.07, k3 0.01, small tangential terms, fx = 0.78 W.
-LensModel TypicalLens(int w, int h) {
-  LensModel m;
-  m.model = DistortionModel::kBrown;
-  m.fx = m.fy = 0.78 * w;
-  m.cx = (w - 1) / 2.0 + 3.25;
-  m.cy = (h - 1) / 2.0 - 2.5;
-  m.k[0] = -0.28;
-  m.k[1] = 0.07;
-  m.k[2] = 0.01;
-  m.p1 = 0.0012;
-  m.p2 = -0.0007;
-  return m;
-}
 
 // Distortion/W/H/filter/mode, one thread. mode 0: the stage alone, all three
 // channels (radiance in, radiance out). mode 1: distortion -> exposure ->
@@ -176,7 +162,7 @@ void BM_Distortion(benchmark::State& state) {
   PipelineConfig c;
   c.geometry.width = w;
   c.geometry.height = h;
-  c.distortion.lens = TypicalLens(w, h);
+  c.distortion.lens = test::TypicalLens(w, h);
   c.distortion.filter = static_cast<ResampleFilter>(state.range(2));
   const bool site_only = state.range(3) != 0;
   c.order[0] = StageId::kDistortion;
@@ -196,7 +182,7 @@ BENCHMARK(BM_Distortion)
 void BM_PipelineLens(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   PipelineConfig c = Demo(w, h);
-  c.distortion.lens = TypicalLens(w, h);
+  c.distortion.lens = test::TypicalLens(w, h);
   RunPipeline(state, c, static_cast<int>(state.range(2)));
 }
 BENCHMARK(BM_PipelineLens)->Args({1920, 1080, 1})->Args({1920, 1080, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -207,7 +193,7 @@ BENCHMARK(BM_PipelineLens)->Args({1920, 1080, 1})->Args({1920, 1080, 2})->Unit(b
 // ADC). Raw 12-bit Bayer written to memory. Target: >= 120 fps on one thread.
 PipelineConfig SensorPath(int w, int h) {
   PipelineConfig c = Demo(w, h);
-  c.distortion.lens = TypicalLens(w, h);
+  c.distortion.lens = test::TypicalLens(w, h);
   c.distortion.filter = ResampleFilter::kLanczos3;
   for (int i = 0; i < c.order_count; ++i)
     if (c.order[i] == StageId::kSensor) c.order_count = i + 1;
@@ -259,7 +245,7 @@ BENCHMARK(BM_SensorPathStage)
 void BM_OpenCvRemap(benchmark::State& state) {
   const int w = 1920, h = 1080;
   cv::setNumThreads(1);
-  const LensModel m = TypicalLens(w, h);
+  const LensModel m = test::TypicalLens(w, h);
   const cv::Mat k = (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1);
   const cv::Mat d = (cv::Mat_<double>(5, 1) << m.k[0], m.k[1], m.p1, m.p2, m.k[2]);
   cv::Mat map1, map2;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/pipeline/pipeline.h"
+#include "tests/support/fixtures.h"
 
 namespace camsim::cross {
 
@@ -149,16 +150,12 @@ inline double DepthMetres(int width, int height, int x, int y) {
 // site's colour (the pipeline's site-only path).
 inline PipelineConfig LensConfig(int width, int height) {
   PipelineConfig c = DemoConfig(width, height);
+  // The typical lens, a little longer and nearer the centre.
   LensModel& m = c.distortion.lens;
-  m.model = DistortionModel::kBrown;
+  m = test::TypicalLens(width, height);
   m.fx = m.fy = 0.8 * width;
   m.cx = (width - 1) / 2.0 + 1.5;
   m.cy = (height - 1) / 2.0 - 0.75;
-  m.k[0] = -0.28;
-  m.k[1] = 0.07;
-  m.k[2] = 0.01;
-  m.p1 = 0.0012;
-  m.p2 = -0.0007;
   c.distortion.chromatic_scale[0] = 1.003;
   c.distortion.chromatic_scale[2] = 0.998;
   return c;

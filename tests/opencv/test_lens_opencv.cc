@@ -22,23 +22,16 @@
 
 #include "core/lens/distortion.h"
 #include "host_tools/pattern.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
 namespace {
 
+// The typical lens with fy a little larger than fx (non-square pixels).
 LensModel Brown(int w, int h) {
-  LensModel m;
-  m.model = DistortionModel::kBrown;
-  m.fx = 0.78 * w;
+  LensModel m = test::TypicalLens(w, h);
   m.fy = 0.781 * w;
-  m.cx = (w - 1) / 2.0 + 3.25;
-  m.cy = (h - 1) / 2.0 - 2.5;
-  m.k[0] = -0.28;
-  m.k[1] = 0.07;
-  m.k[2] = 0.01;
-  m.p1 = 0.0012;
-  m.p2 = -0.0007;
   return m;
 }
 

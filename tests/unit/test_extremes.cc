@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "core/isp/gamma.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -55,13 +56,7 @@ PipelineConfig Config(Variant v, int width, int height, bool noise) {
   c.geometry.width = width;
   c.vignetting.focal_length_px = 28.0 / 36.0 * std::max({width, height, 2});
   if (v == Variant::kMono) c.geometry.cfa = Cfa::kMono;
-  if (!noise) {
-    c.sensor.shot_noise = false;
-    c.sensor.dark_noise_e = 0.0;
-    c.sensor.dsnu_e = 0.0;
-    c.sensor.prnu_percent = 0.0;
-    c.sensor.dark_current_e_per_s = 0.0;
-  }
+  if (!noise) test::NoiseOff(&c.sensor);
   return c;
 }
 

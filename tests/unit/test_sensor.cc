@@ -8,6 +8,7 @@
 #include "core/aperture/exposure.h"
 #include "core/lens/vignetting.h"
 #include "core/sensor/emva.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -33,11 +34,7 @@ PipelineConfig SensorOnly(int w, int h, Cfa cfa) {
 
 SensorConfig Noiseless() {
   SensorConfig s;
-  s.shot_noise = false;
-  s.dark_noise_e = 0;
-  s.dsnu_e = 0;
-  s.prnu_percent = 0;
-  s.dark_current_e_per_s = 0;
+  test::NoiseOff(&s);
   return s;
 }
 

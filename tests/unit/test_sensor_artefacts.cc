@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "core/sensor/emva.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -35,11 +36,7 @@ double StdDev(const std::vector<double>& v) {
 TEST(SensorArtefacts, RowAndColumnFpnMeasureAsConfigured) {
   constexpr int kW = 512, kH = 512;
   PipelineConfig c = SensorPath(kW, kH);
-  c.sensor.shot_noise = false;
-  c.sensor.dark_noise_e = 0;
-  c.sensor.dsnu_e = 0;
-  c.sensor.prnu_percent = 0;
-  c.sensor.dark_current_e_per_s = 0;
+  test::NoiseOff(&c.sensor);
   c.sensor.system_gain_dn_per_e = 1.0;
   c.sensor.black_level_dn = 200;
   c.sensor.row_fpn_e = 4.0;

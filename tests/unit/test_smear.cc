@@ -7,6 +7,7 @@
 
 #include "core/sensor/smear.h"
 #include "core/sensor/smear_ref.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -23,11 +24,7 @@ PipelineConfig SmearPath(int w, int h, Cfa cfa, bool with_cfa_stage) {
   if (with_cfa_stage) c.order[n++] = StageId::kCfa;
   c.order[n++] = StageId::kSensor;
   c.order_count = n;
-  c.sensor.shot_noise = false;
-  c.sensor.dark_noise_e = 0;
-  c.sensor.dsnu_e = 0;
-  c.sensor.prnu_percent = 0;
-  c.sensor.dark_current_e_per_s = 0;
+  test::NoiseOff(&c.sensor);
   c.sensor.system_gain_dn_per_e = 1.0;
   c.sensor.black_level_dn = 100;
   c.sensor.smear_row_transfer_us = 10.0;  // 1 % of the 1 ms exposure per row
