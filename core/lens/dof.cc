@@ -459,15 +459,15 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
     }
   }
   // Back substitution: y_i = y_{i+1} + e_i (u_i - y_{i+1}), rows ye .. yb.
-  for (int c = 0; c < 3; ++c) {
-    for (int x = 0; x < w; ++x) {
-      int64_t y = uf[c][x];
-      cache[(static_cast<size_t>(ye - yb) * 3 + c) * pitch + x0 + x] = OutOf(y);
-      for (int i = ye - 1; i >= yb; --i) {
-        const size_t o = static_cast<size_t>(i - yb) * n + x;
-        y += MulQ30(us[c][o] - y, eb[o]);
-        cache[(static_cast<size_t>(i - yb) * 3 + c) * pitch + x0 + x] = OutOf(y);
-      }
+  // Row by row (uf holds y_{i+1}), so the cache is written sequentially.
+  for (int i = ye; i >= yb; --i) {
+    const size_t o = static_cast<size_t>(i - yb) * n;
+    for (int c = 0; c < 3; ++c) {
+      int64_t* y = uf[c];
+      uint32_t* dst = cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0;
+      if (i < ye)
+        for (int x = 0; x < w; ++x) y[x] += MulQ30(us[c][o + x] - y[x], eb[o + x]);
+      for (int x = 0; x < w; ++x) dst[x] = OutOf(y[x]);
     }
   }
   for (int k = 0; k <= ye - yb; ++k) {

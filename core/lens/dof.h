@@ -230,8 +230,8 @@ class DofColumnStage final : public Stage {
   // state; every row of the block is read from that solution. Each row keeps
   // at least W rows of window on each side, so the error bound of window W
   // holds; per output row the sweeps cost (B + 3W) / B + 1 steps instead of 2W + 1.
-  static constexpr int kBlock = 32;
-  static constexpr int kTile = 64;  // columns solved together (block state ~64 KB at B = 32)
+  static constexpr int kBlock = 16;
+  static constexpr int kTile = 64;  // columns solved together (block state ~35 KB at B = 16)
 
  private:
   void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows) const;
