@@ -82,6 +82,22 @@ BENCHMARK(BM_Pipeline)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// The demo camera with diffusion depth of field in front (issue 7's "whole
+// default pipeline including diffusion DoF"): the strong blur of dof_bench.cc
+// (28 mm, f/1.4, focus 1 m, 18.75 um pixels: CoC ~10..31 px), column window 32.
+void BM_PipelineDof(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = Demo(w, h);
+  c.exposure.f_number = 1.4;
+  c.dof.method = DofMethod::kDiffusion;
+  c.dof.focal_length_mm = 28.0;
+  c.dof.pixel_pitch_um = 36000.0 / w;
+  c.dof.focus_distance_m = 1.0;
+  c.dof.max_coc_px = 64.0;
+  RunPipeline(state, c, static_cast<int>(state.range(2)));
+}
+BENCHMARK(BM_PipelineDof)->Args({1920, 1080, 1})->Args({1920, 1080, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The demo pipeline cut after its k-th running stage (the stages left out by
 // the planner do not count, so k names the same stage whatever the order has).
 void BM_Prefix(benchmark::State& state) {

@@ -302,56 +302,81 @@ Status DofColumnStage::Configure(const DofConfig& c, const SensorGeometry& g, co
 
 Result<LineFormat> DofColumnStage::Plan(LineFormat in) const { return rows_->Plan(in); }
 
+// Every row of block b reads the block's window [bB - W, bB + B - 1 + W],
+// clipped at the frame ends (insulated there, as the row pass).
 RowWindow DofColumnStage::InputRows(int y, int height) const {
-  const int lo = y - config_.column_window, hi = y + config_.column_window;
+  const int b0 = (y / kBlock) * kBlock;
+  const int lo = b0 - config_.column_window, hi = b0 + kBlock - 1 + config_.column_window;
   return {lo < 0 ? 0 : lo, hi > height - 1 ? height - 1 : hi};
 }
 
 size_t DofColumnStage::ScratchBytes(int width) const {
   const size_t n = static_cast<size_t>(width < kTile ? width : kTile);
-  return 3 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n);
+  const size_t nb = n * kBlock;
+  return 3 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n) +
+         AlignUp(sizeof(uint32_t) * nb) + 3 * AlignUp(sizeof(int64_t) * nb) + AlignUp(nb);
 }
+
+// State: the solved block's index, its per-row solved counts, then its rows
+// (kBlock x 3 channels x width, uint32).
+size_t DofColumnStage::StateBytes(int width) const {
+  return AlignUp(sizeof(int32_t) * (kBlock + 1)) + AlignUp(sizeof(uint32_t) * 3 * kBlock * static_cast<size_t>(width));
+}
+
+void DofColumnStage::BeginStrip(uint8_t* state) const { reinterpret_cast<int32_t*>(state)[0] = -1; }
 
 void DofColumnStage::ProcessRow(const RowArgs& a) const {
-  // Columns are independent: solve them in tiles of kTile so the sweep state
-  // (~20 KB) stays in L1 while all window rows pass over it.
-  int64_t solved = 0;
-  for (int x0 = 0; x0 < a.width; x0 += kTile) solved += SolveTile(a, x0, x0 + kTile < a.width ? x0 + kTile : a.width);
-  if (a.stats != nullptr) a.stats->skipped_px += a.width - solved;
+  int32_t* header = reinterpret_cast<int32_t*>(a.state);  // [0] block, [1 + k] solved pixels of row k
+  uint32_t* cache = reinterpret_cast<uint32_t*>(a.state + AlignUp(sizeof(int32_t) * (kBlock + 1)));
+  const int block = a.y / kBlock;
+  const size_t pitch = static_cast<size_t>(a.width);
+  if (header[0] != block) {
+    const int yb = block * kBlock;
+    const int ye = yb + kBlock - 1 < geometry_.height - 1 ? yb + kBlock - 1 : geometry_.height - 1;
+    for (int k = 0; k < kBlock; ++k) header[1 + k] = 0;
+    for (int x0 = 0; x0 < a.width; x0 += kTile)
+      SolveTile(a, yb, ye, x0, x0 + kTile < a.width ? x0 + kTile : a.width, cache, header + 1);
+    header[0] = block;
+  }
+  const int k = a.y - block * kBlock;
+  for (int c = 0; c < 3; ++c)
+    for (int x = 0; x < a.width; ++x) a.out[c][x] = cache[(static_cast<size_t>(k) * 3 + c) * pitch + x];
+  if (a.stats != nullptr) a.stats->skipped_px += a.width - header[1 + k];
 }
 
-int64_t DofColumnStage::SolveTile(const RowArgs& a, int x0, int x1) const {
-  const int w = x1 - x0, y = a.y;
+// Columns [x0, x1) of the block's rows [yb, ye]: a downward sweep over the
+// window down to ye (storing u and e of the block's rows), an upward sweep
+// from the window's end to ye + 1, the twist at ye, then back substitution
+// up to yb. Columns are independent; a tile of kTile keeps the state in L1/L2.
+void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1, uint32_t* cache,
+                               int32_t* solved_rows) const {
+  const int w = x1 - x0;
   const int lo = a.first_row, hi = a.first_row + a.row_count - 1;
   const size_t n = static_cast<size_t>(a.width < kTile ? a.width : kTile);  // as ScratchBytes
+  const size_t pitch = static_cast<size_t>(a.width);
   uint8_t* p = a.scratch;
-  auto take64 = [&p, n]() { uint64_t* q = reinterpret_cast<uint64_t*>(p); p += AlignUp(sizeof(uint64_t) * n); return q; };
-  uint64_t* cc2_prev = take64();
-  uint64_t* cc2_cur = take64();
-  uint64_t* cc2_y = take64();
+  auto take64 = [&p](size_t count) { uint64_t* q = reinterpret_cast<uint64_t*>(p); p += AlignUp(sizeof(uint64_t) * count); return q; };
+  uint64_t* cc2_prev = take64(n);
+  uint64_t* cc2_cur = take64(n);
+  uint64_t* cc2_y = take64(n);
   uint32_t* rf = reinterpret_cast<uint32_t*>(p);
   p += AlignUp(sizeof(uint32_t) * n);
   uint32_t* rb = reinterpret_cast<uint32_t*>(p);
   p += AlignUp(sizeof(uint32_t) * n);
   int64_t* uf[3];
   int64_t* ub[3];
-  for (int c = 0; c < 3; ++c) uf[c] = reinterpret_cast<int64_t*>(take64());
-  for (int c = 0; c < 3; ++c) ub[c] = reinterpret_cast<int64_t*>(take64());
+  for (int c = 0; c < 3; ++c) uf[c] = reinterpret_cast<int64_t*>(take64(n));
+  for (int c = 0; c < 3; ++c) ub[c] = reinterpret_cast<int64_t*>(take64(n));
+  uint32_t* eb = reinterpret_cast<uint32_t*>(p);  // [row - yb][x]: e of the block's rows
+  p += AlignUp(sizeof(uint32_t) * n * kBlock);
+  int64_t* us[3];  // [row - yb][x]: forward u of the block's rows
+  for (int c = 0; c < 3; ++c) us[c] = reinterpret_cast<int64_t*>(take64(n * kBlock));
+  uint8_t* linked = p;  // [row - yb][x]: 1 when the row is coupled to a neighbour
 
-  // One sweep step on every column of the tile: link b between the previous
-  // row and row `in` of the window.
-  auto step = [w, x0](const uint64_t* cc2_a, const uint64_t* cc2_b, const RowIn& in, uint32_t* r, int64_t* const* u) {
-    for (int x = 0; x < w; ++x) {
-      const uint32_t b = dof::BetaOf(cc2_a[x], cc2_b[x]);
-      if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
-        r[x] = kOneW;
-        for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
-        continue;
-      }
-      const uint32_t rx = ROf(DOf(b, r[x]), b);
-      r[x] = rx;
-      for (int c = 0; c < 3; ++c) u[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - u[c][x], rx);
-    }
+  for (int k = 0; k <= ye - yb; ++k)
+    for (int x = 0; x < w; ++x) linked[static_cast<size_t>(k) * n + x] = 0;
+  auto mark = [&](int row, int x) {
+    if (row >= yb && row <= ye) linked[static_cast<size_t>(row - yb) * n + x] = 1;
   };
   auto start = [w, x0](const RowIn& in, uint32_t* r, int64_t* const* u) {
     for (int x = 0; x < w; ++x) {
@@ -359,54 +384,97 @@ int64_t DofColumnStage::SolveTile(const RowArgs& a, int x0, int x1) const {
       for (int c = 0; c < 3; ++c) u[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
     }
   };
+  auto keep = [&](int row) {  // the forward u of a block row
+    if (row < yb) return;
+    const size_t o = static_cast<size_t>(row - yb) * n;
+    for (int c = 0; c < 3; ++c)
+      for (int x = 0; x < w; ++x) us[c][o + x] = uf[c][x];
+  };
 
-  // Downward sweep: rows lo .. y.
+  // Downward sweep: rows lo .. ye.
   rows_->RowCc2(*a.input, lo, x0, x1, cc2_prev);
   start(a.rows[0], rf, uf);
-  for (int i = lo + 1; i <= y; ++i) {
+  keep(lo);
+  for (int i = lo + 1; i <= ye; ++i) {
     rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
-    step(cc2_prev, cc2_cur, a.rows[i - lo], rf, uf);
+    const RowIn& in = a.rows[i - lo];
+    uint32_t* e = i - 1 >= yb ? eb + static_cast<size_t>(i - 1 - yb) * n : nullptr;
+    for (int x = 0; x < w; ++x) {
+      const uint32_t b = dof::BetaOf(cc2_prev[x], cc2_cur[x]);
+      if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
+        if (e != nullptr) e[x] = kOneW;
+        rf[x] = kOneW;
+        for (int c = 0; c < 3; ++c) uf[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
+        continue;
+      }
+      mark(i - 1, x);
+      mark(i, x);
+      const uint64_t D = DOf(b, rf[x]);
+      if (e != nullptr) e[x] = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
+      const uint32_t rx = ROf(D, b);
+      rf[x] = rx;
+      for (int c = 0; c < 3; ++c) uf[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - uf[c][x], rx);
+    }
+    keep(i);
     uint64_t* t = cc2_prev;
     cc2_prev = cc2_cur;
     cc2_cur = t;
   }
-  uint64_t* t = cc2_y;  // keep row y's values
+  uint64_t* t = cc2_y;  // keep row ye's values
   cc2_y = cc2_prev;
   cc2_prev = t;
 
-  int64_t solved = 0;
-  if (hi == y) {  // the frame's last row: nothing below
+  // y_ye (Q.kG) per column and channel, into uf.
+  if (hi > ye) {
+    // Upward sweep: rows hi .. ye + 1.
+    rows_->RowCc2(*a.input, hi, x0, x1, cc2_prev);
+    start(a.rows[hi - lo], rb, ub);
+    for (int i = hi - 1; i > ye; --i) {
+      rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+      const RowIn& in = a.rows[i - lo];
+      for (int x = 0; x < w; ++x) {
+        const uint32_t b = dof::BetaOf(cc2_cur[x], cc2_prev[x]);
+        if (b == 0) {
+          rb[x] = kOneW;
+          for (int c = 0; c < 3; ++c) ub[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
+          continue;
+        }
+        const uint32_t rx = ROf(DOf(b, rb[x]), b);
+        rb[x] = rx;
+        for (int c = 0; c < 3; ++c) ub[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - ub[c][x], rx);
+      }
+      uint64_t* s = cc2_prev;
+      cc2_prev = cc2_cur;
+      cc2_cur = s;
+    }
+    // Twist: y_ye = u_ye + w (v_{ye+1} - u_ye), w = b r_ye / (D' + b r_ye).
     for (int x = 0; x < w; ++x) {
-      solved += rf[x] != kOneW;
-      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
+      const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
+      if (b == 0) continue;
+      mark(ye, x);
+      const uint64_t Dp = DOf(b, rb[x]);
+      const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
+      const uint32_t wt = DivQ30(tb, Dp + tb);
+      for (int c = 0; c < 3; ++c) uf[c][x] += MulQ30(ub[c][x] - uf[c][x], wt);
     }
-    return solved;
   }
-  // Upward sweep: rows hi .. y + 1.
-  rows_->RowCc2(*a.input, hi, x0, x1, cc2_prev);
-  start(a.rows[hi - lo], rb, ub);
-  for (int i = hi - 1; i > y; --i) {
-    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
-    step(cc2_cur, cc2_prev, a.rows[i - lo], rb, ub);
-    uint64_t* s = cc2_prev;
-    cc2_prev = cc2_cur;
-    cc2_cur = s;
-  }
-  // Twist: out = u_y + w (v_{y+1} - u_y), w = b r_y / (D' + b r_y).
-  for (int x = 0; x < w; ++x) {
-    const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
-    if (b == 0) {
-      solved += rf[x] != kOneW;
-      for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x]);
-      continue;
+  // Back substitution: y_i = y_{i+1} + e_i (u_i - y_{i+1}), rows ye .. yb.
+  // Row by row (uf holds y_{i+1}), so the cache is written sequentially.
+  for (int i = ye; i >= yb; --i) {
+    const size_t o = static_cast<size_t>(i - yb) * n;
+    for (int c = 0; c < 3; ++c) {
+      int64_t* y = uf[c];
+      uint32_t* dst = cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0;
+      if (i < ye)
+        for (int x = 0; x < w; ++x) y[x] += MulQ30(us[c][o + x] - y[x], eb[o + x]);
+      for (int x = 0; x < w; ++x) dst[x] = OutOf(y[x]);
     }
-    ++solved;
-    const uint64_t Dp = DOf(b, rb[x]);
-    const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
-    const uint32_t wt = DivQ30(tb, Dp + tb);
-    for (int c = 0; c < 3; ++c) a.out[c][x0 + x] = OutOf(uf[c][x] + MulQ30(ub[c][x] - uf[c][x], wt));
   }
-  return solved;
+  for (int k = 0; k <= ye - yb; ++k) {
+    int32_t s = 0;
+    for (int x = 0; x < w; ++x) s += linked[static_cast<size_t>(k) * n + x];
+    solved_rows[k] += s;
+  }
 }
 
 }  // namespace camsim

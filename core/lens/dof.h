@@ -35,14 +35,20 @@
 //   backward: y_i = y_{i+1} + e_i (u_i - y_{i+1}),  e_i = 1 / D_{i+1}
 // r, e in (0, 1]: u and y never leave [min x, max x] (maximum principle) and
 // a constant line stays exactly constant, whatever the rounding. The column
-// pass solves, for output row y, only the rows [y - W, y + W] of the window
-// (insulated at the window ends; W = column_window, the precision knob),
-// by a twisted factorisation: the forward sweep from the top down to y, the
-// same sweep from the bottom up to y + 1, and
-//   out = u_y + w (v_{y+1} - u_y),  w = b_{y+1} r_y / (D'_y + b_{y+1} r_y),
-//   D'_y = 1 + b_{y+1} r'_{y+1}  (r' the upward sweep's r).
-// Rows of the window outside the frame do not exist (insulated border), so
-// the result depends only on y, never on the strip.
+// pass groups output rows in blocks of B = DofColumnStage::kBlock and solves
+// block b = rows [bB, bB + B) once, over the window [bB - W, bB + B - 1 + W]
+// (insulated at the window ends; W = column_window, the precision knob), by a
+// twisted factorisation at the block's last row e = bB + B - 1: the forward
+// sweep from the window's top down to e (keeping u and e_i of the block's
+// rows), the same sweep from the window's bottom up to e + 1,
+//   y_e = u_e + w (v_{e+1} - u_e),  w = b_{e+1} r_e / (D'_e + b_{e+1} r_e),
+//   D'_e = 1 + b_{e+1} r'_{e+1}  (r' the upward sweep's r),
+// then the backward substitution above from e up to bB. Every row keeps at
+// least W window rows on each side, so the truncation error is at most that of
+// a per-row window of W. Rows of the window outside the frame do not exist
+// (insulated border), so the result depends only on the block, never on the
+// strip or the thread count; the solved block lives in the stage's strip
+// state (Stage::StateBytes), reset by BeginStrip at every strip.
 //
 // Formats: x, out: radiance Q16.16 (uint32), 3 channels.
 //          u, v, y: int64 Q16.32 (16 guard bits below the input's LSB);
@@ -206,7 +212,7 @@ class DofRowStage final : public Stage {
   uint32_t* dx2_ = nullptr;
 };
 
-// Column pass: windowed twisted solve per output row.
+// Column pass: windowed solve per block of kBlock output rows.
 class DofColumnStage final : public Stage {
  public:
   Status Configure(const DofConfig& config, const SensorGeometry& geometry, const DofRowStage* rows);
@@ -215,12 +221,20 @@ class DofColumnStage final : public Stage {
   const char* IdentityReason() const override { return rows_->IdentityReason(); }
   RowWindow InputRows(int y, int height) const override;
   size_t ScratchBytes(int width) const override;
+  size_t StateBytes(int width) const override;
+  void BeginStrip(uint8_t* state) const override;
   void ProcessRow(const RowArgs& args) const override;
 
-  static constexpr int kTile = 256;  // columns solved together (state ~20 KB)
+  // Output rows solved together: block b = rows [bB, bB + B) is solved once
+  // over its window [bB - W, bB + B - 1 + W] and cached in the stage's strip
+  // state; every row of the block is read from that solution. Each row keeps
+  // at least W rows of window on each side, so the error bound of window W
+  // holds; per output row the sweeps cost (B + 3W) / B + 1 steps instead of 2W + 1.
+  static constexpr int kBlock = 16;
+  static constexpr int kTile = 64;  // columns solved together (block state ~35 KB at B = 16)
 
  private:
-  int64_t SolveTile(const RowArgs& args, int x0, int x1) const;  // returns the pixels solved
+  void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows) const;
 
   DofConfig config_;
   SensorGeometry geometry_;

@@ -55,7 +55,7 @@ std::vector<double> ReferenceDiffusionRows(const std::vector<double>& plane, con
 }
 
 std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& rows, const std::vector<double>& cc2, int w,
-                                              int h, int window) {
+                                              int h, int window, int block) {
   std::vector<double> out(rows.size());
   std::vector<double> x(static_cast<size_t>(h)), b(x.size() + 1), y(x.size());
   for (int c = 0; c < w; ++c) {
@@ -70,7 +70,8 @@ std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& rows, c
       continue;
     }
     for (int r = 0; r < h; ++r) {
-      const int lo = std::max(0, r - window), hi = std::min(h - 1, r + window), n = hi - lo + 1;
+      const int yb = r - r % block;
+      const int lo = std::max(0, yb - window), hi = std::min(h - 1, yb + block - 1 + window), n = hi - lo + 1;
       for (int i = 0; i < n; ++i) {
         x[static_cast<size_t>(i)] = at(rows, lo + i);
         b[static_cast<size_t>(i)] = i > 0 ? BetaOf(at(cc2, lo + i - 1), at(cc2, lo + i)) : 0.0;
@@ -83,8 +84,8 @@ std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& rows, c
 }
 
 std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const std::vector<double>& cc2, int w, int h,
-                                       int window) {
-  return ReferenceDiffusionColumns(ReferenceDiffusionRows(plane, cc2, w, h), cc2, w, h, window);
+                                       int window, int block) {
+  return ReferenceDiffusionColumns(ReferenceDiffusionRows(plane, cc2, w, h), cc2, w, h, window, block);
 }
 
 namespace {

@@ -19,16 +19,17 @@ void ReferenceSolveLine(const double* x, const double* b, int n, double* y);
 // Diffusion DoF of planes (row-major, width x height) given each pixel's
 // squared diffusion CoC cc2 (pixels^2): rows solved whole, then columns;
 // window < 0 solves whole columns, else row y's column system is the rows
-// [y - window, y + window] clipped to the frame, insulated at its ends (what
-// DofColumnStage approximates).
+// [yb - window, yb + block - 1 + window] clipped to the frame, insulated at its
+// ends, with yb = y - y % block (what DofColumnStage approximates with block =
+// DofColumnStage::kBlock; block 1 is a window centred on every row).
 std::vector<double> ReferenceDiffusion(const std::vector<double>& plane, const std::vector<double>& cc2, int width,
-                                       int height, int window);
+                                       int height, int window, int block = 1);
 
 // The two passes of ReferenceDiffusion on their own.
 std::vector<double> ReferenceDiffusionRows(const std::vector<double>& plane, const std::vector<double>& cc2, int width,
                                            int height);
 std::vector<double> ReferenceDiffusionColumns(const std::vector<double>& plane, const std::vector<double>& cc2,
-                                              int width, int height, int window);
+                                              int width, int height, int window, int block = 1);
 
 // Per-pixel inputs of the references from the core's inverse depth (Q12.20),
 // through the double thin-lens CoC (ReferenceCocPixels) and, for the

@@ -293,6 +293,12 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     if (s > scratch_bytes_) scratch_bytes_ = s;
   }
   worker.AddBytes(scratch_bytes_);
+  state_bytes_ = 0;
+  for (int i = 0; i < run_count_; ++i) {
+    state_offset_[i] = state_bytes_;
+    state_bytes_ += AlignUp(run_[i]->StateBytes(g.width));
+  }
+  worker.AddBytes(state_bytes_);
   worker.Add<RowIn>(static_cast<size_t>(max_window_));
   worker_bytes_ = worker.raw_bytes();
   return Status::Ok();
@@ -394,6 +400,7 @@ struct Pipeline::StripState {
   uint32_t frame;
   int y0, y1;
   uint8_t* scratch;
+  uint8_t* state;  // state_bytes_: every running stage's strip state
   RowIn* rows;  // max_window_ slots: the window of the row being produced
   uint32_t* ring[kStageCount + 1];
   int32_t* tag[kStageCount + 1];
@@ -475,6 +482,7 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
     args.row_count = count;
     args.input = s.input;
     args.scratch = s.scratch;
+    args.state = stage->StateBytes(w) > 0 ? s.state + state_offset_[j - 1] : nullptr;
     args.stats = st;
     for (int c = 0; c < ring_channels_[j]; ++c) args.out[c] = RingRow(s, j, r, c);
     const uint64_t t0 = s.clock != nullptr ? s.clock->now(s.clock->context) : 0;
@@ -519,6 +527,9 @@ void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int
     for (int k = 0; k < ring_slots_[j]; ++k) s.tag[j][k] = -1;
   }
   s.scratch = arena.Take<uint8_t>(scratch_bytes_);
+  s.state = arena.Take<uint8_t>(state_bytes_);
+  for (int i = 0; i < run_count_; ++i)
+    if (run_[i]->StateBytes(config_.geometry.width) > 0) run_[i]->BeginStrip(s.state + state_offset_[i]);
   s.rows = arena.Take<RowIn>(static_cast<size_t>(max_window_));
 
   // Every ring produces at least the strip's rows [y0, y1) (its taps and

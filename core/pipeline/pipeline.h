@@ -199,6 +199,8 @@ class Pipeline {
   int ring_channels_[kStageCount + 1] = {};
   int max_window_ = 1;              // the widest InputRows window: RowIn slots per worker
   size_t scratch_bytes_ = 0;
+  size_t state_bytes_ = 0;                    // all running stages' StateBytes
+  size_t state_offset_[kStageCount] = {};     // each one's offset in it
   size_t table_bytes_ = 0;
   size_t worker_bytes_ = 0;
   uint8_t* workers_base_ = nullptr;

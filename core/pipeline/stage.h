@@ -124,7 +124,8 @@ struct RowArgs {
   int row_count = 0;
   const FrameInput* input = nullptr;
   uint32_t* out[kMaxChannels] = {};
-  uint8_t* scratch = nullptr;   // ScratchBytes() of per-worker memory
+  uint8_t* scratch = nullptr;   // ScratchBytes() of per-worker memory, shared by all stages
+  uint8_t* state = nullptr;     // this stage's own StateBytes() of per-worker memory (null if 0)
   StageStats* stats = nullptr;  // non-null when the stage should add aux stats
 };
 
@@ -148,6 +149,17 @@ class Stage {
   virtual int Margin() const { return 0; }  // columns read beyond each edge
   virtual void CountTables(WorkspaceCounter& /*counter*/) const {}
   virtual size_t ScratchBytes(int /*width*/) const { return 0; }
+  // Strip state: per-worker memory of this stage alone that keeps its bytes
+  // from one ProcessRow to the next within a strip (a cache of work shared by
+  // several output rows, e.g. dof_columns' solved block). The scratch above is
+  // shared by all stages and holds nothing between calls. Rows of a strip
+  // reach a stage in increasing y. The driver calls BeginStrip(state) for
+  // every running stage with StateBytes() > 0 at the start of every strip,
+  // before any ProcessRow of it: the stage must mark its cache empty there, so
+  // nothing is ever reused across strips, frames, workers or configurations,
+  // and each output row stays a function of its input rows alone.
+  virtual size_t StateBytes(int /*width*/) const { return 0; }
+  virtual void BeginStrip(uint8_t* /*state*/) const {}
   virtual Status Init(Arena& /*tables*/) { return Status::Ok(); }
   virtual void ProcessRow(const RowArgs& args) const = 0;
 

@@ -321,7 +321,7 @@ TEST(DofDiffusion, ColumnWindowSweepErrorFalls) {
       p.dof.column_window = window;
       const std::vector<uint32_t> out = RunDof(p, s, 32);
       const Err2 e = Compare(out, full, 1);
-      const Err2 ew = Compare(out, ReferenceDiffusion(PlaneD(s, 1), cc2, w, h, window), 1);
+      const Err2 ew = Compare(out, ReferenceDiffusion(PlaneD(s, 1), cc2, w, h, window, DofColumnStage::kBlock), 1);
       std::printf("    window %3d: vs whole columns max %10.2f rms %10.3f LSB; vs windowed reference max %.2f LSB\n",
                   window, e.max, e.rms, ew.max);
       EXPECT_LE(ew.max, 2 * kMaxLineErrLsb) << "fixed point vs the same windowed system, window " << window;
@@ -347,7 +347,7 @@ TEST(DofDiffusion, StiffDepthEdgesStayInRangeAndAccurate) {
   const std::vector<double> cc2 = StageCc2(s, p);
   const std::vector<uint32_t> out = RunDof(p, s, 16);
   for (int c = 0; c < 3; ++c) {
-    const Err2 e = Compare(out, ReferenceDiffusion(PlaneD(s, c), cc2, w, h, 64), c);
+    const Err2 e = Compare(out, ReferenceDiffusion(PlaneD(s, c), cc2, w, h, 64, DofColumnStage::kBlock), c);
     std::printf("  channel %d: max %.2f LSB vs the windowed double solve\n", c, e.max);
     EXPECT_LE(e.max, 2 * kMaxLineErrLsb);  // two passes
     const uint32_t lo = *std::min_element(s.plane[c].begin(), s.plane[c].end());
@@ -368,12 +368,37 @@ TEST(DofDiffusion, BitExactForEveryStripHeightAndThreads) {
     p.dof.column_window = 9;
     p.dof.max_radius_px = 7;
     const std::vector<uint32_t> ref = RunDof(p, s, h);
-    for (int strip : {1, 2, 5, 16, 40}) EXPECT_EQ(RunDof(p, s, strip), ref) << "strip " << strip;
-    auto b = test::Build(p, 3);
-    ASSERT_TRUE(b->status.ok());
-    EXPECT_EQ(test::RunFrameThreads(*b, s, 0, 6, 3), ref);
+    // Strips that start and end inside a column block (kBlock = 32) too.
+    for (int strip : {1, 2, 5, 7, 16, 40, 64}) EXPECT_EQ(RunDof(p, s, strip), ref) << "strip " << strip;
+    for (int threads = 1; threads <= 4; ++threads) {
+      auto b = test::Build(p, threads);
+      ASSERT_TRUE(b->status.ok());
+      for (int strip : {1, 7, 64}) EXPECT_EQ(test::RunFrameThreads(*b, s, 0, strip, threads), ref) << threads << " " << strip;
+    }
     EXPECT_NE(std::vector<uint32_t>(ref.begin(), ref.end()), std::vector<uint32_t>()) << "ran";
   }
+}
+
+// dof_columns keeps a solved block between rows (strip state): a block solved
+// for one frame must never be read for the next one, whose rows differ.
+TEST(DofDiffusion, SolvedBlockNotReusedAcrossFrames) {
+  const int w = 40, h = 70;
+  test::Scene a = test::TexturedScene(w, h);
+  SetDepth(&a, [](int x, int y) { return 0.5 + 0.05 * x + 0.02 * y; });
+  test::Scene c = a;
+  for (int k = 0; k < 3; ++k)
+    for (uint32_t& v : c.plane[k]) v = v / 2 + (3u << 16);
+  PipelineConfig p = DofPipeline(w, h, DofMethod::kDiffusion);
+  p.dof.column_window = 9;
+  const std::vector<uint32_t> fresh = RunDof(p, c, 7);
+  auto b = test::Build(p);
+  ASSERT_TRUE(b->status.ok());
+  const std::vector<uint32_t> first = test::RunFrame(*b, a, 0, 7);
+  EXPECT_NE(first, fresh);
+  // Strips of 7 and 64 rows both end inside a block of frame a.
+  EXPECT_EQ(test::RunFrame(*b, c, 1, 7), fresh);
+  EXPECT_EQ(test::RunFrame(*b, a, 2, 64), first);
+  EXPECT_EQ(test::RunFrame(*b, c, 3, 64), fresh);
 }
 
 // A bright point on a dark background.
