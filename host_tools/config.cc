@@ -1,4 +1,5 @@
 #include "host_tools/config.h"
+#include "host_tools/defects_file.h"
 
 #include <algorithm>
 #include <charconv>
@@ -177,6 +178,15 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.row_fpn_e; }));
     v.push_back(Number("sensor", "column_fpn_e", "column offset pattern, electrons rms (0 = off)",
                        [](RunConfig& c) -> double& { return c.core.sensor.column_fpn_e; }));
+    Field defects = Make("sensor", "defects_file", Kind::kString,
+                         "listed defect pixels, one 'x,y,kind[,value]' a line (kind hot | dead | stuck; value: "
+                         "hot e-/s, stuck DN; '#' comments); wins over the seeded map at its pixels");
+    defects.get_text = [](const RunConfig& c) { return TomlString(c.defects_file); };
+    defects.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.defects_file = s[0];
+      return true;
+    };
+    v.push_back(defects);
     v.push_back(Number("sensor", "hot_pixel_fraction", "share of hot pixels (seeded map), 0 .. 0.01",
                        [](RunConfig& c) -> double& { return c.core.sensor.hot_pixel_fraction; }));
     v.push_back(Number("sensor", "hot_pixel_dark_e_per_s",
@@ -894,6 +904,19 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   p.dof.focal_length_mm = c->focal_length_mm;
   p.dof.pixel_pitch_um = pitch_mm * 1000.0;
   if (!ResolveDistortion(c, pitch_mm, origins, error)) return false;
+  p.sensor.defects = nullptr;
+  p.sensor.defect_count = 0;
+  if (!c->defects_file.empty()) {
+    auto list = std::make_shared<std::vector<DefectPixel>>();
+    if (!LoadDefectsFile(c->defects_file, p.geometry.width, p.geometry.height, p.geometry.adc_bits, list.get(),
+                         error)) {
+      *error = "sensor.defects_file: " + *error;
+      return false;
+    }
+    c->defects_data = list;
+    p.sensor.defects = list->data();
+    p.sensor.defect_count = static_cast<int>(list->size());
+  }
   Pipeline probe;
   const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
   if (!s.ok()) {

@@ -35,6 +35,9 @@ struct RunConfig {
   std::string mesh;               // displacement mesh text file (distortion.mesh)
   // The loaded mesh, shared by copies (core.distortion.mesh points into it).
   std::shared_ptr<const std::vector<float>> mesh_data;
+  std::string defects_file;       // listed defect pixels (sensor.defects_file, host_tools/defects_file.h)
+  // The loaded list, shared by copies (core.sensor.defects points into it).
+  std::shared_ptr<const std::vector<DefectPixel>> defects_data;
   int output_bits = 8;            // ISP output PNG depth: 8 or 16
   // Auto exposure (core/control/auto_exposure.h), run frame to frame by `camsim run`.
   AutoExposureConfig auto_exposure;

@@ -61,6 +61,25 @@ double ReferenceVignettingGain(const VignettingConfig& c, const SensorGeometry& 
   return CurveGainOf(c, g, Rho(g, x, y));
 }
 
+Status BuildVignettingCurve(const VignettingConfig& c, const SensorGeometry& g, uint16_t* curve,
+                            UScale* rho_to_index) {
+  constexpr int kPoints = VignettingStage::kCurvePoints;
+  for (int i = 0; i < kPoints; ++i) {
+    const double gain = CurveGainOf(c, g, static_cast<double>(i) / (kPoints - 1));
+    curve[i] = static_cast<uint16_t>(Q<2, 14>::FromDouble(gain).raw);
+  }
+  curve[kPoints] = curve[kPoints - 1];  // lets rho == 1 interpolate without a branch
+  *rho_to_index = UScale{};
+  // Index scale: (kCurvePoints - 1) * 2^16 / denominator; denominator < 2^31 for frames < 32768 px.
+  const uint64_t den = Denominator(g);
+  if (den > 0) {
+    Result<UScale> s = UScale::FromDouble((kPoints - 1) * 65536.0 / static_cast<double>(den), "sensor.width");
+    if (!s.ok()) return s.status();
+    *rho_to_index = s.value();
+  }
+  return Status::Ok();
+}
+
 double VignettingStage::CurveGain(double rho) const { return CurveGainOf(config_, geometry_, rho); }
 
 Status VignettingStage::Configure(const VignettingConfig& c, const SensorGeometry& g, bool has_mask) {
@@ -121,11 +140,8 @@ Status VignettingStage::Init(Arena& tables) {
   dx2_ = tables.Take<uint32_t>(static_cast<size_t>(geometry_.width));
   if (curve_ == nullptr || dx2_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for vignetting tables");
-  for (int i = 0; i < kCurvePoints; ++i) {
-    const double gain = CurveGain(static_cast<double>(i) / (kCurvePoints - 1));
-    curve_[i] = static_cast<uint16_t>(Q<2, 14>::FromDouble(gain).raw);
-  }
-  curve_[kCurvePoints] = curve_[kCurvePoints - 1];  // lets rho == 1 interpolate without a branch
+  UScale unused;
+  CAMSIM_TRY(BuildVignettingCurve(config_, geometry_, curve_, &unused));
   for (int x = 0; x < geometry_.width; ++x) {
     const int64_t d = 2 * static_cast<int64_t>(x) - (geometry_.width - 1);
     dx2_[x] = static_cast<uint32_t>(d * d);
@@ -155,13 +171,7 @@ void VignettingStage::ProcessRow(const RowArgs& a) const {
   for (int x0 = 0; x0 < half; x0 += kGainBlock) {
     const int n = half - x0 < kGainBlock ? half - x0 : kGainBlock;
     for (int k = 0; k < n; ++k) {
-      // Curve position, Q.16: integer part selects the segment, fraction interpolates.
-      const uint32_t pos = rho_to_index_.Apply(dx2_[x0 + k] + dy2);
-      const uint32_t i = pos >> 16, f = pos & 0xFFFF;
-      const uint32_t g0 = curve_[i], g1 = curve_[i + 1];
-      // g0 + RoundShift((g1 - g0) f, 16) as one non-negative sum: the gains
-      // are below 2^16, so g0 (2^16 - f) + g1 f + 2^15 < 2^32.
-      gain[k] = (g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16;  // Q2.14
+      gain[k] = VignettingCurveGain(curve_, rho_to_index_, dx2_[x0 + k] + dy2);
     }
     const int mirror = width - x0 - n;  // columns mirror .. width - 1 - x0, gains reversed
     for (int c = 0; c < channels; ++c) {

@@ -61,6 +61,22 @@ class VignettingStage final : public Stage {
   uint32_t* dx2_ = nullptr;   // (2x - (W-1))^2 per column
 };
 
+// The stage's curve gains for callers outside the stream (the smear
+// pre-pass): BuildVignettingCurve fills kCurvePoints + 1 Q2.14 gains and the
+// squared-radius scale, VignettingCurveGain interpolates them exactly as
+// ProcessRow does, for dx2 + dy2 = (2x - (W-1))^2 + (2y - (H-1))^2.
+Status BuildVignettingCurve(const VignettingConfig& config, const SensorGeometry& geometry, uint16_t* curve,
+                            UScale* rho_to_index);
+inline uint32_t VignettingCurveGain(const uint16_t* curve, UScale rho_to_index, uint32_t dx2_plus_dy2) {
+  // Curve position, Q.16: integer part selects the segment, fraction interpolates.
+  const uint32_t pos = rho_to_index.Apply(dx2_plus_dy2);
+  const uint32_t i = pos >> 16, f = pos & 0xFFFF;
+  const uint32_t g0 = curve[i], g1 = curve[i + 1];
+  // g0 + RoundShift((g1 - g0) f, 16) as one non-negative sum: the gains
+  // are below 2^16, so g0 (2^16 - f) + g1 f + 2^15 < 2^32.
+  return (g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16;  // Q2.14
+}
+
 // Double reference: the gain at pixel (x, y) for this config (curve modes).
 double ReferenceVignettingGain(const VignettingConfig& config, const SensorGeometry& g, int x, int y);
 

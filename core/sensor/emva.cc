@@ -106,6 +106,23 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   if (!InRange(hot_e, 0.0, kMaxFullWell))
     return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "hot-pixel charge per exposure exceeds 1e6 electrons");
   hot_q8_ = Q<24, 8>::FromDouble(hot_e).raw;
+  exposure_time_us_ = exposure_time_us;
+  if (c.defect_count < 0 || c.defect_count > kMaxListedDefects || (c.defect_count > 0 && c.defects == nullptr))
+    return InvalidArgument("sensor.defects_file", "at most 1048576 listed defects");
+  for (int i = 0; i < c.defect_count; ++i) {
+    const DefectPixel& d = c.defects[i];
+    if (d.x < 0 || d.y < 0 || d.x >= g.width || d.y >= g.height)
+      return InvalidArgument("sensor.defects_file", "listed defect outside the frame");
+    if (i > 0 && (d.y < c.defects[i - 1].y || (d.y == c.defects[i - 1].y && d.x <= c.defects[i - 1].x)))
+      return InvalidArgument("sensor.defects_file", "listed defects must be sorted by (y, x) without duplicates");
+    if (d.kind == DefectKind::kHot && d.value >= 0 &&
+        !InRange(DarkElectrons(c, exposure_time_us, d.value), 0.0, kMaxFullWell))
+      return InvalidArgument("sensor.defects_file", "hot-pixel charge per exposure exceeds 1e6 electrons");
+    if (d.kind == DefectKind::kStuck && d.value >= 0 && !(d.value <= max_dn_ && d.value == static_cast<int>(d.value)))
+      return InvalidArgument("sensor.defects_file", "stuck value must be an integer DN in [0, 2^adc_bits - 1]");
+    if (d.kind != DefectKind::kHot && d.kind != DefectKind::kDead && d.kind != DefectKind::kStuck)
+      return InvalidArgument("sensor.defects_file", "unknown defect kind");
+  }
   return Status::Ok();
 }
 
@@ -118,6 +135,10 @@ void SensorStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(GaussianTable::kEntries);
   counter.Add<uint32_t>(PoissonTable::kEntries);
   if (col_fpn_q8_ != 0) counter.Add<int32_t>(static_cast<size_t>(ColumnTableEntries()));
+  if (config_.defect_count > 0) {
+    counter.Add<ListedDefect>(static_cast<size_t>(config_.defect_count));
+    counter.Add<uint32_t>(static_cast<size_t>(geometry_.height) + 1);
+  }
 }
 
 Status SensorStage::Init(Arena& tables) {
@@ -127,6 +148,33 @@ Status SensorStage::Init(Arena& tables) {
     return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
   CAMSIM_TRY(gauss_.Build(Span<int32_t>{g, GaussianTable::kEntries}));
   CAMSIM_TRY(poisson_.Build(Span<uint32_t>{p, PoissonTable::kEntries}));
+  listed_ = nullptr;
+  listed_row_ = nullptr;
+  if (config_.defect_count > 0) {
+    const size_t n = static_cast<size_t>(config_.defect_count);
+    ListedDefect* l = tables.Take<ListedDefect>(n);
+    uint32_t* row = tables.Take<uint32_t>(static_cast<size_t>(geometry_.height) + 1);
+    if (l == nullptr || row == nullptr)
+      return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
+    int next = 0;  // the list is sorted by (y, x) (Configure checked)
+    for (int y = 0; y <= geometry_.height; ++y) {
+      while (next < config_.defect_count && config_.defects[next].y < y) ++next;
+      row[y] = static_cast<uint32_t>(next);
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const DefectPixel& d = config_.defects[i];
+      l[i].x = static_cast<uint32_t>(d.x);
+      l[i].kind = d.kind;
+      l[i].value = 0;
+      if (d.kind == DefectKind::kHot)
+        l[i].value = d.value < 0 ? hot_q8_
+                                 : Q<24, 8>::FromDouble(DarkElectrons(config_, exposure_time_us_, d.value)).raw;
+      if (d.kind == DefectKind::kStuck) l[i].value = d.value < 0 ? static_cast<uint32_t>(max_dn_)
+                                                                 : static_cast<uint32_t>(d.value);
+    }
+    listed_ = l;
+    listed_row_ = row;
+  }
   column_offset_ = nullptr;
   if (col_fpn_q8_ != 0) {
     // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
@@ -184,6 +232,10 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
     // Smear charge per column (CheckInput makes sure it is there when on).
     const uint32_t* smear = smear_ && a.input != nullptr && a.input->smear_e != nullptr
                                 ? a.input->smear_e + c * geometry_.width : nullptr;
+    // Listed defects of this row: none costs the one compare begin != end.
+    const ListedDefect* next = listed_ != nullptr ? listed_ + listed_row_[a.y] : nullptr;
+    const ListedDefect* const listed_end = listed_ != nullptr ? listed_ + listed_row_[a.y + 1] : nullptr;
+    const bool row_listed = next != listed_end;
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
@@ -204,6 +256,8 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           const int i = 2 * lane + parity;
           if (i >= n) break;
           const int w = parity * 2;  // this pixel's words: w and w + 1 of its lane
+          const ListedDefect* hit = nullptr;
+          if (row_listed && next != listed_end && next->x == static_cast<uint32_t>(x0 + i)) hit = next++;
           // Mean charge, Q24.8.
           uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
           int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
@@ -213,7 +267,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
             mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
             dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[w + 1][lane]), 16);
           }
-          if (defects && d.v[w][lane] < stuck_below_) {
+          if (defects && hit == nullptr && d.v[w][lane] < stuck_below_) {
             const uint32_t u = d.v[w][lane];
             if (u < hot_below_) {
               // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
@@ -224,6 +278,17 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
               dark = 0;
             } else {
               out[i] = static_cast<uint32_t>(max_dn_);  // stuck
+              continue;
+            }
+          }
+          if (hit != nullptr) {  // a listed defect: wins over the seeded map
+            if (hit->kind == DefectKind::kHot) {
+              dark = SatU32(uint64_t{dark} + hit->value);
+            } else if (hit->kind == DefectKind::kDead) {
+              mu = 0;
+              dark = 0;
+            } else {
+              out[i] = hit->value;  // stuck
               continue;
             }
           }

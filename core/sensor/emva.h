@@ -37,6 +37,16 @@
 //     dead  (h <= u < h + d):  no photo or dark charge (offsets and read noise remain);
 //     stuck (h + d <= u < h + d + s): output stuck at 2^bits - 1.
 //   h, d, s = the configured fractions times 2^32 (rounded down).
+//   listed defects (SensorConfig::defects, from sensor.defects_file): at a
+//     listed pixel the seeded class is ignored (the list wins) and
+//     hot:   extra dark charge value * t * 2^((T - T_ref) / T_double) (value
+//            in e-/s; default hot_pixel_dark_e_per_s), no strength spread,
+//            with shot noise;
+//     dead:  no photo or dark charge (offsets and read noise remain);
+//     stuck: output stuck at value DN (default 2^bits - 1).
+//     A 3-channel sensor gets the defect in every channel. The list is
+//     copied at Init into the workspace with a row index (height + 1
+//     offsets): a row without listed defects costs one pointer compare.
 //   smear: FrameInput::smear_e[c * width + x] (Q24.8 electrons, from the
 //     per-frame pre-pass ComputeSmear, core/sensor/smear.h) added to the mean
 //     charge before shot noise.
@@ -54,6 +64,16 @@
 #include "core/pipeline/stage.h"
 
 namespace camsim {
+
+enum class DefectKind : uint8_t { kHot, kDead, kStuck };
+
+// One listed defect pixel. Lists must be sorted by (y, x) without duplicates
+// (the host's defects-file reader sorts and checks them).
+struct DefectPixel {
+  int32_t x = 0, y = 0;
+  DefectKind kind = DefectKind::kHot;
+  double value = -1.0;  // hot: e-/s, stuck: DN; < 0: the default (see above); dead: unused
+};
 
 struct SensorConfig {
   // Defaults: a typical 1/2.9" global-shutter CMOS industrial camera (order of
@@ -78,10 +98,14 @@ struct SensorConfig {
   double dead_pixel_fraction = 0.0;     // share of dead pixels, 0 .. 0.01
   double stuck_pixel_fraction = 0.0;    // share of pixels stuck at full scale, 0 .. 0.01
   double hot_pixel_dark_e_per_s = 2000.0;  // median hot-pixel dark current at the reference temperature
+  const DefectPixel* defects = nullptr;    // listed defects (caller memory until Init), sorted by (y, x)
+  int defect_count = 0;                    // 0 .. kMaxListedDefects
   // CCD smear (core/sensor/smear.h): off when the row transfer time is 0.
   double smear_row_transfer_us = 0.0;   // time a charge packet spends under each row during transfer
   double smear_leak = 1.0;              // share of that light reaching the register (1: frame transfer)
 };
+
+inline constexpr int kMaxListedDefects = 1 << 20;
 
 // Randomness streams (the "channel" part of the counter key).
 inline constexpr uint32_t kStreamSensorTemporal = 1;
@@ -119,6 +143,14 @@ class SensorStage final : public Stage {
   int64_t col_fpn_q8_ = 0;   // column FPN sigma, Q.8 electrons
   uint32_t hot_below_ = 0, dead_below_ = 0, stuck_below_ = 0;  // defect thresholds on u (cumulative)
   uint32_t hot_q8_ = 0;      // median hot-pixel extra dark charge per exposure, Q24.8
+  struct ListedDefect {
+    uint32_t x;
+    DefectKind kind;
+    uint32_t value;  // hot: extra dark charge Q24.8; stuck: DN
+  };
+  const ListedDefect* listed_ = nullptr;      // defect_count entries, sorted by (y, x) (null when none)
+  const uint32_t* listed_row_ = nullptr;      // height + 1 offsets into listed_: row y is [row[y], row[y + 1])
+  double exposure_time_us_ = 0.0;
   const int32_t* column_offset_ = nullptr;  // column FPN, Q.8 electrons (width entries; null when off)
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
   uint64_t full_well_q8_ = 0;

@@ -6,9 +6,9 @@
 namespace camsim {
 namespace {
 
-bool HasCfaStage(const PipelineConfig& c) {
+bool HasStage(const PipelineConfig& c, StageId id) {
   for (int i = 0; i < c.order_count; ++i)
-    if (c.order[i] == StageId::kCfa) return true;
+    if (c.order[i] == id) return true;
   return false;
 }
 
@@ -32,7 +32,7 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     Result<UScale> r = UScale::FromDouble(base * qe_weight, "sensor.smear_row_transfer_us");
     return r.ok() ? r.value() : UScale{};  // Configure bounds the factor; zero otherwise
   };
-  const bool cfa = HasCfaStage(config);
+  const bool cfa = HasStage(config, StageId::kCfa);
   const double* w = config.cfa.mono_weights;
   const double wsum = w[0] + w[1] + w[2];
   UScale f3[3], fmono[3];
@@ -40,10 +40,30 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     f3[c] = factor(s.quantum_efficiency[c]);
     fmono[c] = factor(s.quantum_efficiency[kGreen] * w[c] / wsum);
   }
+  // Vignetting (a stage before the sensor) scales the light each pixel gets:
+  // the same Q2.14 gain the stage applies (curve or mask), times the Q16.16
+  // radiance, rounded (ties up) back to Q16.16 before the column sum.
+  const VignettingMode vmode = HasStage(config, StageId::kVignetting) ? config.vignetting.mode : VignettingMode::kOff;
+  uint16_t curve[VignettingStage::kCurvePoints + 1];
+  UScale rho_to_index;
+  if (vmode == VignettingMode::kCos4 || vmode == VignettingMode::kTable)
+    if (!BuildVignettingCurve(config.vignetting, g, curve, &rho_to_index).ok()) return;  // Configure checked it
+  const auto gain_at = [&](int x, int y) -> uint32_t {
+    if (vmode == VignettingMode::kMask) return in.vignetting_mask.row(y)[x];
+    const int64_t dx = 2 * static_cast<int64_t>(x) - (g.width - 1), dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
+    return VignettingCurveGain(curve, rho_to_index, static_cast<uint32_t>(dx * dx + dy * dy));
+  };
   for (int x = 0; x < g.width; ++x) {
     uint64_t sum[2][3] = {};  // [row parity][colour]
-    for (int y = 0; y < g.height; ++y)
-      for (int c = 0; c < 3; ++c) sum[y & 1][c] += in.radiance[c].row(y)[x];
+    if (vmode == VignettingMode::kOff) {
+      for (int y = 0; y < g.height; ++y)
+        for (int c = 0; c < 3; ++c) sum[y & 1][c] += in.radiance[c].row(y)[x];
+    } else {
+      for (int y = 0; y < g.height; ++y) {
+        const uint64_t gain = gain_at(x, y);
+        for (int c = 0; c < 3; ++c) sum[y & 1][c] += (in.radiance[c].row(y)[x] * gain + (1u << 13)) >> 14;
+      }
+    }
     if (!cfa) {
       for (int c = 0; c < 3; ++c) out[static_cast<size_t>(c) * g.width + x] = MulScaleU64(sum[0][c] + sum[1][c], f3[c]);
     } else if (g.cfa == Cfa::kMono) {

@@ -17,13 +17,19 @@
 // anyway) before the frame is streamed: ComputeSmear below, called by the host
 // once per frame, writes one value per column into caller memory, and the
 // sensor reads it through FrameInput::smear_e. No frame buffer is added and
-// the result is exact (not the previous frame's, not a window). Limitation:
-// the sums are taken on the input radiance, so they do not see stages before
-// the sensor that change light per pixel (vignetting, blooming): the streak of
-// a source in a vignetted corner is slightly too bright.
+// the result is exact (not the previous frame's, not a window). Vignetting
+// (when its stage runs) is applied to each pixel's radiance before the sum,
+// with the stage's own Q2.14 gain (curve or mask), so the streak follows the
+// vignetted column. Not seen by the sums (documented limitations): flare
+// light (its own pre-pass; added after these sums would need the flare model
+// per pixel over the whole frame), and blooming, which moves charge already
+// collected rather than changing the light. Motion blur, depth of field and
+// distortion only move light within the frame: the sums use the input frame
+// as rendered, which differs only where they move light across columns.
 //
-// Formats: column sums of Q16.16 radiance per row parity and colour, uint64
-//          (<= 16384 rows * 2^32 = 2^46); each times its factor (a UScale of
+// Formats: vignetted radiance: Q16.16 * Q2.14 gain, RoundShift 14 -> Q16.16;
+//          column sums of Q16.16 radiance per row parity and colour, uint64
+//          (<= 16384 rows * 2^34 = 2^48 with gains < 4); each times its factor (a UScale of
 //          leak * t_row / t_exp * photons per radiance * QE * weight * 2^-8)
 //          in a 96-bit product, rounded ties up; out Q24.8 electrons, saturated.
 #pragma once

@@ -4,7 +4,8 @@
 
 namespace camsim::ref {
 
-double RefSmear(const PipelineConfig& config, const double* const radiance[3], int x, int channel) {
+double RefSmear(const PipelineConfig& config, const double* const radiance[3], int x, int channel,
+                 const uint16_t* mask) {
   const SensorGeometry& g = config.geometry;
   const SensorConfig& s = config.sensor;
   bool cfa = false;
@@ -12,9 +13,16 @@ double RefSmear(const PipelineConfig& config, const double* const radiance[3], i
   const double ppr = ExposurePhotonsPerRadiance(config.exposure);
   const double* w = config.cfa.mono_weights;
   const double wsum = w[0] + w[1] + w[2];
+  bool vig = false;
+  for (int i = 0; i < config.order_count; ++i) vig |= config.order[i] == StageId::kVignetting;
+  const VignettingMode vmode = vig ? config.vignetting.mode : VignettingMode::kOff;
   double e = 0;
   for (int y = 0; y < g.height; ++y) {
     const size_t i = static_cast<size_t>(y) * g.width + x;
+    const double gain = vmode == VignettingMode::kOff    ? 1.0
+                        : vmode == VignettingMode::kMask ? mask[i] / 16384.0
+                                                         : ReferenceVignettingGain(config.vignetting, g, x, y);
+    const double before = e;
     if (!cfa) {
       e += radiance[channel][i] * ppr * s.quantum_efficiency[channel];
     } else if (g.cfa == Cfa::kMono) {
@@ -24,6 +32,7 @@ double RefSmear(const PipelineConfig& config, const double* const radiance[3], i
       const Colour c = CfaColour(g.cfa, x, y);
       e += radiance[c][i] * ppr * s.quantum_efficiency[c];
     }
+    e = before + (e - before) * gain;
   }
   return s.smear_leak * s.smear_row_transfer_us / config.exposure.exposure_time_us * e;
 }

@@ -7,7 +7,10 @@ namespace camsim::ref {
 
 // Smear electrons of column x: channel `channel` of a 3-channel sensor, or the
 // single channel (mosaic or mono) when the configuration has a CFA stage.
-// radiance[c][y * width + x] in radiance units.
-double RefSmear(const PipelineConfig& config, const double* const radiance[3], int x, int channel);
+// radiance[c][y * width + x] in radiance units. With a vignetting stage in
+// the order each pixel's light is scaled by its double gain (curve modes) or
+// by mask[y * width + x] / 2^14 (mask mode; mask needed then).
+double RefSmear(const PipelineConfig& config, const double* const radiance[3], int x, int channel,
+                const uint16_t* mask = nullptr);
 
 }  // namespace camsim::ref

@@ -203,4 +203,26 @@ inline PipelineConfig ArtefactsConfig(int width, int height) {
   return c;
 }
 
+// Listed defect pixels (each kind, at the corners and the centre, over a
+// seeded map) and CCD smear under cos4 vignetting (the smear pre-pass applies
+// the vignetting gains). The list lives in static storage refilled by each
+// call: a case's config is used before the next size's call.
+inline PipelineConfig ListedDefectsConfig(int width, int height) {
+  PipelineConfig c = ArtefactsConfig(width, height);
+  c.geometry.cfa = Cfa::kBayerRG;
+  c.flare.enabled = false;
+  c.blooming.enabled = false;
+  c.seed = 13;
+  c.vignetting.mode = VignettingMode::kCos4;
+  c.vignetting.focal_length_px = 0.5 * width;  // strong: the corners get ~1/4 of the centre's light
+  static DefectPixel list[4];
+  list[0] = {0, 0, DefectKind::kDead, -1.0};
+  list[1] = {width / 2, height / 2, DefectKind::kHot, 5000.0};
+  list[2] = {width / 2 + 1, height / 2, DefectKind::kStuck, -1.0};
+  list[3] = {width - 1, height - 1, DefectKind::kStuck, 1000.0};
+  c.sensor.defects = list;
+  c.sensor.defect_count = 4;
+  return c;
+}
+
 }  // namespace camsim::cross

@@ -299,6 +299,7 @@ int main(int argc, char** argv) {
       {"structural_blur", cross::StructuralBlurConfig, 1},
       {"lens", cross::LensConfig, 5},
       {"artefacts", cross::ArtefactsConfig, 11},
+      {"listed_defects", cross::ListedDefectsConfig, 13},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 

@@ -115,6 +115,72 @@ TEST(Smear, ShorterExposureForTheSameLightSmearsMore) {
   EXPECT_NEAR(double(sb[3]), 2.0 * sa[3], 4.0);  // three terms rounded to 1/256 e- each
 }
 
+// Strong cos4 vignetting (f = 20 px on a 64 x 48 mono sensor: the corners get
+// 4 % of the centre's light) on a uniform scene.
+PipelineConfig VignettedPath() {
+  PipelineConfig c = SmearPath(64, 48, Cfa::kMono, true);
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kVignetting;
+  c.order[2] = StageId::kCfa;
+  c.order[3] = StageId::kSensor;
+  c.order_count = 4;
+  c.vignetting.mode = VignettingMode::kCos4;
+  c.vignetting.focal_length_px = 20.0;
+  return c;
+}
+
+TEST(Smear, FollowsTheVignettedColumnSums) {
+  PipelineConfig c = VignettedPath();
+  const test::Scene s = test::FlatScene(64, 48, 1.0, 1.0, 1.0);
+  std::vector<uint32_t> smear(static_cast<size_t>(SmearEntries(c)));
+  ComputeSmear(c, s.View(), Span<uint32_t>{smear.data(), smear.size()});
+  ExpectPrePassMatchesReference(c, s);
+  // The light the sensor sees: the same pipeline without smear, no noise,
+  // K = 1 DN/e-: each pixel's DN minus the black level is its charge.
+  PipelineConfig plain = c;
+  plain.sensor.smear_row_transfer_us = 0;
+  auto b = test::Build(plain);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  std::vector<uint32_t> out(64 * 48);
+  Tap tap;
+  tap.format = TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = 64;
+  b->pipeline.ProcessFrame(s.View(), 0, 7, &tap, 1, nullptr, nullptr);
+  const double share = c.sensor.smear_leak * c.sensor.smear_row_transfer_us / c.exposure.exposure_time_us;
+  double centre = 0, edge = 0;
+  for (int x = 0; x < 64; ++x) {
+    double column = 0;
+    for (int y = 0; y < 48; ++y) column += out[y * 64 + x] - 100.0;
+    // 48 pixels each within 0.5 DN of their charge: the column within 24 e-,
+    // its 1 % within 0.24 e-; plus the pre-pass's own rounding.
+    EXPECT_NEAR(smear[x] / 256.0, share * column, 0.3) << "column " << x;
+    if (x == 32) centre = smear[x] / 256.0;
+    if (x == 0) edge = smear[x] / 256.0;
+  }
+  EXPECT_LT(edge, 0.5 * centre);  // the vignetting is really seen
+}
+
+TEST(Smear, FollowsAVignettingMask) {
+  PipelineConfig c = VignettedPath();
+  c.vignetting.mode = VignettingMode::kMask;
+  test::Scene s = test::FlatScene(64, 48, 1.0, 1.0, 1.0);
+  std::vector<uint16_t> mask(64 * 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) mask[y * 64 + x] = static_cast<uint16_t>(x < 32 ? 8192 : 16384 + 64 * y);
+  FrameInput in = s.View();
+  in.vignetting_mask = MakeImageView<const uint16_t>(mask.data(), 64, 48);
+  std::vector<uint32_t> smear(static_cast<size_t>(SmearEntries(c)));
+  ComputeSmear(c, in, Span<uint32_t>{smear.data(), smear.size()});
+  const std::vector<double> r[3] = {ToDouble(s.plane[0]), ToDouble(s.plane[1]), ToDouble(s.plane[2])};
+  const double* planes[3] = {r[0].data(), r[1].data(), r[2].data()};
+  for (int x = 0; x < 64; ++x) {
+    const double ref = ref::RefSmear(c, planes, x, 0, mask.data());
+    EXPECT_NEAR(smear[x] / 256.0, ref, 0.05 + 1e-4 * ref) << "column " << x;
+  }
+  EXPECT_LT(smear[0], smear[63]);
+}
+
 TEST(Smear, MissingPrePassIsAnInputError) {
   const PipelineConfig c = SmearPath(8, 8, Cfa::kMono, true);
   auto b = test::Build(c);
