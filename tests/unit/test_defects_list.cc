@@ -9,6 +9,7 @@
 
 #include "core/sensor/emva.h"
 #include "host_tools/defects_file.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -19,20 +20,8 @@ constexpr int kW = 32, kH = 24;
 // Mono, no noise, K = 1 DN/e-, black level 100, no dark current: a flat
 // scene gives every normal pixel the same DN.
 PipelineConfig Quiet() {
-  PipelineConfig c;
-  c.geometry = {kW, kH, Cfa::kMono, 12};
-  c.exposure.exposure_time_us = 10000.0;  // 10 ms
-  c.exposure.f_number = 1.0;
-  c.exposure.photons_per_radiance_ms = 100.0;  // 1000 photons per unit radiance
-  c.order[0] = StageId::kExposure;
-  c.order[1] = StageId::kCfa;
-  c.order[2] = StageId::kSensor;
-  c.order_count = 3;
-  c.sensor.shot_noise = false;
-  c.sensor.dark_noise_e = 0;
-  c.sensor.dsnu_e = 0;
-  c.sensor.prnu_percent = 0;
-  c.sensor.dark_current_e_per_s = 0;
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
+  test::NoiseOff(&c.sensor);
   c.sensor.system_gain_dn_per_e = 1.0;
   c.sensor.black_level_dn = 100;
   return c;
@@ -89,7 +78,9 @@ TEST(ListedDefects, EachKindLandsAtItsPixelAndWinsOverTheSeededMap) {
       bool in_list = false;
       for (const DefectPixel& d : kList) in_list |= d.x == x && d.y == y;
       listed_pixels += in_list;
-      if (!in_list) EXPECT_EQ(img[y * kW + x], seeded_img[y * kW + x]) << x << "," << y;
+      if (!in_list) {
+        EXPECT_EQ(img[y * kW + x], seeded_img[y * kW + x]) << x << "," << y;
+      }
     }
   EXPECT_EQ(listed_pixels, kListCount);
 }

@@ -12,19 +12,6 @@
 namespace camsim {
 namespace {
 
-PipelineConfig SensorPath(int w, int h) {
-  PipelineConfig c;
-  c.geometry = {w, h, Cfa::kMono, 12};
-  c.exposure.exposure_time_us = 10000.0;  // 10 ms
-  c.exposure.f_number = 1.0;
-  c.exposure.photons_per_radiance_ms = 100.0;  // 1000 photons per unit radiance
-  c.order[0] = StageId::kExposure;
-  c.order[1] = StageId::kCfa;
-  c.order[2] = StageId::kSensor;
-  c.order_count = 3;
-  return c;
-}
-
 double StdDev(const std::vector<double>& v) {
   double m = 0, s = 0;
   for (double x : v) m += x;
@@ -35,7 +22,7 @@ double StdDev(const std::vector<double>& v) {
 
 TEST(SensorArtefacts, RowAndColumnFpnMeasureAsConfigured) {
   constexpr int kW = 512, kH = 512;
-  PipelineConfig c = SensorPath(kW, kH);
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
   test::NoiseOff(&c.sensor);
   c.sensor.system_gain_dn_per_e = 1.0;
   c.sensor.black_level_dn = 200;
@@ -64,7 +51,7 @@ TEST(SensorArtefacts, RowAndColumnFpnMeasureAsConfigured) {
 // other pixel exactly as it was, and changes the defect pixels only.
 TEST(SensorArtefacts, DefectsLeaveOtherPixelsUnchanged) {
   constexpr int kW = 256, kH = 128;
-  PipelineConfig c = SensorPath(kW, kH);
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
   c.sensor.prnu_percent = 2.0;
   c.sensor.dsnu_e = 3.0;
   auto plain = test::Build(c);
@@ -93,7 +80,7 @@ struct DefectCounts {
 
 TEST(SensorArtefacts, DefectPixelsFollowTheirFractions) {
   constexpr int kW = 256, kH = 256;
-  PipelineConfig c = SensorPath(kW, kH);
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
   c.sensor.hot_pixel_fraction = 0.005;
   c.sensor.dead_pixel_fraction = 0.004;
   c.sensor.stuck_pixel_fraction = 0.003;
@@ -128,7 +115,7 @@ TEST(SensorArtefacts, DefectPixelsFollowTheirFractions) {
 
 TEST(SensorArtefacts, HotPixelStrengthsSpreadHalfToOneAndAHalfTimes) {
   constexpr int kW = 256, kH = 256;
-  PipelineConfig c = SensorPath(kW, kH);
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
   c.sensor.shot_noise = false;
   c.sensor.dark_noise_e = 0;
   c.sensor.dsnu_e = 0;
@@ -163,7 +150,7 @@ TEST(SensorArtefacts, DefaultsChangeNothing) {
 }
 
 TEST(SensorArtefacts, OutOfRangeValuesNameTheirKey) {
-  PipelineConfig c = SensorPath(16, 16);
+  PipelineConfig c = test::MonoSensorPath(16, 16);
   c.sensor.stuck_pixel_fraction = 0.5;
   auto b = test::Build(c);
   EXPECT_FALSE(b->status.ok());
