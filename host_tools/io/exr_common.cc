@@ -139,8 +139,10 @@ bool DisplaySize(const Imf::Header& header, int* width, int* height) {
 }
 
 void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<ChannelRead>& reads) {
-  Imf::InputPart in(file, part);
-  const Imf::Header& header = in.header();
+  // The windows are checked on the header before the part is opened: opening
+  // it sizes the decompressor's line buffers from the data window (a 2^30
+  // wide window asked for 3 GB; found by fuzz_exr_loader).
+  const Imf::Header& header = file.header(part);
   const Imath::Box2i disp = header.displayWindow(), data = header.dataWindow();
   int width = 0, height = 0;
   if (!DisplaySize(header, &width, &height)) {
@@ -170,6 +172,7 @@ void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<Cha
   const int y0 = std::max(data.min.y, disp.min.y), y1 = std::min(data.max.y, disp.max.y);
   if (x0 > x1 || y0 > y1) return;
 
+  Imf::InputPart in(file, part);
   // Read strips of whole data-window rows (about 1M samples per channel, so
   // OpenEXR's threads get many blocks at once), copy the overlap.
   const int64_t strip_rows =

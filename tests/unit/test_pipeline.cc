@@ -2,33 +2,8 @@
 // what the planner leaves out, workspace accounting, no heap while processing.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
-
+#include "tests/support/allocations.h"
 #include "tests/support/test_support.h"
-
-// Counts heap allocations in this test binary (for the no-heap test). GCC sees
-// malloc/free behind replaced new/delete and warns; the pairing is correct.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-std::atomic<long> g_allocations{0};
-}
-void* operator new(size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](size_t n) { return operator new(n); }
-void* operator new(size_t n, const std::nothrow_t&) noexcept {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(n ? n : 1);
-}
-void* operator new[](size_t n, const std::nothrow_t& t) noexcept { return operator new(n, t); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, size_t) noexcept { std::free(p); }
-void operator delete[](void* p, size_t) noexcept { std::free(p); }
 
 namespace camsim {
 namespace {
@@ -175,9 +150,9 @@ TEST(Pipeline, NoHeapAllocationWhileProcessing) {
   t.stride = 128 * 3;
   WorkerStats stats;
   const FrameInput in = scene.View();
-  const long before = g_allocations.load();
+  const long before = test::AllocationCount();
   for (uint32_t frame = 0; frame < 3; ++frame) b->pipeline.ProcessFrame(in, frame, 7, &t, 1, &stats, nullptr);
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(test::AllocationCount() - before, 0);
   EXPECT_GT(stats.stage[0].count[0], 0);  // the work did happen
 }
 
