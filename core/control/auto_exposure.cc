@@ -7,7 +7,7 @@ namespace {
 
 constexpr double kDbPerStop = 6.020599913279624;  // 20 log10 2
 // A frame asking for an EV this far from the average of the previous ones is
-// a new scene, not flicker: the average restarts from it (so steps are not
+// a changed scene, not flicker: the average restarts from it (so steps are not
 // slowed by averaging; flicker up to +-1 EV peak to peak is averaged out).
 constexpr double kSceneChangeEv = 1.0;
 

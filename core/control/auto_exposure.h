@@ -39,7 +39,7 @@
 // darkest setting (shortest time, least gain, largest f-number): the first
 // actuator takes as much of the EV as its range allows, then the next.
 // A change of f-number also changes depth of field, a change of time the
-// length of motion blur: those stages read the new settings.
+// length of motion blur: those stages read the updated settings.
 #pragma once
 
 #include <cstdint>

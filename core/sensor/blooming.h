@@ -10,7 +10,7 @@
 //   up pass, k decreasing:    the same with the other half, excess - floor(excess / 2)
 //   charge carried past the frame's first or last row is lost (a drain).
 // Total charge is conserved except what leaves the frame. The output is the
-// photon count that gives the new charge: level(k) / QE(colour at k).
+// photon count that gives the resulting charge: level(k) / QE(colour at k).
 //
 // Streaming: output row y runs the two passes on the window [y - R, y + R]
 // (R = rows) of its column, with no carry entering the window. That equals the
