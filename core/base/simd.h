@@ -1,0 +1,13 @@
+// CAMSIM_CPU_CLONES: put before a hot integer function so that, on x86-64
+// GNU/Linux, GCC and Clang compile it twice (baseline SSE2 and AVX2) and the
+// loader picks the one the CPU runs (target_clones, an ifunc). Integer code
+// only: both copies give the same bits, so outputs stay bit-exact.
+// Elsewhere (ARM, bare metal) and with -DCAMSIM_NO_CPU_CLONES (the debug
+// preset, so that CI also runs the baseline code) it expands to nothing.
+#pragma once
+
+#if defined(__x86_64__) && defined(__linux__) && defined(__GNUC__) && !defined(CAMSIM_NO_CPU_CLONES)
+#define CAMSIM_CPU_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CAMSIM_CPU_CLONES
+#endif
