@@ -37,6 +37,33 @@ double SampleToReal(Domain d, uint32_t sample) {
   return 0.0;
 }
 
+std::vector<uint8_t> FillDisagreement(const Pipeline& p, int index) {
+  StageId id = StageId::kCount;
+  StageFromName(p.running_stage(index).name(), &id);
+  if (id != StageId::kDistortion) return {};
+  const PipelineConfig& c = p.config();
+  const SensorGeometry& g = c.geometry;
+  const auto& stage = static_cast<const DistortionStage&>(p.running_stage(index));
+  const ReferenceDistortion d(c.distortion, g);
+  const int w = g.width, h = g.height;
+  std::vector<uint8_t> out(static_cast<size_t>(w) * h, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int k = 0; k < 3; ++k) {
+        if (stage.site_only() && k != CfaColour(g.cfa, x, y)) continue;
+        // Both sides' whole fill rule: no source, or a source off the image.
+        int64_t fx, fy;
+        const int64_t half = int64_t{1} << 15;  // 0.5 px in Q.16
+        const bool fixed_fills = !stage.SourcePosition(x, y, k, &fx, &fy) || fx < -half || fy < -half ||
+                                 fx > (int64_t{w} << 16) - half || fy > (int64_t{h} << 16) - half;
+        double rx, ry;
+        const bool ref_fills =
+            !d.Source(x, y, k, &rx, &ry) || rx < -0.5 || ry < -0.5 || rx > w - 0.5 || ry > h - 0.5;
+        if (fixed_fills != ref_fills) out[static_cast<size_t>(y) * w + x] = 1;
+      }
+  return out;
+}
+
 RefImage SceneRadiance(const FrameInput& input, int w, int h) {
   RefImage out;
   out.width = w;

@@ -28,6 +28,14 @@ double SampleToReal(Domain d, uint32_t sample);
 // vignetting mask).
 RefImage RunStageReference(const Pipeline& pipeline, int index, const RefImage& in, const FrameInput& input);
 
+// Pixels (row-major, 1 = yes) where the distortion stage at running `index`
+// and its reference disagree on the fill (header of distortion.h) for a
+// channel the stage computes: sources within the remap grid's error of the
+// frame edge land on different sides of it. There the difference is a whole
+// pixel value, not resampling error, so error reports count these pixels
+// apart. Empty if the stage at `index` is not distortion.
+std::vector<uint8_t> FillDisagreement(const Pipeline& pipeline, int index);
+
 // The scene's radiance planes as a RefImage (3 planes).
 RefImage SceneRadiance(const FrameInput& input, int width, int height);
 

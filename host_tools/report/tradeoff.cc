@@ -40,6 +40,7 @@ constexpr const char* kNoiseOff[] = {"sensor.shot_noise=false", "sensor.dark_noi
 
 struct Error {
   double max_abs = 0, rms = 0, psnr_db = 0;
+  size_t excluded = 0;  // pixels left out: distortion fill disagreement and its spread
 };
 
 struct StageResult {
@@ -55,6 +56,7 @@ struct Setting {
   double frame_ms = 0;
   std::vector<StageResult> stages;
   Error end_to_end;
+  size_t fill_edge = 0;  // pixels where distortion and its reference disagree on the fill
   std::string output_unit;
   bool frontier = false;
 };
@@ -75,17 +77,26 @@ double Peak(Domain d, int adc_bits, const ref::RefImage& want) {
   return peak > 0 ? peak : 1.0;
 }
 
-Error Compare(const std::vector<uint32_t>& got, Domain d, const ref::RefImage& want, double peak) {
+// `skip` (empty, or one byte per pixel) marks pixels left out of the error.
+Error Compare(const std::vector<uint32_t>& got, Domain d, const ref::RefImage& want, double peak,
+              const std::vector<uint8_t>& skip) {
   Error e;
   const size_t planes = want.planes.size(), n = want.planes.empty() ? 0 : want.planes[0].size();
   double sum2 = 0;
-  for (size_t i = 0; i < n; ++i)
+  size_t counted = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (!skip.empty() && skip[i]) {
+      ++e.excluded;
+      continue;
+    }
+    ++counted;
     for (size_t c = 0; c < planes; ++c) {
       const double diff = ref::SampleToReal(d, got[i * planes + c]) - want.planes[c][i];
       e.max_abs = std::max(e.max_abs, std::fabs(diff));
       sum2 += diff * diff;
     }
-  e.rms = n ? std::sqrt(sum2 / static_cast<double>(n * planes)) : 0.0;
+  }
+  e.rms = counted ? std::sqrt(sum2 / static_cast<double>(counted * planes)) : 0.0;
   e.psnr_db = e.rms > 0 ? 20.0 * std::log10(peak / e.rms) : INFINITY;
   return e;
 }
@@ -98,6 +109,26 @@ ref::RefImage ToRef(const std::vector<uint32_t>& data, Domain d, int channels, i
   for (size_t i = 0; i < r.planes[0].size(); ++i)
     for (int c = 0; c < channels; ++c) r.planes[c][i] = ref::SampleToReal(d, data[i * channels + c]);
   return r;
+}
+
+// The pixels whose error the fill disagreement at stage `at` (FillDisagreement)
+// reaches through the later stages' neighbourhoods (demosaic's 5x5 and so on):
+// `flip` dilated by the sum of their row and column reaches.
+std::vector<uint8_t> FillSpread(const Pipeline& p, int at, const std::vector<uint8_t>& flip) {
+  int reach = 0;
+  for (int i = at + 1; i < p.plan().running; ++i) {
+    const Stage& s = p.running_stage(i);
+    reach += std::max({s.RowsAbove(), s.RowsBelow(), s.Margin()});
+  }
+  const int w = p.width(), h = p.height();
+  std::vector<uint8_t> out(flip.size(), 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (!flip[static_cast<size_t>(y) * w + x]) continue;
+      for (int v = std::max(0, y - reach); v <= std::min(h - 1, y + reach); ++v)
+        for (int u = std::max(0, x - reach); u <= std::min(w - 1, x + reach); ++u) out[static_cast<size_t>(v) * w + u] = 1;
+    }
+  return out;
 }
 
 const char* UnitName(Domain d) {
@@ -165,6 +196,10 @@ bool Measure(RunConfig rc, const io::SceneFrame& scene, const io::FloatPlane* ma
   const int bits = rc.core.geometry.adc_bits;
   ref::RefImage chain = ref::SceneRadiance(view, w, h);
   out->stages.clear();
+  // From the distortion stage on, the chain's error leaves out the pixels
+  // where the fill decision differs (a whole pixel value, not precision).
+  std::vector<uint8_t> chain_skip;
+  out->fill_edge = 0;
   for (int i = 0; i < n; ++i) {
     const LineFormat f = p.running_format(i);
     const ref::RefImage in = i == 0 ? chain
@@ -175,12 +210,17 @@ bool Measure(RunConfig rc, const io::SceneFrame& scene, const io::FloatPlane* ma
     r.name = p.running_stage(i).name();
     r.unit = UnitName(f.domain);
     r.ms = best_stats.stage[i].ticks / 1e6;
-    r.error = Compare(taps[i], f.domain, want, Peak(f.domain, bits, want));
+    const std::vector<uint8_t> flip = ref::FillDisagreement(p, i);
+    if (!flip.empty()) {
+      out->fill_edge = static_cast<size_t>(std::count(flip.begin(), flip.end(), 1));
+      chain_skip = FillSpread(p, i, flip);
+    }
+    r.error = Compare(taps[i], f.domain, want, Peak(f.domain, bits, want), flip);
     out->stages.push_back(r);
     chain = ref::RunStageReference(p, i, chain, view);
   }
   const LineFormat last = p.running_format(n - 1);
-  out->end_to_end = Compare(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain));
+  out->end_to_end = Compare(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain), chain_skip);
   out->output_unit = UnitName(last.domain);
   return true;
 }
@@ -277,29 +317,36 @@ int TradeoffCommand(const TradeoffOptions& o) {
   }
 
   std::ostringstream csv, md;
-  csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit\n";
+  csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px\n";
   for (const Setting& s : settings) {
     csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << ",end_to_end," << Fmt(s.frame_ms) << ","
         << Fmt(s.end_to_end.max_abs) << "," << Fmt(s.end_to_end.rms) << "," << Fmt(s.end_to_end.psnr_db) << ","
-        << s.output_unit << "\n";
+        << s.output_unit << "," << s.end_to_end.excluded << "\n";
     for (const StageResult& r : s.stages)
       csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << "," << r.name << "," << Fmt(r.ms) << ","
-          << Fmt(r.error.max_abs) << "," << Fmt(r.error.rms) << "," << Fmt(r.error.psnr_db) << "," << r.unit << "\n";
+          << Fmt(r.error.max_abs) << "," << Fmt(r.error.rms) << "," << Fmt(r.error.psnr_db) << "," << r.unit << ","
+          << r.error.excluded << "\n";
   }
   md << "# Error against run time\n\n";
   md << "Generated by `camsim tradeoff` on `" << o.input << "` (" << scene.width << "x" << scene.height
      << "), one thread, the fastest of " << o.frames
      << " frames per setting. Errors are against the double-precision reference on the same input, with sensor "
         "noise, DSNU and PRNU off. The reference does not round to whole DN, so the ADC's rounding sets the "
-        "floor of the end-to-end error.\n\n";
+        "floor of the end-to-end error.\n\n"
+        "Fill edge: where a pixel's source lies within the remap grid's error of the frame edge, the distortion "
+        "stage and its exact reference can put it on different sides, one reading the scene and the other the "
+        "black fill (docs/lens-distortion.md). That difference is a whole pixel value, not precision, so those "
+        "pixels (column \"fill edge\") are counted apart and left out of the distortion stage's error; the end "
+        "to end error also leaves out what the later stages spread them to (column \"left out\").\n\n";
   md << "Knobs swept" << (swept.empty() ? std::string(": none (no stage with a knob runs)") : ":") << "\n\n";
   for (const std::string& k : swept) md << "- `" << k << "`\n";
-  md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | unit | frontier |\n"
-        "|---|---|---:|---:|---:|---:|---|---|\n";
+  md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | unit | fill edge | left out | "
+        "frontier |\n|---|---|---:|---:|---:|---:|---|---:|---:|---|\n";
   for (const Setting& s : settings)
     md << "| " << s.knob << " | " << s.value << (s.configured && !s.value.empty() ? " (configured)" : "") << " | "
        << Fmt(s.frame_ms, "%.2f") << " | " << Fmt(s.end_to_end.max_abs) << " | " << Fmt(s.end_to_end.rms) << " | "
-       << Fmt(s.end_to_end.psnr_db, "%.1f") << " | " << s.output_unit << " | " << (s.frontier ? "yes" : "") << " |\n";
+       << Fmt(s.end_to_end.psnr_db, "%.1f") << " | " << s.output_unit << " | " << s.fill_edge << " | "
+       << s.end_to_end.excluded << " | " << (s.frontier ? "yes" : "") << " |\n";
   md << "\n## Per stage (each against its reference on its own fixed-point input)\n\n"
         "| knob | value | stage | ms/frame | max abs | RMS | PSNR dB | unit |\n|---|---|---|---:|---:|---:|---:|---|\n";
   for (const Setting& s : settings)

@@ -11,7 +11,9 @@
 #include <sstream>
 #include <string>
 
+#include "core/lens/distortion_ref.h"
 #include "core/pipeline/pipeline_ref.h"
+#include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace camsim {
@@ -118,6 +120,66 @@ TEST(PipelineReference, ChainFromTheSceneEndsNearTheOutput) {
   EXPECT_LT(rms, 64.0);    // a quarter of an 8-bit step
 }
 
+// Where the remap grid's source and the exact source fall on different sides
+// of the frame edge, FillDisagreement marks the pixel: only there (every
+// marked pixel's exact source lies within the grid's error of the edge), more
+// of them the coarser the grid, and nothing for a stage that is not distortion.
+TEST(PipelineReference, FillDisagreementOnlyWhereTheSourceIsNearTheEdge) {
+  constexpr int kW = 160, kH = 120;
+  size_t marked[2] = {};
+  const int steps[2] = {4, 32};
+  for (int s = 0; s < 2; ++s) {
+    PipelineConfig c = test::DemoConfig(kW, kH);
+    c.distortion.lens = test::TypicalLens(kW, kH);
+    c.distortion.chromatic_scale[0] = 1.004;
+    c.distortion.chromatic_scale[2] = 0.996;
+    c.distortion.grid_step = steps[s];
+    const auto built = test::Build(c);
+    ASSERT_TRUE(built->status.ok()) << built->status.message();
+    const Pipeline& p = built->pipeline;
+    int at = -1;
+    for (int i = 0; i < p.plan().running; ++i) {
+      if (std::strcmp(p.running_stage(i).name(), "distortion") == 0) {
+        at = i;
+      } else {
+        EXPECT_TRUE(ref::FillDisagreement(p, i).empty()) << p.running_stage(i).name();
+      }
+    }
+    ASSERT_GE(at, 0);
+    const std::vector<uint8_t> flip = ref::FillDisagreement(p, at);
+    ASSERT_EQ(flip.size(), static_cast<size_t>(kW) * kH);
+    const ReferenceDistortion d(c.distortion, c.geometry);
+    const auto& stage = static_cast<const DistortionStage&>(p.running_stage(at));
+    // The grid's error: the largest distance between the stage's and the
+    // exact source over the frame.
+    double grid_error = 0;
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x)
+        for (int k = 0; k < 3; ++k) {
+          int64_t fx, fy;
+          double sx, sy;
+          ASSERT_TRUE(d.Source(x, y, k, &sx, &sy));
+          ASSERT_TRUE(stage.SourcePosition(x, y, k, &fx, &fy));
+          grid_error = std::max({grid_error, std::fabs(fx / 65536.0 - sx), std::fabs(fy / 65536.0 - sy)});
+        }
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        if (!flip[static_cast<size_t>(y) * kW + x]) continue;
+        ++marked[s];
+        double edge = 1e9;  // distance of the nearest channel's exact source to the edge, px
+        for (int k = 0; k < 3; ++k) {
+          double sx, sy;
+          ASSERT_TRUE(d.Source(x, y, k, &sx, &sy));
+          edge = std::min({edge, std::fabs(sx + 0.5), std::fabs(sx - (kW - 0.5)), std::fabs(sy + 0.5),
+                           std::fabs(sy - (kH - 0.5))});
+        }
+        EXPECT_LE(edge, grid_error) << "pixel " << x << "," << y << " grid step " << steps[s];
+      }
+  }
+  EXPECT_GT(marked[1], 0u);  // a 32 px grid is far enough off to flip some edge pixels
+  EXPECT_LE(marked[0], marked[1]);
+}
+
 TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
   const std::string dir = testing::TempDir() + "camsim_tradeoff_" + std::to_string(getpid());
   const std::string cmd = std::string(CAMSIM_BINARY) + " tradeoff --config " CAMSIM_SOURCE_DIR
@@ -128,7 +190,7 @@ TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
   std::ifstream csv(dir + "/tradeoff.csv");
   std::string line;
   std::getline(csv, line);
-  EXPECT_EQ(line, "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit");
+  EXPECT_EQ(line, "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px");
   int end_to_end = 0, demosaic_rows = 0;
   while (std::getline(csv, line)) {
     std::stringstream s(line);
