@@ -2,6 +2,7 @@
 //   camsim run --config FILE --input EXR... --out DIR [options]
 //   camsim config --default | --check FILE | --preset NAME | --presets
 //   camsim emva --preset NAME | --config FILE [--set k=v]... [--size N]
+//   camsim emva --dataset EMVA1288_DESCRIPTOR
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -15,6 +16,7 @@
 
 #include "host_tools/config.h"
 #include "host_tools/pattern.h"
+#include "host_tools/emva_dataset.h"
 #include "host_tools/emva_measure.h"
 #include "host_tools/presets.h"
 #include "host_tools/report/tradeoff.h"
@@ -36,6 +38,7 @@ const char kUsage[] =
     "  camsim config --preset NAME      print a camera preset (EMVA 1288 data of a real camera)\n"
     "  camsim config --presets          list the camera presets\n"
     "  camsim emva [--preset NAME] [--config FILE] [--set section.key=value]... [--size N]\n"
+    "  camsim emva --dataset EMVA1288_DESCRIPTOR   (measure a recorded camera's frames)\n"
     "      EMVA 1288 photon-transfer measurement of the emulated sensor, measured vs configured\n"
     "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"
     "      error against run time for every precision knob of the running stages:\n"
@@ -171,7 +174,7 @@ int Emva(int argc, char** argv) {
   camsim::host::EmvaOptions options;
   std::string error, title;
   std::vector<std::string> overrides;
-  std::string preset, config_path;
+  std::string preset, config_path, dataset;
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) {
@@ -181,6 +184,7 @@ int Emva(int argc, char** argv) {
     const char* v = argv[++i];
     long n = 0;
     if (a == "--preset") preset = v;
+    else if (a == "--dataset") dataset = v;
     else if (a == "--config") config_path = v;
     else if (a == "--set") overrides.push_back(v);
     else if (a == "--size" && ParseInt(v, 16, 4096, &n)) options.size = static_cast<int>(n);
@@ -189,6 +193,19 @@ int Emva(int argc, char** argv) {
       std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", a.c_str(), v, kUsage);
       return 1;
     }
+  }
+  if (!dataset.empty()) {
+    if (!preset.empty() || !config_path.empty() || !overrides.empty()) {
+      std::fprintf(stderr, "camsim: --dataset measures recorded frames; it takes no --preset, --config or --set\n");
+      return 1;
+    }
+    camsim::host::EmvaDatasetReport report;
+    if (!camsim::host::MeasureEmvaDataset(dataset, &report, &error)) {
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      return 1;
+    }
+    std::fputs(camsim::host::FormatEmvaDatasetReport(dataset, report).c_str(), stdout);
+    return 0;
   }
   if (!preset.empty() && !camsim::host::ApplyPreset(preset, &rc, &origins, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());

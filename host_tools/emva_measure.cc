@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #include "core/aperture/exposure.h"
@@ -219,27 +220,23 @@ bool MeasureEmva(const RunConfig& config, const EmvaOptions& o, EmvaReport* repo
 
   EmvaReport r;
   r.configured = ConfiguredEmva(config);
-  size_t sat = 0;
-  for (size_t i = 1; i < points.size(); ++i)
-    if (points[i].var[kG] > points[sat].var[kG]) sat = i;
-  const double sat_signal = points[sat].mean[kG] - dark.mean[kG];
-  r.saturation_photons = points[sat].photons;
-
-  // K from G; responsivity per channel over the same range of the G signal.
-  std::vector<double> x, y;
-  for (size_t i = 0; i < sat; ++i) {
-    const double signal = points[i].mean[kG] - dark.mean[kG];
-    if (signal > kFitFraction * sat_signal) break;
-    x.push_back(signal);
-    y.push_back(points[i].var[kG] - dark.var[kG]);
+  std::vector<TransferLevel> levels;
+  for (const PairStats& p : points) {
+    TransferLevel l;
+    l.photons = p.photons;
+    l.mean = p.mean[kG];
+    l.var = p.var[kG];
+    l.dark_mean = dark.mean[kG];
+    l.dark_var = dark.var[kG];
+    levels.push_back(l);
   }
-  r.fit_points = static_cast<int>(x.size());
-  if (r.fit_points < 5) {
-    *error = "emva: fewer than 5 levels below 70 % of saturation; raise levels";
-    return false;
-  }
-  const double K = SlopeThroughOrigin(x, y);
+  TransferFit fit;
+  if (!FitPhotonTransfer(levels, dark.var[kG], &fit, error)) return false;
+  r.saturation_photons = fit.saturation_photons;
+  r.fit_points = fit.fit_points;
+  const double K = fit.system_gain;
   r.measured.system_gain = K;
+  // QE per channel: each channel's responsivity over the levels K was fitted on.
   for (int c = 0; c < 3; ++c) {
     std::vector<double> p, s;
     for (int i = 0; i < r.fit_points; ++i) {
@@ -248,8 +245,8 @@ bool MeasureEmva(const RunConfig& config, const EmvaOptions& o, EmvaReport* repo
     }
     r.measured.qe[c] = SlopeThroughOrigin(p, s) / K;
   }
-  r.measured.dark_noise_e = std::sqrt(std::max(0.0, dark.var[kG] - kQuantisationVariance)) / K;
-  r.measured.saturation_e = sat_signal / K;
+  r.measured.dark_noise_e = fit.dark_noise_e;
+  r.measured.saturation_e = fit.saturation_e;
 
   // DSNU and PRNU from averages of L frames.
   const int L = o.average_frames;
@@ -259,13 +256,57 @@ bool MeasureEmva(const RunConfig& config, const EmvaOptions& o, EmvaReport* repo
   const PairStats half = MeasurePair(bench, p50, frame);
   frame += 2;
   const AverageStats half_avg = MeasureAverage(bench, p50, L, frame);
-  const double s2_dark = dark_avg.spatial_var[kG] - dark.var[kG] / L;
-  const double s2_half = half_avg.spatial_var[kG] - half.var[kG] / L;
-  r.measured.dsnu_e = std::sqrt(std::max(0.0, s2_dark)) / K;
-  r.measured.prnu_percent =
-      100.0 * std::sqrt(std::max(0.0, s2_half - s2_dark)) / (half_avg.mean[kG] - dark_avg.mean[kG]);
+  const FrameStack dark_stack{dark_avg.mean[kG], dark_avg.spatial_var[kG], dark.var[kG], L};
+  const FrameStack half_stack{half_avg.mean[kG], half_avg.spatial_var[kG], half.var[kG], L};
+  NonUniformity(dark_stack, half_stack, K, &r.measured.dsnu_e, &r.measured.prnu_percent);
   *report = r;
   return true;
+}
+
+bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var, TransferFit* fit,
+                       std::string* error) {
+  if (levels.empty()) {
+    *error = "emva: no photon levels";
+    return false;
+  }
+  size_t sat = 0;  // EMVA 1288: saturation at the maximum of the temporal variance
+  for (size_t i = 1; i < levels.size(); ++i)
+    if (levels[i].var > levels[sat].var) sat = i;
+  const double sat_signal = levels[sat].mean - levels[sat].dark_mean;
+  TransferFit f;
+  f.saturation_photons = levels[sat].photons;
+  std::vector<double> x, y, p;
+  for (size_t i = 0; i < sat; ++i) {
+    const double signal = levels[i].mean - levels[i].dark_mean;
+    if (signal > kFitFraction * sat_signal) break;
+    x.push_back(signal);
+    y.push_back(levels[i].var - levels[i].dark_var);
+    p.push_back(levels[i].photons);
+  }
+  f.fit_points = static_cast<int>(x.size());
+  if (f.fit_points < 5) {
+    *error = "emva: fewer than 5 levels below 70 % of saturation (" + std::to_string(f.fit_points) +
+             "); measure more levels";
+    return false;
+  }
+  f.system_gain = SlopeThroughOrigin(x, y);
+  if (!(f.system_gain > 0)) {
+    *error = "emva: the temporal variance does not grow with the signal (system gain <= 0)";
+    return false;
+  }
+  f.responsivity = SlopeThroughOrigin(p, x);
+  f.dark_noise_e = std::sqrt(std::max(0.0, dark_var - kQuantisationVariance)) / f.system_gain;
+  f.saturation_e = sat_signal / f.system_gain;
+  *fit = f;
+  return true;
+}
+
+void NonUniformity(const FrameStack& dark, const FrameStack& bright, double K, double* dsnu_e, double* prnu_percent) {
+  // The averaged image keeps 1/L of the temporal variance: take it out.
+  const double s2_dark = dark.spatial_var - dark.temporal_var / dark.frames;
+  const double s2_bright = bright.spatial_var - bright.temporal_var / bright.frames;
+  *dsnu_e = std::sqrt(std::max(0.0, s2_dark)) / K;
+  *prnu_percent = 100.0 * std::sqrt(std::max(0.0, s2_bright - s2_dark)) / (bright.mean - dark.mean);
 }
 
 std::string FormatEmvaReport(const std::string& title, const EmvaReport& r) {

@@ -25,6 +25,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "host_tools/config.h"
 
@@ -63,6 +64,39 @@ EmvaFigures ConfiguredEmva(const RunConfig& config);
 // Measures the configuration's sensor (its [sensor] and [exposure] settings;
 // frame size, CFA and every other stage are replaced by the set-up above).
 bool MeasureEmva(const RunConfig& config, const EmvaOptions& options, EmvaReport* report, std::string* error);
+
+// The analysis shared by the emulated measurement and recorded datasets
+// (camsim emva --dataset), for one channel.
+//
+// One photon level: the mean and temporal variance of its frame pair, with
+// the dark pair at the same exposure time.
+struct TransferLevel {
+  double photons = 0;  // mu_p, mean photons per pixel
+  double mean = 0, var = 0;
+  double dark_mean = 0, dark_var = 0;
+};
+// An L-frame stack: mean, spatial variance of the averaged image, and the
+// temporal variance (per pixel over the frames, averaged over pixels).
+struct FrameStack {
+  double mean = 0, spatial_var = 0, temporal_var = 0;
+  int frames = 0;
+};
+struct TransferFit {
+  double system_gain = 0;    // K, DN/e-
+  double responsivity = 0;   // R, DN/photon
+  double dark_noise_e = 0;   // from dark_var
+  double saturation_e = 0;   // (mu_y.sat - mu_y.dark) / K
+  double saturation_photons = 0;
+  int fit_points = 0;
+};
+// Steps 3-5 of the procedure above on levels in ascending photons; dark_var
+// is the temporal dark variance for sigma_d. Fails (naming why) with fewer
+// than 5 levels below 70 % of saturation.
+bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var, TransferFit* fit,
+                       std::string* error);
+// Step 6: DSNU (e-) and PRNU (%) from a dark and a bright stack.
+void NonUniformity(const FrameStack& dark, const FrameStack& bright, double system_gain, double* dsnu_e,
+                   double* prnu_percent);
 
 // The measured-versus-configured table as text.
 std::string FormatEmvaReport(const std::string& title, const EmvaReport& report);

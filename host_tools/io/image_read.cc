@@ -112,7 +112,8 @@ bool ReadExrMask(const std::string& path, FloatPlane* out, std::string* error) {
 
 }  // namespace
 
-bool ReadPng(const std::string& path, FloatPlane* gray_out, std::string* error) {
+// Opens and decodes `path`; errors name the file.
+static bool DecodePngFile(const std::string& path, DecodedPng* png, std::string* error) {
   struct FileCloser {
     void operator()(std::FILE* f) const { std::fclose(f); }
   };
@@ -121,13 +122,18 @@ bool ReadPng(const std::string& path, FloatPlane* gray_out, std::string* error) 
     *error = "cannot open '" + path + "': " + std::strerror(errno);
     return false;
   }
+  PngErrorText err;
+  if (!DecodePng(f.get(), png, &err)) {
+    *error = "'" + path + "' is not a readable PNG file: " + err.text;
+    return false;
+  }
+  return true;
+}
+
+bool ReadPng(const std::string& path, FloatPlane* gray_out, std::string* error) {
   try {
     DecodedPng png;
-    PngErrorText err;
-    if (!DecodePng(f.get(), &png, &err)) {
-      *error = "'" + path + "' is not a readable PNG file: " + err.text;
-      return false;
-    }
+    if (!DecodePngFile(path, &png, error)) return false;
     const double max_value = png.bit_depth == 16 ? 65535.0 : 255.0;
     FloatPlane plane;
     plane.width = static_cast<int>(png.width);
@@ -145,6 +151,34 @@ bool ReadPng(const std::string& path, FloatPlane* gray_out, std::string* error) 
       plane.data[i] = static_cast<float>(sum / (max_value * png.channels));
     }
     *gray_out = std::move(plane);
+    return true;
+  } catch (const std::exception& e) {
+    *error = "cannot read '" + path + "': " + e.what();
+  }
+  return false;
+}
+
+bool ReadPngGrayRaw(const std::string& path, std::vector<uint16_t>* out, int* width, int* height, int* bit_depth,
+                    std::string* error) {
+  try {
+    DecodedPng png;
+    if (!DecodePngFile(path, &png, error)) return false;
+    if (png.channels != 1) {
+      *error = "'" + path + "': expected a gray PNG, found " + std::to_string(png.channels) + " channels";
+      return false;
+    }
+    std::vector<uint16_t> v(static_cast<size_t>(png.width) * png.height);
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (png.bit_depth == 8) {
+        v[i] = png.pixels[i];
+      } else {
+        std::memcpy(&v[i], &png.pixels[2 * i], 2);
+      }
+    }
+    *out = std::move(v);
+    *width = static_cast<int>(png.width);
+    *height = static_cast<int>(png.height);
+    *bit_depth = png.bit_depth == 16 ? 16 : 8;
     return true;
   } catch (const std::exception& e) {
     *error = "cannot read '" + path + "': " + e.what();

@@ -4,6 +4,7 @@
 // saturation capacity, DSNU and PRNU within the tolerances below.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "host_tools/emva_measure.h"
@@ -48,6 +49,18 @@ void ExpectNearRel(double measured, double configured, double tol, const std::st
                                                       << configured;
 }
 
+// The DSNU estimate's relative standard error: the spatial variance of an
+// L-frame average over N pixels keeps sigma^2 / L of temporal variance, which
+// is subtracted, so its noise, about sqrt(2 / N) (s^2 + 2 sigma^2 / L), can
+// swamp a small DSNU (a CCD with 0.55 e- DSNU under 11 e- of read noise);
+// relative to DSNU it is half that over s^2.
+double DsnuRelativeError(const EmvaFigures& f, const EmvaOptions& o) {
+  const double n = static_cast<double>(o.size) * o.size, L = o.average_frames;
+  const double s2 = std::pow(f.dsnu_e * f.system_gain, 2);
+  const double sigma2 = std::pow(f.dark_noise_e * f.system_gain, 2) + 1.0 / 12.0;  // DN^2, with quantisation
+  return std::sqrt(2.0 / n) * (s2 + 2.0 * sigma2 / L) / (2.0 * s2);
+}
+
 TEST(Emva, PhotonTransferRecoversEveryPreset) {
   for (const Preset& p : Presets()) {
     RunConfig rc;
@@ -56,6 +69,13 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     ASSERT_TRUE(ApplyPreset(p.name, &rc, &origins, &error)) << error;
     EmvaOptions o;
     o.size = 128;
+    // A preset whose DSNU the default measurement cannot resolve to the
+    // tolerance gets the size and stack depth that can (4 standard errors).
+    if (4.0 * DsnuRelativeError(ConfiguredEmva(rc), o) > kNonUniformityTol) {
+      o.size = 256;
+      o.average_frames = 64;
+    }
+    const double dsnu_tol = std::max(kNonUniformityTol, 4.0 * DsnuRelativeError(ConfiguredEmva(rc), o));
     EmvaReport r;
     ASSERT_TRUE(MeasureEmva(rc, o, &r, &error)) << p.name << ": " << error;
     const std::string n = p.name;
@@ -63,7 +83,7 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     for (int c = 0; c < 3; ++c) ExpectNearRel(r.measured.qe[c], r.configured.qe[c], kQeTol, n + " QE");
     ExpectNearRel(r.measured.dark_noise_e, r.configured.dark_noise_e, kDarkNoiseTol, n + " dark noise");
     ExpectNearRel(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol, n + " saturation");
-    ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, kNonUniformityTol, n + " DSNU");
+    ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, dsnu_tol, n + " DSNU");
     ExpectNearRel(r.measured.prnu_percent, r.configured.prnu_percent, kNonUniformityTol, n + " PRNU");
     RecordProperty("emva_" + n, FormatEmvaReport(n, r));
   }
