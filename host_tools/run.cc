@@ -3,8 +3,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <sstream>
 
 #include "hal/clock.h"
@@ -328,10 +330,12 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: --out DIR is required\n");
     return 1;
   }
-  mkdir(o.out_dir.c_str(), 0755);
+  const int made = mkdir(o.out_dir.c_str(), 0755);
+  const int mkdir_errno = errno;
   struct stat st;
   if (stat(o.out_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
-    std::fprintf(stderr, "camsim: cannot create output directory %s\n", o.out_dir.c_str());
+    const char* why = made == 0 || mkdir_errno == EEXIST ? "a file of that name is in the way" : std::strerror(mkdir_errno);
+    std::fprintf(stderr, "camsim: cannot create output directory '%s': %s\n", o.out_dir.c_str(), why);
     return 2;
   }
 
