@@ -177,7 +177,11 @@ void ComputeFlareEnvironment(const FlareConfig& c, const SensorGeometry& g, Span
         const double q = over[ch] * omega * pixels_per_sr * 65536.0;
         s.excess[ch] = q >= static_cast<double>(kMaxEnvironmentExcess) ? kMaxEnvironmentExcess
                                                                          : static_cast<uint64_t>(RoundHalfUp(q));
-        s.glare[ch] = RoundShiftU(s.excess[ch] * glare_q16, 16);
+        // The exact glare fraction (the frame's Q0.16 share must match what its
+        // pixels lose; these texels lose nothing from the frame).
+        const double gq = q * c.glare_fraction;
+        s.glare[ch] = gq >= static_cast<double>(kMaxEnvironmentExcess) ? kMaxEnvironmentExcess
+                                                                        : static_cast<uint64_t>(RoundHalfUp(gq));
         out->haze_excess[ch] = SatAdd(out->haze_excess[ch], s.excess[ch]);
       }
       bool reaches = false;

@@ -46,8 +46,9 @@
 // as the frame's bright tiles do. The `max_sources` strongest candidates
 // (by excess summed over R, G, B; ties: smaller y, then smaller x, then larger
 // R, then larger G excess, so equal keys are identical sources) become
-// FlareSources with glare = glare_fraction x excess (added light: the texel is
-// not in the frame to lose it) and ghosts as for frame sources; weaker
+// FlareSources with glare = glare_fraction x excess (the exact fraction, not
+// its Q0.16 share; added light: the texel is not in the frame to lose it) and
+// ghosts as for frame sources; weaker
 // candidates count as haze only.
 //
 // Formats: excess Q16.16 radiance x pixels in uint64, rounded to nearest and
