@@ -601,7 +601,7 @@ TEST(FlareEnvironment, RunReportCountsSourcesAndHazeTexels) {
     const std::string out = dir + "/" + name;
     const std::string cmd = std::string(CAMSIM_BINARY) + " run --input " + src + "/scenes/aisle_0001.exr --out " + out +
                             " --report " + out + "/report.json --quiet --set 'flare.environment_map=\"" + src +
-                            "/scenes/sky_env.exr\"' " + sets + " >/dev/null 2>&1";
+                            "/scenes/environment/sky_env.exr\"' " + sets + " >/dev/null 2>&1";
     EXPECT_EQ(std::system(("mkdir -p '" + out + "'").c_str()), 0);
     EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
     std::ifstream in(out + "/report.json");

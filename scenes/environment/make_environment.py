@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the bundled example environment map for lens flare (scenes/sky_env.exr).
+"""Writes the bundled example environment map for lens flare (scenes/environment/sky_env.exr).
 
 A lat-long (equirectangular) RGB map, 128 x 64 half float, uncompressed
 single-part OpenEXR (written by hand: no OpenEXR module needed). Texel (i, j)
