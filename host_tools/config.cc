@@ -233,6 +233,28 @@ const std::vector<Field>& Fields() {
                       [](RunConfig& c) { return c.core.flare.ghost_intensity; }));
     v.push_back(Array("flare", "ghost_tint", "R, G, B tint of each ghost (3 per ghost)", 3 * kMaxGhosts, 3 * kMaxGhosts,
                       [](RunConfig& c) { return c.core.flare.ghost_tint; }));
+    Field env_map = Make("flare", "environment_map", Kind::kString,
+                         "lat-long (equirectangular) HDR EXR around the camera, 2:1, scene radiance units: bright "
+                         "light outside the field of view adds glare, ghosts and haze; \"\" = none");
+    env_map.get_text = [](const RunConfig& c) { return TomlString(c.environment_map); };
+    env_map.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
+      c.environment_map = s[0];
+      return true;
+    };
+    v.push_back(env_map);
+    v.push_back(Number("flare", "environment_yaw_deg",
+                       "camera heading in the map: 0 looks at its centre, + turns right (-360 .. 360)",
+                       [](RunConfig& c) -> double& { return c.core.flare.environment.yaw_deg; }));
+    v.push_back(Number("flare", "environment_pitch_deg", "camera tilt, + looks up (-90 .. 90)",
+                       [](RunConfig& c) -> double& { return c.core.flare.environment.pitch_deg; }));
+    v.push_back(Number("flare", "environment_roll_deg",
+                       "camera roll about its axis, + clockwise seen from behind (-360 .. 360)",
+                       [](RunConfig& c) -> double& { return c.core.flare.environment.roll_deg; }));
+    v.push_back(Number("flare", "environment_gain", "radiance scale of the map (0 .. 1e6)",
+                       [](RunConfig& c) -> double& { return c.core.flare.environment.gain; }));
+    v.push_back(Integer("flare", "environment_max_sources",
+                        "strongest map texels kept as glare/ghost sources (1 .. 1024); the rest add haze only",
+                        [](RunConfig& c) -> int& { return c.core.flare.environment.max_sources; }));
 
     // [auto_exposure]
     v.push_back(Enum<AutoExposureMode>("auto_exposure", "mode",
@@ -871,6 +893,33 @@ bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, st
   return true;
 }
 
+// The flare environment map: loaded only when flare is on (and again only
+// when its path changes), seen through the lens's pinhole fx, fy, cx, cy.
+bool ResolveEnvironment(RunConfig* c, std::string* error) {
+  FlareEnvironment& env = c->core.flare.environment;
+  env.texels = nullptr;
+  env.width = env.height = 0;
+  if (!c->core.flare.enabled || c->environment_map.empty()) return true;
+  if (!c->environment_data || c->environment_data->path != c->environment_map) {
+    auto map = std::make_shared<io::EnvironmentMap>();
+    if (!io::LoadEnvironmentMap(c->environment_map, map.get(), error)) {
+      *error = "flare.environment_map: " + *error;
+      return false;
+    }
+    c->environment_data = map;
+  }
+  const io::EnvironmentMap& m = *c->environment_data;
+  env.texels = m.rgb.data();
+  env.width = m.width;
+  env.height = m.height;
+  const LensModel& lens = c->core.distortion.lens;
+  env.fx = lens.fx;
+  env.fy = lens.fy;
+  env.cx = lens.cx;
+  env.cy = lens.cy;
+  return true;
+}
+
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error) {
   PipelineConfig& p = c->core;
@@ -904,6 +953,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   p.dof.focal_length_mm = c->focal_length_mm;
   p.dof.pixel_pitch_um = pitch_mm * 1000.0;
   if (!ResolveDistortion(c, pitch_mm, origins, error)) return false;
+  if (!ResolveEnvironment(c, error)) return false;
   p.sensor.defects = nullptr;
   p.sensor.defect_count = 0;
   if (!c->defects_file.empty()) {

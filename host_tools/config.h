@@ -13,6 +13,7 @@
 #include "core/control/auto_exposure.h"
 #include "core/control/metering.h"
 #include "core/pipeline/pipeline.h"
+#include "host_tools/io/environment_map.h"
 
 namespace camsim::host {
 
@@ -38,6 +39,10 @@ struct RunConfig {
   std::string defects_file;       // listed defect pixels (sensor.defects_file, host_tools/defects_file.h)
   // The loaded list, shared by copies (core.sensor.defects points into it).
   std::shared_ptr<const std::vector<DefectPixel>> defects_data;
+  std::string environment_map;    // lat-long HDR EXR for flare (flare.environment_map)
+  // The loaded map, shared by copies (core.flare.environment points into it);
+  // loaded only when flare is on, and again only when the path changes.
+  std::shared_ptr<const io::EnvironmentMap> environment_data;
   int output_bits = 8;            // ISP output PNG depth: 8 or 16
   // Auto exposure (core/control/auto_exposure.h), run frame to frame by `camsim run`.
   AutoExposureConfig auto_exposure;

@@ -171,6 +171,16 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
   j << "  \"threads\": " << threads << ", \"strip_rows\": " << o.strip_rows << ",\n";
   j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
     << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
+  if (rc.core.flare.enabled && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
+    const FlareEnvironmentSummary& e = p.flare_stage().environment_summary();
+    const io::InputSanitizeStats& st = rc.environment_data->stats;
+    j << "  \"flare_environment\": {\"map\": " << JsonString(rc.environment_map) << ", \"width\": "
+      << rc.environment_data->width << ", \"height\": " << rc.environment_data->height
+      << ", \"sanitised\": {\"nan\": " << st.nan << ", \"pos_inf\": " << st.pos_inf << ", \"neg_inf\": "
+      << st.neg_inf << ", \"negative\": " << st.negative << "}, \"bright_texels\": " << e.bright_texels
+      << ", \"sources\": " << e.sources << ", \"in_frame_skipped\": " << e.in_frame
+      << ", \"haze_only_texels\": " << e.haze_only << "},\n";
+  }
   j << "  \"stages\": [\n";
   int running = 0;
   const size_t frames = acc.frames.size() ? acc.frames.size() : 1;
@@ -260,6 +270,12 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
       std::fprintf(stderr, "  electrons");
       for (int c = 0; c < 3; ++c)
         if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.aux_sum[c] / 256.0 / s.count[c]);
+    }
+    if (e.id == StageId::kFlare && p.config().flare.environment.texels != nullptr) {
+      const FlareEnvironmentSummary& env = p.flare_stage().environment_summary();
+      std::fprintf(stderr, "  environment map: %d source(s), %lld bright texel(s): %lld in frame (skipped), %lld haze only",
+                   env.sources, static_cast<long long>(env.bright_texels), static_cast<long long>(env.in_frame),
+                   static_cast<long long>(env.haze_only));
     }
     std::fprintf(stderr, "\n");
   }

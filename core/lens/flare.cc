@@ -50,6 +50,7 @@ Status FlareStage::Configure(const FlareConfig& c, const SensorGeometry& g) {
     for (int k = 0; k < 3; ++k)
       if (!InRange(c.ghost_tint[3 * i + k], 0.0, 1.0)) return InvalidArgument("flare.ghost_tint", "must be in [0, 1]");
   }
+  CAMSIM_TRY(ValidateFlareEnvironment(c.environment, g));
   config_ = c;
   geometry_ = g;
   threshold_ = ThresholdQ16(c);
@@ -75,6 +76,7 @@ const char* FlareStage::IdentityReason() const {
 void FlareStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<uint32_t>(static_cast<size_t>(kernel_side_) * kernel_side_);
   for (int i = 0; i < config_.ghost_count; ++i) counter.Add<int16_t>(static_cast<size_t>(2 * ghost_radius_[i] + 1));
+  counter.Add<FlareSource>(static_cast<size_t>(FlareEnvironmentCapacity(config_)));
 }
 
 Status FlareStage::Init(Arena& tables) {
@@ -132,53 +134,73 @@ Status FlareStage::Init(Arena& tables) {
       ghost_factor_[i][c] = f.value();
     }
   }
+  // The environment map's sources and haze (none without a map).
+  env_sources_ = nullptr;
+  env_count_ = 0;
+  env_summary_ = FlareEnvironmentSummary{};
+  for (uint32_t& h : env_haze_) h = 0;
+  const int capacity = FlareEnvironmentCapacity(config_);
+  if (capacity > 0) {
+    FlareSource* env = tables.Take<FlareSource>(static_cast<size_t>(capacity));
+    if (env == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
+    ComputeFlareEnvironment(config_, geometry_, Span<FlareSource>{env, static_cast<size_t>(capacity)}, &env_summary_);
+    env_sources_ = env;
+    env_count_ = env_summary_.sources;
+    Result<UScale> h = UScale::FromDouble(config_.haze / (double(geometry_.width) * geometry_.height), "flare.haze");
+    if (!h.ok()) return h.status();
+    for (int c = 0; c < 3; ++c) env_haze_[c] = MulScaleU64(env_summary_.haze_excess[c], h.value());
+  }
   return Status::Ok();
 }
 
 void FlareStage::ProcessRow(const RowArgs& a) const {
   const FlareFrame* frame = a.input != nullptr ? a.input->flare : nullptr;
-  const int W = a.width, y = a.y;
-  // The pixel's own part: minus its glare share, plus the haze.
+  const int W = a.width;
+  // The pixel's own part: minus its glare share, plus the haze (the frame's and the environment's).
   for (int c = 0; c < 3; ++c) {
     const uint32_t* in = a.rows[0].ch[c];
     uint32_t* out = a.out[c];
-    const uint32_t haze = frame != nullptr ? frame->haze[c] : 0;
+    const uint32_t haze = SatU32(uint64_t{frame != nullptr ? frame->haze[c] : 0u} + env_haze_[c]);
     for (int x = 0; x < W; ++x) out[x] = SatU32(uint64_t{in[x]} - GlareShare(in[x], threshold_, glare_q16_) + haze);
   }
-  if (frame == nullptr || frame->count == 0) return;
+  if (frame != nullptr)
+    for (int s = 0; s < frame->count; ++s) AddSource(frame->sources[s], a);
+  for (int s = 0; s < env_count_; ++s) AddSource(env_sources_[s], a);
+}
+
+// Glare and ghosts of one source on row a.y. Sources may lie outside the
+// frame (environment map, |position| <= 2^21): every span is clipped to it.
+void FlareStage::AddSource(const FlareSource& src, const RowArgs& a) const {
+  const int W = a.width, y = a.y;
   const int R = config_.glare_radius, side = kernel_side_;
-  const int64_t cx2 = W - 1, cy2 = geometry_.height - 1;  // twice the optical centre
-  for (int s = 0; s < frame->count; ++s) {
-    const FlareSource& src = frame->sources[s];
-    // Glare around the source.
-    if (y >= src.y - R && y <= src.y + R) {
-      const uint32_t* krow = kernel_ + (y - src.y + R) * side;
-      const int x0 = src.x - R < 0 ? 0 : src.x - R, x1 = src.x + R >= W ? W - 1 : src.x + R;
-      for (int c = 0; c < 3; ++c) {
-        if (src.glare[c] == 0) continue;
-        uint32_t* out = a.out[c];
-        for (int x = x0; x <= x1; ++x) {
-          const uint32_t kw = krow[x - src.x + R];
-          if (kw != 0) out[x] = SatU32(uint64_t{out[x]} + MulScaleU64(src.glare[c], UScale{kw, 32}));
-        }
+  // Glare around the source.
+  if (y >= src.y - R && y <= src.y + R) {
+    const uint32_t* krow = kernel_ + (y - src.y + R) * side;
+    const int x0 = src.x - R < 0 ? 0 : src.x - R, x1 = src.x + R >= W ? W - 1 : src.x + R;
+    for (int c = 0; c < 3 && x0 <= x1; ++c) {
+      if (src.glare[c] == 0) continue;
+      uint32_t* out = a.out[c];
+      for (int x = x0; x <= x1; ++x) {
+        const uint32_t kw = krow[x - src.x + R];
+        if (kw != 0) out[x] = SatU32(uint64_t{out[x]} + MulScaleU64(src.glare[c], UScale{kw, 32}));
       }
     }
-    // Ghosts: centre + scale * (source - centre), in half pixels, rounded ties up.
-    for (int g = 0; g < config_.ghost_count; ++g) {
-      const int64_t m = ghost_scale_q16_[g];
-      const int gx = static_cast<int>(RoundShift(cx2 * 65536 + m * (2 * int64_t{src.x} - cx2), 17));
-      const int gy = static_cast<int>(RoundShift(cy2 * 65536 + m * (2 * int64_t{src.y} - cy2), 17));
-      const int r = ghost_radius_[g];
-      if (y < gy - r || y > gy + r) continue;
-      const int hw = ghost_half_width_[g][y - gy + r];
-      if (hw < 0) continue;
-      const int x0 = gx - hw < 0 ? 0 : gx - hw, x1 = gx + hw >= W ? W - 1 : gx + hw;
-      for (int c = 0; c < 3; ++c) {
-        const uint32_t v = MulScaleU64(src.excess[c], ghost_factor_[g][c]);
-        if (v == 0) continue;
-        uint32_t* out = a.out[c];
-        for (int x = x0; x <= x1; ++x) out[x] = SatU32(uint64_t{out[x]} + v);
-      }
+  }
+  // Ghosts: centre + scale * (source - centre).
+  for (int g = 0; g < config_.ghost_count; ++g) {
+    const int gx = FlareGhostCentre(src.x, ghost_scale_q16_[g], W);
+    const int gy = FlareGhostCentre(src.y, ghost_scale_q16_[g], geometry_.height);
+    const int r = ghost_radius_[g];
+    if (y < gy - r || y > gy + r) continue;
+    const int hw = ghost_half_width_[g][y - gy + r];
+    if (hw < 0) continue;
+    const int x0 = gx - hw < 0 ? 0 : gx - hw, x1 = gx + hw >= W ? W - 1 : gx + hw;
+    if (x0 > x1) continue;
+    for (int c = 0; c < 3; ++c) {
+      const uint32_t v = MulScaleU64(src.excess[c], ghost_factor_[g][c]);
+      if (v == 0) continue;
+      uint32_t* out = a.out[c];
+      for (int x = x0; x <= x1; ++x) out[x] = SatU32(uint64_t{out[x]} + v);
     }
   }
 }

@@ -15,6 +15,11 @@
 //            ghost_intensity * tint[c] of the tile's excess, spread evenly;
 //   haze     veiling glare: haze * (the frame's total excess) / pixels added
 //            everywhere.
+// An optional environment map (core/lens/flare_environment.h) adds bright
+// sources outside the field of view: built once at Init into the stage's
+// tables, they get glare and ghosts like the frame's tiles (their positions
+// may lie far outside the frame: rectangles are clipped per row), and their
+// haze is added to the frame's.
 // Ghosts and haze add light (the reflections' loss from the image is
 // neglected: it is below 1 % for the defaults).
 //
@@ -33,7 +38,9 @@
 //          spreads via MulScaleU64 (rounded ties up); adds saturate at 2^32 - 1.
 #pragma once
 
+#include "core/base/fixed.h"
 #include "core/base/span.h"
+#include "core/lens/flare_environment.h"
 #include "core/pipeline/stage.h"
 
 namespace camsim {
@@ -55,7 +62,16 @@ struct FlareConfig {
   double ghost_radius_px[kMaxGhosts] = {24.0, 10.0, 6.0, 40.0};
   double ghost_intensity[kMaxGhosts] = {2e-3, 4e-3, 4e-3, 1e-3};
   double ghost_tint[3 * kMaxGhosts] = {0.6, 1.0, 0.8, 1.0, 0.7, 0.4, 0.5, 0.8, 1.0, 1.0, 1.0, 1.0};
+  FlareEnvironment environment;   // bright light from outside the field of view (no map by default)
 };
+
+// A ghost's centre on one axis of `size` pixels: centre + scale * (pos - centre),
+// in half pixels, rounded ties up. |pos| <= 2^22 and |scale| <= 4 (Q16.16)
+// keep it within 64-bit arithmetic and its result within +-2^25.
+inline int32_t FlareGhostCentre(int32_t pos, int32_t scale_q16, int size) {
+  const int64_t c2 = size - 1;  // twice the optical centre
+  return static_cast<int32_t>(RoundShift(c2 * 65536 + int64_t{scale_q16} * (2 * int64_t{pos} - c2), 17));
+}
 
 // One bright tile of a frame.
 struct FlareSource {
@@ -84,6 +100,9 @@ class FlareStage final : public Stage {
   // The pre-pass's part of the model (shared so both compute the same values).
   uint32_t threshold_q16() const { return threshold_; }
   uint32_t glare_q16() const { return glare_q16_; }
+  // The environment map's sources (after Init) and what the map gave.
+  Span<const FlareSource> environment_sources() const { return {env_sources_, static_cast<size_t>(env_count_)}; }
+  const FlareEnvironmentSummary& environment_summary() const { return env_summary_; }
 
  private:
   FlareConfig config_;
@@ -96,6 +115,11 @@ class FlareStage final : public Stage {
   int ghost_radius_[kMaxGhosts] = {};
   UScale ghost_factor_[kMaxGhosts][3];          // intensity * tint / area
   int32_t ghost_scale_q16_[kMaxGhosts] = {};
+  const FlareSource* env_sources_ = nullptr;    // tables, FlareEnvironmentCapacity entries
+  int env_count_ = 0;
+  uint32_t env_haze_[3] = {};                   // Q16.16 added to every pixel
+  FlareEnvironmentSummary env_summary_;
+  void AddSource(const FlareSource& src, const RowArgs& a) const;
 };
 
 // Entries ComputeFlare may fill (one per tile).

@@ -1,5 +1,7 @@
 #include "core/lens/flare_ref.h"
 
+#include "core/lens/flare_environment_ref.h"
+
 #include <cmath>
 #include <vector>
 
@@ -46,6 +48,32 @@ RefImage RefFlare(const FlareConfig& c, const SensorGeometry& g, const RefImage&
   double sum_excess[3] = {};
   const auto at = [W](int x, int y) { return static_cast<size_t>(y) * W + x; };
   std::vector<std::vector<double>> add(3, std::vector<double>(static_cast<size_t>(W) * H, 0.0));
+  // Glare and ghosts of one source at (sx, sy) with `excess` per channel.
+  const auto add_source = [&](int sx, int sy, const double* excess) {
+    for (int ch = 0; ch < 3; ++ch)
+      for (int dy = -R; dy <= R; ++dy)
+        for (int dx = -R; dx <= R; ++dx) {
+          const long long x = static_cast<long long>(sx) + dx, y = static_cast<long long>(sy) + dy;
+          if (x < 0 || x >= W || y < 0 || y >= H) continue;
+          add[ch][at(static_cast<int>(x), static_cast<int>(y))] += f * excess[ch] * k[static_cast<size_t>((dy + R) * side + dx + R)];
+        }
+    for (int gi = 0; gi < c.ghost_count; ++gi) {
+      const double m = c.ghost_scale[gi];
+      const int gx = static_cast<int>(std::floor((W - 1) / 2.0 + m * (sx - (W - 1) / 2.0) + 0.5));
+      const int gy = static_cast<int>(std::floor((H - 1) / 2.0 + m * (sy - (H - 1) / 2.0) + 0.5));
+      const int r = static_cast<int>(c.ghost_radius_px[gi]);
+      int area = 0;
+      for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) area += Inside(dx, dy, c.ghost_radius_px[gi], n);
+      for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+          const int x = gx + dx, y = gy + dy;
+          if (x < 0 || x >= W || y < 0 || y >= H || !Inside(dx, dy, c.ghost_radius_px[gi], n)) continue;
+          for (int ch = 0; ch < 3; ++ch)
+            add[ch][at(x, y)] += c.ghost_intensity[gi] * c.ghost_tint[3 * gi + ch] * excess[ch] / area;
+        }
+    }
+  };
   for (int ty = 0; ty < H; ty += kFlareTile)
     for (int tx = 0; tx < W; tx += kFlareTile) {
       double excess[3] = {}, weight = 0, wx = 0, wy = 0;
@@ -65,32 +93,13 @@ RefImage RefFlare(const FlareConfig& c, const SensorGeometry& g, const RefImage&
         }
       if (weight == 0) continue;
       const int sx = static_cast<int>(std::floor(wx / weight + 0.5)), sy = static_cast<int>(std::floor(wy / weight + 0.5));
-      for (int ch = 0; ch < 3; ++ch) {
-        sum_excess[ch] += excess[ch];
-        for (int dy = -R; dy <= R; ++dy)
-          for (int dx = -R; dx <= R; ++dx) {
-            const int x = sx + dx, y = sy + dy;
-            if (x < 0 || x >= W || y < 0 || y >= H) continue;
-            add[ch][at(x, y)] += f * excess[ch] * k[static_cast<size_t>((dy + R) * side + dx + R)];
-          }
-      }
-      for (int gi = 0; gi < c.ghost_count; ++gi) {
-        const double m = c.ghost_scale[gi];
-        const int gx = static_cast<int>(std::floor((W - 1) / 2.0 + m * (sx - (W - 1) / 2.0) + 0.5));
-        const int gy = static_cast<int>(std::floor((H - 1) / 2.0 + m * (sy - (H - 1) / 2.0) + 0.5));
-        const int r = static_cast<int>(c.ghost_radius_px[gi]);
-        int area = 0;
-        for (int dy = -r; dy <= r; ++dy)
-          for (int dx = -r; dx <= r; ++dx) area += Inside(dx, dy, c.ghost_radius_px[gi], n);
-        for (int dy = -r; dy <= r; ++dy)
-          for (int dx = -r; dx <= r; ++dx) {
-            const int x = gx + dx, y = gy + dy;
-            if (x < 0 || x >= W || y < 0 || y >= H || !Inside(dx, dy, c.ghost_radius_px[gi], n)) continue;
-            for (int ch = 0; ch < 3; ++ch)
-              add[ch][at(x, y)] += c.ghost_intensity[gi] * c.ghost_tint[3 * gi + ch] * excess[ch] / area;
-          }
-      }
+      for (int ch = 0; ch < 3; ++ch) sum_excess[ch] += excess[ch];
+      add_source(sx, sy, excess);
     }
+  // The environment map's sources (outside the frame: their glare is added light).
+  const RefEnvironment env = RefFlareEnvironment(c, g);
+  for (const RefEnvSource& s : env.sources) add_source(s.x, s.y, s.excess);
+  for (int ch = 0; ch < 3; ++ch) sum_excess[ch] += env.haze_excess[ch];
   for (int ch = 0; ch < 3; ++ch) {
     const double haze = c.haze * sum_excess[ch] / (double(g.width) * g.height);
     for (size_t i = 0; i < add[ch].size(); ++i) out.planes[ch][i] += add[ch][i] + haze;

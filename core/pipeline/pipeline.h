@@ -176,6 +176,8 @@ class Pipeline {
   int width() const { return config_.geometry.width; }
   int height() const { return config_.geometry.height; }
   const PipelineConfig& config() const { return config_; }
+  // The flare stage, for its environment-map summary (valid after Init).
+  const FlareStage& flare_stage() const { return flare_; }
 
  private:
   struct StripState;

@@ -225,4 +225,45 @@ inline PipelineConfig ListedDefectsConfig(int width, int height) {
   return c;
 }
 
+// Flare with an environment map (core/lens/flare_environment.h) on the demo
+// camera: a 32 x 16 synthetic lat-long map in static storage (refilled by
+// each call) with a sky, a sun right of the view, a lamp above it, one behind
+// the camera and one inside the view (skipped); the camera turned, tilted and
+// rolled a little, fx = fy = 0.8 x width.
+inline PipelineConfig EnvironmentFlareConfig(int width, int height) {
+  PipelineConfig c = DemoConfig(width, height);
+  c.seed = 17;
+  c.flare.enabled = true;
+  c.flare.threshold = 50.0;
+  c.flare.ghost_count = 3;
+  constexpr int kMapW = 32, kMapH = 16;
+  static float map[kMapW * kMapH * 3];
+  for (int j = 0; j < kMapH; ++j)
+    for (int i = 0; i < kMapW; ++i)
+      for (int k = 0; k < 3; ++k) map[(j * kMapW + i) * 3 + k] = j < kMapH / 2 ? 1.0f + 0.25f * static_cast<float>(k) : 0.3f;
+  const auto set = [](int i, int j, float r, float g, float b) {
+    float* t = &map[(j * kMapW + i) * 3];
+    t[0] = r;
+    t[1] = g;
+    t[2] = b;
+  };
+  set(20, 6, 20000.0f, 19000.0f, 17000.0f);  // longitude 50.6, latitude 16.9: right of the view
+  set(16, 4, 900.0f, 800.0f, 600.0f);        // longitude 5.6, latitude 39.4: above it
+  set(1, 7, 3000.0f, 3000.0f, 3000.0f);      // behind: haze only
+  set(16, 7, 5000.0f, 5000.0f, 5000.0f);     // inside the view: skipped
+  FlareEnvironment& e = c.flare.environment;
+  e.texels = map;
+  e.width = kMapW;
+  e.height = kMapH;
+  e.yaw_deg = 10.0;
+  e.pitch_deg = 5.0;
+  e.roll_deg = 3.0;
+  e.gain = 1.5;
+  e.max_sources = 8;
+  e.fx = e.fy = 0.8 * width;
+  e.cx = (width - 1) / 2.0;
+  e.cy = (height - 1) / 2.0;
+  return c;
+}
+
 }  // namespace camsim::cross

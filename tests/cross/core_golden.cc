@@ -300,6 +300,7 @@ int main(int argc, char** argv) {
       {"lens", cross::LensConfig, 5},
       {"artefacts", cross::ArtefactsConfig, 11},
       {"listed_defects", cross::ListedDefectsConfig, 13},
+      {"flare_environment", cross::EnvironmentFlareConfig, 17},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 
