@@ -55,8 +55,11 @@ inline uint32_t ApplyGain(uint32_t v, uint32_t g) {
 }
 
 // out[x] = ApplyGain(in[x], g) with g = gain[x], or gain[n - 1 - x] when Reversed.
+// The loops below are always inlined into the two CAMSIM_CPU_CLONES entry
+// points, so that their AVX2 copies have AVX2 loops (a call out of a clone
+// runs the baseline code).
 template <bool Reversed, typename Gain>
-void ApplyGains(const uint32_t* __restrict in, const Gain* __restrict gain, uint32_t* __restrict out, int n) {
+[[gnu::always_inline]] inline void ApplyGains(const uint32_t* __restrict in, const Gain* __restrict gain, uint32_t* __restrict out, int n) {
   for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[Reversed ? n - 1 - x : x]);
 }
 
@@ -82,7 +85,7 @@ inline void ApplySitePixel(const uint32_t* __restrict in_a, const uint32_t* __re
 
 // Columns 0 .. n-1 of the pointers; colour A at the columns of parity a_parity.
 template <bool Reversed, typename Gain>
-void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
+[[gnu::always_inline]] inline void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
                     uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
                     int a_parity) {
   uint32_t mask[kSiteBlock];
@@ -104,7 +107,7 @@ struct SiteRow {
 };
 
 template <bool Reversed, typename Gain>
-inline void ApplyRow(const RowArgs& a, int channels, const SiteRow* site, const Gain* __restrict gain, int x0,
+[[gnu::always_inline]] inline void ApplyRow(const RowArgs& a, int channels, const SiteRow* site, const Gain* __restrict gain, int x0,
                      int n) {
   if (site != nullptr) {
     const RowIn& in = a.rows[0];
