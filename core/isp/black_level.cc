@@ -1,5 +1,7 @@
 #include "core/isp/black_level.h"
 
+#include "core/base/simd.h"
+
 namespace camsim {
 namespace {
 
@@ -42,29 +44,34 @@ Result<LineFormat> BlackLevelStage::Plan(LineFormat in) const {
 // <= 16) and mant < 2^32, so dn * mant < 2^48 and offset < 2^48; the shift is
 // in [16, 31] (the scale 65535 / (max - BL) is in [1, 65535] and its mantissa
 // in [2^31, 2^32)).
+namespace {
+
+// One channel's row (see ProcessRow); a free function so that it can be
+// compiled also for AVX2 (CAMSIM_CPU_CLONES; integer code, same bits).
+CAMSIM_CPU_CLONES
+void BlackLevelRow(const uint32_t* __restrict in, uint32_t* __restrict out, int width, uint32_t max_dn,
+                   uint64_t mant, int shift, uint64_t bias) {
+  for (int x = 0; x < width; ++x) {
+    const uint32_t dn = in[x] < max_dn ? in[x] : max_dn;
+    // dn * mant - offset + half, in (-2^48, 2^48) as a signed value, here
+    // modulo 2^64: bit 63 is set exactly when it is negative, and when it
+    // is not, >> shift (>= 16) leaves less than 2^32.
+    const uint64_t v = dn * mant + bias;
+    const uint32_t negative = static_cast<uint32_t>(v >> 63);
+    const uint32_t q = static_cast<uint32_t>(v >> shift);
+    out[x] = (q < kMaxQ16 ? q : kMaxQ16) & (negative - 1u);  // 0 when negative
+  }
+}
+
+}  // namespace
+
 void BlackLevelStage::ProcessRow(const RowArgs& a) const {
   CAMSIM_DCHECK(scale_.shift >= 16 && scale_.shift <= 31);
   const int channels = a.out[1] != nullptr ? 3 : 1;
-  const uint32_t max_dn = max_dn_;
-  const uint64_t mant = scale_.mant;
   const int shift = scale_.shift;
-  const int width = a.width;
   // The rounding half minus the offset, modulo 2^64.
   const uint64_t bias = (uint64_t{1} << (shift - 1)) - static_cast<uint64_t>(offset_);
-  for (int c = 0; c < channels; ++c) {
-    const uint32_t* in = a.rows[0].ch[c];
-    uint32_t* out = a.out[c];
-    for (int x = 0; x < width; ++x) {
-      const uint32_t dn = in[x] < max_dn ? in[x] : max_dn;
-      // dn * mant - offset + half, in (-2^48, 2^48) as a signed value, here
-      // modulo 2^64: bit 63 is set exactly when it is negative, and when it
-      // is not, >> shift (>= 16) leaves less than 2^32.
-      const uint64_t v = dn * mant + bias;
-      const uint32_t negative = static_cast<uint32_t>(v >> 63);
-      const uint32_t q = static_cast<uint32_t>(v >> shift);
-      out[x] = (q < kMaxQ16 ? q : kMaxQ16) & (negative - 1u);  // 0 when negative
-    }
-  }
+  for (int c = 0; c < channels; ++c) BlackLevelRow(a.rows[0].ch[c], a.out[c], a.width, max_dn_, scale_.mant, shift, bias);
 }
 
 }  // namespace camsim

@@ -1,5 +1,7 @@
 #include "core/isp/white_balance.h"
 
+#include "core/base/simd.h"
+
 namespace camsim {
 namespace {
 
@@ -19,7 +21,9 @@ inline uint32_t ApplySat16(uint32_t v, uint32_t mant, int shift) {
 
 // out[x] = Sat16(gain.Apply(in[x])), gain = even at even x and odd at odd x.
 // One loop over column pairs: each of its two statements has a uniform
-// shift, so compilers vectorise it (with an even/odd interleave).
+// shift, so compilers vectorise it (with an even/odd interleave). Also
+// compiled for AVX2 (CAMSIM_CPU_CLONES; integer code, same bits).
+CAMSIM_CPU_CLONES
 void GainRow(UScale even, UScale odd, const uint32_t* __restrict in, uint32_t* __restrict out, int width) {
   if (even.shift < 1 || even.shift > 63 || odd.shift < 1 || odd.shift > 63) {  // gain 0 or < 2^-32
     for (int x = 0; x < width; ++x) out[x] = Sat16(((x & 1) != 0 ? odd : even).Apply(in[x]));

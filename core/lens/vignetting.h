@@ -20,6 +20,14 @@
 //          gain: Q2.14 (0 .. 3.99994), linear interpolation rounded (ties up);
 //          product: 32 x 16 bits in 64, rounded, saturated at 2^32 - 1.
 // Mask mode: a caller image of Q2.14 gains, one per pixel (FrameInput).
+//
+// CFA site only: when the pipeline's distortion runs site-only (one colour
+// per pixel, 0 in the two others; core/lens/distortion.h) and only pointwise
+// stages lie between it and a Bayer CFA, the planner calls SetSiteOnly(cfa):
+// each pixel of a 3-channel line then applies the gain to its site's colour
+// only and writes 0 to the two others, a third of the multiplies. For
+// site-only input (zeros off the sites) that is the same output, bit for
+// bit, as applying it to all three.
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -52,6 +60,10 @@ class VignettingStage final : public Stage {
 
   // The curve gain (double) at normalised squared radius rho (for tests/reference).
   double CurveGain(double rho) const;
+  // The CFA whose sites are kept, or Cfa::kMono (the default, also after
+  // Configure) to process every channel.
+  void SetSiteOnly(Cfa cfa) { site_cfa_ = cfa; }
+  Cfa site_only() const { return site_cfa_; }
 
  private:
   VignettingConfig config_;
@@ -59,6 +71,7 @@ class VignettingStage final : public Stage {
   UScale rho_to_index_;       // (dx2 + dy2) -> curve position Q.16
   uint16_t* curve_ = nullptr; // kCurvePoints + 1 gains, Q2.14 (last repeated)
   uint32_t* dx2_ = nullptr;   // (2x - (W-1))^2 per column
+  Cfa site_cfa_ = Cfa::kMono;
 };
 
 // The stage's curve gains for callers outside the stream (the smear

@@ -248,12 +248,21 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   plan_.output = format;
   // Distortion followed, through pointwise stages only, by a Bayer CFA
   // computes only the colour each site keeps (core/lens/distortion.h).
+  // The pointwise stages between them then get site-only lines and process
+  // only the site's colour too (core/aperture/exposure.h, core/lens/vignetting.h).
   distortion_.SetSiteOnly(false);
+  exposure_.SetSiteOnly(Cfa::kMono);
+  vignetting_.SetSiteOnly(Cfa::kMono);
   for (int i = 0; i < run_count_; ++i) {
     if (run_[i] != &distortion_) continue;
     int k = i + 1;
     while (k < run_count_ && (run_[k] == &exposure_ || run_[k] == &vignetting_)) ++k;
-    distortion_.SetSiteOnly(k < run_count_ && run_[k] == &cfa_ && g.cfa != Cfa::kMono);
+    const bool site_only = k < run_count_ && run_[k] == &cfa_ && g.cfa != Cfa::kMono;
+    distortion_.SetSiteOnly(site_only);
+    for (int j = i + 1; site_only && j < k; ++j) {
+      if (run_[j] == &exposure_) exposure_.SetSiteOnly(g.cfa);
+      if (run_[j] == &vignetting_) vignetting_.SetSiteOnly(g.cfa);
+    }
   }
 
   // Rings: the input ring (index 0) and each stage's output ring (index i + 1)

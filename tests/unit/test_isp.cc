@@ -448,6 +448,31 @@ TEST(IspDemosaic, EverySmallSizeMatchesReference) {
         }
 }
 
+// The row functions run in blocks of 8 columns (a mask table) and finish the
+// last width % 8 columns one by one (the mask from x): both must give exactly
+// the reference rounded to nearest, ties up, and clamped to [0, 65535]. Every
+// tail length 0..7 after one to three blocks, every phase; integer equality,
+// not a bound, so any difference between the two paths fails.
+TEST(IspDemosaic, BlocksAndTailEqualTheRoundedReference) {
+  for (DemosaicMethod method : kMethods)
+    for (Cfa cfa : kBayerPhases)
+      for (int w = 8; w <= 31; ++w) {
+        SCOPED_TRACE(testing::Message() << "method " << static_cast<int>(method) << " cfa " << CfaName(cfa)
+                                        << " width " << w);
+        const Image in = RandomImage(w, 5, 1, kMaxQ16, static_cast<uint32_t>(100 + w));
+        const Image out = RunStage(MakeDemosaic(method, cfa, w, 5), in, 3);
+        const RefImage want = RefDemosaic(method, in, cfa);
+        for (int c = 0; c < 3; ++c)
+          for (int y = 0; y < 5; ++y)
+            for (int x = 0; x < w; ++x) {
+              // Reference values are multiples of 1/16: exact in double.
+              const double v = std::floor(want.planes[c][static_cast<size_t>(y) * w + x] + 0.5);
+              const uint32_t rounded = static_cast<uint32_t>(std::clamp(v, 0.0, 65535.0));
+              ASSERT_EQ(out.at(c, x, y), rounded) << "c " << c << " at " << x << "," << y;
+            }
+      }
+}
+
 TEST(IspDemosaic, PlanRefusesWhatIsNotALinearBayerMosaic) {
   const DemosaicStage mono = MakeDemosaic(DemosaicMethod::kBilinear, Cfa::kMono);
   const Result<LineFormat> refused = mono.Plan(LineFormat{Domain::kLinear, 1, false});

@@ -1,0 +1,190 @@
+// Exposure and vignetting in CFA-site-only mode (exposure.h, vignetting.h):
+// on site-only lines (one colour per pixel, 0 in the two others, as the
+// site-only distortion writes them) the site-only code path must give the
+// same bytes as the all-channel path, on every channel, for every Bayer
+// phase, row parity and width (blocks of 8 columns and every tail length),
+// and the planner must switch it on exactly where distortion runs site-only.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "core/aperture/exposure.h"
+#include "core/lens/vignetting.h"
+#include "core/pipeline/pipeline.h"
+
+namespace camsim {
+namespace {
+
+constexpr Cfa kBayerPhases[] = {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG};
+// Block-only, tail-only and mixed widths; odd ones put vignetting's mirrored
+// half at an odd first column.
+constexpr int kWidths[] = {1, 2, 3, 7, 8, 9, 16, 23, 37, 64, 515};
+constexpr int kHeight = 4;  // both row parities, twice
+
+// A site-only frame: channel c of pixel (x, y) is a random sample (the full
+// 32-bit range, so saturation is reached) where c is the site's colour, else 0.
+std::vector<std::vector<uint32_t>> SiteOnlyFrame(int w, int h, Cfa cfa, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<std::vector<uint32_t>> planes(3, std::vector<uint32_t>(static_cast<size_t>(w) * h, 0));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      // Mostly moderate values, some near the top of the range.
+      const uint32_t v = (x % 5 == 0) ? rng() : rng() >> 8;
+      planes[CfaColour(cfa, x, y)][static_cast<size_t>(y) * w + x] = v;
+    }
+  return planes;
+}
+
+// Runs a pointwise 3-channel stage over the frame row by row; output
+// channel rows are pre-filled with a marker so that an unwritten sample shows.
+std::vector<std::vector<uint32_t>> RunRows(const Stage& stage, const std::vector<std::vector<uint32_t>>& in, int w,
+                                       int h, const FrameInput* input) {
+  std::vector<std::vector<uint32_t>> out(3, std::vector<uint32_t>(static_cast<size_t>(w) * h));
+  for (int y = 0; y < h; ++y) {
+    std::vector<uint32_t> rows_out[3];
+    RowIn row;
+    for (int c = 0; c < 3; ++c) {
+      rows_out[c].assign(static_cast<size_t>(w), 0xDEADBEEFu);
+      row.ch[c] = in[c].data() + static_cast<size_t>(y) * w;
+    }
+    RowArgs a;
+    a.y = y;
+    a.width = w;
+    a.rows = &row;
+    a.row_count = 1;
+    a.first_row = y;
+    a.input = input;
+    for (int c = 0; c < 3; ++c) a.out[c] = rows_out[c].data();
+    stage.ProcessRow(a);
+    for (int c = 0; c < 3; ++c)
+      std::memcpy(out[c].data() + static_cast<size_t>(y) * w, rows_out[c].data(), sizeof(uint32_t) * w);
+  }
+  return out;
+}
+
+void ExpectSameBytes(const std::vector<std::vector<uint32_t>>& got, const std::vector<std::vector<uint32_t>>& want,
+                     int w) {
+  for (int c = 0; c < 3; ++c)
+    for (size_t i = 0; i < got[c].size(); ++i)
+      ASSERT_EQ(got[c][i], want[c][i]) << "channel " << c << " at " << i % w << "," << i / w;
+}
+
+TEST(SiteOnly, ExposureEqualsAllChannels) {
+  ExposureConfig factors[3];  // an ordinary factor and both of UScale::Apply's special cases
+  factors[1].exposure_time_us = 192000.0;  // factor 1e9 * 192 / 0.5^2 / 256 = 3e9 >= 2^31: shift 0
+  factors[1].f_number = 0.5;
+  factors[1].photons_per_radiance_ms = 1e9;
+  factors[2].exposure_time_us = 1.0;  // factor < 2^-32: shift > 63
+  factors[2].f_number = 128.0;
+  factors[2].photons_per_radiance_ms = 1e-6;
+  const int want_shift[3][2] = {{1, 63}, {0, 0}, {64, 95}};  // the range each case is meant to reach
+  for (int i = 0; i < 3; ++i) {
+    const ExposureConfig& e = factors[i];
+    ExposureStage all, site;
+    ASSERT_TRUE(all.Configure(e).ok()) << i;
+    ASSERT_TRUE(site.Configure(e).ok());
+    EXPECT_GE(all.factor().shift, want_shift[i][0]);
+    EXPECT_LE(all.factor().shift, want_shift[i][1]);
+    for (Cfa cfa : kBayerPhases)
+      for (int w : kWidths) {
+        SCOPED_TRACE(testing::Message() << CfaName(cfa) << " width " << w << " shift " << all.factor().shift);
+        site.SetSiteOnly(cfa);
+        const auto in = SiteOnlyFrame(w, kHeight, cfa, static_cast<uint32_t>(w));
+        ExpectSameBytes(RunRows(site, in, w, kHeight, nullptr), RunRows(all, in, w, kHeight, nullptr), w);
+      }
+  }
+}
+
+// Owns the table memory of a stage.
+struct Tables {
+  std::vector<uint8_t> memory;
+  Arena arena;
+};
+Status InitStage(Stage& stage, Tables& t) {
+  WorkspaceCounter counter;
+  stage.CountTables(counter);
+  t.memory.assign(counter.bytes(), 0);
+  t.arena = Arena(Span<uint8_t>{t.memory.data(), t.memory.size()});
+  return stage.Init(t.arena);
+}
+
+TEST(SiteOnly, VignettingEqualsAllChannels) {
+  for (VignettingMode mode : {VignettingMode::kCos4, VignettingMode::kMask})
+    for (Cfa cfa : kBayerPhases)
+      for (int w : kWidths) {
+        SCOPED_TRACE(testing::Message() << "mode " << static_cast<int>(mode) << " " << CfaName(cfa) << " width "
+                                        << w);
+        VignettingConfig v;
+        v.mode = mode;
+        v.focal_length_px = 3.0;  // strong fall-off across even a small frame
+        SensorGeometry g;
+        g.width = w;
+        g.height = kHeight;
+        g.cfa = cfa;
+        // Mask gains: Q2.14 up to 3.99994, so saturation is reached too.
+        std::vector<uint16_t> mask(static_cast<size_t>(w) * kHeight);
+        std::mt19937 rng(static_cast<uint32_t>(7 * w));
+        for (uint16_t& m : mask) m = static_cast<uint16_t>(rng() & 0xFFFF);
+        FrameInput input;
+        input.vignetting_mask = ImageView<const uint16_t>{mask.data(), w, kHeight, 1, w};
+        VignettingStage all, site;
+        Tables ta, ts;
+        ASSERT_TRUE(all.Configure(v, g, true).ok());
+        ASSERT_TRUE(site.Configure(v, g, true).ok());
+        ASSERT_TRUE(InitStage(all, ta).ok());
+        ASSERT_TRUE(InitStage(site, ts).ok());
+        site.SetSiteOnly(cfa);
+        const auto in = SiteOnlyFrame(w, kHeight, cfa, static_cast<uint32_t>(1000 + w));
+        ExpectSameBytes(RunRows(site, in, w, kHeight, &input), RunRows(all, in, w, kHeight, &input), w);
+      }
+}
+
+// The planner: site-only exactly for the pointwise stages between a
+// site-only distortion and a Bayer CFA; Configure resets it.
+TEST(SiteOnly, PlannerSetsItBetweenDistortionAndCfa) {
+  PipelineConfig c;
+  c.geometry.width = 64;
+  c.geometry.height = 48;
+  c.distortion.lens.model = DistortionModel::kBrown;
+  c.distortion.lens.fx = c.distortion.lens.fy = 50.0;
+  c.distortion.lens.cx = 31.5;
+  c.distortion.lens.cy = 23.5;
+  c.distortion.lens.k[0] = -0.2;
+  c.vignetting.mode = VignettingMode::kCos4;
+  c.vignetting.focal_length_px = 60.0;
+  c.order[0] = StageId::kDistortion;
+  c.order[1] = StageId::kExposure;
+  c.order[2] = StageId::kVignetting;
+  c.order[3] = StageId::kCfa;
+  c.order_count = 4;
+  struct Case {
+    Cfa cfa;
+    int order_count;
+    bool want;
+  };
+  for (const Case& k : {Case{Cfa::kBayerGR, 4, true}, Case{Cfa::kMono, 4, false}, Case{Cfa::kBayerGR, 3, false}}) {
+    SCOPED_TRACE(testing::Message() << CfaName(k.cfa) << ", " << k.order_count << " stages");
+    c.geometry.cfa = k.cfa;
+    c.order_count = k.order_count;
+    Pipeline p;
+    ASSERT_TRUE(p.Configure(c, 1, false).ok());
+    int seen = 0;
+    for (int i = 0; i < p.plan().running; ++i) {
+      const Stage& s = p.running_stage(i);
+      if (std::strcmp(s.name(), "exposure") == 0) {
+        EXPECT_EQ(static_cast<const ExposureStage&>(s).site_only(), k.want ? k.cfa : Cfa::kMono);
+        ++seen;
+      }
+      if (std::strcmp(s.name(), "vignetting") == 0) {
+        EXPECT_EQ(static_cast<const VignettingStage&>(s).site_only(), k.want ? k.cfa : Cfa::kMono);
+        ++seen;
+      }
+    }
+    EXPECT_EQ(seen, 2);
+  }
+}
+
+}  // namespace
+}  // namespace camsim
