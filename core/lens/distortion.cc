@@ -3,6 +3,7 @@
 #include <cmath>  // std::sqrt only (IEEE basic operation)
 
 #include "core/base/detmath.h"
+#include "core/base/simd.h"
 
 namespace camsim {
 namespace {
@@ -136,6 +137,50 @@ template <int N>
   return SatU32(v);
 }
 
+// Filter<N> for taps that need no reflection: rows r[0 .. N-1], columns
+// x0 .. x0 + N - 1 (the fast path's interior case). The same sums as Filter.
+template <int N>
+[[gnu::always_inline]] inline uint32_t FilterInterior(const RowIn* r, int c, int x0, const int16_t* wxp,
+                                                      const int16_t* wyp) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int64_t kR = int64_t{1} << (kF - 1);
+  if constexpr (N == 2) {
+    // Each phase's two weights sum to exactly 2^14, so w0 a + w1 b equals
+    // 2^14 a + w1 (b - a), and rounding that >> 14 is a + ((w1 (b - a) +
+    // 2^13) >> 14): one product per sum instead of two, the same bits.
+    const uint32_t* p0 = r[0].ch[c] + x0;
+    const uint32_t* p1 = r[1].ch[c] + x0;
+    const int64_t wx = wxp[1], wy = wyp[1];
+    const int64_t h0 = int64_t{p0[0]} + ((wx * (int64_t{p0[1]} - p0[0]) + kR) >> kF);
+    const int64_t h1 = int64_t{p1[0]} + ((wx * (int64_t{p1[1]} - p1[0]) + kR) >> kF);
+    return SatU32(h0 + ((wy * (h1 - h0) + kR) >> kF));
+  } else {
+    constexpr int kBefore = N / 2 - 1;
+    int64_t wx[N];
+    for (int i = 0; i < N; ++i) wx[i] = wxp[i];
+    int64_t v = 0;
+    for (int k = 0; k < N; ++k) {
+      const uint32_t* p = r[k].ch[c] + x0;
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += wx[i] * p[i];
+      v += int64_t{wyp[k]} * ((s + kR) >> kF);
+    }
+    v = (v + kR) >> kF;
+    // Ringing clamp to the 2x2 samples around the source.
+    const uint32_t* r0 = r[kBefore].ch[c] + x0 + kBefore;
+    const uint32_t* r1 = r[kBefore + 1].ch[c] + x0 + kBefore;
+    const uint32_t s00 = r0[0], s01 = r0[1], s10 = r1[0], s11 = r1[1];
+    uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
+    if (s10 < lo) lo = s10;
+    if (s10 > hi) hi = s10;
+    if (s11 < lo) lo = s11;
+    if (s11 > hi) hi = s11;
+    if (v < lo) v = lo;
+    if (v > hi) v = hi;
+    return static_cast<uint32_t>(v);
+  }
+}
+
 }  // namespace
 
 int ResampleTaps(ResampleFilter f) {
@@ -167,6 +212,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   config_ = c;
   geometry_ = g;
   site_only_ = false;
+  fast_path_ = false;
   table_ = nullptr;
   weights_ = nullptr;
   const LensModel& m = config_.lens;
@@ -419,6 +465,25 @@ Status DistortionStage::Init(Arena& tables) {
     }
     out[largest] = static_cast<int16_t>(out[largest] + ((1 << kWeightFracBits) - total));
   }
+  // The fast path's 32-bit positions (RowPositions) need |displacement| <=
+  // 2^29 (plus x << 16 < 2^30 stays below 2^31) and neighbouring valid nodes
+  // of a grid row closer than 2^24 (256 px; times the fraction < 2^6 stays
+  // far below 2^31). Chromatic scaling (64-bit products) takes the general path.
+  constexpr int64_t kMaxFastDisplacement = int64_t{1} << 29, kMaxFastDifference = int64_t{1} << 24;
+  fast_path_ = !scaled_[0] && !scaled_[1] && !scaled_[2];
+  for (int j = 0; j < grid_h_ && fast_path_; ++j)
+    for (int i = 0; i < grid_w_; ++i) {
+      const int32_t* node = table_ + (static_cast<size_t>(j) * grid_w_ + i) * 2;
+      if (node[0] == kNoSource) continue;
+      for (int k = 0; k < 2; ++k) {
+        const int64_t v = node[k];
+        if (v > kMaxFastDisplacement || v < -kMaxFastDisplacement) fast_path_ = false;
+        if (i + 1 < grid_w_ && node[2] != kNoSource) {
+          const int64_t d = int64_t{node[2 + k]} - v;
+          if (d + 1 >= kMaxFastDifference || d - 1 <= -kMaxFastDifference) fast_path_ = false;
+        }
+      }
+    }
   return Status::Ok();
 }
 
@@ -511,7 +576,93 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
   }
 }
 
+// Fast path (fast_path()), per grid cell of the row: first the source
+// positions (Q.16) of its pixels in 32-bit arithmetic (Init checks the
+// ranges: |displacement| <= 2^29, neighbouring columns differ by less than
+// 2^24): column i's displacement a plus ((b - a) fx + half) >> step_bits
+// equals the general path's (a w0 + b fx + half) >> step_bits, as a
+// 2^step_bits is a multiple of 2^step_bits. Then per pixel the phase
+// rounding in 32 bits and, where all taps lie inside the frame and the
+// driver's window, FilterInterior; the rest (borders) goes through SetUpTaps
+// and Filter as in the general path. The same bits as ProcessRowN.
+template <int N>
+void DistortionStage::ProcessRowFast(const RowArgs& a) const {
+  const int width = a.width, y = a.y, height = geometry_.height;
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(y, vdx, vdy);
+  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowIn* const rows = a.rows;
+  const int16_t* const weights = weights_;
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const bool site_only = site_only_;
+  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  constexpr int32_t kHalf = 1 << 15;
+  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
+  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1;
+  const int32_t qround = 1 << (shift - 1);
+  constexpr int kBefore = N / 2 - 1;
+  // y0 (the first tap row) for which all N rows are in the frame and the window.
+  const int row_lo = a.first_row > 0 ? a.first_row : 0;
+  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
+  const int row_hi = row_end - N, col_hi = width - N, first_row = a.first_row;
+  int32_t sxs[64], sys[64];  // one cell's positions; grid_step <= 64
+  for (int xc = 0, i = 0; xc < width; xc += step, ++i) {
+    const int n = width - xc < step ? width - xc : step;
+    if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+      for (int x = xc; x < xc + n; ++x)
+        for (int c = 0; c < 3; ++c) out[c][x] = 0;
+      continue;
+    }
+    {
+      const int32_t ax = vdx[i] + xc * 65536, dx = vdx[i + 1] - vdx[i];
+      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+      for (int f = 0; f < n; ++f) {
+        sxs[f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        sys[f] = ay + ((dy * f + half) >> step_bits);
+      }
+    }
+    for (int f = 0; f < n; ++f) {
+      const int x = xc + f;
+      int c0 = 0, c1 = 3;
+      if (site_only) {
+        c0 = CfaColour(cfa, x, y);
+        c1 = c0 + 1;
+        for (int c = 0; c < 3; ++c) out[c][x] = 0;
+      }
+      const int32_t px = sxs[f], py = sys[f];
+      if (px < -kHalf || py < -kHalf || px > xmax || py > ymax) {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+        continue;
+      }
+      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
+      const int x0 = (qx >> pb) - kBefore, y0 = (qy >> pb) - kBefore;
+      if (x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi) {
+        const RowIn* r = rows + (y0 - first_row);
+        const int16_t* wx = weights + (qx & mask) * N;
+        const int16_t* wy = weights + (qy & mask) * N;
+        for (int c = c0; c < c1; ++c) out[c][x] = FilterInterior<N>(r, c, x0, wx, wy);
+        continue;
+      }
+      Taps<N> t;
+      if (SetUpTaps<N>(src, px, py, &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      } else {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      }
+    }
+  }
+}
+
 void DistortionStage::ProcessRow(const RowArgs& a) const {
+  if (fast_path()) {
+    switch (taps_) {
+      case 2: ProcessRowFast<2>(a); return;
+      case 4: ProcessRowFast<4>(a); return;
+      default: ProcessRowFast<6>(a); return;
+    }
+  }
   switch (taps_) {
     case 2: ProcessRowN<2>(a); break;
     case 4: ProcessRowN<4>(a); break;

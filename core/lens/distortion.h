@@ -96,6 +96,10 @@ class DistortionStage final : public Stage {
   // Q.16 pixels (after Init; for tests). False when the pixel gets the fill.
   bool SourcePosition(int x, int y, int c, int64_t* sx, int64_t* sy) const;
   int taps() const { return taps_; }
+  // Whether ProcessRow takes the 32-bit fast path (see "Fast path" in the
+  // .cc); tests can force the general path to compare the two.
+  bool fast_path() const { return fast_path_ && !force_general_; }
+  void ForceGeneralPathForTest(bool force) { force_general_ = force; }
 
  private:
   // The mesh's displacement at output position (u, v) (pixels).
@@ -105,11 +109,15 @@ class DistortionStage final : public Stage {
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
   template <int N>
   void ProcessRowN(const RowArgs& args) const;
+  template <int N>
+  void ProcessRowFast(const RowArgs& args) const;
 
   DistortionConfig config_;
   SensorGeometry geometry_;
   LensBranch branch_;
   bool site_only_ = false;
+  bool fast_path_ = false;      // set by Init when the table's ranges fit 32 bits
+  bool force_general_ = false;  // tests only
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
