@@ -585,7 +585,7 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
 // rounding in 32 bits and, where all taps lie inside the frame and the
 // driver's window, FilterInterior; the rest (borders) goes through SetUpTaps
 // and Filter as in the general path. The same bits as ProcessRowN.
-template <int N>
+template <int N, bool kSiteOnly>
 void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int width = a.width, y = a.y, height = geometry_.height;
   int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
@@ -596,7 +596,6 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int16_t* const weights = weights_;
   uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
-  const bool site_only = site_only_;
   const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
   constexpr int32_t kHalf = 1 << 15;
   const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
@@ -626,7 +625,7 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
     for (int f = 0; f < n; ++f) {
       const int x = xc + f;
       int c0 = 0, c1 = 3;
-      if (site_only) {
+      if constexpr (kSiteOnly) {
         c0 = CfaColour(cfa, x, y);
         c1 = c0 + 1;
         for (int c = 0; c < 3; ++c) out[c][x] = 0;
@@ -642,7 +641,13 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
         const RowIn* r = rows + (y0 - first_row);
         const int16_t* wx = weights + (qx & mask) * N;
         const int16_t* wy = weights + (qy & mask) * N;
-        for (int c = c0; c < c1; ++c) out[c][x] = FilterInterior<N>(r, c, x0, wx, wy);
+        if constexpr (kSiteOnly) {
+          out[c0][x] = FilterInterior<N>(r, c0, x0, wx, wy);
+        } else {
+          out[0][x] = FilterInterior<N>(r, 0, x0, wx, wy);
+          out[1][x] = FilterInterior<N>(r, 1, x0, wx, wy);
+          out[2][x] = FilterInterior<N>(r, 2, x0, wx, wy);
+        }
         continue;
       }
       Taps<N> t;
@@ -657,10 +662,13 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
 
 void DistortionStage::ProcessRow(const RowArgs& a) const {
   if (fast_path()) {
-    switch (taps_) {
-      case 2: ProcessRowFast<2>(a); return;
-      case 4: ProcessRowFast<4>(a); return;
-      default: ProcessRowFast<6>(a); return;
+    switch (taps_ * 2 + (site_only_ ? 1 : 0)) {
+      case 4: ProcessRowFast<2, false>(a); return;
+      case 5: ProcessRowFast<2, true>(a); return;
+      case 8: ProcessRowFast<4, false>(a); return;
+      case 9: ProcessRowFast<4, true>(a); return;
+      case 12: ProcessRowFast<6, false>(a); return;
+      default: ProcessRowFast<6, true>(a); return;
     }
   }
   switch (taps_) {

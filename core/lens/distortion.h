@@ -109,7 +109,7 @@ class DistortionStage final : public Stage {
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
   template <int N>
   void ProcessRowN(const RowArgs& args) const;
-  template <int N>
+  template <int N, bool kSiteOnly>
   void ProcessRowFast(const RowArgs& args) const;
 
   DistortionConfig config_;
