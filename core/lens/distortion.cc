@@ -181,6 +181,43 @@ template <int N>
   }
 }
 
+// The bilinear fast path stages a chunk of kChunk output pixels: per pixel
+// the two weights (phase x, phase y: the weight of the second tap) and per
+// channel the 2x2 samples, then computes them all in 32-bit lanes.
+constexpr int kChunk = 64;  // pixels; a multiple of every grid_step (<= 64)
+struct BilinearChunk {
+  int32_t wx[kChunk], wy[kChunk];
+  uint32_t s[3][4][kChunk];  // channel, (row 0 col 0, row 0 col 1, row 1 col 0, row 1 col 1)
+  uint32_t v[3][kChunk];
+};
+
+// a + ((w (b - a) + 2^13) >> 14) for 0 <= w <= 2^14 (FilterInterior<2>'s
+// step) in 32-bit arithmetic: with b - a = 2^16 dh + dl split into the
+// samples' 16-bit halves, w (b - a) = 2^16 X + Y with X = w dh and Y = w dl,
+// |X|, |Y| < 2^30, and the rounded shift is 4 X + ((Y + 2^13) >> 14) exactly
+// (2^16 X is a multiple of 2^14). The result lies between a and b, so the
+// sum modulo 2^32 is the result.
+[[gnu::always_inline]] inline uint32_t Lerp32(uint32_t a, uint32_t b, int32_t w) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  const int32_t dh = static_cast<int32_t>(b >> 16) - static_cast<int32_t>(a >> 16);
+  const int32_t dl = static_cast<int32_t>(b & 0xFFFF) - static_cast<int32_t>(a & 0xFFFF);
+  const int32_t x = w * dh, y = w * dl;
+  return a + 4u * static_cast<uint32_t>(x) + static_cast<uint32_t>((y + (1 << (kF - 1))) >> kF);
+}
+
+// channels planes of a chunk: v = lerp(lerp(s00, s01, wx), lerp(s10, s11, wx), wy).
+// A fixed trip count over local arrays, so GCC vectorises it even at -O2
+// (vpmulld in the AVX2 clone).
+CAMSIM_CPU_CLONES
+void BilinearLanes(BilinearChunk* __restrict k, int channels) {
+  for (int c = 0; c < channels; ++c)
+    for (int f = 0; f < kChunk; ++f) {
+      const uint32_t h0 = Lerp32(k->s[c][0][f], k->s[c][1][f], k->wx[f]);
+      const uint32_t h1 = Lerp32(k->s[c][2][f], k->s[c][3][f], k->wx[f]);
+      k->v[c][f] = Lerp32(h0, h1, k->wy[f]);
+    }
+}
+
 }  // namespace
 
 int ResampleTaps(ResampleFilter f) {
@@ -660,11 +697,103 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   }
 }
 
+// Bilinear fast path: per chunk of kChunk pixels, the positions (as in
+// ProcessRowFast), then per pixel its weights and 2x2 samples staged
+// (fill: weights and samples 0, which gives 0), BilinearLanes, and the
+// pixels whose taps need reflection or leave the window (frame borders)
+// through SetUpTaps / Filter afterwards. The same bits as ProcessRowN<2>.
+template <bool kSiteOnly>
+void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
+  const int width = a.width, y = a.y, height = geometry_.height;
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(y, vdx, vdy);
+  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowIn* const rows = a.rows;
+  const int16_t* const weights = weights_;
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  constexpr int32_t kHalf = 1 << 15;
+  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
+  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1;
+  const int32_t qround = 1 << (shift - 1);
+  const int row_lo = a.first_row > 0 ? a.first_row : 0;
+  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
+  const int row_hi = row_end - 2, col_hi = width - 2, first_row = a.first_row;
+  constexpr int kChannels = kSiteOnly ? 1 : 3;
+  BilinearChunk k;
+  int32_t sxs[kChunk], sys[kChunk];
+  bool fill[kChunk];                      // cell without a source
+  uint8_t site[kChunk];                   // site only: the colour computed
+  int16_t border[kChunk];                 // pixels for the general path
+  for (int xs = 0; xs < width; xs += kChunk) {
+    const int n = width - xs < kChunk ? width - xs : kChunk;
+    for (int xc = 0; xc < n; xc += step) {
+      const int i = (xs + xc) >> step_bits, m = n - xc < step ? n - xc : step;
+      const bool none = vdx[i] == kNoSource || vdx[i + 1] == kNoSource;
+      const int32_t ax = none ? 0 : vdx[i] + (xs + xc) * 65536, dx = none ? 0 : vdx[i + 1] - vdx[i];
+      const int32_t ay = none ? 0 : vdy[i] + y16, dy = none ? 0 : vdy[i + 1] - vdy[i];
+      for (int f = 0; f < m; ++f) {
+        sxs[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        sys[xc + f] = ay + ((dy * f + half) >> step_bits);
+        fill[xc + f] = none;
+      }
+    }
+    int borders = 0;
+    for (int f = 0; f < kChunk; ++f) {
+      const int x = xs + f;
+      int c0 = 0;
+      if constexpr (kSiteOnly) {
+        c0 = f < n ? CfaColour(cfa, x, y) : 0;
+        site[f] = static_cast<uint8_t>(c0);
+      }
+      const int32_t px = sxs[f], py = sys[f];
+      const bool off = f >= n || fill[f] || px < -kHalf || py < -kHalf || px > xmax || py > ymax;
+      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
+      const int x0 = qx >> pb, y0 = qy >> pb;
+      if (!off && x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi) {
+        const RowIn* r = rows + (y0 - first_row);
+        k.wx[f] = weights[(qx & mask) * 2 + 1];
+        k.wy[f] = weights[(qy & mask) * 2 + 1];
+        for (int c = 0; c < kChannels; ++c) {
+          const uint32_t* p0 = r[0].ch[c0 + c] + x0;
+          const uint32_t* p1 = r[1].ch[c0 + c] + x0;
+          k.s[c][0][f] = p0[0];
+          k.s[c][1][f] = p0[1];
+          k.s[c][2][f] = p1[0];
+          k.s[c][3][f] = p1[1];
+        }
+        continue;
+      }
+      k.wx[f] = k.wy[f] = 0;
+      for (int c = 0; c < kChannels; ++c)
+        for (int t = 0; t < 4; ++t) k.s[c][t][f] = 0;
+      if (!off) border[borders++] = static_cast<int16_t>(f);
+    }
+    BilinearLanes(&k, kChannels);
+    if constexpr (kSiteOnly) {
+      for (int c = 0; c < 3; ++c)
+        for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;
+    } else {
+      for (int c = 0; c < 3; ++c)
+        for (int f = 0; f < n; ++f) out[c][xs + f] = k.v[c][f];
+    }
+    for (int b = 0; b < borders; ++b) {
+      const int f = border[b], x = xs + f;
+      Taps<2> t;
+      const int c0 = kSiteOnly ? site[f] : 0, c1 = kSiteOnly ? c0 + 1 : 3;
+      if (SetUpTaps<2>(src, sxs[f], sys[f], &t))
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<2>(src, c, t);
+    }
+  }
+}
+
 void DistortionStage::ProcessRow(const RowArgs& a) const {
   if (fast_path()) {
     switch (taps_ * 2 + (site_only_ ? 1 : 0)) {
-      case 4: ProcessRowFast<2, false>(a); return;
-      case 5: ProcessRowFast<2, true>(a); return;
+      case 4: ProcessRowBilinear<false>(a); return;
+      case 5: ProcessRowBilinear<true>(a); return;
       case 8: ProcessRowFast<4, false>(a); return;
       case 9: ProcessRowFast<4, true>(a); return;
       case 12: ProcessRowFast<6, false>(a); return;

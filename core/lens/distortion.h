@@ -111,6 +111,8 @@ class DistortionStage final : public Stage {
   void ProcessRowN(const RowArgs& args) const;
   template <int N, bool kSiteOnly>
   void ProcessRowFast(const RowArgs& args) const;
+  template <bool kSiteOnly>
+  void ProcessRowBilinear(const RowArgs& args) const;
 
   DistortionConfig config_;
   SensorGeometry geometry_;
