@@ -1,6 +1,7 @@
 #include "core/lens/distortion.h"
 
 #include <cmath>  // std::sqrt only (IEEE basic operation)
+#include <cstring>
 
 #include "core/base/detmath.h"
 #include "core/base/simd.h"
@@ -187,7 +188,7 @@ template <int N>
 constexpr int kChunk = 64;  // pixels; a multiple of every grid_step (<= 64)
 struct BilinearChunk {
   int32_t wx[kChunk], wy[kChunk];
-  uint32_t s[3][4][kChunk];  // channel, (row 0 col 0, row 0 col 1, row 1 col 0, row 1 col 1)
+  uint32_t s[3][2][kChunk][2];  // channel, tap row, pixel, tap column (pairs: one 64-bit copy)
   uint32_t v[3][kChunk];
 };
 
@@ -212,8 +213,8 @@ CAMSIM_CPU_CLONES
 void BilinearLanes(BilinearChunk* __restrict k, int channels) {
   for (int c = 0; c < channels; ++c)
     for (int f = 0; f < kChunk; ++f) {
-      const uint32_t h0 = Lerp32(k->s[c][0][f], k->s[c][1][f], k->wx[f]);
-      const uint32_t h1 = Lerp32(k->s[c][2][f], k->s[c][3][f], k->wx[f]);
+      const uint32_t h0 = Lerp32(k->s[c][0][f][0], k->s[c][0][f][1], k->wx[f]);
+      const uint32_t h1 = Lerp32(k->s[c][1][f][0], k->s[c][1][f][1], k->wx[f]);
       k->v[c][f] = Lerp32(h0, h1, k->wy[f]);
     }
 }
@@ -757,18 +758,13 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
         k.wx[f] = weights[(qx & mask) * 2 + 1];
         k.wy[f] = weights[(qy & mask) * 2 + 1];
         for (int c = 0; c < kChannels; ++c) {
-          const uint32_t* p0 = r[0].ch[c0 + c] + x0;
-          const uint32_t* p1 = r[1].ch[c0 + c] + x0;
-          k.s[c][0][f] = p0[0];
-          k.s[c][1][f] = p0[1];
-          k.s[c][2][f] = p1[0];
-          k.s[c][3][f] = p1[1];
+          std::memcpy(k.s[c][0][f], r[0].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+          std::memcpy(k.s[c][1][f], r[1].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
         }
         continue;
       }
       k.wx[f] = k.wy[f] = 0;
-      for (int c = 0; c < kChannels; ++c)
-        for (int t = 0; t < 4; ++t) k.s[c][t][f] = 0;
+      for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
       if (!off) border[borders++] = static_cast<int16_t>(f);
     }
     BilinearLanes(&k, kChannels);
@@ -776,8 +772,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       for (int c = 0; c < 3; ++c)
         for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;
     } else {
-      for (int c = 0; c < 3; ++c)
-        for (int f = 0; f < n; ++f) out[c][xs + f] = k.v[c][f];
+      for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], static_cast<size_t>(n) * sizeof(uint32_t));
     }
     for (int b = 0; b < borders; ++b) {
       const int f = border[b], x = xs + f;
