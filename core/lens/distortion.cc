@@ -219,6 +219,45 @@ void BilinearLanes(BilinearChunk* __restrict k, int channels) {
     }
 }
 
+// The per-pixel set-up of a bilinear chunk in lanes: from the positions
+// (sx, sy; Q.16, int32), whether the pixel is inside (all four taps in the
+// frame and the window: the staged path), or needs the general path (border),
+// or gets the fill; its first tap column and window row, and its two weights.
+// Bilinear weights are exact: the second tap's weight of phase p is
+// p << (14 - phase_bits) (Init checks the table against that).
+struct BilinearSetUp {
+  int32_t sx[kChunk], sy[kChunk];
+  int32_t x0[kChunk], row[kChunk];
+  int32_t wx[kChunk], wy[kChunk];
+  int32_t inside[kChunk], border[kChunk];  // 0 or 1; int32 like the rest, so all lanes are one width
+};
+struct BilinearLimits {
+  int32_t xmax, ymax;           // largest source position (Q.16) on the image
+  int32_t col_hi, row_lo, row_hi, first_row;
+  int32_t qround, shift, phase_bits, mask;
+};
+
+CAMSIM_CPU_CLONES
+void BilinearSetUpLanes(BilinearSetUp* __restrict u, const BilinearLimits l) {
+  constexpr int32_t kHalf = 1 << 15;
+  const int wshift = DistortionStage::kWeightFracBits - l.phase_bits;
+  for (int f = 0; f < kChunk; ++f) {
+    const int32_t px = u->sx[f], py = u->sy[f];
+    // & rather than && (no branches), so the loop vectorises.
+    const int32_t on = (px >= -kHalf) & (py >= -kHalf) & (px <= l.xmax) & (py <= l.ymax);
+    const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
+    const int32_t x0 = qx >> l.phase_bits, y0 = qy >> l.phase_bits;
+    const int32_t inside = on & (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
+    const int32_t keep = -inside;  // all ones when inside
+    u->inside[f] = inside;
+    u->border[f] = on & (inside ^ 1);
+    u->x0[f] = x0 & keep;
+    u->row[f] = (y0 - l.first_row) & keep;
+    u->wx[f] = ((qx & l.mask) << wshift) & keep;
+    u->wy[f] = ((qy & l.mask) << wshift) & keep;
+  }
+}
+
 }  // namespace
 
 int ResampleTaps(ResampleFilter f) {
@@ -509,6 +548,13 @@ Status DistortionStage::Init(Arena& tables) {
   // far below 2^31). Chromatic scaling (64-bit products) takes the general path.
   constexpr int64_t kMaxFastDisplacement = int64_t{1} << 29, kMaxFastDifference = int64_t{1} << 24;
   fast_path_ = !scaled_[0] && !scaled_[1] && !scaled_[2];
+  // The bilinear fast path computes the weights: phase p's second weight is
+  // p << (14 - phase_bits) (exact in double and Q1.14; checked here).
+  if (config_.filter == ResampleFilter::kBilinear)
+    for (int p = 0; p < phases; ++p)
+      if (weights_[2 * p + 1] != (p << (kWeightFracBits - phase_bits_)) ||
+          weights_[2 * p] != (1 << kWeightFracBits) - weights_[2 * p + 1])
+        fast_path_ = false;
   for (int j = 0; j < grid_h_ && fast_path_; ++j)
     for (int i = 0; i < grid_w_; ++i) {
       const int32_t* node = table_ + (static_cast<size_t>(j) * grid_w_ + i) * 2;
@@ -711,61 +757,61 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   InterpolateRow(y, vdx, vdy);
   const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
   const RowIn* const rows = a.rows;
-  const int16_t* const weights = weights_;
   uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
   const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
   constexpr int32_t kHalf = 1 << 15;
-  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
-  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1;
-  const int32_t qround = 1 << (shift - 1);
-  const int row_lo = a.first_row > 0 ? a.first_row : 0;
-  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
-  const int row_hi = row_end - 2, col_hi = width - 2, first_row = a.first_row;
+  const int32_t y16 = y * 65536;  // < 2^30
+  BilinearLimits l;
+  l.xmax = width * 65536 - kHalf;
+  l.ymax = height * 65536 - kHalf;
+  l.row_lo = a.first_row > 0 ? a.first_row : 0;
+  l.row_hi = (a.first_row + a.row_count < height ? a.first_row + a.row_count : height) - 2;
+  l.col_hi = width - 2;
+  l.first_row = a.first_row;
+  l.phase_bits = phase_bits_;
+  l.shift = 16 - phase_bits_;
+  l.mask = (1 << phase_bits_) - 1;
+  l.qround = 1 << (l.shift - 1);
   constexpr int kChannels = kSiteOnly ? 1 : 3;
+  constexpr int32_t kOff = INT32_MIN;  // a position off the image: fill
   BilinearChunk k;
-  int32_t sxs[kChunk], sys[kChunk];
-  bool fill[kChunk];                      // cell without a source
-  uint8_t site[kChunk];                   // site only: the colour computed
-  int16_t border[kChunk];                 // pixels for the general path
+  BilinearSetUp u;
+  uint8_t site[kChunk];  // site only: the colour computed
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    for (int xc = 0; xc < n; xc += step) {
-      const int i = (xs + xc) >> step_bits, m = n - xc < step ? n - xc : step;
-      const bool none = vdx[i] == kNoSource || vdx[i + 1] == kNoSource;
-      const int32_t ax = none ? 0 : vdx[i] + (xs + xc) * 65536, dx = none ? 0 : vdx[i + 1] - vdx[i];
-      const int32_t ay = none ? 0 : vdy[i] + y16, dy = none ? 0 : vdy[i + 1] - vdy[i];
-      for (int f = 0; f < m; ++f) {
-        sxs[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
-        sys[xc + f] = ay + ((dy * f + half) >> step_bits);
-        fill[xc + f] = none;
+    for (int xc = 0; xc < kChunk; xc += step) {
+      const int i = (xs + xc) >> step_bits;
+      if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+        for (int f = 0; f < step; ++f) u.sx[xc + f] = u.sy[xc + f] = kOff;
+        continue;
+      }
+      const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
+      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+      for (int f = 0; f < step; ++f) {
+        u.sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        u.sy[xc + f] = ay + ((dy * f + half) >> step_bits);
       }
     }
-    int borders = 0;
+    BilinearSetUpLanes(&u, l);
     for (int f = 0; f < kChunk; ++f) {
-      const int x = xs + f;
       int c0 = 0;
       if constexpr (kSiteOnly) {
-        c0 = f < n ? CfaColour(cfa, x, y) : 0;
+        c0 = CfaColour(cfa, xs + f, y);
         site[f] = static_cast<uint8_t>(c0);
       }
-      const int32_t px = sxs[f], py = sys[f];
-      const bool off = f >= n || fill[f] || px < -kHalf || py < -kHalf || px > xmax || py > ymax;
-      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
-      const int x0 = qx >> pb, y0 = qy >> pb;
-      if (!off && x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi) {
-        const RowIn* r = rows + (y0 - first_row);
-        k.wx[f] = weights[(qx & mask) * 2 + 1];
-        k.wy[f] = weights[(qy & mask) * 2 + 1];
+      k.wx[f] = u.wx[f];
+      k.wy[f] = u.wy[f];
+      if (u.inside[f]) {
+        const RowIn* r = rows + u.row[f];
+        const int x0 = u.x0[f];
         for (int c = 0; c < kChannels; ++c) {
           std::memcpy(k.s[c][0][f], r[0].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
           std::memcpy(k.s[c][1][f], r[1].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
         }
-        continue;
+      } else {
+        for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
       }
-      k.wx[f] = k.wy[f] = 0;
-      for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
-      if (!off) border[borders++] = static_cast<int16_t>(f);
     }
     BilinearLanes(&k, kChannels);
     if constexpr (kSiteOnly) {
@@ -774,12 +820,12 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
     } else {
       for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], static_cast<size_t>(n) * sizeof(uint32_t));
     }
-    for (int b = 0; b < borders; ++b) {
-      const int f = border[b], x = xs + f;
+    for (int f = 0; f < n; ++f) {
+      if (!u.border[f]) continue;
       Taps<2> t;
       const int c0 = kSiteOnly ? site[f] : 0, c1 = kSiteOnly ? c0 + 1 : 3;
-      if (SetUpTaps<2>(src, sxs[f], sys[f], &t))
-        for (int c = c0; c < c1; ++c) out[c][x] = Filter<2>(src, c, t);
+      if (SetUpTaps<2>(src, u.sx[f], u.sy[f], &t))
+        for (int c = c0; c < c1; ++c) out[c][xs + f] = Filter<2>(src, c, t);
     }
   }
 }
