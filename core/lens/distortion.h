@@ -40,6 +40,11 @@
 // colour its CFA site keeps and writes 0 to the two others (a third of the
 // work; those zeros are visible in a tap of this stage).
 //
+// Speed: when Init proves the table's ranges fit 32 bits (no chromatic
+// scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256
+// px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
+// .cc) that give exactly the general path's bits; tests compare the two.
+//
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
 #pragma once
 
