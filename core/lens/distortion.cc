@@ -1,8 +1,10 @@
 #include "core/lens/distortion.h"
 
 #include <cmath>  // std::sqrt only (IEEE basic operation)
+#include <cstring>
 
 #include "core/base/detmath.h"
+#include "core/base/simd.h"
 
 namespace camsim {
 namespace {
@@ -136,6 +138,126 @@ template <int N>
   return SatU32(v);
 }
 
+// Filter<N> for taps that need no reflection: rows r[0 .. N-1], columns
+// x0 .. x0 + N - 1 (the fast path's interior case). The same sums as Filter.
+template <int N>
+[[gnu::always_inline]] inline uint32_t FilterInterior(const RowIn* r, int c, int x0, const int16_t* wxp,
+                                                      const int16_t* wyp) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int64_t kR = int64_t{1} << (kF - 1);
+  if constexpr (N == 2) {
+    // Each phase's two weights sum to exactly 2^14, so w0 a + w1 b equals
+    // 2^14 a + w1 (b - a), and rounding that >> 14 is a + ((w1 (b - a) +
+    // 2^13) >> 14): one product per sum instead of two, the same bits.
+    const uint32_t* p0 = r[0].ch[c] + x0;
+    const uint32_t* p1 = r[1].ch[c] + x0;
+    const int64_t wx = wxp[1], wy = wyp[1];
+    const int64_t h0 = int64_t{p0[0]} + ((wx * (int64_t{p0[1]} - p0[0]) + kR) >> kF);
+    const int64_t h1 = int64_t{p1[0]} + ((wx * (int64_t{p1[1]} - p1[0]) + kR) >> kF);
+    return SatU32(h0 + ((wy * (h1 - h0) + kR) >> kF));
+  } else {
+    constexpr int kBefore = N / 2 - 1;
+    int64_t wx[N];
+    for (int i = 0; i < N; ++i) wx[i] = wxp[i];
+    int64_t v = 0;
+    for (int k = 0; k < N; ++k) {
+      const uint32_t* p = r[k].ch[c] + x0;
+      int64_t s = 0;
+      for (int i = 0; i < N; ++i) s += wx[i] * p[i];
+      v += int64_t{wyp[k]} * ((s + kR) >> kF);
+    }
+    v = (v + kR) >> kF;
+    // Ringing clamp to the 2x2 samples around the source.
+    const uint32_t* r0 = r[kBefore].ch[c] + x0 + kBefore;
+    const uint32_t* r1 = r[kBefore + 1].ch[c] + x0 + kBefore;
+    const uint32_t s00 = r0[0], s01 = r0[1], s10 = r1[0], s11 = r1[1];
+    uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
+    if (s10 < lo) lo = s10;
+    if (s10 > hi) hi = s10;
+    if (s11 < lo) lo = s11;
+    if (s11 > hi) hi = s11;
+    if (v < lo) v = lo;
+    if (v > hi) v = hi;
+    return static_cast<uint32_t>(v);
+  }
+}
+
+// The bilinear fast path stages a chunk of kChunk output pixels: per pixel
+// the two weights (phase x, phase y: the weight of the second tap) and per
+// channel the 2x2 samples, then computes them all in 32-bit lanes.
+constexpr int kChunk = 64;  // pixels; a multiple of every grid_step (<= 64)
+struct BilinearChunk {
+  int32_t wx[kChunk], wy[kChunk];
+  uint32_t s[3][2][kChunk][2];  // channel, tap row, pixel, tap column (pairs: one 64-bit copy)
+  uint32_t v[3][kChunk];
+};
+
+// a + ((w (b - a) + 2^13) >> 14) for 0 <= w <= 2^14 (FilterInterior<2>'s
+// step) in 32-bit arithmetic: with b - a = 2^16 dh + dl split into the
+// samples' 16-bit halves, w (b - a) = 2^16 X + Y with X = w dh and Y = w dl,
+// |X|, |Y| < 2^30, and the rounded shift is 4 X + ((Y + 2^13) >> 14) exactly
+// (2^16 X is a multiple of 2^14). The result lies between a and b, so the
+// sum modulo 2^32 is the result.
+[[gnu::always_inline]] inline uint32_t Lerp32(uint32_t a, uint32_t b, int32_t w) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  const int32_t dh = static_cast<int32_t>(b >> 16) - static_cast<int32_t>(a >> 16);
+  const int32_t dl = static_cast<int32_t>(b & 0xFFFF) - static_cast<int32_t>(a & 0xFFFF);
+  const int32_t x = w * dh, y = w * dl;
+  return a + 4u * static_cast<uint32_t>(x) + static_cast<uint32_t>((y + (1 << (kF - 1))) >> kF);
+}
+
+// channels planes of a chunk: v = lerp(lerp(s00, s01, wx), lerp(s10, s11, wx), wy).
+// A fixed trip count over local arrays, so GCC vectorises it even at -O2
+// (vpmulld in the AVX2 clone).
+CAMSIM_CPU_CLONES
+void BilinearLanes(BilinearChunk* __restrict k, int channels) {
+  for (int c = 0; c < channels; ++c)
+    for (int f = 0; f < kChunk; ++f) {
+      const uint32_t h0 = Lerp32(k->s[c][0][f][0], k->s[c][0][f][1], k->wx[f]);
+      const uint32_t h1 = Lerp32(k->s[c][1][f][0], k->s[c][1][f][1], k->wx[f]);
+      k->v[c][f] = Lerp32(h0, h1, k->wy[f]);
+    }
+}
+
+// The per-pixel set-up of a bilinear chunk in lanes: from the positions
+// (sx, sy; Q.16, int32), whether the pixel is inside (all four taps in the
+// frame and the window: the staged path), or needs the general path (border),
+// or gets the fill; its first tap column and window row, and its two weights.
+// Bilinear weights are exact: the second tap's weight of phase p is
+// p << (14 - phase_bits) (Init checks the table against that).
+struct BilinearSetUp {
+  int32_t sx[kChunk], sy[kChunk];
+  int32_t x0[kChunk], row[kChunk];
+  int32_t wx[kChunk], wy[kChunk];
+  int32_t inside[kChunk], border[kChunk];  // 0 or 1; int32 like the rest, so all lanes are one width
+};
+struct BilinearLimits {
+  int32_t xmax, ymax;           // largest source position (Q.16) on the image
+  int32_t col_hi, row_lo, row_hi, first_row;
+  int32_t qround, shift, phase_bits, mask;
+};
+
+CAMSIM_CPU_CLONES
+void BilinearSetUpLanes(BilinearSetUp* __restrict u, const BilinearLimits l) {
+  constexpr int32_t kHalf = 1 << 15;
+  const int wshift = DistortionStage::kWeightFracBits - l.phase_bits;
+  for (int f = 0; f < kChunk; ++f) {
+    const int32_t px = u->sx[f], py = u->sy[f];
+    // & rather than && (no branches), so the loop vectorises.
+    const int32_t on = (px >= -kHalf) & (py >= -kHalf) & (px <= l.xmax) & (py <= l.ymax);
+    const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
+    const int32_t x0 = qx >> l.phase_bits, y0 = qy >> l.phase_bits;
+    const int32_t inside = on & (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
+    const int32_t keep = -inside;  // all ones when inside
+    u->inside[f] = inside;
+    u->border[f] = on & (inside ^ 1);
+    u->x0[f] = x0 & keep;
+    u->row[f] = (y0 - l.first_row) & keep;
+    u->wx[f] = ((qx & l.mask) << wshift) & keep;
+    u->wy[f] = ((qy & l.mask) << wshift) & keep;
+  }
+}
+
 }  // namespace
 
 int ResampleTaps(ResampleFilter f) {
@@ -167,6 +289,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   config_ = c;
   geometry_ = g;
   site_only_ = false;
+  fast_path_ = false;
   table_ = nullptr;
   weights_ = nullptr;
   const LensModel& m = config_.lens;
@@ -419,6 +542,32 @@ Status DistortionStage::Init(Arena& tables) {
     }
     out[largest] = static_cast<int16_t>(out[largest] + ((1 << kWeightFracBits) - total));
   }
+  // The fast path's 32-bit positions (RowPositions) need |displacement| <=
+  // 2^29 (plus x << 16 < 2^30 stays below 2^31) and neighbouring valid nodes
+  // of a grid row closer than 2^24 (256 px; times the fraction < 2^6 stays
+  // far below 2^31). Chromatic scaling (64-bit products) takes the general path.
+  constexpr int64_t kMaxFastDisplacement = int64_t{1} << 29, kMaxFastDifference = int64_t{1} << 24;
+  fast_path_ = !scaled_[0] && !scaled_[1] && !scaled_[2];
+  // The bilinear fast path computes the weights: phase p's second weight is
+  // p << (14 - phase_bits) (exact in double and Q1.14; checked here).
+  if (config_.filter == ResampleFilter::kBilinear)
+    for (int p = 0; p < phases; ++p)
+      if (weights_[2 * p + 1] != (p << (kWeightFracBits - phase_bits_)) ||
+          weights_[2 * p] != (1 << kWeightFracBits) - weights_[2 * p + 1])
+        fast_path_ = false;
+  for (int j = 0; j < grid_h_ && fast_path_; ++j)
+    for (int i = 0; i < grid_w_; ++i) {
+      const int32_t* node = table_ + (static_cast<size_t>(j) * grid_w_ + i) * 2;
+      if (node[0] == kNoSource) continue;
+      for (int k = 0; k < 2; ++k) {
+        const int64_t v = node[k];
+        if (v > kMaxFastDisplacement || v < -kMaxFastDisplacement) fast_path_ = false;
+        if (i + 1 < grid_w_ && node[2] != kNoSource) {
+          const int64_t d = int64_t{node[2 + k]} - v;
+          if (d + 1 >= kMaxFastDifference || d - 1 <= -kMaxFastDifference) fast_path_ = false;
+        }
+      }
+    }
   return Status::Ok();
 }
 
@@ -511,7 +660,187 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
   }
 }
 
+// Fast path (fast_path()), per grid cell of the row: first the source
+// positions (Q.16) of its pixels in 32-bit arithmetic (Init checks the
+// ranges: |displacement| <= 2^29, neighbouring columns differ by less than
+// 2^24): column i's displacement a plus ((b - a) fx + half) >> step_bits
+// equals the general path's (a w0 + b fx + half) >> step_bits, as a
+// 2^step_bits is a multiple of 2^step_bits. Then per pixel the phase
+// rounding in 32 bits and, where all taps lie inside the frame and the
+// driver's window, FilterInterior; the rest (borders) goes through SetUpTaps
+// and Filter as in the general path. The same bits as ProcessRowN.
+template <int N, bool kSiteOnly>
+void DistortionStage::ProcessRowFast(const RowArgs& a) const {
+  const int width = a.width, y = a.y, height = geometry_.height;
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(y, vdx, vdy);
+  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowIn* const rows = a.rows;
+  const int16_t* const weights = weights_;
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  constexpr int32_t kHalf = 1 << 15;
+  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
+  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1;
+  const int32_t qround = 1 << (shift - 1);
+  constexpr int kBefore = N / 2 - 1;
+  // y0 (the first tap row) for which all N rows are in the frame and the window.
+  const int row_lo = a.first_row > 0 ? a.first_row : 0;
+  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
+  const int row_hi = row_end - N, col_hi = width - N, first_row = a.first_row;
+  int32_t sxs[64], sys[64];  // one cell's positions; grid_step <= 64
+  for (int xc = 0, i = 0; xc < width; xc += step, ++i) {
+    const int n = width - xc < step ? width - xc : step;
+    if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+      for (int x = xc; x < xc + n; ++x)
+        for (int c = 0; c < 3; ++c) out[c][x] = 0;
+      continue;
+    }
+    {
+      const int32_t ax = vdx[i] + xc * 65536, dx = vdx[i + 1] - vdx[i];
+      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+      for (int f = 0; f < n; ++f) {
+        sxs[f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        sys[f] = ay + ((dy * f + half) >> step_bits);
+      }
+    }
+    for (int f = 0; f < n; ++f) {
+      const int x = xc + f;
+      int c0 = 0, c1 = 3;
+      if constexpr (kSiteOnly) {
+        c0 = CfaColour(cfa, x, y);
+        c1 = c0 + 1;
+        for (int c = 0; c < 3; ++c) out[c][x] = 0;
+      }
+      const int32_t px = sxs[f], py = sys[f];
+      if (px < -kHalf || py < -kHalf || px > xmax || py > ymax) {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+        continue;
+      }
+      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
+      const int x0 = (qx >> pb) - kBefore, y0 = (qy >> pb) - kBefore;
+      if (x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi) {
+        const RowIn* r = rows + (y0 - first_row);
+        const int16_t* wx = weights + (qx & mask) * N;
+        const int16_t* wy = weights + (qy & mask) * N;
+        if constexpr (kSiteOnly) {
+          out[c0][x] = FilterInterior<N>(r, c0, x0, wx, wy);
+        } else {
+          out[0][x] = FilterInterior<N>(r, 0, x0, wx, wy);
+          out[1][x] = FilterInterior<N>(r, 1, x0, wx, wy);
+          out[2][x] = FilterInterior<N>(r, 2, x0, wx, wy);
+        }
+        continue;
+      }
+      Taps<N> t;
+      if (SetUpTaps<N>(src, px, py, &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      } else {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      }
+    }
+  }
+}
+
+// Bilinear fast path: per chunk of kChunk pixels, the positions (as in
+// ProcessRowFast), then per pixel its weights and 2x2 samples staged
+// (fill: weights and samples 0, which gives 0), BilinearLanes, and the
+// pixels whose taps need reflection or leave the window (frame borders)
+// through SetUpTaps / Filter afterwards. The same bits as ProcessRowN<2>.
+template <bool kSiteOnly>
+void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
+  const int width = a.width, y = a.y, height = geometry_.height;
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(y, vdx, vdy);
+  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowIn* const rows = a.rows;
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  constexpr int32_t kHalf = 1 << 15;
+  const int32_t y16 = y * 65536;  // < 2^30
+  BilinearLimits l;
+  l.xmax = width * 65536 - kHalf;
+  l.ymax = height * 65536 - kHalf;
+  l.row_lo = a.first_row > 0 ? a.first_row : 0;
+  l.row_hi = (a.first_row + a.row_count < height ? a.first_row + a.row_count : height) - 2;
+  l.col_hi = width - 2;
+  l.first_row = a.first_row;
+  l.phase_bits = phase_bits_;
+  l.shift = 16 - phase_bits_;
+  l.mask = (1 << phase_bits_) - 1;
+  l.qround = 1 << (l.shift - 1);
+  constexpr int kChannels = kSiteOnly ? 1 : 3;
+  constexpr int32_t kOff = INT32_MIN;  // a position off the image: fill
+  BilinearChunk k;
+  BilinearSetUp u;
+  uint8_t site[kChunk];  // site only: the colour computed
+  for (int xs = 0; xs < width; xs += kChunk) {
+    const int n = width - xs < kChunk ? width - xs : kChunk;
+    for (int xc = 0; xc < kChunk; xc += step) {
+      const int i = (xs + xc) >> step_bits;
+      if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+        for (int f = 0; f < step; ++f) u.sx[xc + f] = u.sy[xc + f] = kOff;
+        continue;
+      }
+      const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
+      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+      for (int f = 0; f < step; ++f) {
+        u.sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        u.sy[xc + f] = ay + ((dy * f + half) >> step_bits);
+      }
+    }
+    BilinearSetUpLanes(&u, l);
+    for (int f = 0; f < kChunk; ++f) {
+      int c0 = 0;
+      if constexpr (kSiteOnly) {
+        c0 = CfaColour(cfa, xs + f, y);
+        site[f] = static_cast<uint8_t>(c0);
+      }
+      k.wx[f] = u.wx[f];
+      k.wy[f] = u.wy[f];
+      if (u.inside[f]) {
+        const RowIn* r = rows + u.row[f];
+        const int x0 = u.x0[f];
+        for (int c = 0; c < kChannels; ++c) {
+          std::memcpy(k.s[c][0][f], r[0].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+          std::memcpy(k.s[c][1][f], r[1].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+        }
+      } else {
+        for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
+      }
+    }
+    BilinearLanes(&k, kChannels);
+    if constexpr (kSiteOnly) {
+      for (int c = 0; c < 3; ++c)
+        for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;
+    } else {
+      for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], static_cast<size_t>(n) * sizeof(uint32_t));
+    }
+    for (int f = 0; f < n; ++f) {
+      if (!u.border[f]) continue;
+      Taps<2> t;
+      const int c0 = kSiteOnly ? site[f] : 0, c1 = kSiteOnly ? c0 + 1 : 3;
+      if (SetUpTaps<2>(src, u.sx[f], u.sy[f], &t))
+        for (int c = c0; c < c1; ++c) out[c][xs + f] = Filter<2>(src, c, t);
+    }
+  }
+}
+
 void DistortionStage::ProcessRow(const RowArgs& a) const {
+  if (fast_path()) {
+    switch (taps_ * 2 + (site_only_ ? 1 : 0)) {
+      case 4: ProcessRowBilinear<false>(a); return;
+      case 5: ProcessRowBilinear<true>(a); return;
+      case 8: ProcessRowFast<4, false>(a); return;
+      case 9: ProcessRowFast<4, true>(a); return;
+      case 12: ProcessRowFast<6, false>(a); return;
+      default: ProcessRowFast<6, true>(a); return;
+    }
+  }
   switch (taps_) {
     case 2: ProcessRowN<2>(a); break;
     case 4: ProcessRowN<4>(a); break;

@@ -40,6 +40,11 @@
 // colour its CFA site keeps and writes 0 to the two others (a third of the
 // work; those zeros are visible in a tap of this stage).
 //
+// Speed: when Init proves the table's ranges fit 32 bits (no chromatic
+// scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256
+// px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
+// .cc) that give exactly the general path's bits; tests compare the two.
+//
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
 #pragma once
 
@@ -96,6 +101,10 @@ class DistortionStage final : public Stage {
   // Q.16 pixels (after Init; for tests). False when the pixel gets the fill.
   bool SourcePosition(int x, int y, int c, int64_t* sx, int64_t* sy) const;
   int taps() const { return taps_; }
+  // Whether ProcessRow takes the 32-bit fast path (see "Fast path" in the
+  // .cc); tests can force the general path to compare the two.
+  bool fast_path() const { return fast_path_ && !force_general_; }
+  void ForceGeneralPathForTest(bool force) { force_general_ = force; }
 
  private:
   // The mesh's displacement at output position (u, v) (pixels).
@@ -105,11 +114,17 @@ class DistortionStage final : public Stage {
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
   template <int N>
   void ProcessRowN(const RowArgs& args) const;
+  template <int N, bool kSiteOnly>
+  void ProcessRowFast(const RowArgs& args) const;
+  template <bool kSiteOnly>
+  void ProcessRowBilinear(const RowArgs& args) const;
 
   DistortionConfig config_;
   SensorGeometry geometry_;
   LensBranch branch_;
   bool site_only_ = false;
+  bool fast_path_ = false;      // set by Init when the table's ranges fit 32 bits
+  bool force_general_ = false;  // tests only
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
