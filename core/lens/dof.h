@@ -234,7 +234,9 @@ class DofColumnStage final : public Stage {
   static constexpr int kTile = 64;  // columns solved together (block state ~35 KB at B = 16)
 
  private:
-  void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows) const;
+  void FillLinks(const RowArgs& args, uint8_t* state, int lo, int hi) const;
+  void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows,
+                 const uint32_t* ring, int ring_rows) const;
 
   DofConfig config_;
   SensorGeometry geometry_;
