@@ -85,7 +85,7 @@ void SetError(benchmark::State& state, const std::vector<uint32_t>& out, const s
   state.counters["err_max"] = mx / mean;
 }
 
-void RunDof(benchmark::State& state, const PipelineConfig& config) {
+void RunDof(benchmark::State& state, const PipelineConfig& config, int strip_rows = 16) {
   Pipeline p;
   if (!p.Configure(config, 1, false).ok()) std::abort();
   std::vector<uint8_t> ws(p.WorkspaceBytes());
@@ -100,7 +100,7 @@ void RunDof(benchmark::State& state, const PipelineConfig& config) {
   WorkerStats stats;
   for (auto _ : state) {
     stats = WorkerStats();
-    p.ProcessFrame(in, 0, 16, &tap, 1, &stats, nullptr);
+    p.ProcessFrame(in, 0, strip_rows, &tap, 1, &stats, nullptr);
     benchmark::DoNotOptimize(out.data());
   }
   SetError(state, out, Reference(config.dof.method));
@@ -116,6 +116,23 @@ void BM_DofDiffusion(benchmark::State& state) {
   RunDof(state, p);
 }
 BENCHMARK(BM_DofDiffusion)->Arg(8)->Arg(16)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond)->MinTime(0.5);
+
+// BM_DofDiffusionStrips/window/strip_rows: the same with taller strips. Each
+// strip starts with empty rings, so a strip of S rows runs the row pass (and
+// the CoC) on its S + 2W + (up to) 15 window rows: 5x the frame at S = 16, W = 32.
+void BM_DofDiffusionStrips(benchmark::State& state) {
+  PipelineConfig p = DofConfigFor(DofMethod::kDiffusion);
+  p.dof.column_window = static_cast<int>(state.range(0));
+  RunDof(state, p, static_cast<int>(state.range(1)));
+}
+BENCHMARK(BM_DofDiffusionStrips)
+    ->Args({32, 16})
+    ->Args({32, 64})
+    ->Args({32, 128})
+    ->Args({32, 272})
+    ->Args({32, 1080})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.5);
 
 void BM_DofGather(benchmark::State& state) {
   PipelineConfig p = DofConfigFor(DofMethod::kGather);
