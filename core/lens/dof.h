@@ -48,7 +48,9 @@
 // a per-row window of W. Rows of the window outside the frame do not exist
 // (insulated border), so the result depends only on the block, never on the
 // strip or the thread count; the solved block lives in the stage's strip
-// state (Stage::StateBytes), reset by BeginStrip at every strip.
+// state (Stage::StateBytes), reset by BeginStrip at every strip, next to a
+// ring of the window's links b (each row's CoC computed once per strip; a
+// link depends on its two rows only, so caching it changes no bit).
 //
 // Formats: x, out: radiance Q16.16 (uint32), 3 channels.
 //          u, v, y: int64 Q16.32 (16 guard bits below the input's LSB);
