@@ -14,6 +14,9 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
+#include <random>
 #include <cmath>
 #include <map>
 #include <vector>
@@ -85,7 +88,7 @@ void SetError(benchmark::State& state, const std::vector<uint32_t>& out, const s
   state.counters["err_max"] = mx / mean;
 }
 
-void RunDof(benchmark::State& state, const PipelineConfig& config) {
+void RunDof(benchmark::State& state, const PipelineConfig& config, int strip_rows = 16) {
   Pipeline p;
   if (!p.Configure(config, 1, false).ok()) std::abort();
   std::vector<uint8_t> ws(p.WorkspaceBytes());
@@ -100,7 +103,7 @@ void RunDof(benchmark::State& state, const PipelineConfig& config) {
   WorkerStats stats;
   for (auto _ : state) {
     stats = WorkerStats();
-    p.ProcessFrame(in, 0, 16, &tap, 1, &stats, nullptr);
+    p.ProcessFrame(in, 0, strip_rows, &tap, 1, &stats, nullptr);
     benchmark::DoNotOptimize(out.data());
   }
   SetError(state, out, Reference(config.dof.method));
@@ -116,6 +119,23 @@ void BM_DofDiffusion(benchmark::State& state) {
   RunDof(state, p);
 }
 BENCHMARK(BM_DofDiffusion)->Arg(8)->Arg(16)->Arg(32)->Arg(64)->Arg(128)->Unit(benchmark::kMillisecond)->MinTime(0.5);
+
+// BM_DofDiffusionStrips/window/strip_rows: the same with taller strips. Each
+// strip starts with empty rings, so a strip of S rows runs the row pass (and
+// the CoC) on its S + 2W + (up to) 15 window rows: 5x the frame at S = 16, W = 32.
+void BM_DofDiffusionStrips(benchmark::State& state) {
+  PipelineConfig p = DofConfigFor(DofMethod::kDiffusion);
+  p.dof.column_window = static_cast<int>(state.range(0));
+  RunDof(state, p, static_cast<int>(state.range(1)));
+}
+BENCHMARK(BM_DofDiffusionStrips)
+    ->Args({32, 16})
+    ->Args({32, 64})
+    ->Args({32, 128})
+    ->Args({32, 272})
+    ->Args({32, 1080})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.5);
 
 void BM_DofGather(benchmark::State& state) {
   PipelineConfig p = DofConfigFor(DofMethod::kGather);
@@ -175,6 +195,98 @@ void BM_DofFloatThomas(benchmark::State& state) {
   state.counters["workspace_bytes"] = 3.0 * kW * kH * 4;  // the float frame it needs
 }
 BENCHMARK(BM_DofFloatThomas)->Unit(benchmark::kMillisecond)->MinTime(0.5);
+
+// Division-free reciprocal against the hardware divide (issue 7, tried and
+// not adopted): the solver's rounded Q.30 quotient n / d (0 <= n <= d, the
+// DivQ30 of core/lens/dof.cc, repeated here) three ways, on the solver's
+// operand ranges (D in [2^30, 2^50], b << 18 added).
+//   /0 hardware 64-bit divide (the core's way);
+//   /1 the same exact quotient from a 256-entry reciprocal table, two Newton
+//      steps and a remainder correction (identical bits);
+//   /2 table + two Newton steps without correction (within 2 Q.30 ulp).
+// Arg 0..2 as above; second arg 0: independent quotients (throughput), 1:
+// each denominator depends on the previous quotient (latency, as the row
+// pass's chain r_i -> D_{i+1} -> r_{i+1}).
+namespace divide {
+inline uint32_t Hardware(uint64_t n, uint64_t d) {
+  const int bits = static_cast<int>(std::bit_width(d));
+  const int k = bits > 34 ? bits - 34 : 0;
+  n >>= k;
+  d >>= k;
+  return static_cast<uint32_t>(((n << 30) + (d >> 1)) / d);
+}
+struct Table {
+  uint32_t y[256];  // ~ 2^63 / m for m = 2^31 (1 + (i + 1/2) / 256)
+  Table() {
+    for (int i = 0; i < 256; ++i) y[i] = static_cast<uint32_t>(4294967296.0 / (1.0 + (i + 0.5) / 256.0) + 0.5);
+  }
+};
+const Table kTable;
+// ~ 2^63 / m, m in [2^31, 2^32) the top 32 bits of the normalised divisor.
+inline uint64_t Reciprocal(uint32_t m) {
+  uint64_t y = kTable.y[(m >> 23) & 0xFF];
+  for (int k = 0; k < 2; ++k) {
+    const uint64_t e = (uint64_t{1} << 63) - uint64_t{m} * y;  // signed error, small
+    y += static_cast<uint64_t>((static_cast<int64_t>(e) >> 31) * static_cast<int64_t>(y) >> 32);
+  }
+  return y;
+}
+inline uint32_t Exact(uint64_t n, uint64_t d) {
+  const int bits = static_cast<int>(std::bit_width(d));
+  const int k = bits > 34 ? bits - 34 : 0;
+  n >>= k;
+  d >>= k;
+  const uint64_t num = (n << 30) + (d >> 1);
+  const int z = std::countl_zero(d);
+  const uint64_t y = Reciprocal(static_cast<uint32_t>((d << z) >> 32));
+  __extension__ typedef unsigned __int128 U128;
+  uint64_t q = static_cast<uint64_t>((static_cast<U128>(num) * y) >> (95 - z));
+  int64_t rem = static_cast<int64_t>(num - q * d);
+  while (rem < 0) { --q; rem += static_cast<int64_t>(d); }
+  while (static_cast<uint64_t>(rem) >= d) { ++q; rem -= static_cast<int64_t>(d); }
+  return static_cast<uint32_t>(q);
+}
+inline uint32_t Approx(uint64_t n, uint64_t d) {
+  const int z = std::countl_zero(d);
+  const uint64_t y = Reciprocal(static_cast<uint32_t>((d << z) >> 32));
+  __extension__ typedef unsigned __int128 U128;
+  return static_cast<uint32_t>((static_cast<U128>(n) * y) >> (65 - z));
+}
+}  // namespace divide
+
+void BM_DofDivide(benchmark::State& state) {
+  const int way = static_cast<int>(state.range(0));
+  const bool chain = state.range(1) != 0;
+  constexpr int kN = 1 << 16;
+  std::vector<uint64_t> num(kN), den(kN);
+  std::mt19937_64 g(7);
+  for (int i = 0; i < kN; ++i) {
+    const uint64_t D = (uint64_t{1} << 30) + (g() >> (14 + g() % 33));
+    const uint64_t b = (g() >> (30 + g() % 34)) << 18;
+    num[i] = (i & 1) ? uint64_t{1} << 30 : D;  // e = 1 / D and r = D / (D + b) alternate
+    den[i] = (i & 1) ? D : D + b;
+  }
+  int64_t mismatches = 0, max_ulp = 0;
+  for (int i = 0; i < kN; ++i) {
+    const int64_t h = divide::Hardware(num[i], den[i]);
+    mismatches += divide::Exact(num[i], den[i]) != h;
+    max_ulp = std::max<int64_t>(max_ulp, std::abs(static_cast<int64_t>(divide::Approx(num[i], den[i])) - h));
+  }
+  for (auto _ : state) {
+    uint64_t acc = 0;
+    for (int i = 0; i < kN; ++i) {
+      const uint64_t d = den[i] + (chain ? (acc & 1) : 0);
+      const uint32_t q = way == 0 ? divide::Hardware(num[i], d) : way == 1 ? divide::Exact(num[i], d) : divide::Approx(num[i], d);
+      acc = chain ? q : acc + q;
+    }
+    benchmark::DoNotOptimize(acc);
+  }
+  state.counters["per_quotient"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * kN, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["exact_mismatches"] = static_cast<double>(mismatches);
+  state.counters["approx_max_ulp"] = static_cast<double>(max_ulp);
+}
+BENCHMARK(BM_DofDivide)->ArgsProduct({{0, 1, 2}, {0, 1}})->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace camsim

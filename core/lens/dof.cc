@@ -150,13 +150,35 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
         u[c][i] = prev + MulQ30((int64_t{line[c][i]} << kG) - prev, r);
       }
     }
-    for (int c = 0; c < channels; ++c) {
-      int64_t y = u[c][t];
-      uint32_t* out = line[c];
-      out[t] = OutOf(y);
+    if (channels == 3) {
+      // The three channels' back substitutions are independent chains: one
+      // loop interleaves them (3x the instruction-level parallelism of a
+      // loop per channel; the same operations, so the same bits).
+      int64_t y0 = u[0][t], y1 = u[1][t], y2 = u[2][t];
+      uint32_t* o0 = line[0];
+      uint32_t* o1 = line[1];
+      uint32_t* o2 = line[2];
+      o0[t] = OutOf(y0);
+      o1[t] = OutOf(y1);
+      o2[t] = OutOf(y2);
       for (int i = t - 1; i >= s; --i) {
-        y += MulQ30(u[c][i] - y, e[i]);
-        out[i] = OutOf(y);
+        const uint32_t ei = e[i];
+        y0 += MulQ30(u[0][i] - y0, ei);
+        y1 += MulQ30(u[1][i] - y1, ei);
+        y2 += MulQ30(u[2][i] - y2, ei);
+        o0[i] = OutOf(y0);
+        o1[i] = OutOf(y1);
+        o2[i] = OutOf(y2);
+      }
+    } else {
+      for (int c = 0; c < channels; ++c) {
+        int64_t y = u[c][t];
+        uint32_t* out = line[c];
+        out[t] = OutOf(y);
+        for (int i = t - 1; i >= s; --i) {
+          y += MulQ30(u[c][i] - y, e[i]);
+          out[i] = OutOf(y);
+        }
       }
     }
     s = t + 1;
@@ -313,29 +335,92 @@ RowWindow DofColumnStage::InputRows(int y, int height) const {
 size_t DofColumnStage::ScratchBytes(int width) const {
   const size_t n = static_cast<size_t>(width < kTile ? width : kTile);
   const size_t nb = n * kBlock;
-  return 3 * AlignUp(sizeof(uint64_t) * n) + 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n) +
-         AlignUp(sizeof(uint32_t) * nb) + 3 * AlignUp(sizeof(int64_t) * nb) + AlignUp(nb);
+  return 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n) + AlignUp(sizeof(uint32_t) * nb) +
+         3 * AlignUp(sizeof(int64_t) * nb) + AlignUp(nb);
 }
 
-// State: the solved block's index, its per-row solved counts, then its rows
-// (kBlock x 3 channels x width, uint32).
+namespace {
+// The column stage's strip state, in this order: a header (int32: [0] the
+// solved block, [1 + k] solved pixels of its row k, [kBlock + 1] the next row
+// whose link is not yet in the ring, -1 for none), the solved block
+// (kBlock x 3 channels x width, uint32), the squared diffusion CoC of the
+// ring's last row and a row to compute the next one (uint64 x width each),
+// then the ring of links: slot i mod R holds b between rows i - 1 and i for
+// every column, R = kBlock + 2W (the largest window). Each row's CoC is
+// computed once per strip, not once per block and tile that reads it.
+struct ColumnState {
+  int32_t* header;
+  uint32_t* cache;
+  uint64_t* cc2_last;
+  uint64_t* cc2_next;
+  uint32_t* ring;
+  int ring_rows;
+};
+constexpr int kHeaderInts = DofColumnStage::kBlock + 2;
+ColumnState ColumnStateOf(uint8_t* state, int width, int window) {
+  const size_t w = static_cast<size_t>(width);
+  ColumnState c;
+  c.header = reinterpret_cast<int32_t*>(state);
+  state += AlignUp(sizeof(int32_t) * kHeaderInts);
+  c.cache = reinterpret_cast<uint32_t*>(state);
+  state += AlignUp(sizeof(uint32_t) * 3 * DofColumnStage::kBlock * w);
+  c.cc2_last = reinterpret_cast<uint64_t*>(state);
+  state += AlignUp(sizeof(uint64_t) * w);
+  c.cc2_next = reinterpret_cast<uint64_t*>(state);
+  state += AlignUp(sizeof(uint64_t) * w);
+  c.ring = reinterpret_cast<uint32_t*>(state);
+  c.ring_rows = DofColumnStage::kBlock + 2 * window;
+  return c;
+}
+}  // namespace
+
 size_t DofColumnStage::StateBytes(int width) const {
-  return AlignUp(sizeof(int32_t) * (kBlock + 1)) + AlignUp(sizeof(uint32_t) * 3 * kBlock * static_cast<size_t>(width));
+  const size_t w = static_cast<size_t>(width);
+  const size_t ring_rows = static_cast<size_t>(kBlock + 2 * config_.column_window);
+  return AlignUp(sizeof(int32_t) * kHeaderInts) + AlignUp(sizeof(uint32_t) * 3 * kBlock * w) +
+         2 * AlignUp(sizeof(uint64_t) * w) + AlignUp(sizeof(uint32_t) * ring_rows * w);
 }
 
-void DofColumnStage::BeginStrip(uint8_t* state) const { reinterpret_cast<int32_t*>(state)[0] = -1; }
+void DofColumnStage::BeginStrip(uint8_t* state) const {
+  int32_t* header = reinterpret_cast<int32_t*>(state);
+  header[0] = -1;
+  header[kBlock + 1] = -1;
+}
+
+// Brings the ring's links up to row hi (rows lo .. hi of the block's window).
+// A link depends on its two rows only, so the ring holds the same values
+// whichever block or strip computed them.
+void DofColumnStage::FillLinks(const RowArgs& a, uint8_t* state, int lo, int hi) const {
+  const ColumnState st = ColumnStateOf(state, a.width, config_.column_window);
+  int32_t& next = st.header[kBlock + 1];
+  if (next < lo || next > hi + 1) {  // nothing usable: start at the window's top (its link is never read)
+    rows_->RowCc2(*a.input, lo, 0, a.width, st.cc2_last);
+    next = lo + 1;
+  }
+  for (; next <= hi; ++next) {
+    rows_->RowCc2(*a.input, next, 0, a.width, st.cc2_next);
+    uint32_t* link = st.ring + static_cast<size_t>(next % st.ring_rows) * static_cast<size_t>(a.width);
+    for (int x = 0; x < a.width; ++x) {
+      link[x] = dof::BetaOf(st.cc2_last[x], st.cc2_next[x]);
+      st.cc2_last[x] = st.cc2_next[x];
+    }
+  }
+}
 
 void DofColumnStage::ProcessRow(const RowArgs& a) const {
-  int32_t* header = reinterpret_cast<int32_t*>(a.state);  // [0] block, [1 + k] solved pixels of row k
-  uint32_t* cache = reinterpret_cast<uint32_t*>(a.state + AlignUp(sizeof(int32_t) * (kBlock + 1)));
+  const ColumnState st = ColumnStateOf(a.state, a.width, config_.column_window);
+  int32_t* header = st.header;  // [0] block, [1 + k] solved pixels of row k
+  uint32_t* cache = st.cache;
   const int block = a.y / kBlock;
   const size_t pitch = static_cast<size_t>(a.width);
   if (header[0] != block) {
     const int yb = block * kBlock;
     const int ye = yb + kBlock - 1 < geometry_.height - 1 ? yb + kBlock - 1 : geometry_.height - 1;
     for (int k = 0; k < kBlock; ++k) header[1 + k] = 0;
+    FillLinks(a, a.state, a.first_row, a.first_row + a.row_count - 1);
     for (int x0 = 0; x0 < a.width; x0 += kTile)
-      SolveTile(a, yb, ye, x0, x0 + kTile < a.width ? x0 + kTile : a.width, cache, header + 1);
+      SolveTile(a, yb, ye, x0, x0 + kTile < a.width ? x0 + kTile : a.width, cache, header + 1, st.ring,
+                st.ring_rows);
     header[0] = block;
   }
   const int k = a.y - block * kBlock;
@@ -349,16 +434,17 @@ void DofColumnStage::ProcessRow(const RowArgs& a) const {
 // from the window's end to ye + 1, the twist at ye, then back substitution
 // up to yb. Columns are independent; a tile of kTile keeps the state in L1/L2.
 void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1, uint32_t* cache,
-                               int32_t* solved_rows) const {
+                               int32_t* solved_rows, const uint32_t* ring, int ring_rows) const {
   const int w = x1 - x0;
   const int lo = a.first_row, hi = a.first_row + a.row_count - 1;
   const size_t n = static_cast<size_t>(a.width < kTile ? a.width : kTile);  // as ScratchBytes
   const size_t pitch = static_cast<size_t>(a.width);
   uint8_t* p = a.scratch;
   auto take64 = [&p](size_t count) { uint64_t* q = reinterpret_cast<uint64_t*>(p); p += AlignUp(sizeof(uint64_t) * count); return q; };
-  uint64_t* cc2_prev = take64(n);
-  uint64_t* cc2_cur = take64(n);
-  uint64_t* cc2_y = take64(n);
+  // The link between rows i - 1 and i, columns x0 .. x1 - 1.
+  auto links = [ring, ring_rows, pitch, x0](int i) {
+    return ring + static_cast<size_t>(i % ring_rows) * pitch + x0;
+  };
   uint32_t* rf = reinterpret_cast<uint32_t*>(p);
   p += AlignUp(sizeof(uint32_t) * n);
   uint32_t* rb = reinterpret_cast<uint32_t*>(p);
@@ -392,15 +478,14 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   };
 
   // Downward sweep: rows lo .. ye.
-  rows_->RowCc2(*a.input, lo, x0, x1, cc2_prev);
   start(a.rows[0], rf, uf);
   keep(lo);
   for (int i = lo + 1; i <= ye; ++i) {
-    rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+    const uint32_t* link = links(i);
     const RowIn& in = a.rows[i - lo];
     uint32_t* e = i - 1 >= yb ? eb + static_cast<size_t>(i - 1 - yb) * n : nullptr;
     for (int x = 0; x < w; ++x) {
-      const uint32_t b = dof::BetaOf(cc2_prev[x], cc2_cur[x]);
+      const uint32_t b = link[x];
       if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
         if (e != nullptr) e[x] = kOneW;
         rf[x] = kOneW;
@@ -416,24 +501,17 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
       for (int c = 0; c < 3; ++c) uf[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - uf[c][x], rx);
     }
     keep(i);
-    uint64_t* t = cc2_prev;
-    cc2_prev = cc2_cur;
-    cc2_cur = t;
   }
-  uint64_t* t = cc2_y;  // keep row ye's values
-  cc2_y = cc2_prev;
-  cc2_prev = t;
 
   // y_ye (Q.kG) per column and channel, into uf.
   if (hi > ye) {
     // Upward sweep: rows hi .. ye + 1.
-    rows_->RowCc2(*a.input, hi, x0, x1, cc2_prev);
     start(a.rows[hi - lo], rb, ub);
     for (int i = hi - 1; i > ye; --i) {
-      rows_->RowCc2(*a.input, i, x0, x1, cc2_cur);
+      const uint32_t* link = links(i + 1);
       const RowIn& in = a.rows[i - lo];
       for (int x = 0; x < w; ++x) {
-        const uint32_t b = dof::BetaOf(cc2_cur[x], cc2_prev[x]);
+        const uint32_t b = link[x];
         if (b == 0) {
           rb[x] = kOneW;
           for (int c = 0; c < 3; ++c) ub[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
@@ -443,13 +521,11 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
         rb[x] = rx;
         for (int c = 0; c < 3; ++c) ub[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - ub[c][x], rx);
       }
-      uint64_t* s = cc2_prev;
-      cc2_prev = cc2_cur;
-      cc2_cur = s;
     }
     // Twist: y_ye = u_ye + w (v_{ye+1} - u_ye), w = b r_ye / (D' + b r_ye).
+    const uint32_t* link = links(ye + 1);
     for (int x = 0; x < w; ++x) {
-      const uint32_t b = dof::BetaOf(cc2_y[x], cc2_prev[x]);
+      const uint32_t b = link[x];
       if (b == 0) continue;
       mark(ye, x);
       const uint64_t Dp = DOf(b, rb[x]);

@@ -48,7 +48,9 @@
 // a per-row window of W. Rows of the window outside the frame do not exist
 // (insulated border), so the result depends only on the block, never on the
 // strip or the thread count; the solved block lives in the stage's strip
-// state (Stage::StateBytes), reset by BeginStrip at every strip.
+// state (Stage::StateBytes), reset by BeginStrip at every strip, next to a
+// ring of the window's links b (each row's CoC computed once per strip; a
+// link depends on its two rows only, so caching it changes no bit).
 //
 // Formats: x, out: radiance Q16.16 (uint32), 3 channels.
 //          u, v, y: int64 Q16.32 (16 guard bits below the input's LSB);
@@ -234,7 +236,9 @@ class DofColumnStage final : public Stage {
   static constexpr int kTile = 64;  // columns solved together (block state ~35 KB at B = 16)
 
  private:
-  void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows) const;
+  void FillLinks(const RowArgs& args, uint8_t* state, int lo, int hi) const;
+  void SolveTile(const RowArgs& args, int yb, int ye, int x0, int x1, uint32_t* cache, int32_t* solved_rows,
+                 const uint32_t* ring, int ring_rows) const;
 
   DofConfig config_;
   SensorGeometry geometry_;
