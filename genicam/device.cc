@@ -43,8 +43,6 @@ constexpr double kTriggerPollHz = 1000.0;
 // far longer than a receiver thread's wake-up.
 constexpr int kPrimeDelayMs = 10;
 constexpr int kGvspLeaderBytes = 8 + 36;  // GVSP header + image data leader
-// Auto exposure: one step changes the exposure by at most this factor.
-constexpr double kAutoMaxStep = 8.0;
 
 uint64_t DoubleBits(double v) {
   uint64_t b;
@@ -697,32 +695,45 @@ void GigeDevice::FillThunk(ArvBuffer* buffer, void* self, uint32_t, uint32_t, ui
 void GigeDevice::AutoAdjust(double frac) {
   using namespace reg;
   const uint32_t ea = Applied(kExposureAuto), ga = Applied(kGainAuto);
-  if (ea == kAutoOff && ga == kAutoOff) return;
-  const double target = AppliedDouble(kSimAutoTarget);
-  double want = target / std::max(frac, 1e-4);
-  want = std::min(std::max(want, 1.0 / kAutoMaxStep), kAutoMaxStep);
-  Registers next = applied_;
+  if (ea == kAutoOff && ga == kAutoOff) {
+    auto_state_valid_ = false;
+    return;
+  }
+  // The core's controller (core/control/auto_exposure.h) with the features
+  // that are Off held at their current value. It keeps its state from frame
+  // to frame; a change of mode or target, or a host write of ExposureTime or
+  // Gain, starts it afresh from the applied values.
   const Feature* ef = FindFeature(table_, "ExposureTime");
   const Feature* gf = FindFeature(table_, "Gain");
-  double rest = want;
-  if (ea != kAutoOff) {
-    const double e0 = AppliedDouble(kExposureTime);
-    const double e1 = std::min(std::max(e0 * want, ef->min), ef->max);
-    next[kExposureTime] = DoubleBits(e1);
-    rest = want * e0 / e1;
+  const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
+  const uint64_t key[5] = {ea, ga, applied_.at(kSimAutoTarget), applied_.at(kExposureTime), applied_.at(kGain)};
+  if (!auto_state_valid_ || std::memcmp(key, auto_key_, sizeof key) != 0) {
+    AutoExposureConfig c;
+    c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
+    c.target = std::min(std::max(AppliedDouble(kSimAutoTarget), 0.005), 0.9);  // the controller's range
+    c.exposure_time_min_us = ea != kAutoOff ? ef->min : t0;
+    c.exposure_time_max_us = ea != kAutoOff ? ef->max : t0;
+    c.gain_min_db = ga != kAutoOff ? gf->min : g0;
+    c.gain_max_db = ga != kAutoOff ? gf->max : g0;
+    if (!auto_exposure_.Configure(c, {t0, g0, base_config_.core.exposure.f_number}).ok()) return;
+    auto_state_valid_ = true;
   }
-  if (ga != kAutoOff && std::fabs(rest - 1.0) > 0.01) {
-    const double g0 = AppliedDouble(kGain);
-    const double g1 = std::min(std::max(g0 + 20.0 * std::log10(rest), gf->min), gf->max);
-    next[kGain] = DoubleBits(std::round(g1 * 10) / 10);
-    next[kGainRaw] = static_cast<uint64_t>(std::lround(g1 * 10));
-  }
-  if (ea == kAutoOnce) next[kExposureAuto] = kAutoOff;
-  if (ga == kAutoOnce) next[kGainAuto] = kAutoOff;
+  const ExposureSettings s = auto_exposure_.Update(frac);
+  Registers next = applied_;
+  next[kExposureTime] = DoubleBits(s.exposure_time_us);
+  const double g1 = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
+  next[kGain] = DoubleBits(g1);
+  next[kGainRaw] = static_cast<uint64_t>(std::lround(g1 * 10));
+  const bool once_done = auto_exposure_.done() || !auto_exposure_.active();
+  if (ea == kAutoOnce && once_done) next[kExposureAuto] = kAutoOff;
+  if (ga == kAutoOnce && once_done) next[kGainAuto] = kAutoOff;
   std::string error;
-  if (next == applied_ || !Reconfigure(next, stage_enabled_, &error)) return;
+  if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return;
   for (const auto& kv : next)
     if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
+  const uint64_t after[5] = {Applied(kExposureAuto), Applied(kGainAuto), applied_.at(kSimAutoTarget),
+                             applied_.at(kExposureTime), applied_.at(kGain)};
+  std::memcpy(auto_key_, after, sizeof after);
 }
 
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {

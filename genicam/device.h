@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/control/auto_exposure.h"
 #include "genicam/register_table.h"
 #include "hal/gpio.h"
 #include "host_tools/config.h"
@@ -120,7 +121,7 @@ class GigeDevice {
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
-  void AutoAdjust(double mean_fraction);  // under mutex_
+  void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
   void RestartStream();  // not under mutex_
   void SyncLoop();
   void TriggerLoop();
@@ -142,6 +143,9 @@ class GigeDevice {
   std::vector<uint16_t> raw_;   // full-sensor taps
   std::vector<uint8_t> rgb_;
   bool has_rgb_ = false;
+  AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
+  bool auto_state_valid_ = false;
+  uint64_t auto_key_[5] = {};    // modes, target, exposure and gain it last left applied
 
   std::unique_ptr<hal::InputLine> own_trigger_;
   std::unique_ptr<hal::OutputLine> own_strobe_;

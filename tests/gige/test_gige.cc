@@ -711,6 +711,58 @@ TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
   EXPECT_NEAR(after / before, 0.6, 0.1) << "before " << before << " after " << after;
 }
 
+// Continuous: the core's PI controller (core/control/auto_exposure.h) keeps
+// adjusting and stays on; a feature left Off is held. A -2 EV target on
+// ExposureAuto alone, then +1 EV on GainAuto alone.
+TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
+  StartWith(SmallDevice());
+  Client& c = *client_;
+  auto mean_level = [](const std::vector<uint8_t>& f) {
+    double sum = 0;
+    for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
+    return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);
+  };
+  SetInt(c, "SimFrameIndex", 1);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double before = mean_level(c.Grab(3000));
+  c.CloseStream();
+  ASSERT_GT(before, 0.02);
+  ASSERT_LT(before, 0.4) << "room for +1 EV below saturation";
+
+  auto run = [&](int frames, std::vector<double>* levels) {
+    ASSERT_TRUE(c.OpenStream(8));
+    Start(c);
+    for (int i = 0; i < frames; ++i) {
+      const auto f = c.Grab(3000);
+      ASSERT_FALSE(f.empty()) << "frame " << i;
+      levels->push_back(mean_level(f));
+    }
+    c.CloseStream();
+    Settle();
+  };
+  SetFloat(c, "SimAutoTarget", before / 4);
+  Set(c, "ExposureAuto", "Continuous");
+  Settle();
+  std::vector<double> levels;
+  ASSERT_NO_FATAL_FAILURE(run(8, &levels));
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureAuto", nullptr), "Continuous");
+  EXPECT_NEAR(std::log2(levels.back() / (before / 4)), 0.0, 1.0 / 6) << "last frame within 1/6 EV";
+  EXPECT_NEAR(ReadFloat(c, "ExposureTime") / 10000.0, 0.25, 0.25 * 0.12);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 0.0) << "GainAuto is Off";
+
+  Set(c, "ExposureAuto", "Off");
+  const double exposure = ReadFloat(c, "ExposureTime");
+  SetFloat(c, "SimAutoTarget", before / 2);
+  Set(c, "GainAuto", "Continuous");
+  Settle();
+  levels.clear();
+  ASSERT_NO_FATAL_FAILURE(run(8, &levels));
+  EXPECT_NEAR(std::log2(levels.back() / (before / 2)), 0.0, 1.0 / 6);
+  EXPECT_NEAR(ReadFloat(c, "Gain"), 6.02, 1.0) << "+1 EV from gain";
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), exposure) << "ExposureAuto is Off";
+}
+
 TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
   StartWith(SmallDevice());
   Client& c = *client_;
