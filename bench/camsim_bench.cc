@@ -34,6 +34,7 @@
 #include "hal/thread_pool.h"
 #include "host_tools/config.h"
 #include "host_tools/io/exr_scene.h"
+#include "host_tools/render.h"
 #include "host_tools/scene_input.h"
 
 namespace camsim {
@@ -42,7 +43,8 @@ namespace {
 using bench::Demo;
 using bench::Scene;
 
-void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads, int strip_rows = 16) {
+// strip_rows 0: one strip per thread, as `camsim run` by default (host::AutoStripRows).
+void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads, int strip_rows = 0) {
   const int w = config.geometry.width, h = config.geometry.height;
   Pipeline p;
   if (!p.Configure(config, threads, false).ok()) std::abort();
@@ -56,7 +58,7 @@ void RunPipeline(benchmark::State& state, const PipelineConfig& config, int thre
   tap.data = out.data();
   tap.stride = static_cast<ptrdiff_t>(w) * f.channels;
   hal::ThreadPool pool(threads);
-  const int kStripRows = strip_rows;
+  const int kStripRows = strip_rows > 0 ? strip_rows : host::AutoStripRows(h, threads);
   uint32_t frame = 0;
   for (auto _ : state) {
     std::atomic<int> next{0};
@@ -98,14 +100,17 @@ void BM_PipelineDof(benchmark::State& state) {
   c.dof.max_coc_px = 64.0;
   RunPipeline(state, c, static_cast<int>(state.range(2)), static_cast<int>(state.range(3)));
 }
-// Last argument: strip rows. Every strip starts with empty rings, so strips
-// of 16 run the DoF row pass on 5x the frame (window 16 + 2 x 32 rows); 128
-// rows (a multiple of the column pass's block of 16) bring that to 1.5x.
+// Last argument: strip rows (0: one strip per thread, the default of `camsim
+// run`). Every strip starts with empty rings, so strips of 16 run the DoF row
+// pass on 5x the frame (window 16 + 2 x 32 rows); 128 rows (a multiple of the
+// column pass's block of 16) bring that to 1.5x.
 BENCHMARK(BM_PipelineDof)
     ->Args({1920, 1080, 1, 16})
     ->Args({1920, 1080, 2, 16})
     ->Args({1920, 1080, 1, 128})
     ->Args({1920, 1080, 2, 128})
+    ->Args({1920, 1080, 1, 0})
+    ->Args({1920, 1080, 2, 0})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
@@ -353,6 +358,18 @@ BENCHMARK(BM_OpenCvRemap)
     ->Args({cv::INTER_LANCZOS4, 1})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// camsim's distortion stage alone (RGB, one thread) against cv::remap with
+// float maps (exact source positions; its error counters are measured above).
+const bool kRemapPairs = [] {
+  bench::AddPeerPair("BM_Distortion/1920/1080/0/0", "BM_OpenCvRemap/1/0", "remap bilinear vs INTER_LINEAR, RGB");
+  bench::SetPeerError("remap bilinear vs INTER_LINEAR, RGB",
+                      "error vs double: BM_OpenCvRemap/1/0 counters (camsim_* vs cv_*, Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/0", "BM_OpenCvRemap/4/0", "remap Lanczos-3 vs INTER_LANCZOS4, RGB");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/1", "BM_OpenCvRemap/4/0",
+                     "remap Lanczos-3 site-only (+exposure, cfa) vs LANCZOS4");
+  return true;
+}();
 #endif
 void BM_Stage(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));

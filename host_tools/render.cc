@@ -8,6 +8,12 @@
 
 namespace camsim::host {
 
+int AutoStripRows(int height, int threads) {
+  const int t = threads < 1 ? 1 : threads;
+  const int rows = (height + t - 1) / t;
+  return rows < 1 ? 1 : rows;
+}
+
 FrameRenderer::FrameRenderer(int threads, int strip_rows)
     : threads_(threads), strip_rows_(strip_rows), pipeline_(new Pipeline), pool_(threads),
       clock_(hal::NanosecondClock()) {}
@@ -83,15 +89,20 @@ void FrameRenderer::Render(uint32_t frame, const Tap* taps, int tap_count, std::
   // Strips go in order to whichever worker is free; the bytes do not depend on who takes which.
   const FrameInput view = View();
   const int h = pipeline_->height();
+  const int rows = strip_rows();
   std::atomic<int> next_strip{0};
   pool_.Run([&](int worker) {
     for (;;) {
-      const int y0 = next_strip.fetch_add(1) * strip_rows_;
+      const int y0 = next_strip.fetch_add(1) * rows;
       if (y0 >= h) break;
-      pipeline_->ProcessStrip(view, frame, y0, y0 + strip_rows_, worker, taps, tap_count,
+      pipeline_->ProcessStrip(view, frame, y0, y0 + rows, worker, taps, tap_count,
                               stats ? &(*stats)[static_cast<size_t>(worker)] : nullptr, &clock_);
     }
   });
+}
+
+int FrameRenderer::strip_rows() const {
+  return strip_rows_ > 0 ? strip_rows_ : AutoStripRows(pipeline_->height(), threads_);
 }
 
 int FrameRenderer::SensorIndex() const {

@@ -18,8 +18,16 @@
 
 namespace camsim::host {
 
+// Strip height when none is given: one strip per worker. Every strip starts
+// with empty rings, so it recomputes the rows its stages' windows read above
+// and below it (with diffusion DoF, 2 x column window + the later stages'
+// windows); the fewer the strips the less of that. The bytes are the same for
+// any strip height.
+int AutoStripRows(int height, int threads);
+
 class FrameRenderer {
  public:
+  // strip_rows 0: AutoStripRows for each configured frame height.
   FrameRenderer(int threads, int strip_rows);
 
   // Finishes a copy of `config` for a scene of scene_width x scene_height,
@@ -41,6 +49,8 @@ class FrameRenderer {
   // The frame as the core sees it: the scene's planes and the pre-passes' results.
   FrameInput View() const;
   int threads() const { return threads_; }
+  // Rows per strip of the configured pipeline (after AutoStripRows).
+  int strip_rows() const;
   // Running index of the sensor stage, -1 when it does not run.
   int SensorIndex() const;
 

@@ -168,7 +168,8 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
   j << "{\n  \"camsim_version\": \"0.1.0\",\n";
   j << "  \"sensor\": {\"width\": " << p.width() << ", \"height\": " << p.height() << ", \"cfa\": "
     << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << rc.core.geometry.adc_bits << "},\n";
-  j << "  \"threads\": " << threads << ", \"strip_rows\": " << o.strip_rows << ",\n";
+  j << "  \"threads\": " << threads << ", \"strip_rows\": "
+    << (o.strip_rows > 0 ? o.strip_rows : AutoStripRows(p.height(), threads)) << ",\n";
   j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
     << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
   if (rc.core.flare.enabled && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
@@ -333,7 +334,7 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
-  if (o.threads < 1 || o.threads > 64 || o.strip_rows < 1) {
+  if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0) {
     std::fprintf(stderr, "camsim: --threads must be 1..64 and --strip-rows >= 1\n");
     return 1;
   }

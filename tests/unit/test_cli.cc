@@ -11,6 +11,8 @@
 #include <sstream>
 #include <string>
 
+#include "host_tools/render.h"
+
 namespace {
 
 struct Result {
@@ -79,6 +81,22 @@ TEST(Cli, ThreadsAndStripRowsGiveTheSameBytes) {
             0);
   EXPECT_EQ(Slurp(a + "/aisle_0001.png"), Slurp(b + "/aisle_0001.png"));
   EXPECT_EQ(Slurp(a + "/aisle_0001.raw"), Slurp(b + "/aisle_0001.raw"));
+}
+
+// Without --strip-rows each thread gets one strip (host::AutoStripRows): the
+// fewest rows recomputed at strip edges. The report says what was used.
+TEST(Cli, DefaultStripIsOnePerThread) {
+  EXPECT_EQ(camsim::host::AutoStripRows(1080, 1), 1080);
+  EXPECT_EQ(camsim::host::AutoStripRows(1080, 2), 540);
+  EXPECT_EQ(camsim::host::AutoStripRows(7, 3), 3);
+  EXPECT_EQ(camsim::host::AutoStripRows(1, 4), 1);
+  const std::string out = TempDir("auto_strip");
+  const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
+                          " --quiet --threads 2 --report " + out + "/report.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(Slurp(out + "/report.json").find("\"threads\": 2, \"strip_rows\": 240,"), std::string::npos);
+  EXPECT_NE(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out + " --strip-rows 0").code, 0)
+      << "an explicit strip height must be >= 1";
 }
 
 TEST(Cli, SixteenBitOutputAndMonoSensor) {
