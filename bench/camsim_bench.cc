@@ -318,7 +318,7 @@ void BM_OpenCvRemap(benchmark::State& state) {
     ReferenceDistortion ref(c.distortion, c.geometry);
     // cv::initUndistortRectifyMap maps the other way (undistorts), so for the
     // error OpenCV gets camsim's exact source positions as float maps.
-    cv::Mat mx(h, w, CV_32FC1), my(h, w, CV_32FC1), dst;
+    cv::Mat mx(h, w, CV_32FC1), my(h, w, CV_32FC1), exact_dst;
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < w; ++x) {
         double sx = -10.0, sy = -10.0;
@@ -326,7 +326,7 @@ void BM_OpenCvRemap(benchmark::State& state) {
         mx.at<float>(y, x) = static_cast<float>(sx);
         my.at<float>(y, x) = static_cast<float>(sy);
       }
-    cv::remap(src, dst, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    cv::remap(src, exact_dst, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
     double max_cv = 0, sum_cv = 0, max_us = 0, sum_us = 0;
     long n = 0;
     for (int y = 0; y < h; y += 5)
@@ -334,7 +334,7 @@ void BM_OpenCvRemap(benchmark::State& state) {
         for (int ch = 0; ch < 3; ++ch) {
           const ImageView<const uint32_t> plane = MakeImageView<const uint32_t>(in.radiance[ch].data(), w, h);
           const double exact = ref.Sample(plane, x, y, ch);
-          const double cvv = dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
+          const double cvv = exact_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
           const double us = ours[(static_cast<size_t>(y) * w + x) * 3 + ch];
           if (exact == 0.0 || cvv == 0.0 || us == 0.0) continue;
           max_cv = std::fmax(max_cv, std::fabs(cvv - exact));
