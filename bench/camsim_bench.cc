@@ -43,7 +43,7 @@ namespace {
 using bench::Demo;
 using bench::Scene;
 
-// strip_rows 0: one strip per thread, as `camsim run` by default (host::AutoStripRows).
+// strip_rows 0: host::AutoStripRows, as `camsim run` by default.
 void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads, int strip_rows = 0) {
   const int w = config.geometry.width, h = config.geometry.height;
   Pipeline p;
@@ -100,7 +100,7 @@ void BM_PipelineDof(benchmark::State& state) {
   c.dof.max_coc_px = 64.0;
   RunPipeline(state, c, static_cast<int>(state.range(2)), static_cast<int>(state.range(3)));
 }
-// Last argument: strip rows (0: one strip per thread, the default of `camsim
+// Last argument: strip rows (0: host::AutoStripRows, the default of `camsim
 // run`). Every strip starts with empty rings, so strips of 16 run the DoF row
 // pass on 5x the frame (window 16 + 2 x 32 rows); 128 rows (a multiple of the
 // column pass's block of 16) bring that to 1.5x.

@@ -52,7 +52,7 @@ struct DeviceOptions {
   std::string trigger_line, strobe_line;  // CHIP:OFFSET (libgpiod); empty: none
   hal::InputLine* trigger = nullptr;      // or lines owned by the caller (tests, rigs)
   hal::OutputLine* strobe = nullptr;
-  int threads = 2, strip_rows = 0;  // strip_rows 0: one strip per thread (host::AutoStripRows)
+  int threads = 2, strip_rows = 0;  // strip_rows 0: host::AutoStripRows
   std::string xml_path;  // where the generated XML is written; empty: a file in $TMPDIR
   // Send the first frame's GVSP leader ahead of the frame so an Aravis
   // receiver has grown its socket buffer before the burst (GigeDevice::PrimeReceiver).

@@ -9,8 +9,9 @@
 namespace camsim::host {
 
 int AutoStripRows(int height, int threads) {
-  const int t = threads < 1 ? 1 : threads;
-  const int rows = (height + t - 1) / t;
+  if (threads <= 1) return height < 1 ? 1 : height;
+  const int strips = kAutoStripsPerThread * threads;
+  const int rows = (height + strips - 1) / strips;
   return rows < 1 ? 1 : rows;
 }
 
