@@ -40,6 +40,13 @@ void Settle() {
 int64_t ReadInt(Client& c, const char* name) { return arv_camera_get_integer(c.camera(), name, nullptr); }
 double ReadFloat(Client& c, const char* name) { return arv_camera_get_float(c.camera(), name, nullptr); }
 
+// Mean raw level (above black, fraction of full scale) of a BayerRG12 frame.
+double MeanLevel12(const std::vector<uint8_t>& f) {
+  double sum = 0;
+  for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
+  return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);  // black level 64 DN (demo camera)
+}
+
 std::unique_ptr<GigeDevice> StartDevice(const DeviceOptions& o) {
   std::string error;
   auto d = GigeDevice::Start(o, &error);
@@ -683,15 +690,9 @@ TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
 TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
   StartWith(SmallDevice());
   Client& c = *client_;
-  // Mean raw level (above black, fraction of full scale) of a BayerRG12 frame.
-  auto mean_level = [](const std::vector<uint8_t>& f) {
-    double sum = 0;
-    for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
-    return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);  // black level 64 DN (demo camera)
-  };
   ASSERT_TRUE(c.OpenStream());
   Start(c);
-  const double before = mean_level(c.Grab(3000));
+  const double before = MeanLevel12(c.Grab(3000));
   c.CloseStream();
   SetFloat(c, "SimAutoTarget", 0.6 * before);
   Set(c, "ExposureAuto", "Once");
@@ -707,7 +708,7 @@ TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
   EXPECT_GT(exposure, 10000.0 * 0.4);
   ASSERT_TRUE(c.OpenStream());
   Start(c);
-  const double after = mean_level(c.Grab(3000));
+  const double after = MeanLevel12(c.Grab(3000));
   EXPECT_NEAR(after / before, 0.6, 0.1) << "before " << before << " after " << after;
 }
 
@@ -717,15 +718,10 @@ TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
 TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
   StartWith(SmallDevice());
   Client& c = *client_;
-  auto mean_level = [](const std::vector<uint8_t>& f) {
-    double sum = 0;
-    for (size_t i = 0; i + 1 < f.size(); i += 2) sum += f[i] | (f[i + 1] << 8);
-    return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);
-  };
   SetInt(c, "SimFrameIndex", 1);
   ASSERT_TRUE(c.OpenStream());
   Start(c);
-  const double before = mean_level(c.Grab(3000));
+  const double before = MeanLevel12(c.Grab(3000));
   c.CloseStream();
   ASSERT_GT(before, 0.02);
   ASSERT_LT(before, 0.4) << "room for +1 EV below saturation";
@@ -736,7 +732,7 @@ TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
     for (int i = 0; i < frames; ++i) {
       const auto f = c.Grab(3000);
       ASSERT_FALSE(f.empty()) << "frame " << i;
-      levels->push_back(mean_level(f));
+      levels->push_back(MeanLevel12(f));
     }
     c.CloseStream();
     Settle();
