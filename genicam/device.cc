@@ -701,12 +701,13 @@ void GigeDevice::AutoAdjust(double frac) {
   }
   // The core's controller (core/control/auto_exposure.h) with the features
   // that are Off held at their current value. It keeps its state from frame
-  // to frame; a change of mode or target, or a host write of ExposureTime or
-  // Gain, starts it afresh from the applied values.
+  // to frame; a change of mode, target or SimFNumber, or a host write of
+  // ExposureTime or Gain, starts it afresh from the applied values.
   const Feature* ef = FindFeature(table_, "ExposureTime");
   const Feature* gf = FindFeature(table_, "Gain");
   const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
-  const uint64_t key[5] = {ea, ga, applied_.at(kSimAutoTarget), applied_.at(kExposureTime), applied_.at(kGain)};
+  const uint64_t key[kAutoKeyWords] = {ea, ga, applied_.at(kSimAutoTarget), applied_.at(kExposureTime),
+                                       applied_.at(kGain), applied_.at(kSimFNumber)};
   if (!auto_state_valid_ || std::memcmp(key, auto_key_, sizeof key) != 0) {
     AutoExposureConfig c;
     c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
@@ -715,7 +716,8 @@ void GigeDevice::AutoAdjust(double frac) {
     c.exposure_time_max_us = ea != kAutoOff ? ef->max : t0;
     c.gain_min_db = ga != kAutoOff ? gf->min : g0;
     c.gain_max_db = ga != kAutoOff ? gf->max : g0;
-    if (!auto_exposure_.Configure(c, {t0, g0, base_config_.core.exposure.f_number}).ok()) return;
+    // The aperture stays where SimFNumber puts it (no f-number range given).
+    if (!auto_exposure_.Configure(c, {t0, g0, AppliedDouble(kSimFNumber)}).ok()) return;
     auto_state_valid_ = true;
   }
   const ExposureSettings s = auto_exposure_.Update(frac);
@@ -731,8 +733,8 @@ void GigeDevice::AutoAdjust(double frac) {
   if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return;
   for (const auto& kv : next)
     if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
-  const uint64_t after[5] = {Applied(kExposureAuto), Applied(kGainAuto), applied_.at(kSimAutoTarget),
-                             applied_.at(kExposureTime), applied_.at(kGain)};
+  const uint64_t after[kAutoKeyWords] = {Applied(kExposureAuto), Applied(kGainAuto), applied_.at(kSimAutoTarget),
+                                         applied_.at(kExposureTime), applied_.at(kGain), applied_.at(kSimFNumber)};
   std::memcpy(auto_key_, after, sizeof after);
 }
 

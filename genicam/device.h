@@ -145,7 +145,8 @@ class GigeDevice {
   bool has_rgb_ = false;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   bool auto_state_valid_ = false;
-  uint64_t auto_key_[5] = {};    // modes, target, exposure and gain it last left applied
+  static constexpr int kAutoKeyWords = 6;
+  uint64_t auto_key_[kAutoKeyWords] = {};  // modes, target, exposure, gain, f-number it last left applied
 
   std::unique_ptr<hal::InputLine> own_trigger_;
   std::unique_ptr<hal::OutputLine> own_strobe_;
