@@ -174,6 +174,10 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.black_level_dn; }));
     v.push_back(Bool("sensor", "shot_noise", "Poisson noise of photo and dark charge",
                      [](RunConfig& c) -> bool& { return c.core.sensor.shot_noise; }));
+    v.push_back(Bool("sensor", "fixed_pattern_table",
+                     "build PRNU/DSNU once per configuration (8 bytes per pixel and channel) instead of every frame: "
+                     "same output, faster",
+                     [](RunConfig& c) -> bool& { return c.core.sensor.fixed_pattern_table; }));
     v.push_back(Number("sensor", "row_fpn_e", "row offset pattern, electrons rms (0 = off)",
                        [](RunConfig& c) -> double& { return c.core.sensor.row_fpn_e; }));
     v.push_back(Number("sensor", "column_fpn_e", "column offset pattern, electrons rms (0 = off)",

@@ -265,6 +265,10 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     }
   }
 
+  // The sensor's fixed-pattern table has an entry per pixel of each input channel.
+  for (int i = 1; i < run_count_; ++i)
+    if (run_[i] == &sensor_) sensor_.SetInputChannels(run_format_[i - 1].channels);
+
   // Rings: the input ring (index 0) and each stage's output ring (index i + 1)
   // hold as many rows as their consumer's widest window spans; the last
   // stage's, one.

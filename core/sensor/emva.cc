@@ -135,6 +135,7 @@ void SensorStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(GaussianTable::kEntries);
   counter.Add<uint32_t>(PoissonTable::kEntries);
   if (col_fpn_q8_ != 0) counter.Add<int32_t>(static_cast<size_t>(ColumnTableEntries()));
+  if (UsesPatternTable()) counter.Add<PatternEntry>(PatternEntries());
   if (config_.defect_count > 0) {
     counter.Add<ListedDefect>(static_cast<size_t>(config_.defect_count));
     counter.Add<uint32_t>(static_cast<size_t>(geometry_.height) + 1);
@@ -175,6 +176,22 @@ Status SensorStage::Init(Arena& tables) {
     listed_ = l;
     listed_row_ = row;
   }
+  pattern_ = nullptr;
+  if (UsesPatternTable()) {
+    // The words ProcessRow would draw: pixel x of channel ch, row y takes words
+    // 2 (x & 1) and 2 (x & 1) + 1 of the fixed-pattern call for pair x >> 1.
+    PatternEntry* t = tables.Take<PatternEntry>(PatternEntries());
+    if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the sensor's fixed pattern");
+    for (int ch = 0; ch < input_channels_; ++ch)
+      for (int y = 0; y < geometry_.height; ++y)
+        for (int x = 0; x < geometry_.width; ++x) {
+          const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
+                                        static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
+          const int w = (x & 1) * 2;
+          *t++ = Pattern(b.v[w], b.v[w + 1]);
+        }
+    pattern_ = t - PatternEntries();
+  }
   column_offset_ = nullptr;
   if (col_fpn_q8_ != 0) {
     // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
@@ -189,6 +206,14 @@ Status SensorStage::Init(Arena& tables) {
     column_offset_ = t;
   }
   return Status::Ok();
+}
+
+SensorStage::PatternEntry SensorStage::Pattern(uint32_t word_prnu, uint32_t word_dsnu) const {
+  // |prnu_q16_ * z| >> 16 <= 0.5 * 2^16 * |z| and |dsnu_q8_ * z| >> 16 <= 2.6e5 * |z|
+  // (Configure's ranges; |z| <= GaussianTable's largest sample): both fit int32.
+  const int64_t gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(word_prnu), 16);  // Q1.16
+  return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain),
+                      static_cast<int32_t>(RoundShift(dsnu_q8_ * gauss_.Sample(word_dsnu), 16))};
 }
 
 // Pixels go in blocks of kBlock = 2 lanes: one Philox4x32 call (4 words)
@@ -210,6 +235,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   const int channels = a.out[1] != nullptr ? 3 : 1;
   const bool defects = stuck_below_ != 0;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
+  const bool draw_patterns = patterns && pattern_ == nullptr;
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
   // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
@@ -236,6 +262,8 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
     const ListedDefect* next = listed_ != nullptr ? listed_ + listed_row_[a.y] : nullptr;
     const ListedDefect* const listed_end = listed_ != nullptr ? listed_ + listed_row_[a.y + 1] : nullptr;
     const bool row_listed = next != listed_end;
+    const PatternEntry* pattern_row =
+        pattern_ != nullptr ? pattern_ + (static_cast<size_t>(c) * geometry_.height + y) * geometry_.width : nullptr;
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
@@ -243,7 +271,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       RandomLanes t;  // temporal: Poisson word, read noise z
       DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, pair0, y, channel, &t);
       RandomLanes f;  // fixed pattern: PRNU z, DSNU z
-      if (patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
+      if (draw_patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
       RandomLanes d;  // defects: class u, hot-pixel strength u'
       if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
       const uint32_t* in = a.rows[0].ch[c] + x0;
@@ -263,9 +291,9 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
           uint32_t dark = dark_q8_;
           if (patterns) {
-            const int64_t prnu_gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(f.v[w][lane]), 16);  // Q1.16
-            mu = RoundShiftU(mu * static_cast<uint64_t>(prnu_gain < 0 ? 0 : prnu_gain), 16);
-            dsnu += RoundShift(dsnu_q8_ * gauss_.Sample(f.v[w + 1][lane]), 16);
+            const PatternEntry p = pattern_row != nullptr ? pattern_row[x0 + i] : Pattern(f.v[w][lane], f.v[w + 1][lane]);
+            mu = RoundShiftU(mu * static_cast<uint64_t>(p.gain_q16), 16);
+            dsnu += p.dsnu_q8;
           }
           if (defects && hit == nullptr && d.v[w][lane] < stuck_below_) {
             const uint32_t u = d.v[w][lane];

@@ -16,7 +16,8 @@
 //                       and gives the normal approximation's z = G(p) above
 //                       (one of the two is used, never both);
 //   fixed pattern (0):  z1 = G(word), z2 = G(next word), drawn only when
-//                       PRNU or DSNU is on;
+//                       PRNU or DSNU is on (per frame, or once at Init into
+//                       a table with SensorConfig::fixed_pattern_table);
 //   defects (0):        class u, strength u' (below), drawn only when a
 //                       defect fraction is on.
 // G = GaussianTable::Sample. Sharing a call between two pixels halves the
@@ -91,6 +92,11 @@ struct SensorConfig {
   double prnu_percent = 0.5;            // photo response non-uniformity, % rms
   double black_level_dn = 64.0;         // offset added to the output, DN
   bool shot_noise = true;               // Poisson photon/dark-current noise
+  // Build the fixed pattern (PRNU gain, DSNU offset) once at Init, one entry
+  // of 8 bytes per pixel and channel in the workspace's tables (16.6 MB for a
+  // 1920x1080 Bayer sensor), instead of drawing it every frame. Same bytes
+  // either way; only speed and memory differ.
+  bool fixed_pattern_table = false;
   // Artefacts (off by default).
   double row_fpn_e = 0.0;               // row offset pattern, electrons rms
   double column_fpn_e = 0.0;            // column offset pattern, electrons rms
@@ -122,6 +128,9 @@ class SensorStage final : public Stage {
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
   void ProcessRow(const RowArgs& args) const override;
+  // Channels of the sensor's input lines (1: mosaic or mono, 3: one sensor
+  // per colour): the pipeline's planner sets it; it sizes the fixed-pattern table.
+  void SetInputChannels(int channels) { input_channels_ = channels; }
 
   // Derived values (for reports and tests).
   double system_gain() const { return k_; }            // K with analog gain, DN/e-
@@ -152,6 +161,19 @@ class SensorStage final : public Stage {
   const uint32_t* listed_row_ = nullptr;      // height + 1 offsets into listed_: row y is [row[y], row[y + 1])
   double exposure_time_us_ = 0.0;
   const int32_t* column_offset_ = nullptr;  // column FPN, Q.8 electrons (width entries; null when off)
+  // Fixed-pattern table: per channel, row and column the PRNU gain (Q1.16,
+  // >= 0) and the DSNU offset (Q.8 electrons), exactly as drawn per frame.
+  struct PatternEntry {
+    int32_t gain_q16;
+    int32_t dsnu_q8;
+  };
+  bool UsesPatternTable() const { return config_.fixed_pattern_table && (prnu_q16_ != 0 || dsnu_q8_ != 0); }
+  size_t PatternEntries() const {
+    return static_cast<size_t>(input_channels_) * geometry_.width * static_cast<size_t>(geometry_.height);
+  }
+  PatternEntry Pattern(uint32_t word_prnu, uint32_t word_dsnu) const;
+  const PatternEntry* pattern_ = nullptr;  // PatternEntries() entries, null when not used
+  int input_channels_ = 1;
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
   uint64_t full_well_q8_ = 0;
   UScale k_scale_;           // K

@@ -135,6 +135,48 @@ TEST(Sensor, FixedPatternsAreTheSameEveryFrame) {
   EXPECT_GT(m.var, 1.0);
 }
 
+// sensor.fixed_pattern_table builds PRNU and DSNU once at Init: the same bytes
+// as drawing them every frame (Bayer: one channel; no CFA: three), for odd
+// sizes, several strip heights and threads, with noise and defects on; the
+// workspace grows by 8 bytes per pixel and channel (plus alignment).
+TEST(Sensor, FixedPatternTableGivesTheSameBytes) {
+  const int w = 37, h = 23;  // odd: a last pixel pair with one pixel
+  const test::Scene s = test::TexturedScene(w, h);
+  for (const bool mosaic : {true, false}) {
+    PipelineConfig c = SensorOnly(w, h, Cfa::kBayerGR);
+    if (!mosaic) {
+      c.order[1] = StageId::kSensor;
+      c.order_count = 2;
+    }
+    c.sensor.dsnu_e = 4.0;
+    c.sensor.prnu_percent = 2.0;
+    c.sensor.hot_pixel_fraction = 0.01;
+    c.sensor.stuck_pixel_fraction = 0.01;
+    auto drawn = test::Build(c, 2);
+    ASSERT_TRUE(drawn->status.ok()) << drawn->status.message();
+    c.sensor.fixed_pattern_table = true;
+    auto table = test::Build(c, 2);
+    ASSERT_TRUE(table->status.ok()) << table->status.message();
+    const size_t channels = mosaic ? 1 : 3, grown = table->pipeline.TableBytes() - drawn->pipeline.TableBytes();
+    EXPECT_GE(grown, channels * w * h * 8) << "mosaic " << mosaic;
+    EXPECT_LT(grown, channels * w * h * 8 + 64) << "at most the workspace's 64-byte alignment more";
+    for (const uint32_t frame : {0u, 5u}) {
+      const auto want = test::RunFrame(*drawn, s, frame, h);
+      EXPECT_EQ(test::RunFrame(*table, s, frame, h), want) << "mosaic " << mosaic << " frame " << frame;
+      EXPECT_EQ(test::RunFrame(*table, s, frame, 1), want);
+      EXPECT_EQ(test::RunFrameThreads(*table, s, frame, 5, 2), want);
+    }
+  }
+  // Without PRNU and DSNU there is nothing to store.
+  PipelineConfig off = SensorOnly(w, h, Cfa::kBayerGR);
+  off.sensor.dsnu_e = 0.0;
+  off.sensor.prnu_percent = 0.0;
+  auto a = test::Build(off);
+  off.sensor.fixed_pattern_table = true;
+  auto b = test::Build(off);
+  EXPECT_EQ(a->pipeline.TableBytes(), b->pipeline.TableBytes());
+}
+
 TEST(Sensor, SaturatesAtFullWellAndAdcMax) {
   PipelineConfig c = SensorOnly(16, 16, Cfa::kBayerRG);
   c.sensor = Noiseless();
