@@ -161,6 +161,19 @@ bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const st
   return true;
 }
 
+// Time a stage saved by skipping pixels, ms per frame: its measured cost per
+// pixel it worked on times the pixels it skipped (an upper bound: the worked
+// pixels' cost includes the copies of the skipped ones). Only when it worked
+// on at least kMinWorkedShare of them; with fewer, that cost is mostly the
+// skipping itself and the product means nothing (false).
+constexpr double kMinWorkedShare = 0.1;
+bool TimeSavedMs(const StageStats& s, double frame_px, int frames, double* ms) {
+  const double px = frame_px * frames, worked = px - static_cast<double>(s.skipped_px);
+  if (s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
+  *ms = s.ticks / 1e6 / worked * static_cast<double>(s.skipped_px) / frames;
+  return true;
+}
+
 std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline& p, int threads,
                        const Accumulated& acc, const std::string& error) {
   const Plan& plan = p.plan();
@@ -205,11 +218,11 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
       }
       j << "}";
       if (s.skipped_px > 0) {
-        // Time saved, estimated at the stage's measured cost per pixel it did work on.
-        const double px = static_cast<double>(p.width()) * p.height() * frames;
-        const double worked = px - static_cast<double>(s.skipped_px);
-        j << ", \"skipped_fraction\": " << Num(s.skipped_px / px) << ", \"time_saved_ms_per_frame_estimate\": "
-          << Num(worked > 0 ? s.ticks / 1e6 / worked * s.skipped_px / frames : 0.0);
+        const double frame_px = static_cast<double>(p.width()) * p.height();
+        double saved = 0;
+        j << ", \"skipped_fraction\": " << Num(s.skipped_px / (frame_px * frames))
+          << ", \"time_saved_ms_per_frame_estimate\": "
+          << (TimeSavedMs(s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
       }
       if (e.id == StageId::kSensor) {
         j << ", \"mean_electrons\": {";
@@ -264,9 +277,13 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
     const char* cn[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c)
       if (s.count[c]) std::fprintf(stderr, " %s=%.4g", cn[c], s.sum[c] * unit / s.count[c]);
-    if (s.skipped_px > 0)
+    if (s.skipped_px > 0) {
+      const double frame_px = static_cast<double>(p.width()) * p.height();
+      double saved = 0;
       std::fprintf(stderr, "  skipped %.1f %% of pixels (not needed)",
-                   100.0 * static_cast<double>(s.skipped_px) / (static_cast<double>(p.width()) * p.height() * frames));
+                   100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames));
+      if (TimeSavedMs(s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
+    }
     if (e.id == StageId::kSensor) {
       std::fprintf(stderr, "  electrons");
       for (int c = 0; c < 3; ++c)

@@ -100,6 +100,41 @@ TEST(Cli, DefaultStripsFollowTheThreadCount) {
       << "an explicit strip height must be >= 1";
 }
 
+// The planner's savings in the report: depth of field at f/4 focused at 5 m
+// leaves the in-focus part of the bundled scene unblurred (skipped, with an
+// estimate of the time saved); motion blur from the scene's vectors (nearly
+// all zero) skips over 99 % of the pixels, where a cost per worked pixel
+// means nothing, so the estimate is null.
+TEST(Cli, ReportSaysWhatWasSkippedAndTheTimeSaved) {
+  const std::string out = TempDir("savings");
+  const Result r = Camsim("run --config " + std::string(CAMSIM_SOURCE_DIR) + "/configs/tradeoff.toml --input " +
+                          kScene + " --out " + out + " --set exposure.f_number=4 --set dof.focus_distance_m=5" +
+                          " --set motion.source=\\\"vectors\\\" --report " + out + "/report.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("skipped"), std::string::npos) << r.err;
+  const std::string report = Slurp(out + "/report.json");
+  auto stage = [&](const std::string& name) {
+    const size_t at = report.find("\"name\": \"" + name + "\"");
+    return at == std::string::npos ? std::string() : report.substr(at, report.find('}', report.find('}', at) + 1) - at);
+  };
+  for (const char* name : {"dof_rows", "dof_columns"}) {
+    const std::string s = stage(name);
+    const size_t f = s.find("\"skipped_fraction\": ");
+    ASSERT_NE(f, std::string::npos) << name << ": " << s;
+    const double skipped = std::atof(s.c_str() + f + 20);
+    EXPECT_GT(skipped, 0.2) << name;
+    EXPECT_LT(skipped, 0.6) << name;
+    const size_t t = s.find("\"time_saved_ms_per_frame_estimate\": ");
+    ASSERT_NE(t, std::string::npos) << name;
+    EXPECT_GT(std::atof(s.c_str() + t + 36), 0.0) << name << ": " << s;
+  }
+  const std::string motion = stage("motion_blur");
+  const size_t mf = motion.find("\"skipped_fraction\": ");
+  ASSERT_NE(mf, std::string::npos) << motion;
+  EXPECT_GT(std::atof(motion.c_str() + mf + 20), 0.99) << motion;
+  EXPECT_NE(motion.find("\"time_saved_ms_per_frame_estimate\": null"), std::string::npos) << motion;
+}
+
 TEST(Cli, SixteenBitOutputAndMonoSensor) {
   const std::string out = TempDir("sixteen");
   const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
