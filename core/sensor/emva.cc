@@ -1,5 +1,6 @@
 #include "core/sensor/emva.h"
 
+#include "core/base/check.h"
 #include "core/base/detmath.h"
 #include "core/pipeline/pipeline.h"  // FrameInput (smear)
 
@@ -236,6 +237,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   const bool defects = stuck_below_ != 0;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool draw_patterns = patterns && pattern_ == nullptr;
+  CAMSIM_DCHECK(pattern_ == nullptr || channels == input_channels_);  // the planner's SetInputChannels
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
   // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
