@@ -43,7 +43,7 @@ namespace {
 using bench::Demo;
 using bench::Scene;
 
-// strip_rows 0: host::AutoStripRows, as `camsim run` by default.
+// strip_rows 0: host::StripRows' default, as `camsim run`.
 void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads, int strip_rows = 0) {
   const int w = config.geometry.width, h = config.geometry.height;
   Pipeline p;
@@ -58,7 +58,7 @@ void RunPipeline(benchmark::State& state, const PipelineConfig& config, int thre
   tap.data = out.data();
   tap.stride = static_cast<ptrdiff_t>(w) * f.channels;
   hal::ThreadPool pool(threads);
-  const int kStripRows = strip_rows > 0 ? strip_rows : host::AutoStripRows(h, threads);
+  const int kStripRows = host::StripRows(strip_rows, h, threads);
   uint32_t frame = 0;
   for (auto _ : state) {
     std::atomic<int> next{0};
@@ -100,10 +100,11 @@ void BM_PipelineDof(benchmark::State& state) {
   c.dof.max_coc_px = 64.0;
   RunPipeline(state, c, static_cast<int>(state.range(2)), static_cast<int>(state.range(3)));
 }
-// Last argument: strip rows (0: host::AutoStripRows, the default of `camsim
-// run`). Every strip starts with empty rings, so strips of 16 run the DoF row
-// pass on 5x the frame (window 16 + 2 x 32 rows); 128 rows (a multiple of the
-// column pass's block of 16) bring that to 1.5x.
+// Last argument: strip rows (0: host::StripRows' default, as `camsim run`).
+// Every strip starts with empty rings, so strips of 16 run the DoF row pass
+// on several times the frame (the column block + 2 x 32 window rows around
+// each strip); 128 rows (a multiple of the column pass's block of 32) bring
+// that to about 1.5x, the whole frame to 1x.
 BENCHMARK(BM_PipelineDof)
     ->Args({1920, 1080, 1, 16})
     ->Args({1920, 1080, 2, 16})

@@ -706,9 +706,7 @@ void GigeDevice::AutoAdjust(double frac) {
   const Feature* ef = FindFeature(table_, "ExposureTime");
   const Feature* gf = FindFeature(table_, "Gain");
   const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
-  const uint64_t key[kAutoKeyWords] = {ea, ga, applied_.at(kSimAutoTarget), applied_.at(kExposureTime),
-                                       applied_.at(kGain), applied_.at(kSimFNumber)};
-  if (!auto_state_valid_ || std::memcmp(key, auto_key_, sizeof key) != 0) {
+  if (!auto_state_valid_ || AutoKey() != auto_key_) {
     AutoExposureConfig c;
     c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
     c.target = std::min(std::max(AppliedDouble(kSimAutoTarget), 0.005), 0.9);  // the controller's range
@@ -733,9 +731,13 @@ void GigeDevice::AutoAdjust(double frac) {
   if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return;
   for (const auto& kv : next)
     if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
-  const uint64_t after[kAutoKeyWords] = {Applied(kExposureAuto), Applied(kGainAuto), applied_.at(kSimAutoTarget),
-                                         applied_.at(kExposureTime), applied_.at(kGain), applied_.at(kSimFNumber)};
-  std::memcpy(auto_key_, after, sizeof after);
+  auto_key_ = AutoKey();
+}
+
+std::array<uint64_t, 6> GigeDevice::AutoKey() const {
+  using namespace reg;
+  return {applied_.at(kExposureAuto), applied_.at(kGainAuto), applied_.at(kSimAutoTarget),
+          applied_.at(kExposureTime), applied_.at(kGain),     applied_.at(kSimFNumber)};
 }
 
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {

@@ -17,6 +17,7 @@
 // the noise, as `camsim run --first-frame i` does for its first input.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <map>
@@ -52,7 +53,7 @@ struct DeviceOptions {
   std::string trigger_line, strobe_line;  // CHIP:OFFSET (libgpiod); empty: none
   hal::InputLine* trigger = nullptr;      // or lines owned by the caller (tests, rigs)
   hal::OutputLine* strobe = nullptr;
-  int threads = 2, strip_rows = 0;  // strip_rows 0: host::AutoStripRows
+  int threads = 2, strip_rows = 0;  // strip_rows 0: host::StripRows' default
   std::string xml_path;  // where the generated XML is written; empty: a file in $TMPDIR
   // Send the first frame's GVSP leader ahead of the frame so an Aravis
   // receiver has grown its socket buffer before the burst (GigeDevice::PrimeReceiver).
@@ -145,8 +146,10 @@ class GigeDevice {
   bool has_rgb_ = false;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   bool auto_state_valid_ = false;
-  static constexpr int kAutoKeyWords = 6;
-  uint64_t auto_key_[kAutoKeyWords] = {};  // modes, target, exposure, gain, f-number it last left applied
+  // Modes, target, exposure, gain and f-number applied: a change the
+  // controller did not make restarts it.
+  std::array<uint64_t, 6> AutoKey() const;  // under mutex_
+  std::array<uint64_t, 6> auto_key_{};      // AutoKey() as the controller last left it
 
   std::unique_ptr<hal::InputLine> own_trigger_;
   std::unique_ptr<hal::OutputLine> own_strobe_;

@@ -8,7 +8,8 @@
 
 namespace camsim::host {
 
-int AutoStripRows(int height, int threads) {
+int StripRows(int requested, int height, int threads) {
+  if (requested > 0) return requested;
   if (threads <= 1) return height < 1 ? 1 : height;
   const int strips = kAutoStripsPerThread * threads;
   const int rows = (height + strips - 1) / strips;
@@ -103,7 +104,7 @@ void FrameRenderer::Render(uint32_t frame, const Tap* taps, int tap_count, std::
 }
 
 int FrameRenderer::strip_rows() const {
-  return strip_rows_ > 0 ? strip_rows_ : AutoStripRows(pipeline_->height(), threads_);
+  return StripRows(strip_rows_, pipeline_->height(), threads_);
 }
 
 int FrameRenderer::SensorIndex() const {

@@ -18,8 +18,8 @@
 
 namespace camsim::host {
 
-// Strip height when none is given: the whole frame on one thread, else
-// kAutoStripsPerThread strips per thread. Every strip starts with empty
+// Rows per strip: `requested` when > 0; else (the default) the whole frame on
+// one thread and kAutoStripsPerThread strips per thread otherwise. Every strip starts with empty
 // rings, so it recomputes the rows its stages' windows read above and below
 // it (with diffusion DoF, 2 x column window + the later stages' windows): the
 // fewer the strips the less of that, but with one strip per thread the
@@ -27,11 +27,11 @@ namespace camsim::host {
 // (BM_PipelineDof/1920/1080/2/0: 174 ms wall against 121 ms CPU). The bytes
 // are the same for any strip height.
 inline constexpr int kAutoStripsPerThread = 4;
-int AutoStripRows(int height, int threads);
+int StripRows(int requested, int height, int threads);
 
 class FrameRenderer {
  public:
-  // strip_rows 0: AutoStripRows of the configured frame height.
+  // strip_rows 0: the default of StripRows for the configured frame height.
   FrameRenderer(int threads, int strip_rows);
 
   // Finishes a copy of `config` for a scene of scene_width x scene_height,
@@ -53,7 +53,7 @@ class FrameRenderer {
   // The frame as the core sees it: the scene's planes and the pre-passes' results.
   FrameInput View() const;
   int threads() const { return threads_; }
-  // Rows per strip of the configured pipeline (after AutoStripRows).
+  // Rows per strip of the configured pipeline (StripRows).
   int strip_rows() const;
   // Running index of the sensor stage, -1 when it does not run.
   int SensorIndex() const;

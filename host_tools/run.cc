@@ -182,7 +182,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
   j << "  \"sensor\": {\"width\": " << p.width() << ", \"height\": " << p.height() << ", \"cfa\": "
     << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << rc.core.geometry.adc_bits << "},\n";
   j << "  \"threads\": " << threads << ", \"strip_rows\": "
-    << (o.strip_rows > 0 ? o.strip_rows : AutoStripRows(p.height(), threads)) << ",\n";
+    << StripRows(o.strip_rows, p.height(), threads) << ",\n";
   j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
     << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
   if (rc.core.flare.enabled && rc.core.flare.environment.texels != nullptr && rc.environment_data) {

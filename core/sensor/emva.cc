@@ -183,15 +183,15 @@ Status SensorStage::Init(Arena& tables) {
     // 2 (x & 1) and 2 (x & 1) + 1 of the fixed-pattern call for pair x >> 1.
     PatternEntry* t = tables.Take<PatternEntry>(PatternEntries());
     if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the sensor's fixed pattern");
+    pattern_ = t;
     for (int ch = 0; ch < input_channels_; ++ch)
       for (int y = 0; y < geometry_.height; ++y)
-        for (int x = 0; x < geometry_.width; ++x) {
+        for (int x = 0; x < geometry_.width; x += 2) {
           const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
                                         static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
-          const int w = (x & 1) * 2;
-          *t++ = Pattern(b.v[w], b.v[w + 1]);
+          *t++ = Pattern(b.v[0], b.v[1]);
+          if (x + 1 < geometry_.width) *t++ = Pattern(b.v[2], b.v[3]);
         }
-    pattern_ = t - PatternEntries();
   }
   column_offset_ = nullptr;
   if (col_fpn_q8_ != 0) {

@@ -11,9 +11,9 @@
 #include "hal/clock.h"
 #include "host_tools/config.h"
 #include "host_tools/io/exr_scene.h"
-#include "host_tools/render.h"
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
+#include "host_tools/render.h"
 #include "host_tools/report/plot.h"
 #include "host_tools/scene_input.h"
 
@@ -165,7 +165,7 @@ bool Measure(RunConfig rc, const io::SceneFrame& scene, const io::FloatPlane* ma
   if (mask != nullptr) PrepareMask(*mask, p.width(), p.height(), &input);
   const FrameInput view = input.View();
   const int w = p.width(), h = p.height(), n = p.plan().running;
-  const int kStripRows = AutoStripRows(h, 1);  // as `camsim run` on one thread
+  const int kStripRows = StripRows(0, h, 1);  // as `camsim run` on one thread
 
   const Clock clock = hal::NanosecondClock();
   p.ProcessFrame(view, 0, kStripRows, nullptr, 0, nullptr, nullptr);  // warm caches and tables

@@ -85,12 +85,13 @@ TEST(Cli, ThreadsAndStripRowsGiveTheSameBytes) {
 
 // Without --strip-rows one thread runs the whole frame as one strip (the
 // fewest rows recomputed at strip edges), N threads get 4 strips each
-// (host::AutoStripRows). The report says what was used.
+// (host::StripRows); an explicit height wins. The report says what was used.
 TEST(Cli, DefaultStripsFollowTheThreadCount) {
-  EXPECT_EQ(camsim::host::AutoStripRows(1080, 1), 1080);
-  EXPECT_EQ(camsim::host::AutoStripRows(1080, 2), 135);
-  EXPECT_EQ(camsim::host::AutoStripRows(7, 3), 1);
-  EXPECT_EQ(camsim::host::AutoStripRows(1, 4), 1);
+  EXPECT_EQ(camsim::host::StripRows(0, 1080, 1), 1080);
+  EXPECT_EQ(camsim::host::StripRows(0, 1080, 2), 135);
+  EXPECT_EQ(camsim::host::StripRows(0, 7, 3), 1);
+  EXPECT_EQ(camsim::host::StripRows(0, 1, 4), 1);
+  EXPECT_EQ(camsim::host::StripRows(5, 1080, 2), 5);
   const std::string out = TempDir("auto_strip");
   const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
                           " --quiet --threads 2 --report " + out + "/report.json");
