@@ -10,7 +10,10 @@
 //   Noise: camsim's EMVA 1288 sensor stage (Poisson shot noise, dark noise,
 //     DSNU, PRNU, saturation, quantisation; counter-based) vs cv::randn filling
 //     a float image with one Gaussian per pixel (sequential generator): a
-//     lower bound for any noise model, not the same job.
+//     lower bound for any noise model, not the same job. The same job is
+//     BM_Peer_CamsimGaussian: one standard normal per pixel, counter-based as
+//     the sensor draws its read noise (a Philox4x32 call per pixel pair,
+//     GaussianTable), into an int32 Q15.16 plane of the same size.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -24,6 +27,7 @@
 
 #include "bench/bench_common.h"
 #include "bench/stage_bench.h"
+#include "core/base/random.h"
 #include "core/isp/isp_ref.h"
 
 namespace camsim {
@@ -166,6 +170,40 @@ void BM_Peer_OpenCVRandn(benchmark::State& state) {
 }
 BENCHMARK(BM_Peer_OpenCVRandn)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
 
+void BM_Peer_CamsimGaussian(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  std::vector<int32_t> table(GaussianTable::kEntries);
+  GaussianTable gauss;
+  if (!gauss.Build(Span<int32_t>{table.data(), table.size()}).ok()) std::abort();
+  std::vector<int32_t> plane(static_cast<size_t>(w) * h);
+  constexpr int kBlock = 2 * RandomLanes::kLanes;  // pixels per DrawBitsLanes, as the sensor
+  constexpr uint64_t kSeed = 1;
+  uint32_t frame = 0;
+  for (auto _ : state) {
+    for (int y = 0; y < h; ++y) {
+      int32_t* row = plane.data() + static_cast<size_t>(y) * w;
+      for (int x0 = 0; x0 < w; x0 += kBlock) {
+        RandomLanes t;
+        DrawBitsLanes(kSeed, 0, frame, static_cast<uint32_t>(x0) >> 1, static_cast<uint32_t>(y), 0, &t);
+        const int n = w - x0 < kBlock ? w - x0 : kBlock;
+        for (int i = 0; i < n; ++i) row[x0 + i] = gauss.Sample(t.v[2 * (i & 1) + 1][i >> 1]);
+      }
+    }
+    benchmark::DoNotOptimize(plane.data());
+    ++frame;
+  }
+  // A check that the plane is standard normal (so the pair compares like with like).
+  double sum = 0.0, sum2 = 0.0;
+  for (const int32_t v : plane) {
+    sum += v / 65536.0;
+    sum2 += (v / 65536.0) * (v / 65536.0);
+  }
+  const double n = static_cast<double>(plane.size()), mean = sum / n;
+  state.counters["mean"] = mean;
+  state.counters["sd"] = std::sqrt(sum2 / n - mean * mean);
+}
+BENCHMARK(BM_Peer_CamsimGaussian)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Registered before main runs (static initialisation order within this file).
 const bool kPairs = [] {
   bench::AddPeerPair("BM_Peer_CamsimDemosaic/1920/1080", "BM_Peer_OpenCVDemosaic/1920/1080/16",
@@ -174,6 +212,8 @@ const bool kPairs = [] {
                      "bilinear demosaic, 8-bit");
   bench::AddPeerPair("BM_Peer_CamsimNoise/1920/1080", "BM_Peer_OpenCVRandn/1920/1080",
                      "sensor noise vs one Gaussian per pixel");
+  bench::AddPeerPair("BM_Peer_CamsimGaussian/1920/1080", "BM_Peer_OpenCVRandn/1920/1080",
+                     "one Gaussian per pixel, counter-based vs randn");
   return true;
 }();
 
