@@ -6,6 +6,10 @@
 #include "core/base/detmath.h"
 #include "core/base/simd.h"
 
+#ifdef CAMSIM_X86_AVX2
+#include <immintrin.h>
+#endif
+
 namespace camsim {
 namespace {
 
@@ -257,6 +261,104 @@ void BilinearSetUpLanes(BilinearSetUp* __restrict u, const BilinearLimits l) {
     u->wy[f] = ((qy & l.mask) << wshift) & keep;
   }
 }
+
+#ifdef CAMSIM_X86_AVX2
+// The bilinear fast path with AVX2 (replaces the staging and BilinearLanes).
+// Eight neighbouring pixels of a smooth remap read a short run of columns
+// from at most three rows: per row and channel, two 8-sample loads cover
+// columns min(x0) .. min(x0) + 15 and vpermd picks each lane's two taps.
+// A group of eight qualifies when all are inside, their tap rows lie in
+// row0 .. row0 + 2 (two values of row), and max(x0) - min(x0) <= 14 with
+// min(x0) + 15 < width; others (frame borders, strong compression) take the
+// scalar Lerp32 per pixel. Both give BilinearLanes' bits.
+
+// Lerp32 in eight lanes.
+CAMSIM_AVX2_TARGET inline __m256i Lerp32x8(__m256i a, __m256i b, __m256i w) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  const __m256i low = _mm256_set1_epi32(0xFFFF);
+  const __m256i dh = _mm256_sub_epi32(_mm256_srli_epi32(b, 16), _mm256_srli_epi32(a, 16));
+  const __m256i dl = _mm256_sub_epi32(_mm256_and_si256(b, low), _mm256_and_si256(a, low));
+  const __m256i x = _mm256_mullo_epi32(w, dh), y = _mm256_mullo_epi32(w, dl);
+  const __m256i r = _mm256_srai_epi32(_mm256_add_epi32(y, _mm256_set1_epi32(1 << (kF - 1))), kF);
+  return _mm256_add_epi32(_mm256_add_epi32(a, _mm256_slli_epi32(x, 2)), r);
+}
+
+// Lane i gets run[idx[i]] from run = (lo, hi), 0 <= idx <= 15.
+CAMSIM_AVX2_TARGET inline __m256i Pick16(__m256i lo, __m256i hi, __m256i idx) {
+  const __m256i from_hi = _mm256_cmpgt_epi32(idx, _mm256_set1_epi32(7));
+  return _mm256_blendv_epi8(_mm256_permutevar8x32_epi32(lo, idx), _mm256_permutevar8x32_epi32(hi, idx), from_hi);
+}
+
+// The bilinear value of eight pixels of plane `plane` (see above): rows r0,
+// r0 + 1 and, when `three`, r0 + 2 of the window; `lower` selects per lane
+// whether its taps are rows (r0, r0 + 1) or (r0 + 1, r0 + 2).
+CAMSIM_AVX2_TARGET inline __m256i BilinearRun8(const RowIn* rows, int r0, bool three, int plane, int col,
+                                               __m256i ia, __m256i ib, __m256i lower, __m256i wx, __m256i wy) {
+  __m256i h[3];
+  for (int r = 0; r < (three ? 3 : 2); ++r) {
+    const uint32_t* p = rows[r0 + r].ch[plane] + col;
+    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8));
+    h[r] = Lerp32x8(Pick16(lo, hi, ia), Pick16(lo, hi, ib), wx);
+  }
+  if (!three) return Lerp32x8(h[0], h[1], wy);
+  const __m256i top = _mm256_blendv_epi8(h[0], h[1], lower);
+  const __m256i bottom = _mm256_blendv_epi8(h[1], h[2], lower);
+  return Lerp32x8(top, bottom, wy);
+}
+
+// k->v for a chunk set up in u: channels 0..2 into v[0..2] (RGB), or with
+// site_only the colour of each pixel's CFA site into v[0] (colours c_even and
+// c_odd alternate along the row; the chunk starts on an even column).
+CAMSIM_AVX2_TARGET
+void BilinearChunkAvx2(const RowIn* rows, const BilinearSetUp& u, int width, bool site_only, int c_even, int c_odd,
+                       BilinearChunk* k) {
+  const __m256i odd = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
+  for (int f = 0; f < kChunk; f += 8) {
+    int rmin = u.row[f], rmax = u.row[f], xmin = u.x0[f], xmax = u.x0[f], inside = 1;
+    for (int i = f; i < f + 8; ++i) {
+      inside &= u.inside[i];
+      rmin = u.row[i] < rmin ? u.row[i] : rmin;
+      rmax = u.row[i] > rmax ? u.row[i] : rmax;
+      xmin = u.x0[i] < xmin ? u.x0[i] : xmin;
+      xmax = u.x0[i] > xmax ? u.x0[i] : xmax;
+    }
+    if (inside && rmax - rmin <= 1 && xmax - xmin <= 14 && xmin + 15 < width) {
+      const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
+      const __m256i ia = _mm256_sub_epi32(x0, _mm256_set1_epi32(xmin));
+      const __m256i ib = _mm256_add_epi32(ia, _mm256_set1_epi32(1));
+      const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
+      const __m256i lower = _mm256_cmpgt_epi32(row, _mm256_set1_epi32(rmin));
+      const __m256i wx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wx + f));
+      const __m256i wy = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wy + f));
+      const bool three = rmax > rmin;
+      if (site_only) {
+        const __m256i ve = BilinearRun8(rows, rmin, three, c_even, xmin, ia, ib, lower, wx, wy);
+        const __m256i vo = BilinearRun8(rows, rmin, three, c_odd, xmin, ia, ib, lower, wx, wy);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[0] + f), _mm256_blendv_epi8(ve, vo, odd));
+      } else {
+        for (int c = 0; c < 3; ++c)
+          _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[c] + f),
+                              BilinearRun8(rows, rmin, three, c, xmin, ia, ib, lower, wx, wy));
+      }
+      continue;
+    }
+    for (int i = f; i < f + 8; ++i) {
+      const int channels = site_only ? 1 : 3;
+      for (int c = 0; c < channels; ++c) {
+        if (!u.inside[i]) {
+          k->v[c][i] = 0;
+          continue;
+        }
+        const int plane = site_only ? ((i & 1) ? c_odd : c_even) : c;
+        const uint32_t* p0 = rows[u.row[i]].ch[plane] + u.x0[i];
+        const uint32_t* p1 = rows[u.row[i] + 1].ch[plane] + u.x0[i];
+        k->v[c][i] = Lerp32(Lerp32(p0[0], p0[1], u.wx[i]), Lerp32(p1[0], p1[1], u.wx[i]), u.wy[i]);
+      }
+    }
+  }
+}
+#endif
 
 }  // namespace
 
@@ -568,6 +670,7 @@ Status DistortionStage::Init(Arena& tables) {
         }
       }
     }
+  avx2_ = CpuHasAvx2();
   return Status::Ok();
 }
 
@@ -794,26 +897,31 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       }
     }
     BilinearSetUpLanes(&u, l);
-    for (int f = 0; f < kChunk; ++f) {
-      int c0 = 0;
-      if constexpr (kSiteOnly) {
-        c0 = CfaColour(cfa, xs + f, y);
-        site[f] = static_cast<uint8_t>(c0);
-      }
-      k.wx[f] = u.wx[f];
-      k.wy[f] = u.wy[f];
-      if (u.inside[f]) {
-        const RowIn* r = rows + u.row[f];
-        const int x0 = u.x0[f];
-        for (int c = 0; c < kChannels; ++c) {
-          std::memcpy(k.s[c][0][f], r[0].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
-          std::memcpy(k.s[c][1][f], r[1].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+    if constexpr (kSiteOnly)
+      for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
+#ifdef CAMSIM_X86_AVX2
+    if (avx2_) {
+      BilinearChunkAvx2(rows, u, width, kSiteOnly, site[0], site[1], &k);
+    } else
+#endif
+    {
+      for (int f = 0; f < kChunk; ++f) {
+        const int c0 = kSiteOnly ? site[f] : 0;
+        k.wx[f] = u.wx[f];
+        k.wy[f] = u.wy[f];
+        if (u.inside[f]) {
+          const RowIn* r = rows + u.row[f];
+          const int x0 = u.x0[f];
+          for (int c = 0; c < kChannels; ++c) {
+            std::memcpy(k.s[c][0][f], r[0].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+            std::memcpy(k.s[c][1][f], r[1].ch[c0 + c] + x0, 2 * sizeof(uint32_t));
+          }
+        } else {
+          for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
         }
-      } else {
-        for (int c = 0; c < kChannels; ++c) k.s[c][0][f][0] = k.s[c][0][f][1] = k.s[c][1][f][0] = k.s[c][1][f][1] = 0;
       }
+      BilinearLanes(&k, kChannels);
     }
-    BilinearLanes(&k, kChannels);
     if constexpr (kSiteOnly) {
       for (int c = 0; c < 3; ++c)
         for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;

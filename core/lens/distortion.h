@@ -44,6 +44,8 @@
 // scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256
 // px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
 // .cc) that give exactly the general path's bits; tests compare the two.
+// On x86-64 with AVX2 the bilinear one picks its samples from contiguous
+// loads with vpermd; elsewhere, and in the debug preset, it stages them.
 //
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
 #pragma once
@@ -125,6 +127,7 @@ class DistortionStage final : public Stage {
   bool site_only_ = false;
   bool fast_path_ = false;      // set by Init when the table's ranges fit 32 bits
   bool force_general_ = false;  // tests only
+  bool avx2_ = false;           // bilinear fast path: the AVX2 kernel (set by Init)
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
