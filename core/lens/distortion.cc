@@ -358,6 +358,90 @@ void BilinearChunkAvx2(const RowIn* rows, const BilinearSetUp& u, int width, boo
     }
   }
 }
+
+// Lanes = pixels for the N-tap filters (bicubic, Lanczos-3): eight pixels
+// whose taps are all interior, whose first tap rows take at most two values
+// (rmin, rmin + 1) and whose tap columns lie in xmin .. xmin + 8 L - 1.
+// Per tap row, L 8-sample loads and vpermd give each lane its N samples.
+// The sums are FilterInterior's, exactly, in 32-bit lanes: with the samples
+// split into 16-bit halves, s = sum w p = 2^16 SH + SL, where SH = sum w hi
+// and SL = sum w lo are exact in int32 (Init checks sum |w| < 2^15 for every
+// phase), so the rounded row sum is h = 4 SH + q, q = (SL + 2^13) >> 14;
+// the vertical sum 4 sum wy SH + sum wy q is taken in int64 lanes (even and
+// odd pixels apart), rounded, clamped to the 2x2 samples and packed back.
+struct FilterLanes {
+  __m256i x0;     // first tap column - xmin
+  __m256i lower;  // all ones where the first tap row is rmin + 1
+  __m256i wx[6], wy[6];
+};
+
+// Lane i gets run[idx[i]] from run = v[0 .. L-1] (8 samples each), 0 <= idx < 8 L.
+template <int L>
+CAMSIM_AVX2_TARGET inline __m256i PickRun(const __m256i* v, __m256i idx) {
+  __m256i r = _mm256_permutevar8x32_epi32(v[0], idx);
+  for (int l = 1; l < L; ++l)
+    r = _mm256_blendv_epi8(r, _mm256_permutevar8x32_epi32(v[l], idx),
+                           _mm256_cmpgt_epi32(idx, _mm256_set1_epi32(8 * l - 1)));
+  return r;
+}
+
+template <int N, int L>
+CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two, int plane, int xmin,
+                                           const FilterLanes& in) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int kBefore = N / 2 - 1;
+  const __m256i low = _mm256_set1_epi32(0xFFFF), one = _mm256_set1_epi32(1);
+  __m256i sh[N + 1], q[N + 1], clamp[3][2];
+  const int row_count = two ? N + 1 : N;
+  for (int r = 0; r < row_count; ++r) {
+    const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
+    __m256i v[L];
+    for (int l = 0; l < L; ++l) v[l] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8 * l));
+    __m256i h = _mm256_setzero_si256(), lo = _mm256_setzero_si256(), idx = in.x0;
+    for (int t = 0; t < N; ++t, idx = _mm256_add_epi32(idx, one)) {
+      const __m256i smp = PickRun<L>(v, idx);
+      h = _mm256_add_epi32(h, _mm256_mullo_epi32(_mm256_srli_epi32(smp, 16), in.wx[t]));
+      lo = _mm256_add_epi32(lo, _mm256_mullo_epi32(_mm256_and_si256(smp, low), in.wx[t]));
+      if (r >= kBefore && r <= kBefore + 2 && (t == kBefore || t == kBefore + 1)) clamp[r - kBefore][t - kBefore] = smp;
+    }
+    sh[r] = h;
+    q[r] = _mm256_srai_epi32(_mm256_add_epi32(lo, _mm256_set1_epi32(1 << (kF - 1))), kF);
+  }
+  __m256i even = _mm256_setzero_si256(), odd = _mm256_setzero_si256();
+  for (int k = 0; k < N; ++k) {
+    const __m256i hk = two ? _mm256_blendv_epi8(sh[k], sh[k + 1], in.lower) : sh[k];
+    const __m256i qk = two ? _mm256_blendv_epi8(q[k], q[k + 1], in.lower) : q[k];
+    const __m256i w4 = _mm256_slli_epi32(in.wy[k], 2);
+    even = _mm256_add_epi64(even, _mm256_add_epi64(_mm256_mul_epi32(w4, hk), _mm256_mul_epi32(in.wy[k], qk)));
+    odd = _mm256_add_epi64(
+        odd, _mm256_add_epi64(_mm256_mul_epi32(_mm256_srli_epi64(w4, 32), _mm256_srli_epi64(hk, 32)),
+                              _mm256_mul_epi32(_mm256_srli_epi64(in.wy[k], 32), _mm256_srli_epi64(qk, 32))));
+  }
+  // (acc + 2^13) >> 14 with a logical shift: |acc| < 2^50, so adding 2^54
+  // keeps it positive and adds exactly 2^40 to the quotient.
+  const __m256i bias = _mm256_set1_epi64x((int64_t{1} << (kF - 1)) + (int64_t{1} << 54));
+  const __m256i unbias = _mm256_set1_epi64x(int64_t{1} << 40);
+  even = _mm256_sub_epi64(_mm256_srli_epi64(_mm256_add_epi64(even, bias), kF), unbias);
+  odd = _mm256_sub_epi64(_mm256_srli_epi64(_mm256_add_epi64(odd, bias), kF), unbias);
+  // Ringing clamp to the 2x2 samples around the source.
+  __m256i s00 = clamp[0][0], s01 = clamp[0][1], s10 = clamp[1][0], s11 = clamp[1][1];
+  if (two) {
+    s00 = _mm256_blendv_epi8(s00, clamp[1][0], in.lower);
+    s01 = _mm256_blendv_epi8(s01, clamp[1][1], in.lower);
+    s10 = _mm256_blendv_epi8(s10, clamp[2][0], in.lower);
+    s11 = _mm256_blendv_epi8(s11, clamp[2][1], in.lower);
+  }
+  const __m256i lo = _mm256_min_epu32(_mm256_min_epu32(s00, s01), _mm256_min_epu32(s10, s11));
+  const __m256i hi = _mm256_max_epu32(_mm256_max_epu32(s00, s01), _mm256_max_epu32(s10, s11));
+  const __m256i low32 = _mm256_set1_epi64x(0xFFFFFFFF);
+  const __m256i lo_e = _mm256_and_si256(lo, low32), lo_o = _mm256_srli_epi64(lo, 32);
+  const __m256i hi_e = _mm256_and_si256(hi, low32), hi_o = _mm256_srli_epi64(hi, 32);
+  even = _mm256_blendv_epi8(even, lo_e, _mm256_cmpgt_epi64(lo_e, even));
+  even = _mm256_blendv_epi8(even, hi_e, _mm256_cmpgt_epi64(even, hi_e));
+  odd = _mm256_blendv_epi8(odd, lo_o, _mm256_cmpgt_epi64(lo_o, odd));
+  odd = _mm256_blendv_epi8(odd, hi_o, _mm256_cmpgt_epi64(odd, hi_o));
+  return _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
+}
 #endif
 
 }  // namespace
@@ -602,6 +686,7 @@ int DistortionStage::MaxWindowRows() const { return max_window_; }
 void DistortionStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   counter.Add<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
+  counter.Add<int32_t>(static_cast<size_t>(taps_) << phase_bits_);  // wt_
 }
 
 size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<size_t>(grid_w_) * 2 * sizeof(int32_t); }
@@ -609,7 +694,8 @@ size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<s
 Status DistortionStage::Init(Arena& tables) {
   table_ = tables.Take<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   weights_ = tables.Take<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
-  if (table_ == nullptr || weights_ == nullptr)
+  wt_ = tables.Take<int32_t>(static_cast<size_t>(taps_) << phase_bits_);
+  if (table_ == nullptr || weights_ == nullptr || wt_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for the distortion table");
   for (int j = 0; j < grid_h_; ++j)
     for (int i = 0; i < grid_w_; ++i) {
@@ -670,7 +756,19 @@ Status DistortionStage::Init(Arena& tables) {
         }
       }
     }
-  avx2_ = CpuHasAvx2();
+  // The weights by tap (FilterLanesAvx2's gathers), and the bound its 32-bit
+  // row sums need: sum |w| < 2^15 for every phase.
+  bool small_weights = true;
+  for (int p = 0; p < phases; ++p) {
+    int sum = 0;
+    for (int t = 0; t < taps_; ++t) {
+      const int w = weights_[p * taps_ + t];
+      wt_[t * phases + p] = w;
+      sum += w < 0 ? -w : w;
+    }
+    if (sum >= (1 << 15)) small_weights = false;
+  }
+  avx2_ = CpuHasAvx2() && small_weights;
   return Status::Ok();
 }
 
@@ -901,7 +999,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
 #ifdef CAMSIM_X86_AVX2
     if (avx2_) {
-      BilinearChunkAvx2(rows, u, width, kSiteOnly, site[0], site[1], &k);
+      BilinearChunkAvx2(rows, u, width, kSiteOnly, kSiteOnly ? site[0] : 0, kSiteOnly ? site[1] : 0, &k);
     } else
 #endif
     {
@@ -938,15 +1036,146 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   }
 }
 
+#ifdef CAMSIM_X86_AVX2
+// The N-tap fast path with AVX2: per chunk of kChunk pixels the positions
+// and each pixel's class (fill, interior, border) as in ProcessRowFast, then
+// FilterLanesAvx2 on groups of eight interior pixels (RGB: eight neighbours,
+// L = 2 loads per row; CFA site only: the eight pixels of one colour among
+// sixteen, L = 3), and ProcessRowFast's per-pixel code for the rest. Lane
+// slots: RGB slot = pixel; site only, the pixels of each sixteen are stored
+// even ones first, so a group's lanes are consecutive slots.
+template <int N, bool kSiteOnly>
+CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const {
+  constexpr int L = kSiteOnly ? 3 : 2, kGroup = kSiteOnly ? 16 : 8, kBefore = N / 2 - 1;
+  const int width = a.width, y = a.y, height = geometry_.height;
+  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
+  int32_t* vdy = vdx + grid_w_;
+  InterpolateRow(y, vdx, vdy);
+  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowIn* const rows = a.rows;
+  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
+  const Cfa cfa = geometry_.cfa;
+  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  constexpr int32_t kHalf = 1 << 15, kOff = INT32_MIN;
+  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
+  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1, phases = 1 << pb;
+  const int32_t qround = 1 << (shift - 1);
+  const int row_lo = a.first_row > 0 ? a.first_row : 0;
+  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
+  const int row_hi = row_end - N, col_hi = width - N, first_row = a.first_row;
+  int32_t sx[kChunk], sy[kChunk];                                   // by pixel
+  int32_t x0s[kChunk], rows_[kChunk], phx[kChunk], phy[kChunk];    // by slot
+  uint8_t interior[kChunk], done[kChunk];                           // by slot
+  auto slot_of = [](int f) { return kSiteOnly ? ((f & ~15) | ((f & 1) << 3) | ((f & 15) >> 1)) : f; };
+  for (int xs = 0; xs < width; xs += kChunk) {
+    const int n = width - xs < kChunk ? width - xs : kChunk;
+    for (int xc = 0; xc < kChunk; xc += step) {
+      const int i = (xs + xc) >> step_bits;
+      if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+        for (int f = 0; f < step; ++f) sx[xc + f] = sy[xc + f] = kOff;
+        continue;
+      }
+      const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
+      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+      for (int f = 0; f < step; ++f) {
+        sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+        sy[xc + f] = ay + ((dy * f + half) >> step_bits);
+      }
+    }
+    for (int f = 0; f < kChunk; ++f) {
+      const int k = slot_of(f);
+      const int32_t px = sx[f], py = sy[f];
+      done[k] = 0;
+      interior[k] = 0;
+      x0s[k] = rows_[k] = phx[k] = phy[k] = 0;
+      if (f >= n || px < -kHalf || py < -kHalf || px > xmax || py > ymax) continue;
+      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
+      const int x0 = (qx >> pb) - kBefore, y0 = (qy >> pb) - kBefore;
+      interior[k] = x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi;
+      x0s[k] = x0;
+      rows_[k] = y0 - first_row;
+      phx[k] = qx & mask;
+      phy[k] = qy & mask;
+    }
+    if constexpr (kSiteOnly)
+      for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
+    for (int g = 0; g + kGroup <= n; g += kGroup)
+      for (int set = 0; set < kGroup; set += 8) {
+        const int k0 = g + set;  // first slot of the eight lanes
+        int ok = 1, rmin = rows_[k0], rmax = rmin, xmin = x0s[k0], xmx = xmin;
+        for (int k = k0; k < k0 + 8; ++k) {
+          ok &= interior[k];
+          rmin = rows_[k] < rmin ? rows_[k] : rmin;
+          rmax = rows_[k] > rmax ? rows_[k] : rmax;
+          xmin = x0s[k] < xmin ? x0s[k] : xmin;
+          xmx = x0s[k] > xmx ? x0s[k] : xmx;
+        }
+        if (!ok || rmax - rmin > 1 || xmx - xmin + N > 8 * L || xmin + 8 * L > width) continue;
+        FilterLanes in;
+        const __m256i x0v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x0s + k0));
+        const __m256i rv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rows_ + k0));
+        const __m256i pxv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(phx + k0));
+        const __m256i pyv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(phy + k0));
+        in.x0 = _mm256_sub_epi32(x0v, _mm256_set1_epi32(xmin));
+        in.lower = _mm256_cmpgt_epi32(rv, _mm256_set1_epi32(rmin));
+        for (int t = 0; t < N; ++t) {
+          in.wx[t] = _mm256_i32gather_epi32(wt_ + t * phases, pxv, 4);
+          in.wy[t] = _mm256_i32gather_epi32(wt_ + t * phases, pyv, 4);
+        }
+        const bool two = rmax > rmin;
+        alignas(32) uint32_t v[8];
+        if constexpr (kSiteOnly) {
+          const int x = xs + g + (set >> 3);  // this set's first pixel
+          const int c = CfaColour(cfa, x, y);
+          _mm256_store_si256(reinterpret_cast<__m256i*>(v), FilterLanesAvx2<N, L>(rows, rmin, two, c, xmin, in));
+          for (int i = 0; i < 8; ++i) out[c][x + 2 * i] = v[i];
+        } else {
+          for (int c = 0; c < 3; ++c)
+            _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[c] + xs + g),
+                                FilterLanesAvx2<N, L>(rows, rmin, two, c, xmin, in));
+        }
+        for (int k = k0; k < k0 + 8; ++k) done[k] = 1;
+      }
+    // The rest, pixel by pixel as ProcessRowFast.
+    for (int f = 0; f < n; ++f) {
+      const int k = slot_of(f), x = xs + f;
+      if (done[k]) continue;
+      const int c0 = kSiteOnly ? CfaColour(cfa, x, y) : 0, c1 = kSiteOnly ? c0 + 1 : 3;
+      if (interior[k]) {
+        const RowIn* r = rows + rows_[k];
+        const int16_t* wx = weights_ + phx[k] * N;
+        const int16_t* wy = weights_ + phy[k] * N;
+        for (int c = c0; c < c1; ++c) out[c][x] = FilterInterior<N>(r, c, x0s[k], wx, wy);
+        continue;
+      }
+      Taps<N> t;
+      const bool on = !(sx[f] < -kHalf || sy[f] < -kHalf || sx[f] > xmax || sy[f] > ymax);
+      if (on && SetUpTaps<N>(src, sx[f], sy[f], &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      } else {
+        for (int c = c0; c < c1; ++c) out[c][x] = 0;
+      }
+    }
+  }
+}
+#endif
+
 void DistortionStage::ProcessRow(const RowArgs& a) const {
   if (fast_path()) {
     switch (taps_ * 2 + (site_only_ ? 1 : 0)) {
       case 4: ProcessRowBilinear<false>(a); return;
       case 5: ProcessRowBilinear<true>(a); return;
+#ifdef CAMSIM_X86_AVX2
+      case 8: avx2_ ? ProcessRowLanes<4, false>(a) : ProcessRowFast<4, false>(a); return;
+      case 9: avx2_ ? ProcessRowLanes<4, true>(a) : ProcessRowFast<4, true>(a); return;
+      case 12: avx2_ ? ProcessRowLanes<6, false>(a) : ProcessRowFast<6, false>(a); return;
+      default: avx2_ ? ProcessRowLanes<6, true>(a) : ProcessRowFast<6, true>(a); return;
+#else
       case 8: ProcessRowFast<4, false>(a); return;
       case 9: ProcessRowFast<4, true>(a); return;
       case 12: ProcessRowFast<6, false>(a); return;
       default: ProcessRowFast<6, true>(a); return;
+#endif
     }
   }
   switch (taps_) {

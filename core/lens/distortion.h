@@ -44,8 +44,9 @@
 // scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256
 // px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
 // .cc) that give exactly the general path's bits; tests compare the two.
-// On x86-64 with AVX2 the bilinear one picks its samples from contiguous
-// loads with vpermd; elsewhere, and in the debug preset, it stages them.
+// On x86-64 with AVX2 they take eight pixels at a time in lanes, picking
+// samples from contiguous loads with vpermd; elsewhere, and in the debug
+// preset, the bilinear one stages them and the others go pixel by pixel.
 //
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
 #pragma once
@@ -120,6 +121,8 @@ class DistortionStage final : public Stage {
   void ProcessRowFast(const RowArgs& args) const;
   template <bool kSiteOnly>
   void ProcessRowBilinear(const RowArgs& args) const;
+  template <int N, bool kSiteOnly>
+  void ProcessRowLanes(const RowArgs& args) const;  // AVX2 only (the .cc)
 
   DistortionConfig config_;
   SensorGeometry geometry_;
@@ -141,6 +144,7 @@ class DistortionStage final : public Stage {
   int max_window_ = 1;
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
+  int32_t* wt_ = nullptr;      // the same, taps x phases, as int32 (AVX2 gathers)
 };
 
 // Filter kernel value at offset t (pixels) from the source position (double).
