@@ -223,6 +223,30 @@ void BilinearLanes(BilinearChunk* __restrict k, int channels) {
     }
 }
 
+// The source positions (Q.16, int32) of the kChunk pixels from xs of row y,
+// n of them real: per grid cell, a + ((b - a) f + half) >> step from the
+// row's interpolated displacements (as ProcessRowFast); kChunkOff for pixels
+// beyond n or in a cell touching a node without a source (they get the fill).
+constexpr int32_t kChunkOff = INT32_MIN;
+void ChunkPositions(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y, int step_bits, int32_t* sx,
+                    int32_t* sy) {
+  const int step = 1 << step_bits, half = step >> 1;
+  const int32_t y16 = y * 65536;  // < 2^30
+  for (int xc = 0; xc < kChunk; xc += step) {
+    const int i = (xs + xc) >> step_bits;
+    if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
+      for (int f = 0; f < step; ++f) sx[xc + f] = sy[xc + f] = kChunkOff;
+      continue;
+    }
+    const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
+    const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
+    for (int f = 0; f < step; ++f) {
+      sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
+      sy[xc + f] = ay + ((dy * f + half) >> step_bits);
+    }
+  }
+}
+
 // The per-pixel set-up of a bilinear chunk in lanes: from the positions
 // (sx, sy; Q.16, int32), whether the pixel is inside (all four taps in the
 // frame and the window: the staged path), or needs the general path (border),
@@ -811,14 +835,32 @@ bool DistortionStage::SourcePosition(int x, int y, int c, int64_t* sx, int64_t* 
   return true;
 }
 
-template <int N>
-void DistortionStage::ProcessRowN(const RowArgs& a) const {
+// Every ProcessRow variant starts here: the row's displacements per grid
+// column interpolated into scratch, and RowArgs' fields copied to locals
+// (a store through an output pointer may alias them; see Source).
+struct DistortionStage::RowView {
+  const int32_t* vdx;
+  const int32_t* vdy;
+  Source src;
+  uint32_t* out[3];
+};
+
+DistortionStage::RowView DistortionStage::StartRow(const RowArgs& a) const {
   int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
+  return RowView{vdx, vdy, Source{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_},
+                 {a.out[0], a.out[1], a.out[2]}};
+}
+
+template <int N>
+void DistortionStage::ProcessRowN(const RowArgs& a) const {
+  const RowView row_view = StartRow(a);
+  const int32_t* const vdx = row_view.vdx;
+  const int32_t* const vdy = row_view.vdy;
+  const Source& src = row_view.src;
+  uint32_t* const* out = row_view.out;
   const int width = a.width, y = a.y;
-  const Source src{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_};
-  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
   const bool site_only = site_only_;
   const int step_bits = step_bits_, smask = (1 << step_bits) - 1;
@@ -873,13 +915,13 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
 template <int N, bool kSiteOnly>
 void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int width = a.width, y = a.y, height = geometry_.height;
-  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
-  int32_t* vdy = vdx + grid_w_;
-  InterpolateRow(y, vdx, vdy);
-  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowView row_view = StartRow(a);
+  const int32_t* const vdx = row_view.vdx;
+  const int32_t* const vdy = row_view.vdy;
+  const Source& src = row_view.src;
+  uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const int16_t* const weights = weights_;
-  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
   const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
   constexpr int32_t kHalf = 1 << 15;
@@ -945,24 +987,20 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   }
 }
 
-// Bilinear fast path: per chunk of kChunk pixels, the positions (as in
-// ProcessRowFast), then per pixel its weights and 2x2 samples staged
+// Bilinear fast path: per chunk of kChunk pixels, the positions
+// (ChunkPositions), then per pixel its weights and 2x2 samples staged
 // (fill: weights and samples 0, which gives 0), BilinearLanes, and the
 // pixels whose taps need reflection or leave the window (frame borders)
 // through SetUpTaps / Filter afterwards. The same bits as ProcessRowN<2>.
 template <bool kSiteOnly>
 void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   const int width = a.width, y = a.y, height = geometry_.height;
-  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
-  int32_t* vdy = vdx + grid_w_;
-  InterpolateRow(y, vdx, vdy);
-  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowView row_view = StartRow(a);
+  uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
-  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
-  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
+  const int step_bits = step_bits_;
   constexpr int32_t kHalf = 1 << 15;
-  const int32_t y16 = y * 65536;  // < 2^30
   BilinearLimits l;
   l.xmax = width * 65536 - kHalf;
   l.ymax = height * 65536 - kHalf;
@@ -975,25 +1013,12 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   l.mask = (1 << phase_bits_) - 1;
   l.qround = 1 << (l.shift - 1);
   constexpr int kChannels = kSiteOnly ? 1 : 3;
-  constexpr int32_t kOff = INT32_MIN;  // a position off the image: fill
   BilinearChunk k;
   BilinearSetUp u;
   uint8_t site[kChunk];  // site only: the colour computed
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    for (int xc = 0; xc < kChunk; xc += step) {
-      const int i = (xs + xc) >> step_bits;
-      if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
-        for (int f = 0; f < step; ++f) u.sx[xc + f] = u.sy[xc + f] = kOff;
-        continue;
-      }
-      const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
-      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
-      for (int f = 0; f < step; ++f) {
-        u.sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
-        u.sy[xc + f] = ay + ((dy * f + half) >> step_bits);
-      }
-    }
+    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits, u.sx, u.sy);
     BilinearSetUpLanes(&u, l);
     if constexpr (kSiteOnly)
       for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
@@ -1030,8 +1055,8 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       if (!u.border[f]) continue;
       Taps<2> t;
       const int c0 = kSiteOnly ? site[f] : 0, c1 = kSiteOnly ? c0 + 1 : 3;
-      if (SetUpTaps<2>(src, u.sx[f], u.sy[f], &t))
-        for (int c = c0; c < c1; ++c) out[c][xs + f] = Filter<2>(src, c, t);
+      if (SetUpTaps<2>(row_view.src, u.sx[f], u.sy[f], &t))
+        for (int c = c0; c < c1; ++c) out[c][xs + f] = Filter<2>(row_view.src, c, t);
     }
   }
 }
@@ -1048,16 +1073,13 @@ template <int N, bool kSiteOnly>
 CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const {
   constexpr int L = kSiteOnly ? 3 : 2, kGroup = kSiteOnly ? 16 : 8, kBefore = N / 2 - 1;
   const int width = a.width, y = a.y, height = geometry_.height;
-  int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
-  int32_t* vdy = vdx + grid_w_;
-  InterpolateRow(y, vdx, vdy);
-  const Source src{a.rows, a.first_row, a.row_count, a.width, height, phase_bits_, weights_};
+  const RowView row_view = StartRow(a);
+  uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
-  uint32_t* const out[3] = {a.out[0], a.out[1], a.out[2]};
   const Cfa cfa = geometry_.cfa;
-  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
-  constexpr int32_t kHalf = 1 << 15, kOff = INT32_MIN;
-  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
+  const int step_bits = step_bits_;
+  constexpr int32_t kHalf = 1 << 15;
+  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf;
   const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1, phases = 1 << pb;
   const int32_t qround = 1 << (shift - 1);
   const int row_lo = a.first_row > 0 ? a.first_row : 0;
@@ -1069,19 +1091,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   auto slot_of = [](int f) { return kSiteOnly ? ((f & ~15) | ((f & 1) << 3) | ((f & 15) >> 1)) : f; };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    for (int xc = 0; xc < kChunk; xc += step) {
-      const int i = (xs + xc) >> step_bits;
-      if (xc >= n || vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
-        for (int f = 0; f < step; ++f) sx[xc + f] = sy[xc + f] = kOff;
-        continue;
-      }
-      const int32_t ax = vdx[i] + (xs + xc) * 65536, dx = vdx[i + 1] - vdx[i];
-      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
-      for (int f = 0; f < step; ++f) {
-        sx[xc + f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
-        sy[xc + f] = ay + ((dy * f + half) >> step_bits);
-      }
-    }
+    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits, sx, sy);
     for (int f = 0; f < kChunk; ++f) {
       const int k = slot_of(f);
       const int32_t px = sx[f], py = sy[f];
@@ -1150,8 +1160,8 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
       }
       Taps<N> t;
       const bool on = !(sx[f] < -kHalf || sy[f] < -kHalf || sx[f] > xmax || sy[f] > ymax);
-      if (on && SetUpTaps<N>(src, sx[f], sy[f], &t)) {
-        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(src, c, t);
+      if (on && SetUpTaps<N>(row_view.src, sx[f], sy[f], &t)) {
+        for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(row_view.src, c, t);
       } else {
         for (int c = c0; c < c1; ++c) out[c][x] = 0;
       }

@@ -115,6 +115,8 @@ class DistortionStage final : public Stage {
   // The source position (pixels) of grid node (i, j); false if none.
   bool NodeSource(int i, int j, double* sx, double* sy) const;
   void InterpolateRow(int y, int32_t* dx, int32_t* dy) const;
+  struct RowView;  // what every ProcessRow variant starts from (the .cc)
+  RowView StartRow(const RowArgs& args) const;
   template <int N>
   void ProcessRowN(const RowArgs& args) const;
   template <int N, bool kSiteOnly>
