@@ -71,7 +71,8 @@ inline RandomBits DrawBits(uint64_t seed, uint32_t stream, uint32_t frame, uint3
 // not depend on the caller: GCC and clang vectorise it (SSE2, NEON: the
 // 32x32->64 multiplies become SIMD widening multiplies), and where they do
 // not, the lanes' multiply chains still overlap. ~2x the throughput of
-// DrawBits called pixel by pixel from a loop that does other work.
+// DrawBits called pixel by pixel from a loop that does other work. Where the
+// CPU has AVX2, an intrinsics twin takes eight lanes per instruction.
 struct RandomLanes {
   static constexpr int kLanes = 16;
   uint32_t v[4][kLanes];
@@ -129,8 +130,13 @@ class GaussianTable {
     return (z ^ negate) - negate;
   }
 
+  // z[i] = Sample(u[i]) for i < n: the same bits, eight words at a time in
+  // AVX2 lanes where the CPU has them (random.cc), one by one elsewhere.
+  void SampleLanes(const uint32_t* u, int32_t* z, int n) const;
+
  private:
   const int32_t* table_ = nullptr;
+  bool avx2_ = false;  // SampleLanes' kernel, chosen at Build
 };
 
 // floor(n / d) for n < 2^57 and 1 <= d <= 64, exactly, without a division

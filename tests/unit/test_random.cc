@@ -94,7 +94,12 @@ TEST(DrawBitsTest, LanesMatchDrawBits) {
                       {1, 1, 3, 640, 479, 0},
                       {0x0123456789ABCDEFull, 2, 0, 1904, 1079, 2},
                       {~0ull, 0xFFFFFFFFu, 0xFFFFFFFFu, 0xFFFFFFF8u, 0xFFFFFFFFu, 0xFFFFFFFFu}};
-  for (const Key& k : keys) {
+  std::vector<Key> all(std::begin(keys), std::end(keys));
+  for (uint32_t i = 0; i < 64; ++i) {  // keys with every bit pattern in play
+    const RandomBits r = DrawBits(i, 9, 0, i, 0);
+    all.push_back({(uint64_t{r.v[0]} << 32) | r.v[1], r.v[2], r.v[3], r.v[1] ^ r.v[3], r.v[0] ^ r.v[2], i});
+  }
+  for (const Key& k : all) {
     RandomLanes lanes;
     DrawBitsLanes(k.seed, k.stream, k.frame, k.x0, k.y, k.draw, &lanes);
     for (int i = 0; i < RandomLanes::kLanes; ++i) {
@@ -230,6 +235,33 @@ TEST_F(GaussianTest, MatchesExactQuantileOfBucketMidpoint) {
     check(~u);
   }
   EXPECT_LE(worst, 2.5e-5);
+}
+
+// SampleLanes (AVX2 on this CPU when it has it) gives Sample's bits: a stride
+// through all words, every segment's ends, both tails, and lengths that are
+// not a multiple of the eight lanes.
+TEST_F(GaussianTest, LanesMatchSample) {
+  std::vector<uint32_t> u;
+  for (uint64_t w = 0; w < (uint64_t{1} << 32); w += 4099) u.push_back(static_cast<uint32_t>(w));
+  for (int s = 0; s < 31; ++s)
+    for (int d = -2; d <= 2; ++d) {
+      const uint32_t v = (1u << (30 - s)) + static_cast<uint32_t>(d);
+      u.push_back(v);
+      u.push_back(~v);
+      u.push_back(v | 0x80000000u);
+      u.push_back(v & 0x7FFFFFFFu);
+    }
+  for (uint32_t w = 0; w < 64; ++w) {
+    u.push_back(w);
+    u.push_back(~w);
+    u.push_back(0x7FFFFFFFu - w);
+    u.push_back(0x80000000u + w);
+  }
+  for (int n : {static_cast<int>(u.size()), 7, 9, 1}) {
+    std::vector<int32_t> z(static_cast<size_t>(n));
+    table_.SampleLanes(u.data(), z.data(), n);
+    for (int i = 0; i < n; ++i) ASSERT_EQ(z[static_cast<size_t>(i)], table_.Sample(u[static_cast<size_t>(i)])) << u[static_cast<size_t>(i)];
+  }
 }
 
 TEST_F(GaussianTest, ExactProperties) {
