@@ -189,8 +189,8 @@ Status SensorStage::Init(Arena& tables) {
         for (int x = 0; x < geometry_.width; x += 2) {
           const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
                                         static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
-          *t++ = Pattern(b.v[0], b.v[1]);
-          if (x + 1 < geometry_.width) *t++ = Pattern(b.v[2], b.v[3]);
+          *t++ = Pattern(gauss_.Sample(b.v[0]), gauss_.Sample(b.v[1]));
+          if (x + 1 < geometry_.width) *t++ = Pattern(gauss_.Sample(b.v[2]), gauss_.Sample(b.v[3]));
         }
   }
   column_offset_ = nullptr;
@@ -209,20 +209,20 @@ Status SensorStage::Init(Arena& tables) {
   return Status::Ok();
 }
 
-SensorStage::PatternEntry SensorStage::Pattern(uint32_t word_prnu, uint32_t word_dsnu) const {
+SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) const {
   // |prnu_q16_ * z| >> 16 <= 0.5 * 2^16 * |z| and |dsnu_q8_ * z| >> 16 <= 2.6e5 * |z|
   // (Configure's ranges; |z| <= GaussianTable's largest sample): both fit int32.
-  const int64_t gain = 65536 + RoundShift(prnu_q16_ * gauss_.Sample(word_prnu), 16);  // Q1.16
-  return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain),
-                      static_cast<int32_t>(RoundShift(dsnu_q8_ * gauss_.Sample(word_dsnu), 16))};
+  const int64_t gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q1.16
+  return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain), static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
 }
 
 // Pixels go in blocks of kBlock = 2 lanes: one Philox4x32 call (4 words)
 // serves two neighbouring pixels, x using words 2 (x & 1) and 2 (x & 1) + 1
 // of the call with counter x >> 1 (emva.h, "Random words"). The words of a
-// whole block are drawn first (DrawBitsLanes: vectorised, the lanes
-// overlap), then each pixel consumes its words. Lanes of a last, partial block beyond the row's end are
-// drawn and never used (every word is a pure function of its key, so that
+// whole block and their normals G(word) are drawn first (DrawBitsLanes,
+// GaussianTable::SampleLanes: in SIMD lanes), then each pixel consumes them
+// (the Poisson draw's G(p) is only used above 12 e-). Lanes of a last,
+// partial block beyond the row's end are drawn and never used (every word is a pure function of its key, so that
 // changes nothing). Even and odd columns have one CFA colour each (x0 is a
 // multiple of kBlock, so column parity is the parity of i): qe and the electron
 // sums are indexed by parity. The arithmetic is bit for bit the model in
@@ -232,6 +232,8 @@ SensorStage::PatternEntry SensorStage::Pattern(uint32_t word_prnu, uint32_t word
 // branches cost nothing (specialised copies of the loop measured no faster).
 void SensorStage::ProcessRow(const RowArgs& a) const {
   constexpr int kBlock = 2 * RandomLanes::kLanes;
+  constexpr int kWords = 4 * RandomLanes::kLanes;
+  using Normals = int32_t[4][RandomLanes::kLanes];  // G(word) for the words of a RandomLanes
   static_assert(kBlock % 2 == 0, "blocks start on even columns: the parity of i is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
   const bool defects = stuck_below_ != 0;
@@ -272,8 +274,14 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       const uint32_t pair0 = static_cast<uint32_t>(x0) >> 1;  // counter of the block's first pixel pair
       RandomLanes t;  // temporal: Poisson word, read noise z
       DrawBitsLanes(seed_, kStreamSensorTemporal, a.frame, pair0, y, channel, &t);
+      Normals tz;     // G of every temporal word
+      gauss_.SampleLanes(&t.v[0][0], &tz[0][0], kWords);
       RandomLanes f;  // fixed pattern: PRNU z, DSNU z
-      if (draw_patterns) DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
+      Normals fz;
+      if (draw_patterns) {
+        DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
+        gauss_.SampleLanes(&f.v[0][0], &fz[0][0], kWords);
+      }
       RandomLanes d;  // defects: class u, hot-pixel strength u'
       if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
       const uint32_t* in = a.rows[0].ch[c] + x0;
@@ -293,7 +301,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
           uint32_t dark = dark_q8_;
           if (patterns) {
-            const PatternEntry p = pattern_row != nullptr ? pattern_row[x0 + i] : Pattern(f.v[w][lane], f.v[w + 1][lane]);
+            const PatternEntry p = pattern_row != nullptr ? pattern_row[x0 + i] : Pattern(fz[w][lane], fz[w + 1][lane]);
             mu = RoundShiftU(mu * static_cast<uint64_t>(p.gain_q16), 16);
             dsnu += p.dsnu_q8;
           }
@@ -333,13 +341,13 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           uint64_t n_q8 = shot_noise
                               ? static_cast<uint64_t>(mean_q8 < PoissonTable::kSmallQ8
                                                           ? poisson_.Sample(mean_q8, pu, 0)
-                                                          : poisson_.Sample(mean_q8, pu, gauss_.Sample(pu))) << 8
+                                                          : poisson_.Sample(mean_q8, pu, tz[w][lane])) << 8
                               : mean_q8;
           if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
           electrons[i & 1] += static_cast<int64_t>(n_q8);
 
           // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
-          const int64_t read = RoundShift(read_q8_ * gauss_.Sample(t.v[w + 1][lane]), 16);
+          const int64_t read = RoundShift(read_q8_ * tz[w + 1][lane], 16);
           const int64_t v = static_cast<int64_t>(n_q8) + dsnu + read;
           const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
           out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));

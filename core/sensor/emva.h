@@ -171,7 +171,7 @@ class SensorStage final : public Stage {
   size_t PatternEntries() const {
     return static_cast<size_t>(input_channels_) * geometry_.width * static_cast<size_t>(geometry_.height);
   }
-  PatternEntry Pattern(uint32_t word_prnu, uint32_t word_dsnu) const;
+  PatternEntry Pattern(int32_t z_prnu, int32_t z_dsnu) const;  // from the two normals
   const PatternEntry* pattern_ = nullptr;  // PatternEntries() entries, null when not used
   int input_channels_ = 1;
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
