@@ -228,8 +228,8 @@ void BilinearLanes(BilinearChunk* __restrict k, int channels) {
 // row's interpolated displacements (as ProcessRowFast); kChunkOff for pixels
 // beyond n or in a cell touching a node without a source (they get the fill).
 constexpr int32_t kChunkOff = INT32_MIN;
-void ChunkPositions(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y, int step_bits, int32_t* sx,
-                    int32_t* sy) {
+[[gnu::always_inline]] inline void ChunkPositions(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y,
+                                                  int step_bits, int32_t* sx, int32_t* sy) {
   const int step = 1 << step_bits, half = step >> 1;
   const int32_t y16 = y * 65536;  // < 2^30
   for (int xc = 0; xc < kChunk; xc += step) {
