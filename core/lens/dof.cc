@@ -60,6 +60,17 @@ struct Geometry2 {
   }
 };
 
+// The blur-size limits every DoF method shares.
+Status CheckCocLimits(const DofConfig& c) {
+  if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
+    return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
+  if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
+    return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
+  if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
+    return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
+  return Status::Ok();
+}
+
 }  // namespace
 
 
@@ -77,12 +88,7 @@ Status CocModel::Configure(const DofConfig& c, double f_number) {
   const double f = c.focal_length_mm / 1000.0;
   if (!(c.focus_distance_m > f && c.focus_distance_m <= 1e6))
     return InvalidArgument("dof.focus_distance_m", "must exceed the focal length and be at most 1e6 m");
-  if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
-    return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
-  if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
-    return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
-  if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
-    return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
+  CAMSIM_TRY(CheckCocLimits(c));
   const double pitch = c.pixel_pitch_um * 1e-6;
   k_px_m_ = f * f * c.focus_distance_m / (f_number * (c.focus_distance_m - f)) / pitch;
   // |iz - iz_f| in Q12.20 -> pixels Q.8: K' = K_px * 2^8 / 2^20.
@@ -206,12 +212,7 @@ Status DofRowStage::Configure(const DofConfig& c, const SensorGeometry& g, doubl
   if (c.method == DofMethod::kDiffusion && !c.structural_only) {
     CAMSIM_TRY(coc_.Configure(c, f_number));
   } else if (structural_) {  // no lens model needed, but the shared limits still apply
-    if (!(c.max_coc_px >= 0.25 && c.max_coc_px <= 1023.0))
-      return InvalidArgument("dof.max_coc_px", "must be in [0.25, 1023] pixels");
-    if (!(c.min_coc_px >= 0.0 && c.min_coc_px <= c.max_coc_px))
-      return InvalidArgument("dof.min_coc_px", "must be in [0, dof.max_coc_px]");
-    if (!(c.diffusion_scale > 0.0 && c.diffusion_scale <= 1.0))
-      return InvalidArgument("dof.diffusion_scale", "must be in (0, 1]");
+    CAMSIM_TRY(CheckCocLimits(c));
   }
   const uint64_t den = Geometry2::Denominator(g);
   if (structural_ && den > 0) {
