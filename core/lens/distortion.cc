@@ -98,6 +98,20 @@ template <int N>
   return true;
 }
 
+// The ringing clamp of the N-tap filters: v limited to the range of the 2x2
+// samples around the source.
+[[gnu::always_inline]] inline int64_t ClampToSamples(int64_t v, uint32_t s00, uint32_t s01, uint32_t s10,
+                                                     uint32_t s11) {
+  uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
+  if (s10 < lo) lo = s10;
+  if (s10 > hi) hi = s10;
+  if (s11 < lo) lo = s11;
+  if (s11 > hi) hi = s11;
+  if (v < lo) v = lo;
+  if (v > hi) v = hi;
+  return v;
+}
+
 // The filtered sample of channel c at the taps.
 template <int N>
 [[gnu::always_inline]] inline uint32_t Filter(const Source a, int c, const Taps<N>& t) {
@@ -126,18 +140,10 @@ template <int N>
     }
   }
   v = (v + (int64_t{1} << (kF - 1))) >> kF;
-  if constexpr (N > 2) {  // ringing clamp to the 2x2 samples around the source
+  if constexpr (N > 2) {
     const uint32_t* r0 = a.rows[t.row[kBefore]].ch[c];
     const uint32_t* r1 = a.rows[t.row[kBefore + 1]].ch[c];
-    const uint32_t s00 = r0[t.col[kBefore]], s01 = r0[t.col[kBefore + 1]];
-    const uint32_t s10 = r1[t.col[kBefore]], s11 = r1[t.col[kBefore + 1]];
-    uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
-    if (s10 < lo) lo = s10;
-    if (s10 > hi) hi = s10;
-    if (s11 < lo) lo = s11;
-    if (s11 > hi) hi = s11;
-    if (v < lo) v = lo;
-    if (v > hi) v = hi;
+    v = ClampToSamples(v, r0[t.col[kBefore]], r0[t.col[kBefore + 1]], r1[t.col[kBefore]], r1[t.col[kBefore + 1]]);
   }
   return SatU32(v);
 }
@@ -171,18 +177,9 @@ template <int N>
       v += int64_t{wyp[k]} * ((s + kR) >> kF);
     }
     v = (v + kR) >> kF;
-    // Ringing clamp to the 2x2 samples around the source.
     const uint32_t* r0 = r[kBefore].ch[c] + x0 + kBefore;
     const uint32_t* r1 = r[kBefore + 1].ch[c] + x0 + kBefore;
-    const uint32_t s00 = r0[0], s01 = r0[1], s10 = r1[0], s11 = r1[1];
-    uint32_t lo = s00 < s01 ? s00 : s01, hi = s00 < s01 ? s01 : s00;
-    if (s10 < lo) lo = s10;
-    if (s10 > hi) hi = s10;
-    if (s11 < lo) lo = s11;
-    if (s11 > hi) hi = s11;
-    if (v < lo) v = lo;
-    if (v > hi) v = hi;
-    return static_cast<uint32_t>(v);
+    return static_cast<uint32_t>(ClampToSamples(v, r0[0], r0[1], r1[0], r1[1]));
   }
 }
 
@@ -259,20 +256,39 @@ struct BilinearSetUp {
   int32_t wx[kChunk], wy[kChunk];
   int32_t inside[kChunk], border[kChunk];  // 0 or 1; int32 like the rest, so all lanes are one width
 };
-struct BilinearLimits {
-  int32_t xmax, ymax;           // largest source position (Q.16) on the image
+// The fast paths' bounds for one row and an N-tap filter, in 32 bits (Init
+// checks the ranges): where a Q.16 source position is on the image, how it
+// splits into tap and phase, and which first taps (x0, y0) keep all N x N
+// taps inside the frame and the driver's window of rows.
+struct FastLimits {
+  static constexpr int32_t kLow = -(1 << 15);  // smallest position on the image: -1/2 pixel
+  int32_t xmax, ymax;                          // largest position on the image
   int32_t col_hi, row_lo, row_hi, first_row;
   int32_t qround, shift, phase_bits, mask;
+  // 1 when (px, py) is on the image; & rather than && (no branches), so loops vectorise.
+  int32_t On(int32_t px, int32_t py) const { return (px >= kLow) & (py >= kLow) & (px <= xmax) & (py <= ymax); }
 };
+FastLimits MakeFastLimits(const RowArgs& a, int height, int taps, int phase_bits) {
+  FastLimits l;
+  l.xmax = a.width * 65536 + FastLimits::kLow;  // < 2^30
+  l.ymax = height * 65536 + FastLimits::kLow;
+  l.col_hi = a.width - taps;
+  l.row_lo = a.first_row > 0 ? a.first_row : 0;
+  l.row_hi = (a.first_row + a.row_count < height ? a.first_row + a.row_count : height) - taps;
+  l.first_row = a.first_row;
+  l.phase_bits = phase_bits;
+  l.shift = 16 - phase_bits;
+  l.mask = (1 << phase_bits) - 1;
+  l.qround = 1 << (l.shift - 1);
+  return l;
+}
 
 CAMSIM_CPU_CLONES
-void BilinearSetUpLanes(BilinearSetUp* __restrict u, const BilinearLimits l) {
-  constexpr int32_t kHalf = 1 << 15;
+void BilinearSetUpLanes(BilinearSetUp* __restrict u, const FastLimits l) {
   const int wshift = DistortionStage::kWeightFracBits - l.phase_bits;
   for (int f = 0; f < kChunk; ++f) {
     const int32_t px = u->sx[f], py = u->sy[f];
-    // & rather than && (no branches), so the loop vectorises.
-    const int32_t on = (px >= -kHalf) & (py >= -kHalf) & (px <= l.xmax) & (py <= l.ymax);
+    const int32_t on = l.On(px, py);
     const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
     const int32_t x0 = qx >> l.phase_bits, y0 = qy >> l.phase_bits;
     const int32_t inside = on & (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
@@ -843,6 +859,7 @@ struct DistortionStage::RowView {
   const int32_t* vdy;
   Source src;
   uint32_t* out[3];
+  FastLimits lim;  // for taps_
 };
 
 DistortionStage::RowView DistortionStage::StartRow(const RowArgs& a) const {
@@ -850,7 +867,8 @@ DistortionStage::RowView DistortionStage::StartRow(const RowArgs& a) const {
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
   return RowView{vdx, vdy, Source{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_},
-                 {a.out[0], a.out[1], a.out[2]}};
+                 {a.out[0], a.out[1], a.out[2]},
+                 MakeFastLimits(a, geometry_.height, taps_, phase_bits_)};
 }
 
 template <int N>
@@ -914,7 +932,7 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
 // and Filter as in the general path. The same bits as ProcessRowN.
 template <int N, bool kSiteOnly>
 void DistortionStage::ProcessRowFast(const RowArgs& a) const {
-  const int width = a.width, y = a.y, height = geometry_.height;
+  const int width = a.width, y = a.y;
   const RowView row_view = StartRow(a);
   const int32_t* const vdx = row_view.vdx;
   const int32_t* const vdy = row_view.vdy;
@@ -924,15 +942,10 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int16_t* const weights = weights_;
   const Cfa cfa = geometry_.cfa;
   const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
-  constexpr int32_t kHalf = 1 << 15;
-  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf, y16 = y * 65536;  // < 2^30
-  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1;
-  const int32_t qround = 1 << (shift - 1);
+  const int32_t y16 = y * 65536;  // < 2^30
+  const FastLimits& l = row_view.lim;
+  CAMSIM_DCHECK(N == taps_);
   constexpr int kBefore = N / 2 - 1;
-  // y0 (the first tap row) for which all N rows are in the frame and the window.
-  const int row_lo = a.first_row > 0 ? a.first_row : 0;
-  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
-  const int row_hi = row_end - N, col_hi = width - N, first_row = a.first_row;
   int32_t sxs[64], sys[64];  // one cell's positions; grid_step <= 64
   for (int xc = 0, i = 0; xc < width; xc += step, ++i) {
     const int n = width - xc < step ? width - xc : step;
@@ -958,16 +971,16 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
         for (int c = 0; c < 3; ++c) out[c][x] = 0;
       }
       const int32_t px = sxs[f], py = sys[f];
-      if (px < -kHalf || py < -kHalf || px > xmax || py > ymax) {
+      if (!l.On(px, py)) {
         for (int c = c0; c < c1; ++c) out[c][x] = 0;
         continue;
       }
-      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
-      const int x0 = (qx >> pb) - kBefore, y0 = (qy >> pb) - kBefore;
-      if (x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi) {
-        const RowIn* r = rows + (y0 - first_row);
-        const int16_t* wx = weights + (qx & mask) * N;
-        const int16_t* wy = weights + (qy & mask) * N;
+      const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
+      const int x0 = (qx >> l.phase_bits) - kBefore, y0 = (qy >> l.phase_bits) - kBefore;
+      if (x0 >= 0 && x0 <= l.col_hi && y0 >= l.row_lo && y0 <= l.row_hi) {
+        const RowIn* r = rows + (y0 - l.first_row);
+        const int16_t* wx = weights + (qx & l.mask) * N;
+        const int16_t* wy = weights + (qy & l.mask) * N;
         if constexpr (kSiteOnly) {
           out[c0][x] = FilterInterior<N>(r, c0, x0, wx, wy);
         } else {
@@ -994,24 +1007,14 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
 // through SetUpTaps / Filter afterwards. The same bits as ProcessRowN<2>.
 template <bool kSiteOnly>
 void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
-  const int width = a.width, y = a.y, height = geometry_.height;
+  const int width = a.width, y = a.y;
   const RowView row_view = StartRow(a);
   uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const Cfa cfa = geometry_.cfa;
   const int step_bits = step_bits_;
-  constexpr int32_t kHalf = 1 << 15;
-  BilinearLimits l;
-  l.xmax = width * 65536 - kHalf;
-  l.ymax = height * 65536 - kHalf;
-  l.row_lo = a.first_row > 0 ? a.first_row : 0;
-  l.row_hi = (a.first_row + a.row_count < height ? a.first_row + a.row_count : height) - 2;
-  l.col_hi = width - 2;
-  l.first_row = a.first_row;
-  l.phase_bits = phase_bits_;
-  l.shift = 16 - phase_bits_;
-  l.mask = (1 << phase_bits_) - 1;
-  l.qround = 1 << (l.shift - 1);
+  const FastLimits& l = row_view.lim;
+  CAMSIM_DCHECK(taps_ == 2);
   constexpr int kChannels = kSiteOnly ? 1 : 3;
   BilinearChunk k;
   BilinearSetUp u;
@@ -1072,19 +1075,15 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
 template <int N, bool kSiteOnly>
 CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const {
   constexpr int L = kSiteOnly ? 3 : 2, kGroup = kSiteOnly ? 16 : 8, kBefore = N / 2 - 1;
-  const int width = a.width, y = a.y, height = geometry_.height;
+  const int width = a.width, y = a.y;
   const RowView row_view = StartRow(a);
   uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const Cfa cfa = geometry_.cfa;
   const int step_bits = step_bits_;
-  constexpr int32_t kHalf = 1 << 15;
-  const int32_t xmax = width * 65536 - kHalf, ymax = height * 65536 - kHalf;
-  const int pb = phase_bits_, shift = 16 - pb, mask = (1 << pb) - 1, phases = 1 << pb;
-  const int32_t qround = 1 << (shift - 1);
-  const int row_lo = a.first_row > 0 ? a.first_row : 0;
-  const int row_end = a.first_row + a.row_count < height ? a.first_row + a.row_count : height;
-  const int row_hi = row_end - N, col_hi = width - N, first_row = a.first_row;
+  const FastLimits& l = row_view.lim;
+  CAMSIM_DCHECK(N == taps_);
+  const int phases = 1 << l.phase_bits;
   int32_t sx[kChunk], sy[kChunk];                                   // by pixel
   int32_t x0s[kChunk], rows_[kChunk], phx[kChunk], phy[kChunk];    // by slot
   uint8_t interior[kChunk], done[kChunk];                           // by slot
@@ -1098,14 +1097,14 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
       done[k] = 0;
       interior[k] = 0;
       x0s[k] = rows_[k] = phx[k] = phy[k] = 0;
-      if (f >= n || px < -kHalf || py < -kHalf || px > xmax || py > ymax) continue;
-      const int32_t qx = (px + qround) >> shift, qy = (py + qround) >> shift;
-      const int x0 = (qx >> pb) - kBefore, y0 = (qy >> pb) - kBefore;
-      interior[k] = x0 >= 0 && x0 <= col_hi && y0 >= row_lo && y0 <= row_hi;
+      if (f >= n || !l.On(px, py)) continue;
+      const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
+      const int x0 = (qx >> l.phase_bits) - kBefore, y0 = (qy >> l.phase_bits) - kBefore;
+      interior[k] = x0 >= 0 && x0 <= l.col_hi && y0 >= l.row_lo && y0 <= l.row_hi;
       x0s[k] = x0;
-      rows_[k] = y0 - first_row;
-      phx[k] = qx & mask;
-      phy[k] = qy & mask;
+      rows_[k] = y0 - l.first_row;
+      phx[k] = qx & l.mask;
+      phy[k] = qy & l.mask;
     }
     if constexpr (kSiteOnly)
       for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
@@ -1159,8 +1158,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         continue;
       }
       Taps<N> t;
-      const bool on = !(sx[f] < -kHalf || sy[f] < -kHalf || sx[f] > xmax || sy[f] > ymax);
-      if (on && SetUpTaps<N>(row_view.src, sx[f], sy[f], &t)) {
+      if (l.On(sx[f], sy[f]) && SetUpTaps<N>(row_view.src, sx[f], sy[f], &t)) {
         for (int c = c0; c < c1; ++c) out[c][x] = Filter<N>(row_view.src, c, t);
       } else {
         for (int c = c0; c < c1; ++c) out[c][x] = 0;
