@@ -55,6 +55,24 @@ bool ParseInt(const char* s, long lo, long hi, long* out) {
   return true;
 }
 
+// Reads the "--name value" pairs of argv[2..]: take(name, value) stores one
+// and returns false for an unknown name or a bad value. At the first missing
+// or bad value it says which and returns false.
+template <typename Take>
+bool ReadOptionPairs(int argc, char** argv, Take take) {
+  for (int i = 2; i < argc; i += 2) {
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "camsim: %s needs a value\n%s", argv[i], kUsage);
+      return false;
+    }
+    if (!take(std::string(argv[i]), argv[i + 1])) {
+      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", argv[i], argv[i + 1], kUsage);
+      return false;
+    }
+  }
+  return true;
+}
+
 int Run(int argc, char** argv) {
   camsim::host::RunOptions o;
   for (int i = 2; i < argc; ++i) {
@@ -147,24 +165,17 @@ int Config(int argc, char** argv) {
 
 int Tradeoff(int argc, char** argv) {
   camsim::host::TradeoffOptions o;
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "camsim: %s needs a value\n%s", a.c_str(), kUsage);
-      return 1;
-    }
-    const char* v = argv[++i];
+  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
     long n = 0;
     if (a == "--input") o.input = v;
     else if (a == "--out") o.out_dir = v;
     else if (a == "--config") o.config_path = v;
     else if (a == "--set") o.overrides.push_back(v);
     else if (a == "--frames" && ParseInt(v, 1, 1000, &n)) o.frames = static_cast<int>(n);
-    else {
-      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", a.c_str(), v, kUsage);
-      return 1;
-    }
-  }
+    else return false;
+    return true;
+  });
+  if (!read) return 1;
   return camsim::host::TradeoffCommand(o);
 }
 
@@ -176,13 +187,7 @@ int Emva(int argc, char** argv) {
   std::string error, title;
   std::vector<std::string> overrides;
   std::string preset, config_path, dataset;
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "camsim: %s needs a value\n%s", a.c_str(), kUsage);
-      return 1;
-    }
-    const char* v = argv[++i];
+  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
     long n = 0;
     if (a == "--preset") preset = v;
     else if (a == "--dataset") dataset = v;
@@ -190,11 +195,10 @@ int Emva(int argc, char** argv) {
     else if (a == "--set") overrides.push_back(v);
     else if (a == "--size" && ParseInt(v, 16, 4096, &n)) options.size = static_cast<int>(n);
     else if (a == "--levels" && ParseInt(v, 20, 1000, &n)) options.levels = static_cast<int>(n);
-    else {
-      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", a.c_str(), v, kUsage);
-      return 1;
-    }
-  }
+    else return false;
+    return true;
+  });
+  if (!read) return 1;
   if (!dataset.empty()) {
     if (!preset.empty() || !config_path.empty() || !overrides.empty()) {
       std::fprintf(stderr, "camsim: --dataset measures recorded frames; it takes no --preset, --config or --set\n");
@@ -236,16 +240,15 @@ int Emva(int argc, char** argv) {
 int Preview(int argc, char** argv) {
   std::string input, output;
   double scale = 1.0;
-  for (int i = 2; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--input") input = argv[i + 1];
-    else if (a == "--out") output = argv[i + 1];
-    else if (a == "--scale") scale = std::atof(argv[i + 1]);
-    else {
-      std::fprintf(stderr, "camsim: unknown option '%s'\n%s", a.c_str(), kUsage);
-      return 1;
-    }
-  }
+  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
+    char* end = nullptr;
+    if (a == "--input") input = v;
+    else if (a == "--out") output = v;
+    else if (a == "--scale") scale = std::strtod(v, &end);
+    else return false;
+    return end == nullptr || (end != v && *end == '\0' && scale > 0 && std::isfinite(scale));
+  });
+  if (!read) return 1;
   if (input.empty() || output.empty() || !(scale > 0)) {
     std::fputs(kUsage, stderr);
     return 1;

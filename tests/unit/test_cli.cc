@@ -199,6 +199,27 @@ TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   EXPECT_NE(missing.err.find("nope.exr"), std::string::npos);
 }
 
+TEST(Cli, OptionErrorsNameTheOptionAndValue) {
+  struct Case {
+    const char* args;
+    const char* says;
+  };
+  const Case cases[] = {
+      {"tradeoff --input a.exr --frames", "--frames needs a value"},
+      {"tradeoff --input a.exr --frames 0", "bad option '--frames 0'"},
+      {"tradeoff --inptu a.exr", "bad option '--inptu a.exr'"},
+      {"emva --preset x --size 8", "bad option '--size 8'"},
+      {"preview --input a.exr --out b.png --scale abc", "bad option '--scale abc'"},
+      {"preview --input a.exr --out b.png --scale -1", "bad option '--scale -1'"},
+      {"preview --input a.exr --out", "--out needs a value"},
+  };
+  for (const Case& c : cases) {
+    const Result r = Camsim(c.args);
+    EXPECT_EQ(r.code, 1) << c.args;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << c.args << ": " << r.err;
+  }
+}
+
 TEST(Cli, ConfigDefaultRoundTrips) {
   const std::string dir = TempDir("default");
   const std::string cmd = std::string(CAMSIM_BINARY) + " config --default > '" + dir + "/d.toml'";
