@@ -115,4 +115,12 @@ PipelineConfig DemoConfig(int width, int height) {
   return rc.core;
 }
 
+Status InitStage(Stage& stage, StageTables& t) {
+  WorkspaceCounter counter;
+  stage.CountTables(counter);
+  t.memory.assign(counter.bytes(), 0);
+  t.arena = Arena(Span<uint8_t>{t.memory.data(), t.memory.size()});
+  return stage.Init(t.arena);
+}
+
 }  // namespace camsim::test

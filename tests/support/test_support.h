@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/pipeline/pipeline.h"
+#include "core/pipeline/stage.h"
 #include "host_tools/config.h"
 
 namespace camsim::test {
@@ -47,5 +48,12 @@ std::vector<uint32_t> RunFrameThreads(const Built& b, const Scene& scene, uint32
 
 // The demo configuration (configs/camera.toml) for a frame size.
 PipelineConfig DemoConfig(int width, int height);
+
+// A stage's table memory, and its Init from it (CountTables' size).
+struct StageTables {
+  std::vector<uint8_t> memory;
+  Arena arena;
+};
+Status InitStage(Stage& stage, StageTables& t);
 
 }  // namespace camsim::test

@@ -16,6 +16,7 @@
 #include "core/isp/gamma.h"
 #include "core/isp/isp_ref.h"
 #include "core/isp/white_balance.h"
+#include "tests/support/test_support.h"
 
 namespace camsim {
 namespace {
@@ -149,19 +150,8 @@ Image RunStage(const Stage& stage, const Image& in, int out_channels) {
   return out;
 }
 
-// Owns the table memory of a stage that has tables.
-struct Tables {
-  std::vector<uint8_t> memory;
-  Arena arena;
-};
-
-Status InitStage(Stage& stage, Tables& t) {
-  WorkspaceCounter counter;
-  stage.CountTables(counter);
-  t.memory.assign(counter.bytes(), 0);
-  t.arena = Arena(Span<uint8_t>{t.memory.data(), t.memory.size()});
-  return stage.Init(t.arena);
-}
+using test::InitStage;
+using test::StageTables;
 
 SensorGeometry Geometry(int width, int height, Cfa cfa = Cfa::kBayerRG, int adc_bits = 12) {
   SensorGeometry g;
@@ -585,7 +575,7 @@ TEST(IspColorMatrix, Validation) {
 // ---------------------------------------------------------------------------
 // Gamma
 
-GammaStage MakeGamma(GammaConfig config, Tables& tables) {
+GammaStage MakeGamma(GammaConfig config, StageTables& tables) {
   GammaStage stage;
   EXPECT_TRUE(stage.Configure(config, Geometry(1, 1)).ok());
   EXPECT_TRUE(InitStage(stage, tables).ok());
@@ -599,7 +589,7 @@ TEST(IspGamma, EndpointsAndMonotonic) {
                                  {GammaCurve::kPower, 10.0},
                                  {GammaCurve::kLinear, 2.2}};
   for (const GammaConfig& config : configs) {
-    Tables tables;
+    StageTables tables;
     const GammaStage stage = MakeGamma(config, tables);
     const uint16_t* t = stage.table();
     EXPECT_EQ(t[0], 0);
@@ -610,7 +600,7 @@ TEST(IspGamma, EndpointsAndMonotonic) {
 
 TEST(IspGamma, SrgbAtKnownPoints) {
   // round(65535 * sRGB(i / 65535)); 100 and 205 are on the linear segment.
-  Tables tables;
+  StageTables tables;
   const GammaStage stage = MakeGamma({GammaCurve::kSrgb, 2.2}, tables);
   Image in = MakeImage(9, 1, 1);
   in.planes[0] = {0, 1, 100, 205, 206, 1000, 16384, 32768, 65535};
@@ -619,7 +609,7 @@ TEST(IspGamma, SrgbAtKnownPoints) {
 }
 
 TEST(IspGamma, PowerAtKnownPointsAndAboveFullScale) {
-  Tables tables;
+  StageTables tables;
   const GammaStage stage = MakeGamma({GammaCurve::kPower, 2.2}, tables);
   Image in = MakeImage(4, 1, 1);
   in.planes[0] = {1, 256, 32768, 70000};  // 70000 > full scale reads the last entry
@@ -630,7 +620,7 @@ TEST(IspGamma, MatchesReferenceOnEveryCode) {
   const GammaConfig configs[] = {
       {GammaCurve::kSrgb, 2.2}, {GammaCurve::kPower, 2.2}, {GammaCurve::kPower, 0.45}};
   for (const GammaConfig& config : configs) {
-    Tables tables;
+    StageTables tables;
     const GammaStage stage = MakeGamma(config, tables);
     Image all = MakeImage(256, 256, 1);  // every code once
     for (size_t i = 0; i < all.planes[0].size(); ++i) all.planes[0][i] = static_cast<uint32_t>(i);
@@ -668,7 +658,7 @@ TEST(IspGamma, PlanIdentityTablesAndValidation) {
 // Every small frame size through the per-pixel stages (demosaic has its own).
 
 TEST(IspSizes, PointStagesMatchReferencesAtEverySmallSize) {
-  Tables tables;
+  StageTables tables;
   const GammaStage gamma = MakeGamma({GammaCurve::kSrgb, 2.2}, tables);
   for (int w : kWidths)
     for (int h : kHeights) {

@@ -13,6 +13,7 @@
 #include "core/aperture/exposure.h"
 #include "core/lens/vignetting.h"
 #include "core/pipeline/pipeline.h"
+#include "tests/support/test_support.h"
 
 namespace camsim {
 namespace {
@@ -97,18 +98,8 @@ TEST(SiteOnly, ExposureEqualsAllChannels) {
   }
 }
 
-// Owns the table memory of a stage.
-struct Tables {
-  std::vector<uint8_t> memory;
-  Arena arena;
-};
-Status InitStage(Stage& stage, Tables& t) {
-  WorkspaceCounter counter;
-  stage.CountTables(counter);
-  t.memory.assign(counter.bytes(), 0);
-  t.arena = Arena(Span<uint8_t>{t.memory.data(), t.memory.size()});
-  return stage.Init(t.arena);
-}
+using test::InitStage;
+using test::StageTables;
 
 TEST(SiteOnly, VignettingEqualsAllChannels) {
   for (VignettingMode mode : {VignettingMode::kCos4, VignettingMode::kMask})
@@ -130,7 +121,7 @@ TEST(SiteOnly, VignettingEqualsAllChannels) {
         FrameInput input;
         input.vignetting_mask = ImageView<const uint16_t>{mask.data(), w, kHeight, 1, w};
         VignettingStage all, site;
-        Tables ta, ts;
+        StageTables ta, ts;
         ASSERT_TRUE(all.Configure(v, g, true).ok());
         ASSERT_TRUE(site.Configure(v, g, true).ok());
         ASSERT_TRUE(InitStage(all, ta).ok());
