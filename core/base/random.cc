@@ -34,8 +34,9 @@ CAMSIM_AVX2_TARGET void DrawBitsLanesAvx2(uint64_t seed, uint32_t stream, uint32
     c2[h] = _mm256_set1_epi32(static_cast<int>(frame));
     c3[h] = _mm256_set1_epi32(static_cast<int>(draw));
   }
-  uint32_t k0 = static_cast<uint32_t>(seed);
-  uint32_t k1 = static_cast<uint32_t>(seed >> 32) ^ (stream * 0x9E3779B9u);
+  uint32_t key[2];
+  StreamKey(seed, stream, key);
+  uint32_t k0 = key[0], k1 = key[1];
   for (int round = 0; round < Philox4x32::kRounds; ++round) {
     if (round > 0) {
       k0 += Philox4x32::kW0;
@@ -131,8 +132,9 @@ void DrawBitsLanes(uint64_t seed, uint32_t stream, uint32_t frame, uint32_t x0, 
     c2[i] = frame;
     c3[i] = draw;
   }
-  uint32_t k0 = static_cast<uint32_t>(seed);  // the key of DrawBits
-  uint32_t k1 = static_cast<uint32_t>(seed >> 32) ^ (stream * 0x9E3779B9u);
+  uint32_t key[2];
+  StreamKey(seed, stream, key);
+  uint32_t k0 = key[0], k1 = key[1];
   for (int round = 0; round < Philox4x32::kRounds; ++round) {  // Philox4x32::Generate, lane by lane
     if (round > 0) {
       k0 += Philox4x32::kW0;

@@ -50,15 +50,21 @@ struct RandomBits {
   uint32_t v[4];
 };
 
-// 128 random bits for one (pixel, frame, draw) of one (seed, stream):
-//   counter = {x, y, frame, draw}
-//   key     = {lo32(seed), hi32(seed) ^ (stream * 0x9E3779B9 mod 2^32)}
+// The Philox key of one (seed, stream):
+//   key = {lo32(seed), hi32(seed) ^ (stream * 0x9E3779B9 mod 2^32)}
 // The multiplier is odd, so distinct streams of one seed always get distinct keys.
+inline void StreamKey(uint64_t seed, uint32_t stream, uint32_t key[2]) {
+  key[0] = static_cast<uint32_t>(seed);
+  key[1] = static_cast<uint32_t>(seed >> 32) ^ (stream * 0x9E3779B9u);
+}
+
+// 128 random bits for one (pixel, frame, draw) of one (seed, stream):
+// Philox4x32 of the counter {x, y, frame, draw} under StreamKey(seed, stream).
 inline RandomBits DrawBits(uint64_t seed, uint32_t stream, uint32_t frame, uint32_t x, uint32_t y,
                            uint32_t draw = 0) {
   const uint32_t counter[4] = {x, y, frame, draw};
-  const uint32_t key[2] = {static_cast<uint32_t>(seed),
-                           static_cast<uint32_t>(seed >> 32) ^ (stream * 0x9E3779B9u)};
+  uint32_t key[2];
+  StreamKey(seed, stream, key);
   RandomBits bits;
   Philox4x32::Generate(counter, key, bits.v);
   return bits;
