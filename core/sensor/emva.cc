@@ -213,7 +213,8 @@ SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) c
   // |prnu_q16_ * z| >> 16 <= 0.5 * 2^16 * |z| and |dsnu_q8_ * z| >> 16 <= 2.6e5 * |z|
   // (Configure's ranges; |z| <= GaussianTable's largest sample): both fit int32.
   const int64_t gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q1.16
-  return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain), static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
+  return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain),
+                      static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
 }
 
 // Pixels go in blocks of kBlock = 2 lanes: one Philox4x32 call (4 words)
@@ -222,10 +223,10 @@ SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) c
 // whole block and their normals G(word) are drawn first (DrawBitsLanes,
 // GaussianTable::SampleLanes: in SIMD lanes), then each pixel consumes them
 // (the Poisson draw's G(p) is only used above 12 e-). Lanes of a last,
-// partial block beyond the row's end are drawn and never used (every word is a pure function of its key, so that
-// changes nothing). Even and odd columns have one CFA colour each (x0 is a
-// multiple of kBlock, so column parity is the parity of i): qe and the electron
-// sums are indexed by parity. The arithmetic is bit for bit the model in
+// partial block beyond the row's end are drawn and never used (every word
+// is a pure function of its key, so that changes nothing). Even and odd
+// columns have one CFA colour each (x0 is a multiple of kBlock, so column
+// parity is the parity of i): qe and the electron sums are indexed by parity. The arithmetic is bit for bit the model in
 // emva.h; without patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu *
 // 65536 < 2^49 rounds back to mu) and the DSNU term 0, so both are skipped.
 // The two switches are tested per pixel but never change within a row, so the

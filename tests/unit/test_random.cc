@@ -260,7 +260,7 @@ TEST_F(GaussianTest, LanesMatchSample) {
   for (int n : {static_cast<int>(u.size()), 7, 9, 1}) {
     std::vector<int32_t> z(static_cast<size_t>(n));
     table_.SampleLanes(u.data(), z.data(), n);
-    for (int i = 0; i < n; ++i) ASSERT_EQ(z[static_cast<size_t>(i)], table_.Sample(u[static_cast<size_t>(i)])) << u[static_cast<size_t>(i)];
+    for (size_t i = 0; i < z.size(); ++i) ASSERT_EQ(z[i], table_.Sample(u[i])) << u[i];
   }
 }
 
