@@ -221,9 +221,13 @@ void BilinearLanes(BilinearChunk* __restrict k, int channels) {
 }
 
 // The source positions (Q.16, int32) of the kChunk pixels from xs of row y,
-// n of them real: per grid cell, a + ((b - a) f + half) >> step from the
-// row's interpolated displacements (as ProcessRowFast); kChunkOff for pixels
-// beyond n or in a cell touching a node without a source (they get the fill).
+// n of them real, for every fast path: per grid cell, from the row's
+// interpolated displacements a, b at its two nodes, a + ((b - a) f + half)
+// >> step_bits. In 32 bits (Init checks the ranges: |displacement| <= 2^29,
+// neighbouring columns differ by less than 2^24) this equals the general
+// path's (a w0 + b f + half) >> step_bits, as a 2^step_bits is a multiple
+// of 2^step_bits. kChunkOff (off the image) for pixels beyond n or in a cell
+// touching a node without a source: they get the fill.
 constexpr int32_t kChunkOff = INT32_MIN;
 [[gnu::always_inline]] inline void ChunkPositions(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y,
                                                   int step_bits, int32_t* sx, int32_t* sy) {
@@ -921,56 +925,36 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
   }
 }
 
-// Fast path (fast_path()), per grid cell of the row: first the source
-// positions (Q.16) of its pixels in 32-bit arithmetic (Init checks the
-// ranges: |displacement| <= 2^29, neighbouring columns differ by less than
-// 2^24): column i's displacement a plus ((b - a) fx + half) >> step_bits
-// equals the general path's (a w0 + b fx + half) >> step_bits, as a
-// 2^step_bits is a multiple of 2^step_bits. Then per pixel the phase
-// rounding in 32 bits and, where all taps lie inside the frame and the
-// driver's window, FilterInterior; the rest (borders) goes through SetUpTaps
-// and Filter as in the general path. The same bits as ProcessRowN.
+// Fast path (fast_path()), per chunk of kChunk pixels: the source positions
+// (ChunkPositions), then per pixel the phase rounding in 32 bits and, where
+// all taps lie inside the frame and the driver's window, FilterInterior; the
+// rest (borders) goes through SetUpTaps and Filter as in the general path.
+// The same bits as ProcessRowN.
 template <int N, bool kSiteOnly>
 void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int width = a.width, y = a.y;
   const RowView row_view = StartRow(a);
-  const int32_t* const vdx = row_view.vdx;
-  const int32_t* const vdy = row_view.vdy;
   const Source& src = row_view.src;
   uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const int16_t* const weights = weights_;
   const Cfa cfa = geometry_.cfa;
-  const int step_bits = step_bits_, step = 1 << step_bits, half = step >> 1;
-  const int32_t y16 = y * 65536;  // < 2^30
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(N == taps_);
   constexpr int kBefore = N / 2 - 1;
-  int32_t sxs[64], sys[64];  // one cell's positions; grid_step <= 64
-  for (int xc = 0, i = 0; xc < width; xc += step, ++i) {
-    const int n = width - xc < step ? width - xc : step;
-    if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
-      for (int x = xc; x < xc + n; ++x)
-        for (int c = 0; c < 3; ++c) out[c][x] = 0;
-      continue;
-    }
-    {
-      const int32_t ax = vdx[i] + xc * 65536, dx = vdx[i + 1] - vdx[i];
-      const int32_t ay = vdy[i] + y16, dy = vdy[i + 1] - vdy[i];
-      for (int f = 0; f < n; ++f) {
-        sxs[f] = ax + f * 65536 + ((dx * f + half) >> step_bits);
-        sys[f] = ay + ((dy * f + half) >> step_bits);
-      }
-    }
+  int32_t sx[kChunk], sy[kChunk];
+  for (int xs = 0; xs < width; xs += kChunk) {
+    const int n = width - xs < kChunk ? width - xs : kChunk;
+    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
     for (int f = 0; f < n; ++f) {
-      const int x = xc + f;
+      const int x = xs + f;
       int c0 = 0, c1 = 3;
       if constexpr (kSiteOnly) {
         c0 = CfaColour(cfa, x, y);
         c1 = c0 + 1;
         for (int c = 0; c < 3; ++c) out[c][x] = 0;
       }
-      const int32_t px = sxs[f], py = sys[f];
+      const int32_t px = sx[f], py = sy[f];
       if (!l.On(px, py)) {
         for (int c = c0; c < c1; ++c) out[c][x] = 0;
         continue;
@@ -1012,7 +996,6 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const Cfa cfa = geometry_.cfa;
-  const int step_bits = step_bits_;
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(taps_ == 2);
   constexpr int kChannels = kSiteOnly ? 1 : 3;
@@ -1021,7 +1004,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   uint8_t site[kChunk];  // site only: the colour computed
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits, u.sx, u.sy);
+    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, u.sx, u.sy);
     BilinearSetUpLanes(&u, l);
     if constexpr (kSiteOnly)
       for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
@@ -1080,7 +1063,6 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   uint32_t* const* out = row_view.out;
   const RowIn* const rows = a.rows;
   const Cfa cfa = geometry_.cfa;
-  const int step_bits = step_bits_;
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(N == taps_);
   const int phases = 1 << l.phase_bits;
@@ -1090,7 +1072,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   auto slot_of = [](int f) { return kSiteOnly ? ((f & ~15) | ((f & 1) << 3) | ((f & 15) >> 1)) : f; };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits, sx, sy);
+    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
     for (int f = 0; f < kChunk; ++f) {
       const int k = slot_of(f);
       const int32_t px = sx[f], py = sy[f];
