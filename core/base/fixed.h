@@ -136,11 +136,12 @@ constexpr uint32_t ISqrt64BitByBit(uint64_t x) {
 namespace isqrt_detail {
 // 1/sqrt(A) for A = (i + 1/2) / 1024, i = 256..1023 (the top 10 bits of a
 // normalised 64-bit x), in Q1.15: floor(sqrt(2^41 / (2i + 1))), at most 65472.
-// 768 entries, 1536 bytes, built at compile time.
+// 768 entries, 1536 bytes, built at compile time, and one spare 0 so that a
+// 32-bit gather of the last entry (ISqrt64Lanes) stays inside the array.
 struct RsqrtTable {
   static constexpr int kBits = 10;
   static constexpr uint32_t kFirst = 256;  // 2^(kBits - 2): A >= 1/4
-  uint16_t v[(1u << kBits) - kFirst] = {};
+  uint16_t v[(1u << kBits) - kFirst + 1] = {};
 };
 constexpr RsqrtTable MakeRsqrtTable() {
   RsqrtTable t;
@@ -199,5 +200,9 @@ constexpr uint32_t ISqrt64(uint64_t x) {
   r += x - r * r > 2 * r; // one too low
   return static_cast<uint32_t>(r);
 }
+
+// r[i] = ISqrt64(x[i]) for i < n: the same steps in four 64-bit AVX2 lanes
+// where the CPU has them (fixed.cc), one by one elsewhere.
+void ISqrt64Lanes(const uint64_t* x, uint32_t* r, int n);
 
 }  // namespace camsim

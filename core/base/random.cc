@@ -182,6 +182,16 @@ Status GaussianTable::Build(Span<int32_t> storage) {
   return Status::Ok();
 }
 
+void PoissonTable::SigmaLanes(const uint32_t* lambda_q8, uint32_t* sigma_q16, int n) {
+  constexpr int kChunk = 64;
+  uint64_t x[kChunk];
+  for (int i0 = 0; i0 < n; i0 += kChunk) {
+    const int m = n - i0 < kChunk ? n - i0 : kChunk;
+    for (int i = 0; i < m; ++i) x[i] = (static_cast<uint64_t>(lambda_q8[i0 + i]) << 24) - kVarianceCorrection;
+    ISqrt64Lanes(x, sigma_q16 + i0, m);
+  }
+}
+
 Status PoissonTable::Build(Span<uint32_t> storage) {
   if (storage.data == nullptr || storage.size < kEntries) {
     return Status(StatusCode::kResourceExhausted, "poisson table needs kEntries uint32", "storage");

@@ -206,8 +206,20 @@ class PoissonTable {
   // Per pixel: integers only, bounded time, defined for every input.
   // Requires a successful Build().
   uint32_t Sample(uint32_t lambda_q8, uint32_t u, int32_t z_q16) const {
-    return lambda_q8 < kSmallQ8 ? SampleSmall(lambda_q8, u) : SampleLarge(lambda_q8, z_q16);
+    return Sample(lambda_q8, u, z_q16, lambda_q8 < kSmallQ8 ? 0 : Sigma(lambda_q8));
   }
+  // The same draw with sigma = Sigma(lambda_q8) computed beforehand (only
+  // read when lambda_q8 >= kSmallQ8), e.g. for a block by SigmaLanes.
+  uint32_t Sample(uint32_t lambda_q8, uint32_t u, int32_t z_q16, uint32_t sigma_q16) const {
+    return lambda_q8 < kSmallQ8 ? SampleSmall(lambda_q8, u) : SampleLarge(lambda_q8, z_q16, sigma_q16);
+  }
+  // The normal approximation's sigma = sqrt(lambda - 5/36), Q16 (< 2^28).
+  // Defined for every input; meaningful for lambda_q8 >= kSmallQ8.
+  static uint32_t Sigma(uint32_t lambda_q8) {
+    return ISqrt64((static_cast<uint64_t>(lambda_q8) << 24) - kVarianceCorrection);
+  }
+  // sigma_q16[i] = Sigma(lambda_q8[i]) for i < n, in SIMD lanes (ISqrt64Lanes).
+  static void SigmaLanes(const uint32_t* lambda_q8, uint32_t* sigma_q16, int n);
 
  private:
   uint32_t SampleSmall(uint32_t lambda_q8, uint32_t u) const {
@@ -229,9 +241,9 @@ class PoissonTable {
     return k;
   }
 
-  static uint32_t SampleLarge(uint32_t lambda_q8, int32_t z_q16) {
+  static uint32_t SampleLarge(uint32_t lambda_q8, int32_t z_q16, uint32_t sigma_q16) {
     const uint64_t lambda = static_cast<uint64_t>(lambda_q8) << 24;  // Q32, < 2^56
-    const int64_t sigma = ISqrt64(lambda - kVarianceCorrection);     // Q16, < 2^28
+    const int64_t sigma = sigma_q16;                                 // Q16, < 2^28
     const int64_t z = z_q16;
     const int64_t n =
         static_cast<int64_t>(lambda) + sigma * z + (z * z - (int64_t{1} << 32)) / 6;  // Q32

@@ -217,19 +217,22 @@ SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) c
                       static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
 }
 
-// Pixels go in blocks of kBlock = 2 lanes: one Philox4x32 call (4 words)
-// serves two neighbouring pixels, x using words 2 (x & 1) and 2 (x & 1) + 1
-// of the call with counter x >> 1 (emva.h, "Random words"). The words of a
-// whole block and their normals G(word) are drawn first (DrawBitsLanes,
-// GaussianTable::SampleLanes: in SIMD lanes), then each pixel consumes them
-// (the Poisson draw's G(p) is only used above 12 e-). Lanes of a last,
-// partial block beyond the row's end are drawn and never used (every word
-// is a pure function of its key, so that changes nothing). Even and odd
+// Pixels go in blocks of kBlock = 2 * RandomLanes::kLanes: one Philox4x32
+// call (4 words) serves two neighbouring pixels, x using words 2 (x & 1) and
+// 2 (x & 1) + 1 of the call with counter x >> 1 (emva.h, "Random words").
+// The words of a whole block and their normals G(word) are drawn first
+// (DrawBitsLanes, GaussianTable::SampleLanes: in SIMD lanes), then the
+// pixels consume them in three passes: each pixel's mean charge; the Poisson
+// draw's sigma for the whole block (PoissonTable::SigmaLanes, in lanes);
+// each pixel's draw and readout (G(p) is only used above 12 e-). Lanes of a
+// last, partial block beyond the row's end are drawn and never used (every
+// word is a pure function of its key, so that changes nothing). Even and odd
 // columns have one CFA colour each (x0 is a multiple of kBlock, so column
-// parity is the parity of i): qe and the electron sums are indexed by parity. The arithmetic is bit for bit the model in
-// emva.h; without patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu *
-// 65536 < 2^49 rounds back to mu) and the DSNU term 0, so both are skipped.
-// The two switches are tested per pixel but never change within a row, so the
+// parity is the parity of i): qe and the electron sums are indexed by
+// parity. The arithmetic is bit for bit the model in emva.h; without
+// patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu * 65536 < 2^49
+// rounds back to mu) and the DSNU term 0, so both are skipped. The two
+// switches are tested per pixel but never change within a row, so the
 // branches cost nothing (specialised copies of the loop measured no faster).
 void SensorStage::ProcessRow(const RowArgs& a) const {
   constexpr int kBlock = 2 * RandomLanes::kLanes;
@@ -287,14 +290,20 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
       const uint32_t* in = a.rows[0].ch[c] + x0;
       uint32_t* out = a.out[c] + x0;
-      // Pixel pairs: unrolled over the parity, so that each copy has its
-      // words (w, w + 1) and its colour's QE fixed.
+      // Pass 1, per pixel: the mean charge and the offsets. Pixel pairs are
+      // unrolled over the parity, so that each copy has its words (w, w + 1)
+      // and its colour's QE fixed.
+      uint32_t mean_q8[kBlock];  // mu + dark charge, Q.8 electrons
+      int64_t offset_q8[kBlock];  // row, column and DSNU offsets, Q.8 electrons
+      bool decided[kBlock];       // stuck: out[i] is already written
       for (int lane = 0; 2 * lane < n; ++lane) {
 #pragma GCC unroll 2
         for (int parity = 0; parity < 2; ++parity) {
           const int i = 2 * lane + parity;
           if (i >= n) break;
           const int w = parity * 2;  // this pixel's words: w and w + 1 of its lane
+          mean_q8[i] = 0;
+          decided[i] = true;
           const ListedDefect* hit = nullptr;
           if (row_listed && next != listed_end && next->x == static_cast<uint32_t>(x0 + i)) hit = next++;
           // Mean charge, Q24.8.
@@ -333,23 +342,33 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           }
           if (column_offset != nullptr) dsnu += column_offset[x0 + i];
           if (smear != nullptr) dark = SatU32(uint64_t{dark} + smear[x0 + i]);
-          const uint32_t mean_q8 = SatU32(mu + dark);
-
-          // Collected charge, Q.8, clipped at the full well.
-          // One word drives the Poisson draw: as u below 12 e- (inverse
-          // transform), as z = Gaussian(u) above (the normal approximation).
-          const uint32_t pu = t.v[w][lane];
-          uint64_t n_q8 = shot_noise
-                              ? static_cast<uint64_t>(mean_q8 < PoissonTable::kSmallQ8
-                                                          ? poisson_.Sample(mean_q8, pu, 0)
-                                                          : poisson_.Sample(mean_q8, pu, tz[w][lane])) << 8
-                              : mean_q8;
+          mean_q8[i] = SatU32(mu + dark);
+          offset_q8[i] = dsnu;
+          decided[i] = false;
+        }
+      }
+      // Pass 2: the Poisson draw's sigma for the whole block, in lanes.
+      uint32_t sigma_q16[kBlock];
+      if (shot_noise) PoissonTable::SigmaLanes(mean_q8, sigma_q16, n);
+      // Pass 3, per pixel: collected charge, Q.8, clipped at the full well,
+      // then readout. One word drives the Poisson draw: as u below 12 e-
+      // (inverse transform), as z = Gaussian(u) above (the normal approximation).
+      for (int lane = 0; 2 * lane < n; ++lane) {
+#pragma GCC unroll 2
+        for (int parity = 0; parity < 2; ++parity) {
+          const int i = 2 * lane + parity;
+          if (i >= n) break;
+          if (decided[i]) continue;
+          const int w = parity * 2;
+          const uint32_t m = mean_q8[i];
+          uint64_t n_q8 =
+              shot_noise ? static_cast<uint64_t>(poisson_.Sample(m, t.v[w][lane], tz[w][lane], sigma_q16[i])) << 8 : m;
           if (n_q8 > full_well_q8_) n_q8 = full_well_q8_;
           electrons[i & 1] += static_cast<int64_t>(n_q8);
 
           // Readout: offset patterns and read noise (electrons, Q.8), then K and black level.
           const int64_t read = RoundShift(read_q8_ * tz[w + 1][lane], 16);
-          const int64_t v = static_cast<int64_t>(n_q8) + dsnu + read;
+          const int64_t v = static_cast<int64_t>(n_q8) + offset_q8[i] + read;
           const int64_t dn = ((v * k_mant + k_half) >> k_shift) + black_;
           out[i] = static_cast<uint32_t>(Clamp64(dn, 0, max_dn_));
         }

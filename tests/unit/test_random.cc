@@ -175,6 +175,37 @@ TEST(ISqrt64Test, RandomValuesOfEveryMagnitude) {
   }
 }
 
+// ISqrt64Lanes (four 64-bit AVX2 lanes where the CPU has them) against
+// ISqrt64 on the inputs of the tests above: small x, perfect squares and
+// their neighbours, powers of two, both ends of every table cell at every
+// scale, random values, and 0 and 2^64 - 1 between them in the same vector.
+TEST(ISqrt64Test, LanesMatchScalar) {
+  std::vector<uint64_t> x;
+  for (uint64_t v = 0; v < 4096; ++v) x.push_back(v);
+  for (uint64_t r = 1; r <= 0xFFFFFFFFu; r += (r >> 11) + 1)
+    for (uint64_t v : {r * r - 1, r * r, r * r + 1, r * r + 2 * r}) x.push_back(v);
+  for (int b = 0; b < 64; ++b)
+    for (uint64_t v : {(uint64_t{1} << b) - 1, uint64_t{1} << b, (uint64_t{1} << b) + 1}) x.push_back(v);
+  for (uint64_t i = 256; i <= 1024; ++i)
+    for (int shift = 0; shift < 64; shift += 2)
+      for (int d = -2; d <= 2; ++d) x.push_back(((i << 54) + static_cast<uint64_t>(d)) >> shift);
+  uint64_t s = 0x0123456789ABCDEFull;
+  for (int i = 0; i < 400000; ++i) {
+    s = s * 6364136223846793005ull + 1442695040888963407ull;
+    x.push_back((s ^ (s >> 29)) >> (i & 63));
+    if (i % 97 == 0) x.push_back(i % 2 == 0 ? 0 : ~uint64_t{0});
+  }
+  std::vector<uint32_t> r(x.size());
+  ISqrt64Lanes(x.data(), r.data(), static_cast<int>(x.size()));
+  for (size_t i = 0; i < x.size(); ++i) ASSERT_EQ(r[i], ISqrt64(x[i])) << "x " << x[i] << " at " << i;
+  // Every count, so that each length of the scalar tail runs.
+  for (int n = 0; n <= 9; ++n) {
+    std::vector<uint32_t> part(10, 0xDEADBEEFu);
+    ISqrt64Lanes(x.data() + 4000, part.data(), n);
+    for (int i = 0; i < 10; ++i) EXPECT_EQ(part[i], i < n ? ISqrt64(x[4000 + i]) : 0xDEADBEEFu) << n << " " << i;
+  }
+}
+
 // DivideSmall (multiply by a reciprocal where there is a 128-bit product) is
 // floor(n / d) for n < 2^57, 1 <= d <= 64: checked at the top of the range,
 // where the proof's margin is smallest, at every remainder, and at random.
@@ -401,6 +432,26 @@ TEST_F(PoissonTest, LargeMeansSaturateAndNeverOverflow) {
 // Mean, variance and P(0) over 2^20 draws for each lambda, within 5 standard
 // errors: mean sqrt(lambda/N), variance sqrt((2 lambda^2 + lambda)/N), P(0)
 // sqrt(p(1-p)/N). lambda is the Q24.8 value actually used.
+// SigmaLanes (the sensor's block of sigmas) against Sigma, and Sample with
+// a given sigma against Sample: a stride through every lambda_q8, the edges
+// of the normal branch and of every power of two.
+TEST_F(PoissonTest, SigmaLanesMatchSigma) {
+  std::vector<uint32_t> lambda;
+  for (uint64_t q = 0; q <= 0xFFFFFFFFu; q += 40009) lambda.push_back(static_cast<uint32_t>(q));
+  for (int b = 0; b < 32; ++b)
+    for (uint32_t d : {0u, 1u, 2u}) lambda.push_back((1u << b) + d - 1);
+  for (uint32_t q = PoissonTable::kSmallQ8 - 3; q < PoissonTable::kSmallQ8 + 3; ++q) lambda.push_back(q);
+  lambda.push_back(0xFFFFFFFFu);
+  std::vector<uint32_t> sigma(lambda.size());
+  PoissonTable::SigmaLanes(lambda.data(), sigma.data(), static_cast<int>(lambda.size()));
+  for (size_t i = 0; i < lambda.size(); ++i) {
+    ASSERT_EQ(sigma[i], PoissonTable::Sigma(lambda[i])) << lambda[i];
+    const int32_t z = static_cast<int32_t>(i * 2654435761u);
+    ASSERT_EQ(table_.Sample(lambda[i], static_cast<uint32_t>(i), z, sigma[i]),
+              table_.Sample(lambda[i], static_cast<uint32_t>(i), z)) << lambda[i];
+  }
+}
+
 TEST_F(PoissonTest, MomentsMatchPoisson) {
   constexpr int kN = 1 << 20;
   for (const double lambda_in : {0.0, 0.01, 0.5, 3.0, 11.99, 12.0, 40.0, 1000.0, 1e5, 1e6}) {
