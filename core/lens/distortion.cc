@@ -1054,10 +1054,14 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
     if constexpr (kSiteOnly) {
       for (int c = 0; c < 3; ++c)
         for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;
+    } else if (n == kChunk) {  // a constant size: inlined vector moves, not a call or rep movs
+      for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], sizeof(k.v[c]));
     } else {
       for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], static_cast<size_t>(n) * sizeof(uint32_t));
     }
-    for (int f = 0; f < n; ++f) {
+    int32_t any_border = 0;  // most chunks have none; this OR vectorises
+    for (int f = 0; f < kChunk; ++f) any_border |= u.border[f];
+    for (int f = 0; any_border != 0 && f < n; ++f) {
       if (!u.border[f]) continue;
       Taps<2> t;
       const int c0 = kSiteOnly ? site[f] : 0, c1 = kSiteOnly ? c0 + 1 : 3;
