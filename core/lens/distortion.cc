@@ -376,19 +376,23 @@ void BilinearChunkAvx2(const RowIn* rows, int row_count, const BilinearSetUp& u,
                        int c_even, int c_odd, BilinearChunk* k) {
   const __m256i odd = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
   for (int f = 0; f < kChunk; f += 8) {
-    int rmin = u.row[f], rmax = u.row[f], xmin = u.x0[f], xmax = u.x0[f], inside = 1;
-    for (int i = f; i < f + 8; ++i) {
-      inside &= u.inside[i];
-      rmin = u.row[i] < rmin ? u.row[i] : rmin;
-      rmax = u.row[i] > rmax ? u.row[i] : rmax;
-      xmin = u.x0[i] < xmin ? u.x0[i] : xmin;
-      xmax = u.x0[i] > xmax ? u.x0[i] : xmax;
-    }
-    if (inside && rmax - rmin <= 1 && xmax - xmin <= 14 && xmin + 15 < width) {
-      const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
+    const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
+    const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
+    const __m256i outside = _mm256_cmpeq_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.inside + f)),
+                                               _mm256_setzero_si256());
+    // The group's extremes of x0 and row, both at once: lanes 0-3 reduce
+    // x0, lanes 4-7 row.
+    const __m256i lo = _mm256_permute2x128_si256(x0, row, 0x20), hi = _mm256_permute2x128_si256(x0, row, 0x31);
+    __m256i mn = _mm256_min_epi32(lo, hi), mx = _mm256_max_epi32(lo, hi);
+    mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0x4E));
+    mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0x4E));
+    mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0xB1));
+    mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0xB1));
+    const int xmin = _mm256_cvtsi256_si32(mn), xmax = _mm256_cvtsi256_si32(mx);
+    const int rmin = _mm256_extract_epi32(mn, 4), rmax = _mm256_extract_epi32(mx, 4);
+    if (_mm256_testz_si256(outside, outside) && rmax - rmin <= 1 && xmax - xmin <= 14 && xmin + 15 < width) {
       const __m256i ia = _mm256_sub_epi32(x0, _mm256_set1_epi32(xmin));
       const __m256i ib = _mm256_add_epi32(ia, _mm256_set1_epi32(1));
-      const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
       const __m256i lower = _mm256_cmpgt_epi32(row, _mm256_set1_epi32(rmin));
       const __m256i wx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wx + f));
       const __m256i wy = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wy + f));
