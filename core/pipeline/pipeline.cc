@@ -2,6 +2,8 @@
 
 #include <cstring>
 
+#include "core/base/simd.h"
+
 namespace camsim {
 namespace {
 
@@ -47,6 +49,18 @@ void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa
   s->count[odd_colour] += width / 2;
 }
 
+// Three planes into RGB triplets (the commonest tap: a whole-pipeline U32
+// output). Compiled for AVX2 too, where GCC vectorises it with permutes.
+CAMSIM_CPU_CLONES
+void InterleaveU32(const uint32_t* __restrict r0, const uint32_t* __restrict r1, const uint32_t* __restrict r2,
+                   uint32_t* __restrict dst, int width) {
+  for (int x = 0; x < width; ++x) {
+    dst[3 * x] = r0[x];
+    dst[3 * x + 1] = r1[x];
+    dst[3 * x + 2] = r2[x];
+  }
+}
+
 void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width) {
   CAMSIM_DCHECK(channels == 1 || channels == 3);
   // Converts and interleaves the row into dst: a loop per channel count, with
@@ -70,6 +84,10 @@ void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int 
   const ptrdiff_t offset = static_cast<ptrdiff_t>(y) * tap.stride;
   switch (tap.format) {
     case TapFormat::kU32:
+      if (channels == 3) {
+        InterleaveU32(rows[0], rows[1], rows[2], static_cast<uint32_t*>(tap.data) + offset, width);
+        break;
+      }
       interleave(static_cast<uint32_t*>(tap.data) + offset, [](uint32_t v) { return v; });
       break;
     case TapFormat::kU16:
