@@ -429,9 +429,6 @@ TEST_F(PoissonTest, LargeMeansSaturateAndNeverOverflow) {
   }
 }
 
-// Mean, variance and P(0) over 2^20 draws for each lambda, within 5 standard
-// errors: mean sqrt(lambda/N), variance sqrt((2 lambda^2 + lambda)/N), P(0)
-// sqrt(p(1-p)/N). lambda is the Q24.8 value actually used.
 // SigmaLanes (the sensor's block of sigmas) against Sigma, and Sample with
 // a given sigma against Sample: a stride through every lambda_q8, the edges
 // of the normal branch and of every power of two.
@@ -452,6 +449,9 @@ TEST_F(PoissonTest, SigmaLanesMatchSigma) {
   }
 }
 
+// Mean, variance and P(0) over 2^20 draws for each lambda, within 5 standard
+// errors: mean sqrt(lambda/N), variance sqrt((2 lambda^2 + lambda)/N), P(0)
+// sqrt(p(1-p)/N). lambda is the Q24.8 value actually used.
 TEST_F(PoissonTest, MomentsMatchPoisson) {
   constexpr int kN = 1 << 20;
   for (const double lambda_in : {0.0, 0.01, 0.5, 3.0, 11.99, 12.0, 40.0, 1000.0, 1e5, 1e6}) {
