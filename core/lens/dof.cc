@@ -20,7 +20,12 @@
 #include <bit>
 #include <cmath>
 
+#include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
+
+#ifdef CAMSIM_X86_AVX2
+#include <immintrin.h>
+#endif
 
 namespace camsim {
 namespace {
@@ -120,6 +125,86 @@ Status CocModel::Configure(const DofConfig& c, double f_number) {
 // ---------------------------------------------------------------- solver
 
 namespace dof {
+
+namespace {
+#ifdef CAMSIM_X86_AVX2
+// MulQ30 of four lanes, MulQ30Split's integers: |d| < 2^49, so the low half
+// of d >> 24 (logical) is d >> 24 as an int32 and vpmuldq gives the signed
+// high product qh (|qh| < 2^55); qh >> 6 (arithmetic; AVX2 has none for
+// 64 bits) is ((qh + 2^61) >> 6) - 2^55.
+CAMSIM_AVX2_TARGET inline __m256i MulQ30x4(__m256i d, __m256i w) {
+  const __m256i qh = _mm256_mul_epi32(_mm256_srli_epi64(d, 24), w);
+  const __m256i ql = _mm256_mul_epu32(_mm256_and_si256(d, _mm256_set1_epi64x(0xFFFFFF)), w);
+  const __m256i low = _mm256_add_epi64(_mm256_slli_epi64(_mm256_and_si256(qh, _mm256_set1_epi64x(63)), 24),
+                                       _mm256_add_epi64(ql, _mm256_set1_epi64x(int64_t{1} << 29)));
+  const __m256i high = _mm256_sub_epi64(_mm256_srli_epi64(_mm256_add_epi64(qh, _mm256_set1_epi64x(int64_t{1} << 61)), 6),
+                                        _mm256_set1_epi64x(int64_t{1} << 55));
+  return _mm256_add_epi64(high, _mm256_srli_epi64(low, 30));
+}
+
+CAMSIM_AVX2_TARGET inline __m256i Load4U32(const uint32_t* p) {
+  return _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+
+CAMSIM_AVX2_TARGET void PullRowAvx2(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
+  for (int x = 0; x < n; x += 4) {
+    __m256i* up = reinterpret_cast<__m256i*>(u + x);
+    const __m256i v = _mm256_loadu_si256(up);
+    const __m256i d = _mm256_sub_epi64(_mm256_slli_epi64(Load4U32(in + x), kG), v);
+    _mm256_storeu_si256(up, _mm256_add_epi64(v, MulQ30x4(d, Load4U32(w + x))));
+  }
+}
+
+// OutOf in lanes: (y + 2^15) >> 16 with y's sign restored, saturated to uint32.
+CAMSIM_AVX2_TARGET inline void StoreOut4(__m256i y, uint32_t* out) {
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i negative = _mm256_cmpgt_epi64(zero, _mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1))));
+  const __m256i t = _mm256_srli_epi64(_mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1))), kG);
+  const __m256i big = _mm256_cmpgt_epi64(t, _mm256_set1_epi64x(0xFFFFFFFFll));
+  const __m256i s = _mm256_andnot_si256(negative, _mm256_or_si256(t, big));  // big: all ones, low half 2^32 - 1
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out),
+                   _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(s, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6))));
+}
+
+CAMSIM_AVX2_TARGET void BackRowAvx2(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
+  for (int x = 0; x < n; x += 4) {
+    __m256i* yp = reinterpret_cast<__m256i*>(y + x);
+    __m256i v = _mm256_loadu_si256(yp);
+    if (e != nullptr) {
+      const __m256i d = _mm256_sub_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(us + x)), v);
+      v = _mm256_add_epi64(v, MulQ30x4(d, Load4U32(e + x)));
+      _mm256_storeu_si256(yp, v);
+    }
+    StoreOut4(v, out + x);
+  }
+}
+#endif
+}  // namespace
+
+void PullRow(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
+  int x = 0;
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2()) {
+    x = n & ~3;
+    PullRowAvx2(u, in, w, x);
+  }
+#endif
+  for (; x < n; ++x) u[x] += MulQ30((int64_t{in[x]} << kG) - u[x], w[x]);
+}
+
+void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
+  int x = 0;
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2()) {
+    x = n & ~3;
+    BackRowAvx2(y, us, e, out, x);
+  }
+#endif
+  for (; x < n; ++x) {
+    if (e != nullptr) y[x] += MulQ30(us[x] - y[x], e[x]);
+    out[x] = OutOf(y[x]);
+  }
+}
 
 size_t LineWorkBytes(int n) {
   return AlignUp(sizeof(uint32_t) * static_cast<size_t>(n)) + 3 * AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
@@ -487,20 +572,18 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
     uint32_t* e = i - 1 >= yb ? eb + static_cast<size_t>(i - 1 - yb) * n : nullptr;
     for (int x = 0; x < w; ++x) {
       const uint32_t b = link[x];
-      if (b == 0) {  // decoupled: the sweep restarts here (exactly what r = 1 gives)
+      if (b == 0) {  // decoupled: r = 1 restarts the sweep here (u = x exactly)
         if (e != nullptr) e[x] = kOneW;
         rf[x] = kOneW;
-        for (int c = 0; c < 3; ++c) uf[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
         continue;
       }
       mark(i - 1, x);
       mark(i, x);
       const uint64_t D = DOf(b, rf[x]);
       if (e != nullptr) e[x] = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
-      const uint32_t rx = ROf(D, b);
-      rf[x] = rx;
-      for (int c = 0; c < 3; ++c) uf[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - uf[c][x], rx);
+      rf[x] = ROf(D, b);
     }
+    for (int c = 0; c < 3; ++c) dof::PullRow(uf[c], in.ch[c] + x0, rf, w);
     keep(i);
   }
 
@@ -513,15 +596,9 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
       const RowIn& in = a.rows[i - lo];
       for (int x = 0; x < w; ++x) {
         const uint32_t b = link[x];
-        if (b == 0) {
-          rb[x] = kOneW;
-          for (int c = 0; c < 3; ++c) ub[c][x] = int64_t{in.ch[c][x0 + x]} << kG;
-          continue;
-        }
-        const uint32_t rx = ROf(DOf(b, rb[x]), b);
-        rb[x] = rx;
-        for (int c = 0; c < 3; ++c) ub[c][x] += MulQ30((int64_t{in.ch[c][x0 + x]} << kG) - ub[c][x], rx);
+        rb[x] = b == 0 ? kOneW : ROf(DOf(b, rb[x]), b);
       }
+      for (int c = 0; c < 3; ++c) dof::PullRow(ub[c], in.ch[c] + x0, rb, w);
     }
     // Twist: y_ye = u_ye + w (v_{ye+1} - u_ye), w = b r_ye / (D' + b r_ye).
     const uint32_t* link = links(ye + 1);
@@ -539,13 +616,9 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   // Row by row (uf holds y_{i+1}), so the cache is written sequentially.
   for (int i = ye; i >= yb; --i) {
     const size_t o = static_cast<size_t>(i - yb) * n;
-    for (int c = 0; c < 3; ++c) {
-      int64_t* y = uf[c];
-      uint32_t* dst = cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0;
-      if (i < ye)
-        for (int x = 0; x < w; ++x) y[x] += MulQ30(us[c][o + x] - y[x], eb[o + x]);
-      for (int x = 0; x < w; ++x) dst[x] = OutOf(y[x]);
-    }
+    for (int c = 0; c < 3; ++c)
+      dof::BackRow(uf[c], us[c] + o, i < ye ? eb + o : nullptr,
+                   cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0, w);
   }
   for (int k = 0; k <= ye - yb; ++k) {
     int32_t s = 0;

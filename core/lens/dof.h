@@ -177,6 +177,15 @@ inline int64_t MulQ30(int64_t d, uint32_t w) {
   return MulQ30Split(d, w);
 #endif
 }
+// The column pass's per-channel row updates over n columns, in four 64-bit
+// AVX2 lanes where the CPU has them (dof.cc), one by one elsewhere; the same
+// integers either way (MulQ30 and OutOf, |u - in 2^16|, |us - y| < 2^49):
+//   PullRow: u[x] += MulQ30((in[x] << kGuardBits) - u[x], w[x])  (a sweep step)
+//   BackRow: y[x] += MulQ30(us[x] - y[x], e[x]), then
+//            out[x] = SatU32(RoundShift(y[x], kGuardBits))     (e == nullptr: no step)
+void PullRow(int64_t* u, const uint32_t* in, const uint32_t* w, int n);
+void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n);
+
 // Solves one line of n samples for `channels` channels in place: beta[i]
 // (i = 1 .. n - 1) couples samples i - 1 and i; beta[0] and beta[n] are
 // ignored (insulated ends). work: 2 n uint32 + 3 n int64 (LineWorkBytes).

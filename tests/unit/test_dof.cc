@@ -243,6 +243,44 @@ TEST(DofSolver, WideAndSplitProductsAgree) {
   EXPECT_EQ(dof::MulQ30Split(-1, 1u << 29), 0);
 }
 
+TEST(DofSolver, RowUpdatesInLanesMatchScalar) {
+  // PullRow and BackRow (AVX2 lanes on x86-64) against MulQ30 and OutOf one
+  // by one, over the whole contract: |difference| < 2^49, weights 0 .. 2^30,
+  // y on both sides of the output range (saturation), every tail length.
+  std::mt19937_64 rng(17);
+  const int64_t kD = (int64_t{1} << 49) - 1;
+  const int n = 4099;
+  std::vector<int64_t> u(n), us(n), y(n);
+  std::vector<uint32_t> in(n), w(n), out(n + 1);
+  for (int round = 0; round < 40; ++round) {
+    for (int x = 0; x < n; ++x) {
+      in[x] = static_cast<uint32_t>(rng());
+      w[x] = static_cast<uint32_t>(rng() % ((1u << 30) + 1));
+      if (x % 61 == 0) w[x] = (x & 64) ? (1u << 30) : 0u;
+      u[x] = static_cast<int64_t>(rng() % (uint64_t{1} << 48));  // sweep state: a radiance Q16.32
+      y[x] = static_cast<int64_t>(rng() % (2 * static_cast<uint64_t>(kD) + 1)) - kD / 2;
+      us[x] = std::clamp<int64_t>(y[x] + static_cast<int64_t>(rng() % (2 * static_cast<uint64_t>(kD) + 1)) - kD,
+                                  y[x] - kD, y[x] + kD);
+    }
+    const int count = n - round % 4;  // each tail length
+    std::vector<int64_t> u_want = u, y_want = y;
+    std::vector<uint32_t> out_want(n + 1, 0xDEADBEEFu);
+    for (int x = 0; x < count; ++x) {
+      u_want[x] += dof::MulQ30((int64_t{in[x]} << dof::kGuardBits) - u_want[x], w[x]);
+      if (round % 2 == 0) y_want[x] += dof::MulQ30(us[x] - y_want[x], w[x]);
+      out_want[x] = SatU32(RoundShift(y_want[x], dof::kGuardBits));
+    }
+    std::fill(out.begin(), out.end(), 0xDEADBEEFu);
+    dof::PullRow(u.data(), in.data(), w.data(), count);
+    dof::BackRow(y.data(), us.data(), round % 2 == 0 ? w.data() : nullptr, out.data(), count);
+    for (int x = 0; x < n; ++x) {
+      ASSERT_EQ(u[x], u_want[x]) << "PullRow, round " << round << " x " << x;
+      ASSERT_EQ(y[x], y_want[x]) << "BackRow, round " << round << " x " << x;
+      ASSERT_EQ(out[x], out_want[x]) << "BackRow out, round " << round << " x " << x;
+    }
+  }
+}
+
 TEST(DofSolver, ConstantLineStaysExactlyConstant) {
   const int n = 333;
   for (const LineCase& lc : LineCases(n)) {
