@@ -122,6 +122,54 @@ Status CocModel::Configure(const DofConfig& c, double f_number) {
   return Status::Ok();
 }
 
+namespace {
+#ifdef CAMSIM_X86_AVX2
+// DiffusionCoc squared, four lanes: the scale's RoundShiftU by a shift below
+// 64 (a count of 2^64 - 1 for shift 0 makes the rounding bit 0), saturation
+// folded into the cap (cap < 2^32), unsigned compares by flipping the sign.
+CAMSIM_AVX2_TARGET void DiffusionCc2Avx2(const uint32_t* iz, int n, uint64_t* cc2, uint32_t focus, uint32_t min_diff,
+                                         UScale scale, uint32_t cap) {
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i sign = _mm256_set1_epi64x(INT64_MIN);
+  const __m256i invalid_iz = _mm256_set1_epi64x(kInvalidInverseDepth);
+  const __m256i f = _mm256_set1_epi64x(focus);
+  const __m256i lo = _mm256_set1_epi64x(min_diff);
+  const __m256i mant = _mm256_set1_epi64x(scale.mant);
+  const __m256i capv = _mm256_set1_epi64x(cap);
+  const __m256i one = _mm256_set1_epi64x(1);
+  const __m128i count = _mm_cvtsi64_si128(scale.shift);
+  const __m128i count_round = _mm_cvtsi64_si128(static_cast<int64_t>(static_cast<uint64_t>(scale.shift) - 1));
+  for (int x = 0; x < n; x += 4) {
+    const __m256i v = _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(iz + x)));
+    const __m256i diff = _mm256_sub_epi64(v, f);
+    const __m256i negative = _mm256_cmpgt_epi64(zero, diff);
+    const __m256i d = _mm256_sub_epi64(_mm256_xor_si256(diff, negative), negative);  // |iz - focus|
+    const __m256i p = _mm256_mul_epu32(d, mant);
+    const __m256i c = _mm256_add_epi64(_mm256_srl_epi64(p, count), _mm256_and_si256(_mm256_srl_epi64(p, count_round), one));
+    const __m256i over = _mm256_cmpgt_epi64(_mm256_xor_si256(c, sign), _mm256_xor_si256(capv, sign));
+    const __m256i capped = _mm256_blendv_epi8(c, capv, over);
+    const __m256i none = _mm256_or_si256(_mm256_cmpeq_epi64(v, invalid_iz), _mm256_cmpgt_epi64(lo, d));
+    const __m256i coc = _mm256_andnot_si256(none, capped);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(cc2 + x), _mm256_mul_epu32(coc, coc));
+  }
+}
+#endif
+}  // namespace
+
+void CocModel::DiffusionCc2Row(const uint32_t* iz, int n, uint64_t* cc2) const {
+  int x = 0;
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2() && diffusion_scale_.shift < 64) {
+    x = n & ~3;
+    DiffusionCc2Avx2(iz, x, cc2, focus_, min_diff_, diffusion_scale_, diffusion_cap_);
+  }
+#endif
+  for (; x < n; ++x) {
+    const uint64_t c = DiffusionCoc(iz[x]);
+    cc2[x] = c * c;
+  }
+}
+
 // ---------------------------------------------------------------- solver
 
 namespace dof {
@@ -358,11 +406,7 @@ Status DofRowStage::Init(Arena& tables) {
 void DofRowStage::RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const {
   const int n = x1 - x0;
   if (config_.method == DofMethod::kDiffusion && !config_.structural_only) {
-    const uint32_t* iz = input.inverse_depth.row(y) + x0;
-    for (int x = 0; x < n; ++x) {
-      const uint64_t c = coc_.DiffusionCoc(iz[x]);
-      cc2[x] = c * c;
-    }
+    coc_.DiffusionCc2Row(input.inverse_depth.row(y) + x0, n, cc2);
   } else {
     for (int x = 0; x < n; ++x) cc2[x] = 0;
   }

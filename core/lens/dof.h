@@ -131,6 +131,9 @@ class CocModel {
     const uint32_t c = diffusion_scale_.Apply(d);
     return c < diffusion_cap_ ? c : diffusion_cap_;
   }
+  // cc2[x] = DiffusionCoc(inverse_depth[x])^2 for x < n (Q.32): the same
+  // integers in four 64-bit AVX2 lanes where the CPU has them (dof.cc).
+  void DiffusionCc2Row(const uint32_t* inverse_depth, int n, uint64_t* cc2) const;
   // The same in double pixels (reference; invalid depth -> 0).
   double CocPixels(double z_metres) const;
   uint32_t focus() const { return focus_; }

@@ -312,6 +312,40 @@ TEST(DofSolver, ImpulseSpreadsSymmetricallyAndConservesMass) {
   EXPECT_GT(line[201], line[205]);
 }
 
+TEST(DofCoc, Cc2RowInLanesMatchesDiffusionCoc) {
+  // DiffusionCc2Row (AVX2 lanes on x86-64) against DiffusionCoc squared, for
+  // lenses from barely any blur to the cap everywhere, at the special depths,
+  // both sides of the focus and of min_coc, and every tail length.
+  struct Lens { double f_number, focus_m, max_coc, min_coc, scale; };
+  const Lens lenses[] = {{2.0, 3.0, 64.0, 0.5, 0.17677669529663687}, {1.4, 1.0, 1023.0, 0.0, 1.0},
+                         {16.0, 100.0, 0.25, 0.25, 0.01}, {0.5, 0.05, 1023.0, 1.0, 0.5}};
+  std::mt19937_64 rng(23);
+  for (const Lens& lens : lenses) {
+    DofConfig c = LensConfig();
+    c.focus_distance_m = lens.focus_m;
+    c.max_coc_px = lens.max_coc;
+    c.min_coc_px = lens.min_coc;
+    c.diffusion_scale = lens.scale;
+    CocModel m;
+    ASSERT_TRUE(m.Configure(c, lens.f_number).ok());
+    const uint32_t f = m.focus();
+    std::vector<uint32_t> iz = {0u, 1u, kInvalidInverseDepth, kInvalidInverseDepth - 1, kMaxInverseDepth, f};
+    for (uint32_t step = 1; step < (1u << 31); step *= 3)
+      for (int sgn : {-1, 1}) iz.push_back(f + static_cast<uint32_t>(sgn) * step);
+    while (iz.size() < 4003) iz.push_back(static_cast<uint32_t>(rng()) >> (rng() % 32));
+    const int n = static_cast<int>(iz.size());
+    for (int count = n - 3; count <= n; ++count) {
+      std::vector<uint64_t> cc2(static_cast<size_t>(n), 0xDEADBEEFull);
+      m.DiffusionCc2Row(iz.data(), count, cc2.data());
+      for (int x = 0; x < n; ++x) {
+        const uint64_t coc = m.DiffusionCoc(iz[static_cast<size_t>(x)]);
+        ASSERT_EQ(cc2[static_cast<size_t>(x)], x < count ? coc * coc : 0xDEADBEEFull)
+            << "f/" << lens.f_number << " iz " << iz[static_cast<size_t>(x)] << " at " << x << " of " << count;
+      }
+    }
+  }
+}
+
 // ---------------------------------------------------------------- 2-D diffusion
 
 // The stage's own squared diffusion CoC per pixel, as the reference's input.
