@@ -22,7 +22,12 @@
 #include <vector>
 
 #include "bench/bench_common.h"
+#include "core/base/simd.h"
 #include "core/lens/dof_ref.h"
+
+#ifdef CAMSIM_X86_AVX2
+#include <immintrin.h>
+#endif
 
 namespace camsim {
 namespace {
@@ -203,7 +208,11 @@ BENCHMARK(BM_DofFloatThomas)->Unit(benchmark::kMillisecond)->MinTime(0.5);
 //   /0 hardware 64-bit divide (the core's way);
 //   /1 the same exact quotient from a 256-entry reciprocal table, two Newton
 //      steps and a remainder correction (identical bits);
-//   /2 table + two Newton steps without correction (within 2 Q.30 ulp).
+//   /2 table + two Newton steps without correction (within 2 Q.30 ulp);
+//   /3 the exact quotient of /1 in four 64-bit AVX2 lanes (x86-64 only):
+//      the bit width by five shifts, a 512-entry table of 2^41 / (i + 1)
+//      (an underestimate, so both Newton steps stay below 2^63 / m), an
+//      estimate within [q - 2, q + 1] and three remainder corrections.
 // Arg 0..2 as above; second arg 0: independent quotients (throughput), 1:
 // each denominator depends on the previous quotient (latency, as the row
 // pass's chain r_i -> D_{i+1} -> r_{i+1}).
@@ -252,6 +261,72 @@ inline uint32_t Approx(uint64_t n, uint64_t d) {
   __extension__ typedef unsigned __int128 U128;
   return static_cast<uint32_t>((static_cast<U128>(n) * y) >> (65 - z));
 }
+#ifdef CAMSIM_X86_AVX2
+struct LanesTable {
+  uint32_t y[512];  // floor(2^41 / (i + 1)), i = 512 .. 1023 the top 10 bits of m: <= 2^63 / m
+  LanesTable() {
+    for (uint64_t i = 512; i < 1024; ++i) y[i - 512] = static_cast<uint32_t>((uint64_t{1} << 41) / (i + 1));
+  }
+};
+const LanesTable kLanesTable;
+// Hardware's quotient of four lanes (d in [2^30, 2^63)).
+CAMSIM_AVX2_TARGET __m256i Lanes(__m256i n, __m256i d) {
+  const __m256i zero = _mm256_setzero_si256();
+  __m256i t = _mm256_srli_epi64(d, 34), k = zero;  // k = bit_width(d >> 34)
+  for (int s : {16, 8, 4, 2, 1}) {
+    const __m256i step = _mm256_and_si256(_mm256_cmpgt_epi64(t, _mm256_set1_epi64x((int64_t{1} << s) - 1)),
+                                          _mm256_set1_epi64x(s));
+    k = _mm256_add_epi64(k, step);
+    t = _mm256_srlv_epi64(t, step);
+  }
+  k = _mm256_add_epi64(k, t);
+  const __m256i dk = _mm256_srlv_epi64(d, k);  // [2^30, 2^34)
+  const __m256i num = _mm256_add_epi64(_mm256_slli_epi64(_mm256_srlv_epi64(n, k), 30), _mm256_srli_epi64(dk, 1));
+  __m256i e = _mm256_and_si256(_mm256_cmpgt_epi64(_mm256_set1_epi64x(int64_t{1} << 32), dk), _mm256_set1_epi64x(2));
+  __m256i dn = _mm256_sllv_epi64(dk, e);
+  const __m256i e1 = _mm256_and_si256(_mm256_cmpgt_epi64(_mm256_set1_epi64x(int64_t{1} << 33), dn), _mm256_set1_epi64x(1));
+  dn = _mm256_sllv_epi64(dn, e1);  // d << e in [2^33, 2^34)
+  e = _mm256_add_epi64(e, e1);
+  const __m256i m = _mm256_srli_epi64(dn, 2);  // top 32 bits
+  const __m256i cell = _mm256_sub_epi64(_mm256_srli_epi64(dn, 24), _mm256_set1_epi64x(512));
+  __m256i y = _mm256_cvtepu32_epi64(_mm256_i64gather_epi32(reinterpret_cast<const int*>(kLanesTable.y), cell, 4));
+  for (int step = 0; step < 2; ++step) {  // y += y (2^63 - m y) / 2^63, truncated
+    const __m256i err = _mm256_sub_epi64(_mm256_set1_epi64x(INT64_MIN), _mm256_mul_epu32(m, y));
+    y = _mm256_add_epi64(y, _mm256_srli_epi64(_mm256_mul_epu32(y, _mm256_srli_epi64(err, 31)), 32));
+  }
+  const __m256i top = _mm256_srlv_epi64(num, _mm256_sub_epi64(_mm256_set1_epi64x(33), e));  // < 2^32
+  __m256i q = _mm256_srli_epi64(_mm256_mul_epu32(top, y), 32);
+  const __m256i qd = _mm256_add_epi64(_mm256_mul_epu32(q, dk),
+                                      _mm256_slli_epi64(_mm256_mul_epu32(q, _mm256_srli_epi64(dk, 32)), 32));
+  __m256i rem = _mm256_sub_epi64(num, qd);  // exact, in [-d, 3d)
+  const __m256i over = _mm256_cmpgt_epi64(zero, rem);
+  q = _mm256_add_epi64(q, over);
+  rem = _mm256_add_epi64(rem, _mm256_and_si256(over, dk));
+  for (int step = 0; step < 2; ++step) {
+    const __m256i under = _mm256_cmpgt_epi64(rem, _mm256_sub_epi64(dk, _mm256_set1_epi64x(1)));
+    q = _mm256_sub_epi64(q, under);
+    rem = _mm256_sub_epi64(rem, _mm256_and_si256(under, dk));
+  }
+  return q;
+}
+// Quotients i .. i + 3; chain: each group's denominators add the previous
+// group's first quotient's low bit (as /0-/2 per quotient).
+CAMSIM_AVX2_TARGET uint64_t LanesRun(const uint64_t* num, const uint64_t* den, int count, bool chain,
+                                     uint32_t* out) {
+  uint64_t acc = 0;
+  for (int i = 0; i < count; i += 4) {
+    const __m256i d = _mm256_add_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(den + i)),
+                                       _mm256_set1_epi64x(chain ? static_cast<int64_t>(acc & 1) : 0));
+    const __m256i q = Lanes(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(num + i)), d);
+    alignas(32) uint64_t v[4];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(v), q);
+    if (out != nullptr)
+      for (int j = 0; j < 4; ++j) out[i + j] = static_cast<uint32_t>(v[j]);
+    acc = chain ? v[0] : acc + v[0] + v[1] + v[2] + v[3];
+  }
+  return acc;
+}
+#endif
 }  // namespace divide
 
 void BM_DofDivide(benchmark::State& state) {
@@ -272,6 +347,22 @@ void BM_DofDivide(benchmark::State& state) {
     mismatches += divide::Exact(num[i], den[i]) != h;
     max_ulp = std::max<int64_t>(max_ulp, std::abs(static_cast<int64_t>(divide::Approx(num[i], den[i])) - h));
   }
+  if (way == 3) {
+#ifdef CAMSIM_X86_AVX2
+    if (!CpuHasAvx2()) return state.SkipWithError("no AVX2");
+    std::vector<uint32_t> q(kN);
+    divide::LanesRun(num.data(), den.data(), kN, false, q.data());
+    mismatches = 0;
+    for (int i = 0; i < kN; ++i) mismatches += q[static_cast<size_t>(i)] != divide::Hardware(num[i], den[i]);
+    for (auto _ : state) benchmark::DoNotOptimize(divide::LanesRun(num.data(), den.data(), kN, chain, nullptr));
+    state.counters["per_quotient"] = benchmark::Counter(static_cast<double>(state.iterations()) * kN,
+                                                        benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    state.counters["exact_mismatches"] = static_cast<double>(mismatches);
+    return;
+#else
+    return state.SkipWithError("AVX2 lanes: x86-64 only");
+#endif
+  }
   for (auto _ : state) {
     uint64_t acc = 0;
     for (int i = 0; i < kN; ++i) {
@@ -286,7 +377,7 @@ void BM_DofDivide(benchmark::State& state) {
   state.counters["exact_mismatches"] = static_cast<double>(mismatches);
   state.counters["approx_max_ulp"] = static_cast<double>(max_ulp);
 }
-BENCHMARK(BM_DofDivide)->ArgsProduct({{0, 1, 2}, {0, 1}})->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DofDivide)->ArgsProduct({{0, 1, 2, 3}, {0, 1}})->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace camsim
