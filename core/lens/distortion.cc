@@ -443,6 +443,28 @@ struct FilterLanes {
   __m256i wx[6], wy[6];
 };
 
+// Each lane's N weights for its phase, tap by tap: the eight lanes' rows of
+// the phase-major table (kLaneTaps int32 per phase) transposed as an 8 x 8
+// block (a load per lane and 22 shuffles, against N gathers).
+template <int N>
+CAMSIM_AVX2_TARGET inline void LaneWeights(const int32_t* table, const int32_t* phase, __m256i* w) {
+  __m256i r[8], t[8], u[8];
+  for (int k = 0; k < 8; ++k)
+    r[k] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(table + phase[k] * DistortionStage::kLaneTaps));
+  for (int k = 0; k < 8; k += 2) {  // t[k]: taps 0,1 | 4,5 of rows k, k + 1; t[k + 1]: taps 2,3 | 6,7
+    t[k] = _mm256_unpacklo_epi32(r[k], r[k + 1]);
+    t[k + 1] = _mm256_unpackhi_epi32(r[k], r[k + 1]);
+  }
+  for (int k = 0; k < 8; k += 4) {  // u[k + j]: tap j | tap j + 4 of rows k .. k + 3
+    u[k] = _mm256_unpacklo_epi64(t[k], t[k + 2]);
+    u[k + 1] = _mm256_unpackhi_epi64(t[k], t[k + 2]);
+    u[k + 2] = _mm256_unpacklo_epi64(t[k + 1], t[k + 3]);
+    u[k + 3] = _mm256_unpackhi_epi64(t[k + 1], t[k + 3]);
+  }
+  for (int j = 0; j < N; ++j)
+    w[j] = j < 4 ? _mm256_permute2x128_si256(u[j], u[j + 4], 0x20) : _mm256_permute2x128_si256(u[j - 4], u[j], 0x31);
+}
+
 // Lane i gets run[idx[i]] from run = v[0 .. L-1] (8 samples each), 0 <= idx < 8 L.
 template <int L>
 CAMSIM_AVX2_TARGET inline __m256i PickRun(const __m256i* v, __m256i idx) {
@@ -754,7 +776,7 @@ int DistortionStage::MaxWindowRows() const { return max_window_; }
 void DistortionStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   counter.Add<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
-  counter.Add<int32_t>(static_cast<size_t>(taps_) << phase_bits_);  // wt_
+  counter.Add<int32_t>(static_cast<size_t>(kLaneTaps) << phase_bits_);  // wt_
 }
 
 size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<size_t>(grid_w_) * 2 * sizeof(int32_t); }
@@ -762,7 +784,7 @@ size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<s
 Status DistortionStage::Init(Arena& tables) {
   table_ = tables.Take<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   weights_ = tables.Take<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
-  wt_ = tables.Take<int32_t>(static_cast<size_t>(taps_) << phase_bits_);
+  wt_ = tables.Take<int32_t>(static_cast<size_t>(kLaneTaps) << phase_bits_);
   if (table_ == nullptr || weights_ == nullptr || wt_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for the distortion table");
   for (int j = 0; j < grid_h_; ++j)
@@ -824,14 +846,15 @@ Status DistortionStage::Init(Arena& tables) {
         }
       }
     }
-  // The weights by tap (FilterLanesAvx2's gathers), and the bound its 32-bit
-  // row sums need: sum |w| < 2^15 for every phase.
+  // The weights as int32, kLaneTaps per phase (LaneWeights), and the bound
+  // FilterLanesAvx2's 32-bit row sums need: sum |w| < 2^15 for every phase.
+  CAMSIM_DCHECK(taps_ <= kLaneTaps);
   bool small_weights = true;
   for (int p = 0; p < phases; ++p) {
     int sum = 0;
-    for (int t = 0; t < taps_; ++t) {
-      const int w = weights_[p * taps_ + t];
-      wt_[t * phases + p] = w;
+    for (int t = 0; t < kLaneTaps; ++t) {
+      const int w = t < taps_ ? weights_[p * taps_ + t] : 0;
+      wt_[p * kLaneTaps + t] = w;
       sum += w < 0 ? -w : w;
     }
     if (sum >= (1 << 15)) small_weights = false;
@@ -1107,7 +1130,6 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   const Cfa cfa = geometry_.cfa;
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(N == taps_);
-  const int phases = 1 << l.phase_bits;
   int32_t sx[kChunk], sy[kChunk];                                   // by pixel
   int32_t x0s[kChunk], rows_[kChunk], phx[kChunk], phy[kChunk];    // by slot
   uint8_t interior[kChunk], done[kChunk];                           // by slot
@@ -1147,14 +1169,10 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         FilterLanes in;
         const __m256i x0v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x0s + k0));
         const __m256i rv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rows_ + k0));
-        const __m256i pxv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(phx + k0));
-        const __m256i pyv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(phy + k0));
         in.x0 = _mm256_sub_epi32(x0v, _mm256_set1_epi32(xmin));
         in.lower = _mm256_cmpgt_epi32(rv, _mm256_set1_epi32(rmin));
-        for (int t = 0; t < N; ++t) {
-          in.wx[t] = _mm256_i32gather_epi32(wt_ + t * phases, pxv, 4);
-          in.wy[t] = _mm256_i32gather_epi32(wt_ + t * phases, pyv, 4);
-        }
+        LaneWeights<N>(wt_, phx + k0, in.wx);
+        LaneWeights<N>(wt_, phy + k0, in.wy);
         const bool two = rmax > rmin;
         alignas(32) uint32_t v[8];
         if constexpr (kSiteOnly) {

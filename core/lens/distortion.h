@@ -83,6 +83,7 @@ class DistortionStage final : public Stage {
   static constexpr int kWeightFracBits = 14;
   static constexpr int kScaleFracBits = 24;
   static constexpr int kMaxBands = 16384 / 4 + 2;
+  static constexpr int kLaneTaps = 8;  // int32 weights per phase in wt_, the AVX2 lanes' table (>= taps)
 
   Status Configure(const DistortionConfig& config, const SensorGeometry& geometry);
   void SetSiteOnly(bool site_only) { site_only_ = site_only; }
@@ -146,7 +147,7 @@ class DistortionStage final : public Stage {
   int max_window_ = 1;
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
-  int32_t* wt_ = nullptr;      // the same, taps x phases, as int32 (AVX2 gathers)
+  int32_t* wt_ = nullptr;      // the same as int32, phases x kLaneTaps (AVX2 lanes)
 };
 
 // Filter kernel value at offset t (pixels) from the source position (double).
