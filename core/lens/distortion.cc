@@ -1130,30 +1130,46 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   const Cfa cfa = geometry_.cfa;
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(N == taps_);
-  int32_t sx[kChunk], sy[kChunk];                                   // by pixel
-  int32_t x0s[kChunk], rows_[kChunk], phx[kChunk], phy[kChunk];    // by slot
-  uint8_t interior[kChunk], done[kChunk];                           // by slot
+  int32_t sx[kChunk], sy[kChunk];                                          // by pixel
+  int32_t by_pixel[5][kChunk];                                             // x0, row, phases, interior
+  int32_t by_slot[5][kChunk];                                              // the same by slot (site only)
+  uint8_t done[kChunk];                                                    // by slot
+  int32_t* const x0s = kSiteOnly ? by_slot[0] : by_pixel[0];
+  int32_t* const rows_ = kSiteOnly ? by_slot[1] : by_pixel[1];
+  int32_t* const phx = kSiteOnly ? by_slot[2] : by_pixel[2];
+  int32_t* const phy = kSiteOnly ? by_slot[3] : by_pixel[3];
+  int32_t* const interior = kSiteOnly ? by_slot[4] : by_pixel[4];
   auto slot_of = [](int f) { return kSiteOnly ? ((f & ~15) | ((f & 1) << 3) | ((f & 15) >> 1)) : f; };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
     ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
+    // Each pixel's class and taps, branch-free so that the loop vectorises;
+    // off the image (or past n) the position is taken as 0, never used.
     for (int f = 0; f < kChunk; ++f) {
-      const int k = slot_of(f);
-      const int32_t px = sx[f], py = sy[f];
-      done[k] = 0;
-      interior[k] = 0;
-      x0s[k] = rows_[k] = phx[k] = phy[k] = 0;
-      if (f >= n || !l.On(px, py)) continue;
+      const int32_t on = (f < n) & l.On(sx[f], sy[f]);
+      const int32_t px = on ? sx[f] : 0, py = on ? sy[f] : 0;
       const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
-      const int x0 = (qx >> l.phase_bits) - kBefore, y0 = (qy >> l.phase_bits) - kBefore;
-      interior[k] = x0 >= 0 && x0 <= l.col_hi && y0 >= l.row_lo && y0 <= l.row_hi;
-      x0s[k] = x0;
-      rows_[k] = y0 - l.first_row;
-      phx[k] = qx & l.mask;
-      phy[k] = qy & l.mask;
+      const int32_t x0 = (qx >> l.phase_bits) - kBefore, y0 = (qy >> l.phase_bits) - kBefore;
+      by_pixel[0][f] = x0;
+      by_pixel[1][f] = y0 - l.first_row;
+      by_pixel[2][f] = qx & l.mask;
+      by_pixel[3][f] = qy & l.mask;
+      by_pixel[4][f] = on & (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
     }
-    if constexpr (kSiteOnly)
-      for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
+    if constexpr (kSiteOnly) {  // slots: the even pixels of each sixteen, then the odd ones
+      for (int v = 0; v < 5; ++v)
+        for (int g = 0; g < kChunk; g += 16)
+          for (int i = 0; i < 8; ++i) {
+            by_slot[v][g + i] = by_pixel[v][g + 2 * i];
+            by_slot[v][g + 8 + i] = by_pixel[v][g + 2 * i + 1];
+          }
+      if (n == kChunk) {  // a constant size: vector stores, not rep stos
+        for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, sizeof(uint32_t) * kChunk);
+      } else {
+        for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
+      }
+    }
+    for (int k = 0; k < kChunk; ++k) done[k] = 0;
     for (int g = 0; g + kGroup <= n; g += kGroup)
       for (int set = 0; set < kGroup; set += 8) {
         const int k0 = g + set;  // first slot of the eight lanes
