@@ -1163,8 +1163,10 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
             by_slot[v][g + i] = by_pixel[v][g + 2 * i];
             by_slot[v][g + 8 + i] = by_pixel[v][g + 2 * i + 1];
           }
-      if (n == kChunk) {  // a constant size: vector stores, not rep stos
-        for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, sizeof(uint32_t) * kChunk);
+      if (n == kChunk) {  // vector stores: GCC makes a 256-byte memset a rep stos
+        for (int c = 0; c < 3; ++c)
+          for (int i = 0; i < kChunk; i += 8)
+            _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[c] + xs + i), _mm256_setzero_si256());
       } else {
         for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
       }
