@@ -2,10 +2,6 @@
 
 #include "core/base/simd.h"
 
-#ifdef CAMSIM_X86_AVX2
-#include <immintrin.h>
-#endif
-
 namespace camsim {
 namespace {
 
@@ -19,11 +15,7 @@ CAMSIM_AVX2_TARGET inline void NormaliseStep(__m256i* xn, __m256i* shift) {
   *shift = _mm256_add_epi64(*shift, _mm256_and_si256(top_zero, _mm256_set1_epi64x(S)));
 }
 
-// a > b as unsigned 64-bit lanes (AVX2 compares signed): all ones or 0.
-CAMSIM_AVX2_TARGET inline __m256i GreaterU64(__m256i a, __m256i b) {
-  const __m256i sign = _mm256_set1_epi64x(INT64_MIN);
-  return _mm256_cmpgt_epi64(_mm256_xor_si256(a, sign), _mm256_xor_si256(b, sign));
-}
+using avx2::GreaterU64;
 
 // ISqrt64 of four lanes, step for step the same integers (the bounds of its
 // comment keep every product below within vpmuludq's 32 x 32 -> 64 bits):
@@ -75,12 +67,8 @@ CAMSIM_AVX2_TARGET __m256i ISqrt64x4(__m256i x) {
 }
 
 CAMSIM_AVX2_TARGET void ISqrt64LanesAvx2(const uint64_t* x, uint32_t* r, int n) {
-  const __m256i low_halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
-  for (int i = 0; i < n; i += 4) {
-    const __m256i v = ISqrt64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(x + i)));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(r + i),
-                     _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, low_halves)));
-  }
+  for (int i = 0; i < n; i += 4)
+    avx2::StoreLow32x4(ISqrt64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(x + i))), r + i);
 }
 #endif
 

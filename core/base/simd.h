@@ -19,6 +19,12 @@
 #define CAMSIM_CPU_CLONES
 #endif
 
+#include <cstdint>
+
+#ifdef CAMSIM_X86_AVX2
+#include <immintrin.h>
+#endif
+
 namespace camsim {
 
 inline bool CpuHasAvx2() {
@@ -28,5 +34,25 @@ inline bool CpuHasAvx2() {
   return false;
 #endif
 }
+
+#ifdef CAMSIM_X86_AVX2
+// Small helpers shared by the kernels that keep 64-bit values in four lanes.
+namespace avx2 {
+// Four uint32 into four 64-bit lanes.
+CAMSIM_AVX2_TARGET inline __m256i LoadU32x4(const uint32_t* p) {
+  return _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+// The low halves of four 64-bit lanes as four uint32.
+CAMSIM_AVX2_TARGET inline void StoreLow32x4(__m256i v, uint32_t* p) {
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(p),
+                   _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6))));
+}
+// a > b as unsigned 64-bit lanes (AVX2 compares signed): all ones or 0.
+CAMSIM_AVX2_TARGET inline __m256i GreaterU64(__m256i a, __m256i b) {
+  const __m256i sign = _mm256_set1_epi64x(INT64_MIN);
+  return _mm256_cmpgt_epi64(_mm256_xor_si256(a, sign), _mm256_xor_si256(b, sign));
+}
+}  // namespace avx2
+#endif
 
 }  // namespace camsim

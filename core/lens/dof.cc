@@ -23,10 +23,6 @@
 #include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
 
-#ifdef CAMSIM_X86_AVX2
-#include <immintrin.h>
-#endif
-
 namespace camsim {
 namespace {
 
@@ -126,11 +122,10 @@ namespace {
 #ifdef CAMSIM_X86_AVX2
 // DiffusionCoc squared, four lanes: the scale's RoundShiftU by a shift below
 // 64 (a count of 2^64 - 1 for shift 0 makes the rounding bit 0), saturation
-// folded into the cap (cap < 2^32), unsigned compares by flipping the sign.
+// folded into the cap (cap < 2^32).
 CAMSIM_AVX2_TARGET void DiffusionCc2Avx2(const uint32_t* iz, int n, uint64_t* cc2, uint32_t focus, uint32_t min_diff,
                                          UScale scale, uint32_t cap) {
   const __m256i zero = _mm256_setzero_si256();
-  const __m256i sign = _mm256_set1_epi64x(INT64_MIN);
   const __m256i invalid_iz = _mm256_set1_epi64x(kInvalidInverseDepth);
   const __m256i f = _mm256_set1_epi64x(focus);
   const __m256i lo = _mm256_set1_epi64x(min_diff);
@@ -140,13 +135,13 @@ CAMSIM_AVX2_TARGET void DiffusionCc2Avx2(const uint32_t* iz, int n, uint64_t* cc
   const __m128i count = _mm_cvtsi64_si128(scale.shift);
   const __m128i count_round = _mm_cvtsi64_si128(static_cast<int64_t>(static_cast<uint64_t>(scale.shift) - 1));
   for (int x = 0; x < n; x += 4) {
-    const __m256i v = _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(iz + x)));
+    const __m256i v = avx2::LoadU32x4(iz + x);
     const __m256i diff = _mm256_sub_epi64(v, f);
     const __m256i negative = _mm256_cmpgt_epi64(zero, diff);
     const __m256i d = _mm256_sub_epi64(_mm256_xor_si256(diff, negative), negative);  // |iz - focus|
     const __m256i p = _mm256_mul_epu32(d, mant);
     const __m256i c = _mm256_add_epi64(_mm256_srl_epi64(p, count), _mm256_and_si256(_mm256_srl_epi64(p, count_round), one));
-    const __m256i over = _mm256_cmpgt_epi64(_mm256_xor_si256(c, sign), _mm256_xor_si256(capv, sign));
+    const __m256i over = avx2::GreaterU64(c, capv);
     const __m256i capped = _mm256_blendv_epi8(c, capv, over);
     const __m256i none = _mm256_or_si256(_mm256_cmpeq_epi64(v, invalid_iz), _mm256_cmpgt_epi64(lo, d));
     const __m256i coc = _mm256_andnot_si256(none, capped);
@@ -190,16 +185,12 @@ CAMSIM_AVX2_TARGET inline __m256i MulQ30x4(__m256i d, __m256i w) {
   return _mm256_add_epi64(high, _mm256_srli_epi64(low, 30));
 }
 
-CAMSIM_AVX2_TARGET inline __m256i Load4U32(const uint32_t* p) {
-  return _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
-}
-
 CAMSIM_AVX2_TARGET void PullRowAvx2(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
   for (int x = 0; x < n; x += 4) {
     __m256i* up = reinterpret_cast<__m256i*>(u + x);
     const __m256i v = _mm256_loadu_si256(up);
-    const __m256i d = _mm256_sub_epi64(_mm256_slli_epi64(Load4U32(in + x), kG), v);
-    _mm256_storeu_si256(up, _mm256_add_epi64(v, MulQ30x4(d, Load4U32(w + x))));
+    const __m256i d = _mm256_sub_epi64(_mm256_slli_epi64(avx2::LoadU32x4(in + x), kG), v);
+    _mm256_storeu_si256(up, _mm256_add_epi64(v, MulQ30x4(d, avx2::LoadU32x4(w + x))));
   }
 }
 
@@ -210,8 +201,7 @@ CAMSIM_AVX2_TARGET inline void StoreOut4(__m256i y, uint32_t* out) {
   const __m256i t = _mm256_srli_epi64(_mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1))), kG);
   const __m256i big = _mm256_cmpgt_epi64(t, _mm256_set1_epi64x(0xFFFFFFFFll));
   const __m256i s = _mm256_andnot_si256(negative, _mm256_or_si256(t, big));  // big: all ones, low half 2^32 - 1
-  _mm_storeu_si128(reinterpret_cast<__m128i*>(out),
-                   _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(s, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6))));
+  avx2::StoreLow32x4(s, out);
 }
 
 CAMSIM_AVX2_TARGET void BackRowAvx2(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
@@ -220,7 +210,7 @@ CAMSIM_AVX2_TARGET void BackRowAvx2(int64_t* y, const int64_t* us, const uint32_
     __m256i v = _mm256_loadu_si256(yp);
     if (e != nullptr) {
       const __m256i d = _mm256_sub_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(us + x)), v);
-      v = _mm256_add_epi64(v, MulQ30x4(d, Load4U32(e + x)));
+      v = _mm256_add_epi64(v, MulQ30x4(d, avx2::LoadU32x4(e + x)));
       _mm256_storeu_si256(yp, v);
     }
     StoreOut4(v, out + x);
