@@ -196,9 +196,9 @@ CAMSIM_AVX2_TARGET void PullRowAvx2(int64_t* u, const uint32_t* in, const uint32
 
 // OutOf in lanes: (y + 2^15) >> 16 with y's sign restored, saturated to uint32.
 CAMSIM_AVX2_TARGET inline void StoreOut4(__m256i y, uint32_t* out) {
-  const __m256i zero = _mm256_setzero_si256();
-  const __m256i negative = _mm256_cmpgt_epi64(zero, _mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1))));
-  const __m256i t = _mm256_srli_epi64(_mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1))), kG);
+  const __m256i rounded = _mm256_add_epi64(y, _mm256_set1_epi64x(int64_t{1} << (kG - 1)));
+  const __m256i negative = _mm256_cmpgt_epi64(_mm256_setzero_si256(), rounded);
+  const __m256i t = _mm256_srli_epi64(rounded, kG);
   const __m256i big = _mm256_cmpgt_epi64(t, _mm256_set1_epi64x(0xFFFFFFFFll));
   const __m256i s = _mm256_andnot_si256(negative, _mm256_or_si256(t, big));  // big: all ones, low half 2^32 - 1
   avx2::StoreLow32x4(s, out);
