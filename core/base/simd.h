@@ -52,6 +52,21 @@ CAMSIM_AVX2_TARGET inline __m256i GreaterU64(__m256i a, __m256i b) {
   const __m256i sign = _mm256_set1_epi64x(INT64_MIN);
   return _mm256_cmpgt_epi64(_mm256_xor_si256(a, sign), _mm256_xor_si256(b, sign));
 }
+// floor(n / 6) for 0 <= n < 2^38 in 64-bit lanes (AVX2 has no 64-bit
+// division or multiply). With n' = floor(n / 2) = h 2^32 + l (h < 32) and
+// 2^32 = 3 * 1431655765 + 1: floor(n / 6) = floor(n' / 3) =
+// h * 1431655765 + floor(l / 3) + floor((h + l mod 3) / 3), where
+// floor(l / 3) = l * 0xAAAAAAAB >> 33 for every 32-bit l, and the last
+// quotient's dividend s <= 33 gives s * 171 >> 9 (exact for s < 256).
+CAMSIM_AVX2_TARGET inline __m256i FloorDiv6(__m256i n) {
+  const __m256i half = _mm256_srli_epi64(n, 1);
+  const __m256i h = _mm256_srli_epi64(half, 32);
+  const __m256i l_div3 = _mm256_srli_epi64(_mm256_mul_epu32(half, _mm256_set1_epi64x(0xAAAAAAAB)), 33);
+  const __m256i l_mod3 = _mm256_sub_epi32(half, _mm256_mul_epu32(l_div3, _mm256_set1_epi64x(3)));  // low halves
+  const __m256i s = _mm256_add_epi64(h, _mm256_and_si256(l_mod3, _mm256_set1_epi64x(0xFFFFFFFF)));
+  return _mm256_add_epi64(_mm256_add_epi64(_mm256_mul_epu32(h, _mm256_set1_epi64x(1431655765)), l_div3),
+                          _mm256_srli_epi64(_mm256_mul_epu32(s, _mm256_set1_epi64x(171)), 9));
+}
 }  // namespace avx2
 #endif
 

@@ -136,6 +136,9 @@ class SensorStage final : public Stage {
   double system_gain() const { return k_; }            // K with analog gain, DN/e-
   double dark_electrons() const { return dark_e_; }    // mean dark charge per exposure
   int max_dn() const { return max_dn_; }
+  // Tests only: run every pixel through the portable per-pixel passes even
+  // where the AVX2 lanes would take them (the same bytes either way).
+  void ForcePortablePathForTest(bool force) { force_portable_ = force; }
 
  private:
   int ColumnTableEntries() const { return kMaxChannels * geometry_.width; }
@@ -182,6 +185,8 @@ class SensorStage final : public Stage {
   bool smear_ = false;
   GaussianTable gauss_;
   PoissonTable poisson_;
+  bool avx2_ = false;           // passes 1 and 3 in AVX2 lanes where a row allows (chosen at Init)
+  bool force_portable_ = false;  // tests only
 };
 
 // Double reference: the mean DN for a mean photon count (no noise, no patterns).

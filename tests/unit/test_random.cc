@@ -7,6 +7,7 @@
 
 #include "core/base/detmath.h"
 #include "core/base/random.h"
+#include "core/base/simd.h"
 
 namespace camsim {
 namespace {
@@ -205,6 +206,40 @@ TEST(ISqrt64Test, LanesMatchScalar) {
     for (int i = 0; i < 10; ++i) EXPECT_EQ(part[i], i < n ? ISqrt64(x[4000 + i]) : 0xDEADBEEFu) << n << " " << i;
   }
 }
+
+#ifdef CAMSIM_X86_AVX2
+// avx2::FloorDiv6 (the sensor's Poisson skew term in lanes) is floor(n / 6)
+// for every n below 2^38: exhaustively below 2^24, on both sides of every
+// multiple of 2^33 (where n / 2's high word steps), at the top of the range
+// and at random.
+CAMSIM_AVX2_TARGET void FloorDiv6x4(const uint64_t* n, uint64_t* q) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(q),
+                      avx2::FloorDiv6(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(n))));
+}
+
+TEST(Avx2FloorDiv6, IsExactBelow2To38) {
+  if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  constexpr uint64_t kLimit = uint64_t{1} << 38;
+  std::vector<uint64_t> n;
+  for (uint64_t v = 0; v < (1u << 24); ++v) n.push_back(v);
+  for (uint64_t edge = 0; edge <= kLimit; edge += uint64_t{1} << 33)
+    for (uint64_t d = 0; d < 4096; ++d) {
+      if (edge + d < kLimit) n.push_back(edge + d);
+      if (edge >= d + 1) n.push_back(edge - d - 1);
+    }
+  uint64_t s = 0x9E3779B97F4A7C15ull;
+  for (int i = 0; i < 1 << 20; ++i) {
+    s = s * 6364136223846793005ull + 1442695040888963407ull;
+    n.push_back((s >> 26) >> (i % 38));
+  }
+  while (n.size() % 4 != 0) n.push_back(kLimit - 1);
+  uint64_t q[4];
+  for (size_t i = 0; i < n.size(); i += 4) {
+    FloorDiv6x4(&n[i], q);
+    for (int j = 0; j < 4; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
+  }
+}
+#endif
 
 // DivideSmall (multiply by a reciprocal where there is a 128-bit product) is
 // floor(n / d) for n < 2^57, 1 <= d <= 64: checked at the top of the range,

@@ -4,9 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <random>
+#include <vector>
 
 #include "core/aperture/exposure.h"
+#include "core/base/workspace.h"
 #include "core/lens/vignetting.h"
+#include "core/pipeline/pipeline.h"
 #include "core/sensor/emva.h"
 #include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
@@ -175,6 +180,84 @@ TEST(Sensor, FixedPatternTableGivesTheSameBytes) {
   off.sensor.fixed_pattern_table = true;
   auto b = test::Build(off);
   EXPECT_EQ(a->pipeline.TableBytes(), b->pipeline.TableBytes());
+}
+
+// The sensor stage run directly on channel planes (channels x h x w of
+// photons, Q24.8): output planes, then the electron sums per colour.
+std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uint32_t>& photons, int w, int h,
+                                     int channels, uint32_t frame, const FrameInput* input, bool portable) {
+  const_cast<SensorStage&>(s).ForcePortablePathForTest(portable);
+  std::vector<uint32_t> out(photons.size(), 0xDEADBEEFu);
+  StageStats stats;
+  for (int y = 0; y < h; ++y) {
+    RowIn row;
+    RowArgs a;
+    for (int c = 0; c < channels; ++c) {
+      row.ch[c] = photons.data() + (static_cast<size_t>(c) * h + y) * w;
+      a.out[c] = out.data() + (static_cast<size_t>(c) * h + y) * w;
+    }
+    a.y = y;
+    a.width = w;
+    a.frame = frame;
+    a.rows = &row;
+    a.first_row = y;
+    a.row_count = 1;
+    a.input = input;
+    a.stats = &stats;
+    s.ProcessRow(a);
+  }
+  const_cast<SensorStage&>(s).ForcePortablePathForTest(false);
+  std::vector<int64_t> result(out.begin(), out.end());
+  result.insert(result.end(), std::begin(stats.aux_sum), std::end(stats.aux_sum));
+  return result;
+}
+
+// Passes 1 and 3 in AVX2 lanes (x86-64 with AVX2) give the portable loops'
+// bytes and electron sums: photons from 0 to 2^32 - 1 on a log scale (below
+// 12 e-, where Poisson is the inverse transform, up to far beyond the full
+// well), drawn and tabled fixed patterns with PRNU large enough to clamp the
+// gain at 0, row and column FPN, smear, no shot noise, a gain and read noise
+// that push the output below 0 and above the ADC range, mosaic and 3-channel
+// sensors, widths that leave 1 to 3 pixels after the last group of four, and
+// a listed defect (its row goes the portable way) next to seeded defects.
+TEST(Sensor, LanesGiveThePortableBytes) {
+  const int h = 9;
+  std::mt19937 rng(5);
+  const DefectPixel listed[] = {{3, 4, DefectKind::kHot, -1.0}};
+  for (int variant = 0; variant < 8; ++variant)
+    for (const int w : {37, 70, 67}) {
+      SensorConfig c;
+      c.prnu_percent = 2.0;
+      c.dsnu_e = 3.0;
+      if (variant == 1) c.fixed_pattern_table = true;
+      if (variant == 2) c.row_fpn_e = 40.0, c.column_fpn_e = 25.0, c.smear_row_transfer_us = 1.0;
+      if (variant == 3) c.shot_noise = false, c.prnu_percent = 50.0;
+      if (variant == 4) c.gain_db = 30.0, c.dark_noise_e = 900.0, c.black_level_dn = 0.0;
+      if (variant == 5) c.prnu_percent = 50.0, c.fixed_pattern_table = true, c.full_well_e = 1e6;
+      if (variant == 6) c.defects = listed, c.defect_count = 1;
+      if (variant == 7) c.hot_pixel_fraction = c.dead_pixel_fraction = c.stuck_pixel_fraction = 0.01;
+      const int channels = variant == 5 ? 3 : 1;
+      SensorStage s;
+      ASSERT_TRUE(s.Configure(c, SensorGeometry{w, h, Cfa::kBayerGB, 12}, 1000.0, 99).ok()) << variant;
+      s.SetInputChannels(channels);
+      WorkspaceCounter counter;
+      s.CountTables(counter);
+      std::vector<uint8_t> tables(counter.bytes());
+      Arena arena(Span<uint8_t>{tables.data(), tables.size()});
+      ASSERT_TRUE(s.Init(arena).ok()) << variant;
+      std::vector<uint32_t> photons(static_cast<size_t>(channels) * w * h);
+      for (uint32_t& p : photons) p = rng() >> (rng() % 33 == 32 ? 0 : rng() % 32);
+      for (size_t i = 0; i < photons.size(); i += 13) photons[i] = i % 2 ? 0xFFFFFFFFu : 0u;
+      std::vector<uint32_t> smear(static_cast<size_t>(kMaxChannels) * w);
+      for (uint32_t& e : smear) e = rng() % 4 == 0 ? 0xFFFFFFFFu : rng() >> (rng() % 32);  // some saturate the charge
+      FrameInput input;
+      input.smear_e = smear.data();
+      for (const uint32_t frame : {0u, 3u}) {
+        const auto want = RunSensorDirect(s, photons, w, h, channels, frame, &input, true);
+        EXPECT_EQ(RunSensorDirect(s, photons, w, h, channels, frame, &input, false), want)
+            << "variant " << variant << " width " << w << " frame " << frame;
+      }
+    }
 }
 
 TEST(Sensor, SaturatesAtFullWellAndAdcMax) {
