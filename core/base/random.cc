@@ -80,19 +80,24 @@ CAMSIM_AVX2_TARGET __m256i GaussianAvx2(const int32_t* table, __m256i u) {
   const __m256i exponent = _mm256_srli_epi32(_mm256_castps_si256(_mm256_cvtepi32_ps(lead)), 23);
   const __m256i segment = _mm256_min_epu32(_mm256_sub_epi32(_mm256_set1_epi32(157), exponent), _mm256_set1_epi32(31));
   const __m256i w = _mm256_sllv_epi32(v, segment);
-  const __m256i node = _mm256_add_epi32(
-      _mm256_add_epi32(_mm256_slli_epi32(segment, kIndexBits), segment),  // segment * kNodes (65)
+  const __m256i interval = _mm256_or_si256(  // segment * kIntervals + the 6 index bits
+      _mm256_slli_epi32(segment, kIndexBits),
       _mm256_and_si256(_mm256_srli_epi32(w, kInterpBits), _mm256_set1_epi32((1 << kIndexBits) - 1)));
-  const __m256i n0 = _mm256_i32gather_epi32(table, node, 4);
-  const __m256i n1 = _mm256_i32gather_epi32(table + 1, node, 4);
+  // One 64-bit gather of (start, end) pairs for the even lanes, one for the odd.
+  const long long* pairs = reinterpret_cast<const long long*>(table);
+  const __m256i even = _mm256_i32gather_epi64(
+      pairs, _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(interval, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6))), 8);
+  const __m256i odd = _mm256_i32gather_epi64(
+      pairs, _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(interval, _mm256_setr_epi32(1, 3, 5, 7, 1, 3, 5, 7))), 8);
   const __m256i frac = _mm256_and_si256(w, _mm256_set1_epi32((1 << kInterpBits) - 1));
-  const __m256i diff = _mm256_sub_epi32(n1, n0);
   const __m256i half = _mm256_set1_epi64x(int64_t{1} << 31);
   const __m256i low32 = _mm256_set1_epi64x(0xFFFFFFFF);
-  const __m256i mag_even = _mm256_add_epi64(_mm256_slli_epi64(_mm256_and_si256(n0, low32), kInterpBits),
-                                            _mm256_mul_epi32(diff, frac));
-  const __m256i mag_odd = _mm256_add_epi64(_mm256_slli_epi64(_mm256_srli_epi64(n0, 32), kInterpBits),
-                                           _mm256_mul_epi32(_mm256_srli_epi64(diff, 32), _mm256_srli_epi64(frac, 32)));
+  // start >= 0 in the low half, end - start in the low half of its own lane.
+  const __m256i mag_even = _mm256_add_epi64(_mm256_slli_epi64(_mm256_and_si256(even, low32), kInterpBits),
+                                            _mm256_mul_epi32(_mm256_sub_epi32(_mm256_srli_epi64(even, 32), even), frac));
+  const __m256i mag_odd = _mm256_add_epi64(_mm256_slli_epi64(_mm256_and_si256(odd, low32), kInterpBits),
+                                           _mm256_mul_epi32(_mm256_sub_epi32(_mm256_srli_epi64(odd, 32), odd),
+                                                            _mm256_srli_epi64(frac, 32)));
   const __m256i z = _mm256_blend_epi32(_mm256_srli_epi64(_mm256_add_epi64(mag_even, half), 32),
                                        _mm256_add_epi64(mag_odd, half), 0xAA);
   const __m256i negate = _mm256_xor_si256(upper, _mm256_set1_epi32(-1));
@@ -167,14 +172,16 @@ Status GaussianTable::Build(Span<int32_t> storage) {
   }
   double scale = 1.0;  // 2^-segment
   for (int segment = 0; segment < kSegments; ++segment, scale *= 0.5) {
-    for (size_t i = 0; i < kNodes; ++i) {
+    for (size_t i = 0; i <= kIntervals; ++i) {
       // Interval end i of the segment as a (possibly fractional) v, exact;
-      // the last segment holds v = 0 alone.
+      // the last segment holds v = 0 alone. It ends interval i - 1 and starts i.
       const double v =
           segment == kSegments - 1 ? 0.0 : (0x1p30 + static_cast<double>(i) * 0x1p24) * scale;
       const double z = -detmath::InvNormalCdf((v + 0.5) * 0x1p-32);
-      storage[static_cast<size_t>(segment) * kNodes + i] =
-          Q<7, kEntryFracBits, true>::FromDouble(z).raw;
+      const int32_t raw = Q<7, kEntryFracBits, true>::FromDouble(z).raw;
+      const size_t pair = 2 * (static_cast<size_t>(segment) * kIntervals + i);
+      if (i > 0) storage[pair - 1] = raw;
+      if (i < kIntervals) storage[pair] = raw;
     }
   }
   table_ = storage.data;

@@ -26,7 +26,7 @@ constexpr int kHeight = 480;
 constexpr int kRows = 4;  // output rows processed: [0, kRows)
 
 // The workspace, sized for the demo pipeline at 640x480 with one worker
-// (207 168 bytes when this was written) plus headroom; Init() refuses a
+// (215 360 bytes on 2026-11-25) plus headroom; Init() refuses a
 // workspace that is too small, so growth shows up as a non-zero status.
 constexpr size_t kWorkspaceBytes = 224 * 1024;
 alignas(kWorkspaceAlign) uint8_t g_workspace[kWorkspaceBytes];

@@ -276,7 +276,7 @@ TEST(GaussianTableTest, BuildNeedsStorage) {
   GaussianTable t;
   EXPECT_EQ(t.Build({small.data(), small.size()}).code(), StatusCode::kResourceExhausted);
   EXPECT_EQ(t.Build({nullptr, GaussianTable::kEntries}).code(), StatusCode::kResourceExhausted);
-  EXPECT_EQ(GaussianTable::kEntries * sizeof(int32_t), 8320u);
+  EXPECT_EQ(GaussianTable::kEntries * sizeof(int32_t), 16384u);
 }
 
 // The documented bound: |Sample(u) - InvNormalCdf((u + 0.5) / 2^32)| <= 2.5e-5
