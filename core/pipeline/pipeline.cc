@@ -61,6 +61,30 @@ void InterleaveU32(const uint32_t* __restrict r0, const uint32_t* __restrict r1,
   }
 }
 
+// Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up. As
+// 65535 = 255 * 257 that is round(v / 257) = floor((v + 128.5) / 257),
+// which is (v + 128) / 257: no multiple of 257 lies in (v + 128, v + 128.5].
+// For t = v + 128 <= 65663 that quotient is (t - (t >> 8)) >> 8 (checked for
+// every v by Pipeline.TapRowsConvertEverySample): shifts, which
+// vectorise, where compilers would not vectorise the division.
+inline uint8_t ToU8(uint32_t v) {
+  const uint32_t t = (v > 0xFFFFu ? 0xFFFFu : v) + 128u;
+  return static_cast<uint8_t>((t - (t >> 8)) >> 8);
+}
+
+// Three planes into RGB8 triplets (the display output of the demo camera).
+CAMSIM_CPU_CLONES
+void InterleaveU8(const uint32_t* __restrict r0, const uint32_t* __restrict r1, const uint32_t* __restrict r2,
+                  uint8_t* __restrict dst, int width) {
+  for (int x = 0; x < width; ++x) {
+    dst[3 * x] = ToU8(r0[x]);
+    dst[3 * x + 1] = ToU8(r1[x]);
+    dst[3 * x + 2] = ToU8(r2[x]);
+  }
+}
+
+}  // namespace
+
 void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width) {
   CAMSIM_DCHECK(channels == 1 || channels == 3);
   // Converts and interleaves the row into dst: a loop per channel count, with
@@ -95,16 +119,16 @@ void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int 
                  [](uint32_t v) { return static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v); });
       break;
     case TapFormat::kU8:
-      // Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up. As
-      // 65535 = 255 * 257 that is round(v / 257) = floor((v + 128.5) / 257),
-      // which is (v + 128) / 257: no multiple of 257 lies in (v + 128, v + 128.5].
-      interleave(static_cast<uint8_t*>(tap.data) + offset, [](uint32_t v) {
-        const uint32_t q = v > 0xFFFFu ? 0xFFFFu : v;
-        return static_cast<uint8_t>((q + 128u) / 257u);
-      });
+      if (channels == 3) {
+        InterleaveU8(rows[0], rows[1], rows[2], static_cast<uint8_t*>(tap.data) + offset, width);
+        break;
+      }
+      interleave(static_cast<uint8_t*>(tap.data) + offset, ToU8);
       break;
   }
 }
+
+namespace {
 
 // The lowest and highest frame rows that a window reads once reflected.
 void ReflectedSpan(RowWindow w, int height, int* lo, int* hi) {

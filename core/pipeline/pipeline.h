@@ -126,6 +126,9 @@ struct Tap {
   void* data = nullptr;   // interleaved channels, height rows
   ptrdiff_t stride = 0;   // in samples
 };
+// Writes row y of a tap from the row's planes (channels: 1 or 3), converted
+// as above. The pipeline calls it for each tapped row; tests call it directly.
+void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width);
 
 // Per-worker measurements of one ProcessStrip call series.
 struct WorkerStats {

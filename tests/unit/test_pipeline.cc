@@ -2,6 +2,9 @@
 // what the planner leaves out, workspace accounting, no heap while processing.
 #include <gtest/gtest.h>
 
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
 #include "tests/support/allocations.h"
 #include "tests/support/test_support.h"
 
@@ -16,6 +19,44 @@ const PlanEntry* Find(const Plan& p, StageId id) {
   for (int i = 0; i < p.count; ++i)
     if (p.entries[i].id == id) return &p.entries[i];
   return nullptr;
+}
+
+// Every tap format on every Q0.16 value and beyond (saturation), for 1 and 3
+// channels and widths that leave a vector tail: kU8 is round(v * 255 / 65535)
+// with ties up, here computed as floor((510 v + 65535) / 131070).
+TEST(Pipeline, TapRowsConvertEverySample) {
+  const int w = 65536 + 37;
+  std::vector<uint32_t> planes[3];
+  for (int c = 0; c < 3; ++c) {
+    planes[c].resize(w);
+    for (int x = 0; x < w; ++x) planes[c][x] = x < 65536 ? static_cast<uint32_t>((x * (c + 1) * 7919) % 65536)
+                                                        : 0xFFFFFFFFu - static_cast<uint32_t>(x * c);
+  }
+  const uint32_t* rows[3] = {planes[0].data(), planes[1].data(), planes[2].data()};
+  const auto u8 = [](uint32_t v) {
+    const uint64_t q = v > 65535u ? 65535u : v;
+    return static_cast<uint8_t>((510 * q + 65535) / 131070);
+  };
+  for (const int channels : {1, 3})
+    for (const int width : {w, 17, 15, 1}) {
+      std::vector<uint8_t> b8(static_cast<size_t>(2) * width * channels, 0xAB);
+      std::vector<uint16_t> b16(static_cast<size_t>(2) * width * channels, 0xABCD);
+      std::vector<uint32_t> b32(static_cast<size_t>(2) * width * channels, 0xDEADBEEFu);
+      Tap t8{0, TapFormat::kU8, b8.data(), static_cast<ptrdiff_t>(width) * channels};
+      Tap t16{0, TapFormat::kU16, b16.data(), static_cast<ptrdiff_t>(width) * channels};
+      Tap t32{0, TapFormat::kU32, b32.data(), static_cast<ptrdiff_t>(width) * channels};
+      for (const Tap& t : {t8, t16, t32}) WriteTapRow(t, rows, channels, 1, width);  // row 1: the second half
+      for (int x = 0; x < width; ++x)
+        for (int c = 0; c < channels; ++c) {
+          const size_t i = static_cast<size_t>(width + x) * channels + c;
+          const uint32_t v = planes[c][x];
+          ASSERT_EQ(b8[i], u8(v)) << "v " << v << " x " << x << " c " << c << " of " << channels;
+          ASSERT_EQ(b16[i], v > 65535u ? 65535u : v);
+          ASSERT_EQ(b32[i], v);
+        }
+      for (size_t i = 0; i < static_cast<size_t>(width) * channels; ++i)
+        ASSERT_TRUE(b8[i] == 0xAB && b16[i] == 0xABCD && b32[i] == 0xDEADBEEFu) << "row 0 untouched";
+    }
 }
 
 TEST(Pipeline, StripHeightDoesNotChangeOutput) {
