@@ -1,5 +1,6 @@
 #include "core/lens/vignetting.h"
 
+#include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
 
 namespace camsim {
@@ -52,10 +53,10 @@ inline uint32_t ApplyGain(uint32_t v, uint32_t g) {
   return low | (0u - static_cast<uint32_t>(high != 0));
 }
 
-// out[x] = ApplyGain(in[x], g) with g = gain[x], or gain[n - 1 - x] when Reversed.
-template <bool Reversed, typename Gain>
+// out[x] = ApplyGain(in[x], gain[x]).
+template <typename Gain>
 void ApplyGains(const uint32_t* __restrict in, const Gain* __restrict gain, uint32_t* __restrict out, int n) {
-  for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[Reversed ? n - 1 - x : x]);
+  for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[x]);
 }
 
 // Site-only columns (see vignetting.h): at_a(x) all ones where the column
@@ -67,19 +68,19 @@ void ApplyGains(const uint32_t* __restrict in, const Gain* __restrict gain, uint
 // input is 0 off the sites.
 constexpr int kSiteBlock = 8;  // even
 
-template <bool Reversed, typename Gain>
+template <typename Gain>
 inline void ApplySitePixel(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b,
-                           const Gain* __restrict gain, int n, int x, uint32_t at_a, uint32_t* __restrict out_a,
+                           const Gain* __restrict gain, int x, uint32_t at_a, uint32_t* __restrict out_a,
                            uint32_t* __restrict out_b, uint32_t* __restrict out_c) {
   const uint32_t site = (in_a[x] & at_a) | (in_b[x] & ~at_a);
-  const uint32_t v = ApplyGain(site, gain[Reversed ? n - 1 - x : x]);
+  const uint32_t v = ApplyGain(site, gain[x]);
   out_a[x] = v & at_a;
   out_b[x] = v & ~at_a;
   out_c[x] = 0;
 }
 
 // Columns 0 .. n-1 of the pointers; colour A at the columns of parity a_parity.
-template <bool Reversed, typename Gain>
+template <typename Gain>
 void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
                     uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
                     int a_parity) {
@@ -88,10 +89,10 @@ void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict 
   int x0 = 0;
   for (; x0 + kSiteBlock <= n; x0 += kSiteBlock)
     for (int k = 0; k < kSiteBlock; ++k)
-      ApplySitePixel<Reversed>(in_a, in_b, gain, n, x0 + k, mask[k], out_a, out_b, out_c);
+      ApplySitePixel(in_a, in_b, gain, x0 + k, mask[k], out_a, out_b, out_c);
   for (int x = x0; x < n; ++x)
-    ApplySitePixel<Reversed>(in_a, in_b, gain, n, x, 0u - static_cast<uint32_t>(((x ^ a_parity) & 1) == 0), out_a,
-                             out_b, out_c);
+    ApplySitePixel(in_a, in_b, gain, x, 0u - static_cast<uint32_t>(((x ^ a_parity) & 1) == 0), out_a, out_b,
+                   out_c);
 }
 
 // The gains of one row applied to columns [x0, x0 + n) of every channel, for
@@ -101,34 +102,78 @@ struct SiteRow {
   Colour even, odd, third;
 };
 
-template <bool Reversed, typename Gain>
+template <typename Gain>
 inline void ApplyRow(const RowArgs& a, int channels, const SiteRow* site, const Gain* __restrict gain, int x0,
                      int n) {
   if (site != nullptr) {
     const RowIn& in = a.rows[0];
-    ApplySiteGains<Reversed>(in.ch[site->even] + x0, in.ch[site->odd] + x0, gain, a.out[site->even] + x0,
+    ApplySiteGains(in.ch[site->even] + x0, in.ch[site->odd] + x0, gain, a.out[site->even] + x0,
                              a.out[site->odd] + x0, a.out[site->third] + x0, n, x0 & 1);
     return;
   }
-  for (int c = 0; c < channels; ++c) ApplyGains<Reversed>(a.rows[0].ch[c] + x0, gain, a.out[c] + x0, n);
+  for (int c = 0; c < channels; ++c) ApplyGains(a.rows[0].ch[c] + x0, gain, a.out[c] + x0, n);
 }
 
 // The two entry points. Not CAMSIM_CPU_CLONES: with the loops inlined into
 // an AVX2 copy, GCC 12 -O2 left them scalar (callgrind: 81M instructions per
 // 1080p frame in the sensor path's vignetting against 59M for these SSE2
 // loops).
-// Curve gains for columns [x0, x0 + n), or reversed for their mirror image.
-void ApplyCurveRow(const RowArgs& a, int channels, const SiteRow* site, const uint32_t* gain, int x0, int n,
-                   bool reversed) {
-  if (reversed)
-    ApplyRow<true>(a, channels, site, gain, x0, n);
-  else
-    ApplyRow<false>(a, channels, site, gain, x0, n);
+// Curve gains for columns [x0, x0 + n).
+void ApplyCurveRow(const RowArgs& a, int channels, const SiteRow* site, const uint32_t* gain, int x0, int n) {
+  ApplyRow(a, channels, site, gain, x0, n);
 }
 // A mask image's row of gains for the whole row.
 void ApplyMaskRow(const RowArgs& a, int channels, const SiteRow* site, const uint16_t* mask) {
-  ApplyRow<false>(a, channels, site, mask, 0, a.width);
+  ApplyRow(a, channels, site, mask, 0, a.width);
 }
+
+// A block's curve gains from column k0 on, gain[k] for column x0 + k
+// (k0 <= k < n), and the same reversed, mirrored[n - 1 - k] = gain[k], for
+// the mirror image block.
+void CurveGains(const uint16_t* curve, UScale rho_to_index, const uint32_t* dx2, uint32_t dy2, int k0, int n,
+                uint32_t* gain, uint32_t* mirrored) {
+  for (int k = k0; k < n; ++k) gain[k] = VignettingCurveGain(curve, rho_to_index, dx2[k] + dy2);
+  for (int k = k0; k < n; ++k) mirrored[n - 1 - k] = gain[k];
+}
+
+#ifdef CAMSIM_X86_AVX2
+// RoundShiftU(p, s) of four 64-bit lanes, 1 <= s <= 63.
+CAMSIM_AVX2_TARGET inline __m256i RoundShift4(__m256i p, __m128i s, __m128i s_less_1) {
+  return _mm256_add_epi64(_mm256_srl_epi64(p, s), _mm256_and_si256(_mm256_srl_epi64(p, s_less_1), _mm256_set1_epi64x(1)));
+}
+
+// CurveGains for k < n8 (a multiple of 8) in eight 32-bit lanes, the same integers
+// as VignettingCurveGain: UScale::Apply as two sets of four 64-bit products
+// (even and odd columns), rounded by the uniform shift (1..63 here, see
+// Init); then both curve points of a column from one 32-bit gather
+// (curve[i] low, curve[i + 1] high). dx2 + dy2 <= the denominator, so the
+// position is at most (kCurvePoints - 1) 2^16: Apply's saturation is never
+// reached, and the read ends inside the table (as the scalar one does).
+CAMSIM_AVX2_TARGET void CurveGainsAvx2(const uint16_t* curve, UScale rho_to_index, const uint32_t* dx2,
+                                       uint32_t dy2, int n8, int n, uint32_t* gain, uint32_t* mirrored) {
+  const __m256i mant = _mm256_set1_epi64x(rho_to_index.mant);
+  const __m128i shift = _mm_cvtsi32_si128(rho_to_index.shift);
+  const __m128i shift_less_1 = _mm_cvtsi32_si128(rho_to_index.shift - 1);
+  const __m256i low16 = _mm256_set1_epi32(0xFFFF), unit = _mm256_set1_epi32(0x10000);
+  const __m256i reverse = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+  for (int k = 0; k < n8; k += 8) {
+    const __m256i v = _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(dx2 + k)),
+                                       _mm256_set1_epi32(static_cast<int>(dy2)));
+    const __m256i even = RoundShift4(_mm256_mul_epu32(v, mant), shift, shift_less_1);
+    const __m256i odd = RoundShift4(_mm256_mul_epu32(_mm256_srli_epi64(v, 32), mant), shift, shift_less_1);
+    const __m256i pos = _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
+    const __m256i i = _mm256_srli_epi32(pos, 16), f = _mm256_and_si256(pos, low16);
+    const __m256i g01 = _mm256_i32gather_epi32(reinterpret_cast<const int*>(curve), i, 2);
+    const __m256i g0 = _mm256_and_si256(g01, low16), g1 = _mm256_srli_epi32(g01, 16);
+    const __m256i sum = _mm256_add_epi32(_mm256_add_epi32(_mm256_mullo_epi32(g0, _mm256_sub_epi32(unit, f)),
+                                                          _mm256_mullo_epi32(g1, f)),
+                                         _mm256_set1_epi32(0x8000));
+    const __m256i g = _mm256_srli_epi32(sum, 16);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(gain + k), g);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(mirrored + n - 8 - k), _mm256_permutevar8x32_epi32(g, reverse));
+  }
+}
+#endif
 
 }  // namespace
 
@@ -222,6 +267,9 @@ Status VignettingStage::Init(Arena& tables) {
     const int64_t d = 2 * static_cast<int64_t>(x) - (geometry_.width - 1);
     dx2_[x] = static_cast<uint32_t>(d * d);
   }
+  // The lanes round by a shift of 1..63 (UScale::Apply's general case), the
+  // only one a frame of 2 x 1 pixels or more reaches.
+  avx2_ = CpuHasAvx2() && rho_to_index_.shift >= 1 && rho_to_index_.shift <= 63 && !force_portable_;
   return Status::Ok();
 }
 
@@ -249,15 +297,20 @@ void VignettingStage::ProcessRow(const RowArgs& a) const {
   const int64_t dy = 2 * static_cast<int64_t>(a.y) - (geometry_.height - 1);
   const uint32_t dy2 = static_cast<uint32_t>(dy * dy);
   const int width = a.width, half = (a.width + 1) / 2;
-  uint32_t gain[kGainBlock];
+  uint32_t gain[kGainBlock], mirrored[kGainBlock];
   for (int x0 = 0; x0 < half; x0 += kGainBlock) {
     const int n = half - x0 < kGainBlock ? half - x0 : kGainBlock;
-    for (int k = 0; k < n; ++k) {
-      gain[k] = VignettingCurveGain(curve_, rho_to_index_, dx2_[x0 + k] + dy2);
+    int k0 = 0;
+#ifdef CAMSIM_X86_AVX2
+    if (avx2_) {
+      k0 = n & ~7;
+      CurveGainsAvx2(curve_, rho_to_index_, dx2_ + x0, dy2, k0, n, gain, mirrored);
     }
-    const int mirror = width - x0 - n;  // columns mirror .. width - 1 - x0, gains reversed
-    ApplyCurveRow(a, channels, site, gain, x0, n, false);
-    ApplyCurveRow(a, channels, site, gain, mirror, n, true);
+#endif
+    CurveGains(curve_, rho_to_index_, dx2_ + x0, dy2, k0, n, gain, mirrored);
+    const int mirror = width - x0 - n;  // columns mirror .. width - 1 - x0
+    ApplyCurveRow(a, channels, site, gain, x0, n);
+    ApplyCurveRow(a, channels, site, mirrored, mirror, n);
   }
 }
 

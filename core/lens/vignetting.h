@@ -64,6 +64,9 @@ class VignettingStage final : public Stage {
   // Configure) to process every channel.
   void SetSiteOnly(Cfa cfa) { site_cfa_ = cfa; }
   Cfa site_only() const { return site_cfa_; }
+  // Tests: compute the curve gains by the portable loop even where the CPU
+  // has AVX2 lanes for them. Takes effect at the next Init().
+  void ForcePortablePathForTest(bool force) { force_portable_ = force; }
 
  private:
   VignettingConfig config_;
@@ -72,6 +75,8 @@ class VignettingStage final : public Stage {
   uint16_t* curve_ = nullptr; // kCurvePoints + 1 gains, Q2.14 (last repeated)
   uint32_t* dx2_ = nullptr;   // (2x - (W-1))^2 per column
   Cfa site_cfa_ = Cfa::kMono;
+  bool avx2_ = false;             // curve gains in AVX2 lanes (set by Init)
+  bool force_portable_ = false;
 };
 
 // The stage's curve gains for callers outside the stream (the smear

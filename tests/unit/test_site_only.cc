@@ -4,6 +4,8 @@
 // same bytes as the all-channel path, on every channel, for every Bayer
 // phase, row parity and width (blocks of 8 columns and every tail length),
 // and the planner must switch it on exactly where distortion runs site-only.
+// Also: vignetting's curve gains (AVX2 lanes where the CPU has them) against
+// the scalar VignettingCurveGain, pixel by pixel.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -130,6 +132,53 @@ TEST(SiteOnly, VignettingEqualsAllChannels) {
         const auto in = SiteOnlyFrame(w, kHeight, cfa, static_cast<uint32_t>(1000 + w));
         ExpectSameBytes(RunRows(site, in, w, kHeight, &input), RunRows(all, in, w, kHeight, &input), w);
       }
+}
+
+// Every output sample of a curve mode is SatU32(round(in * g / 2^14)) with
+// g = VignettingCurveGain of the pixel's squared radius, on the lanes and on
+// the portable loop, for all channels and site only; widths give the lanes
+// none, some and a tail in both halves (1920: full 256-column blocks).
+TEST(Vignetting, CurveGainsAreTheScalarOnes) {
+  for (int mode = 0; mode < 3; ++mode)
+    for (int w : {1, 2, 7, 16, 17, 37, 515, 1920})
+      for (const bool site_only : {false, true})
+        for (const bool portable : {false, true}) {
+          SCOPED_TRACE(testing::Message() << "mode " << mode << " width " << w << " site " << site_only
+                                          << " portable " << portable);
+          VignettingConfig v;
+          v.mode = mode == 2 ? VignettingMode::kTable : VignettingMode::kCos4;
+          v.focal_length_px = mode == 0 ? 3.0 : 700.0;
+          v.table_count = 3;
+          v.table[0] = 3.9;  // past 1: saturation of bright samples
+          v.table[1] = 1.0;
+          v.table[2] = 0.25;
+          SensorGeometry g;
+          g.width = w;
+          g.height = 5;
+          g.cfa = Cfa::kBayerGB;
+          VignettingStage stage;
+          StageTables tables;
+          ASSERT_TRUE(stage.Configure(v, g, false).ok());
+          stage.ForcePortablePathForTest(portable);
+          ASSERT_TRUE(InitStage(stage, tables).ok());
+          if (site_only) stage.SetSiteOnly(g.cfa);
+          auto in = SiteOnlyFrame(w, g.height, g.cfa, static_cast<uint32_t>(w + mode));
+          if (!site_only) in[0] = in[1] = in[2] = SiteOnlyFrame(w, g.height, Cfa::kMono, 3u)[kGreen];  // mono: all green
+          const auto out = RunRows(stage, in, w, g.height, nullptr);
+          uint16_t curve[VignettingStage::kCurvePoints + 1];
+          UScale scale;
+          ASSERT_TRUE(BuildVignettingCurve(v, g, curve, &scale).ok());
+          for (int y = 0; y < g.height; ++y)
+            for (int x = 0; x < w; ++x) {
+              const int64_t dx = 2 * x - (w - 1), dy = 2 * y - (g.height - 1);
+              const uint32_t gain = VignettingCurveGain(curve, scale, static_cast<uint32_t>(dx * dx + dy * dy));
+              for (int c = 0; c < 3; ++c) {
+                const size_t i = static_cast<size_t>(y) * w + x;
+                const uint32_t want = SatU32(RoundShiftU(uint64_t{in[c][i]} * gain, 14));
+                ASSERT_EQ(out[c][i], want) << "channel " << c << " at " << x << "," << y;
+              }
+            }
+        }
 }
 
 // The planner: site-only exactly for the pointwise stages between a
