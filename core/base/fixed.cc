@@ -6,22 +6,33 @@ namespace camsim {
 namespace {
 
 #ifdef CAMSIM_X86_AVX2
-// One step of ISqrt64's normalisation: where the top S bits of xn are 0,
-// shift it left by S (S even) and add S to the shift.
-template <int S>
-CAMSIM_AVX2_TARGET inline void NormaliseStep(__m256i* xn, __m256i* shift) {
-  const __m256i top_zero = _mm256_cmpeq_epi64(_mm256_srli_epi64(*xn, 64 - S), _mm256_setzero_si256());
-  *xn = _mm256_blendv_epi8(*xn, _mm256_slli_epi64(*xn, S), top_zero);
-  *shift = _mm256_add_epi64(*shift, _mm256_and_si256(top_zero, _mm256_set1_epi64x(S)));
+// 2k = countl_zero(x) rounded down to even, for x != 0, in four 64-bit lanes.
+// AVX2 has no count of leading zeros; the position of the leading one of
+// each 32-bit half comes from a float's exponent, as in GaussianAvx2
+// (random.cc): v & ~(v >> 1) keeps v's leading one and stays below 1.5 times
+// it, so the conversion cannot round up to the next power of two; a half
+// with bit 31 set converts to -2^31, whose exponent is the same once the sign
+// is masked off; a zero half gives exponent 0. The high half's exponent,
+// where non-zero, plus 32 is the larger of the two, so the lane's leading one
+// is at P = max(high + 32, low) - 127 and countl_zero = 63 - P.
+CAMSIM_AVX2_TARGET inline __m256i EvenLeadingZeros(__m256i x) {
+  const __m256i lead = _mm256_andnot_si256(_mm256_srli_epi32(x, 1), x);
+  const __m256i e = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(_mm256_cvtepi32_ps(lead)), 23),
+                                     _mm256_set1_epi32(0xFF));
+  const __m256i high_bias = _mm256_and_si256(_mm256_cmpgt_epi32(e, _mm256_setzero_si256()),
+                                             _mm256_setr_epi32(0, 32, 0, 32, 0, 32, 0, 32));
+  const __m256i biased = _mm256_add_epi32(e, high_bias);
+  const __m256i q = _mm256_max_epu32(biased, _mm256_shuffle_epi32(biased, _MM_SHUFFLE(2, 3, 0, 1)));  // P + 127
+  const __m256i clz = _mm256_sub_epi32(_mm256_set1_epi32(63 + 127), q);
+  return _mm256_and_si256(clz, _mm256_set1_epi64x(0xFFFFFFFE));  // low half of each lane, even
 }
 
 using avx2::GreaterU64;
 
 // ISqrt64 of four lanes, step for step the same integers (the bounds of its
 // comment keep every product below within vpmuludq's 32 x 32 -> 64 bits):
-//   - countl_zero has no AVX2 instruction: xn = x << 2k comes from four even
-//     shifts (32, 16, 8, 4, 2), each taken where the top bits it skips are 0;
-//     x = 0 is computed as 1 and answered 0 at the end;
+//   - countl_zero has no AVX2 instruction: 2k comes from float exponents
+//     (EvenLeadingZeros); x = 0 is computed as 1 and answered 0 at the end;
 //   - s < 2^33 (T < 2^32, |s - T| < 6575), so s^2 mod 2^64 = sl^2 + sh sl 2^33
 //     with sh = s >> 32 and sl its low half;
 //   - |xn - s^2| < 2^45.7, so (xn - s^2) >> 16 fits in int32: the signed
@@ -34,12 +45,8 @@ CAMSIM_AVX2_TARGET __m256i ISqrt64x4(__m256i x) {
   const __m256i zero = _mm256_setzero_si256();
   const __m256i is_zero = _mm256_cmpeq_epi64(x, zero);
   const __m256i x1 = _mm256_sub_epi64(x, is_zero);  // 0 -> 1
-  __m256i xn = x1, shift = zero;                    // shift = 2k
-  NormaliseStep<32>(&xn, &shift);
-  NormaliseStep<16>(&xn, &shift);
-  NormaliseStep<8>(&xn, &shift);
-  NormaliseStep<4>(&xn, &shift);
-  NormaliseStep<2>(&xn, &shift);
+  const __m256i shift = EvenLeadingZeros(x1);      // 2k
+  const __m256i xn = _mm256_sllv_epi64(x1, shift);
   const __m256i a = _mm256_srli_epi64(xn, 32);
   const __m256i cell = _mm256_sub_epi64(_mm256_srli_epi64(xn, 64 - RsqrtTable::kBits),
                                         _mm256_set1_epi64x(RsqrtTable::kFirst));
