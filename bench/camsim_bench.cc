@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <string>
@@ -402,6 +403,27 @@ BENCHMARK(BM_Stage)
     ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The sensor stage (index 3 of the demo pipeline) in less light: the exposure
+// time divided by the third argument. Below 12 e- a pixel's shot noise is an
+// exact Poisson inverse transform, one pixel at a time, instead of the lanes'
+// normal approximation, so dark frames cost more per pixel.
+void BM_SensorLowLight(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = Demo(w, h);
+  c.exposure.exposure_time_us /= static_cast<double>(state.range(2));
+  Pipeline p;
+  if (!p.Configure(c, 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  bench::StageRunner runner(p, 3, Scene(w).View(), 1);
+  if (std::strcmp(runner.stage().name(), "sensor") != 0) std::abort();
+  uint32_t frame = 0;
+  for (auto _ : state) runner.RunFrame(frame++);
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_SensorLowLight)->ArgsProduct({{1920}, {1080}, {1, 10, 100, 1000}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The demo camera with the issue-5 artefacts on: flare (its bright-tile
 // pre-pass included), blooming, CCD smear (its column pre-pass included), row
