@@ -406,8 +406,8 @@ BENCHMARK(BM_Stage)
 
 // The sensor stage (index 3 of the demo pipeline) in less light: the exposure
 // time divided by the third argument. Below 12 e- a pixel's shot noise is an
-// exact Poisson inverse transform, one pixel at a time, instead of the lanes'
-// normal approximation, so dark frames cost more per pixel.
+// exact Poisson inverse transform (a search of up to 44 dependent steps)
+// instead of the normal approximation, so dark frames cost more per pixel.
 void BM_SensorLowLight(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   PipelineConfig c = Demo(w, h);

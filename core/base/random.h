@@ -222,6 +222,10 @@ class PoissonTable {
   }
   // sigma_q16[i] = Sigma(lambda_q8[i]) for i < n, in SIMD lanes (ISqrt64Lanes).
   static void SigmaLanes(const uint32_t* lambda_q8, uint32_t* sigma_q16, int n);
+  // count[i] = Sample(lambda_q8[i], u[i], any z) for i < n where every
+  // lambda_q8[i] < kSmallQ8 (the exact inverse transform): the same integers,
+  // sixteen at a time in AVX2 lanes where the CPU has them (random.cc).
+  void SampleSmallLanes(const uint32_t* lambda_q8, const uint32_t* u, uint32_t* count, int n) const;
 
  private:
   uint32_t SampleSmall(uint32_t lambda_q8, uint32_t u) const {
@@ -253,6 +257,7 @@ class PoissonTable {
   }
 
   const uint32_t* table_ = nullptr;
+  bool avx2_ = false;  // SampleSmallLanes' kernel, chosen at Build
 };
 
 }  // namespace camsim

@@ -317,12 +317,38 @@ struct ReadoutIn {
   int max_dn;
 };
 
+constexpr int kMaxPixels = 2 * RandomLanes::kLanes;  // a block
+
+// The small-mean Poisson draws of a block's pixels [0, count) into
+// small_count[i], for the pixels whose mean is below kSmallQ8 (others are
+// left unset): gathered into a dense list, drawn in lanes, put back.
+CAMSIM_AVX2_TARGET void SmallDraws(const ReadoutIn& b, int count, uint64_t* small_count) {
+  const __m128i last_small = _mm_set1_epi32(PoissonTable::kSmallQ8 - 1);
+  __m128i any = _mm_setzero_si128();
+  for (int i = 0; i < count; i += 4) {  // mean <= kSmallQ8 - 1, unsigned
+    const __m128i mean = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.mean_q8 + i));
+    any = _mm_or_si128(any, _mm_cmpeq_epi32(_mm_min_epu32(mean, last_small), mean));
+  }
+  if (_mm_testz_si128(any, any)) return;
+  uint32_t lambda[kMaxPixels], u[kMaxPixels], drawn[kMaxPixels];
+  int index[kMaxPixels], n = 0;
+  for (int i = 0; i < count; ++i) {  // branch-free: every pixel is written, only small ones advance n
+    lambda[n] = b.mean_q8[i];
+    u[n] = b.t[2 * (i & 1)][i / 2];
+    index[n] = i;
+    n += b.mean_q8[i] < PoissonTable::kSmallQ8;
+  }
+  b.poisson->SampleSmallLanes(lambda, u, drawn, n);
+  for (int j = 0; j < n; ++j) small_count[index[j]] = drawn[j];
+}
+
 // Pass 3 for pixels [0, count), count a multiple of 4; adds the collected
 // charge of even and odd columns to electrons[0] and [1].
 //   Poisson above 12 e-: n = lambda + sigma z + (z^2 - 1) / 6 in Q32 with C++'s
 //   truncating division, done on |z^2 - 2^32| < 2^38 (z is a GaussianTable
-//   sample, |z| < 2^19) with FloorDiv6 and the sign put back; pixels below
-//   12 e- go through PoissonTable::Sample one by one.
+//   sample, |z| < 2^19) with FloorDiv6 and the sign put back. Pixels below
+//   12 e- take the exact inverse transform: where a block has any, they are
+//   gathered first and drawn together (PoissonTable::SampleSmallLanes).
 //   Readout: |v| < 2^29 (emva.h) fits int32; v * K = v (k_mant - 2^31) + v 2^31
 //   in signed 64-bit products; the arithmetic shift by k_shift is a logical one
 //   of the sum plus 2^62 (a multiple of 2^k_shift; |v * K| < 2^61), minus 2^(62 - k_shift).
@@ -337,6 +363,9 @@ CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, in
   const __m256i unbias = _mm256_set1_epi64x((int64_t{1} << (62 - b.k_shift)) - b.black);
   const __m256i max_dn = _mm256_set1_epi64x(b.max_dn);
   __m256i sum = zero;  // lanes 0 and 2: even columns, 1 and 3: odd
+  CAMSIM_DCHECK(count <= kMaxPixels);
+  alignas(32) uint64_t small_count[kMaxPixels];  // read only where mean_q8 < kSmallQ8
+  if (b.poisson != nullptr) SmallDraws(b, count, small_count);
   for (int i = 0; i < count; i += 4) {
     const __m256i m = avx2::LoadU32x4(b.mean_q8 + i);
     __m256i n_q8 = m;
@@ -351,17 +380,8 @@ CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, in
       // SatU32(RoundShift(n, 32)): n < 2^57, so the high half, as int32, clamped at 0.
       __m256i drawn = _mm256_max_epi32(
           _mm256_srli_epi64(_mm256_add_epi64(n_q32, _mm256_set1_epi64x(int64_t{1} << 31)), 32), zero);
-      const int small = _mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(small_q8, m)));
-      if (small != 0) {
-        alignas(32) uint64_t counts[4];
-        _mm256_store_si256(reinterpret_cast<__m256i*>(counts), drawn);
-        for (int j = 0; j < 4; ++j) {
-          if ((small >> j & 1) == 0) continue;
-          const int p = i + j, lane = p / 2, w = 2 * (p & 1);
-          counts[j] = b.poisson->Sample(b.mean_q8[p], b.t[w][lane], b.tz[w][lane], b.sigma_q16[p]);
-        }
-        drawn = _mm256_load_si256(reinterpret_cast<const __m256i*>(counts));
-      }
+      const __m256i small = _mm256_cmpgt_epi64(small_q8, m);
+      drawn = Pick(small, _mm256_load_si256(reinterpret_cast<const __m256i*>(small_count + i)), drawn);
       n_q8 = _mm256_slli_epi64(drawn, 8);
     }
     n_q8 = Pick(_mm256_cmpgt_epi64(n_q8, full_well), full_well, n_q8);  // <= 1e6 * 2^8 < 2^28

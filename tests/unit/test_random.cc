@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "core/base/detmath.h"
@@ -425,6 +426,40 @@ TEST_F(PoissonTest, ProbabilityOfZeroIsExact) {
                 1.0)
         << q;
   }
+}
+
+// SampleSmallLanes against Sample for every small mean: u at both ends, on
+// both sides of every step of the inverse transform (found by bisection on
+// the scalar Sample), and random. Lanes that stop early sit next to lanes
+// that search on, and the count is odd so that the scalar tail runs too.
+TEST_F(PoissonTest, SmallLanesMatchSample) {
+  std::vector<uint32_t> lambda, u;
+  std::mt19937 rng(11);
+  for (uint32_t q = 0; q < PoissonTable::kSmallQ8; ++q) {
+    const auto add = [&](uint64_t v) {
+      lambda.push_back(q);
+      u.push_back(static_cast<uint32_t>(v));
+    };
+    for (uint64_t v : {uint64_t{0}, uint64_t{1}, uint64_t{0xFFFFFFFE}, uint64_t{0xFFFFFFFF}}) add(v);
+    for (int i = 0; i < 8; ++i) add(rng());
+    for (uint32_t k = 0;; ++k) {  // the smallest u whose count exceeds k
+      if (table_.Sample(q, 0xFFFFFFFFu, 0) <= k) break;
+      uint64_t lo = 0, hi = 0xFFFFFFFFu;
+      while (lo < hi) {
+        const uint64_t mid = (lo + hi) / 2;
+        if (table_.Sample(q, static_cast<uint32_t>(mid), 0) > k) hi = mid; else lo = mid + 1;
+      }
+      add(lo);
+      if (lo > 0) add(lo - 1);
+    }
+  }
+  lambda.push_back(5);  // an odd count
+  u.push_back(12345);
+  std::vector<uint32_t> count(lambda.size(), 0xDEADBEEFu);
+  table_.SampleSmallLanes(lambda.data(), u.data(), count.data(), static_cast<int>(lambda.size()));
+  for (size_t i = 0; i < lambda.size(); ++i)
+    ASSERT_EQ(count[i], table_.Sample(lambda[i], u[i], 0)) << "lambda_q8 " << lambda[i] << " u " << u[i];
+  EXPECT_GT(lambda.size(), size_t{50000});
 }
 
 TEST_F(PoissonTest, SmallMeansAreMonotoneInUAndBounded) {
