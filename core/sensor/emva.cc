@@ -320,8 +320,9 @@ struct ReadoutIn {
 constexpr int kMaxPixels = 2 * RandomLanes::kLanes;  // a block
 
 // The small-mean Poisson draws of a block's pixels [0, count) into
-// small_count[i], for the pixels whose mean is below kSmallQ8 (others are
-// left unset): gathered into a dense list, drawn in lanes, put back.
+// small_count[i], for the pixels whose mean is below kSmallQ8 (0 for the
+// others; nothing is written when the block has none): gathered into a dense
+// list, drawn in lanes, put back.
 CAMSIM_AVX2_TARGET void SmallDraws(const ReadoutIn& b, int count, uint64_t* small_count) {
   const __m128i last_small = _mm_set1_epi32(PoissonTable::kSmallQ8 - 1);
   __m128i any = _mm_setzero_si128();
@@ -330,6 +331,8 @@ CAMSIM_AVX2_TARGET void SmallDraws(const ReadoutIn& b, int count, uint64_t* smal
     any = _mm_or_si128(any, _mm_cmpeq_epi32(_mm_min_epu32(mean, last_small), mean));
   }
   if (_mm_testz_si128(any, any)) return;
+  for (int i = 0; i < count; i += 4)
+    _mm256_store_si256(reinterpret_cast<__m256i*>(small_count + i), _mm256_setzero_si256());
   uint32_t lambda[kMaxPixels], u[kMaxPixels], drawn[kMaxPixels];
   int index[kMaxPixels], n = 0;
   for (int i = 0; i < count; ++i) {  // branch-free: every pixel is written, only small ones advance n
@@ -364,7 +367,7 @@ CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, in
   const __m256i max_dn = _mm256_set1_epi64x(b.max_dn);
   __m256i sum = zero;  // lanes 0 and 2: even columns, 1 and 3: odd
   CAMSIM_DCHECK(count <= kMaxPixels);
-  alignas(32) uint64_t small_count[kMaxPixels];  // read only where mean_q8 < kSmallQ8
+  alignas(32) uint64_t small_count[kMaxPixels];  // read only for groups with a small mean
   if (b.poisson != nullptr) SmallDraws(b, count, small_count);
   for (int i = 0; i < count; i += 4) {
     const __m256i m = avx2::LoadU32x4(b.mean_q8 + i);
@@ -381,7 +384,8 @@ CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, in
       __m256i drawn = _mm256_max_epi32(
           _mm256_srli_epi64(_mm256_add_epi64(n_q32, _mm256_set1_epi64x(int64_t{1} << 31)), 32), zero);
       const __m256i small = _mm256_cmpgt_epi64(small_q8, m);
-      drawn = Pick(small, _mm256_load_si256(reinterpret_cast<const __m256i*>(small_count + i)), drawn);
+      if (!_mm256_testz_si256(small, small))  // then SmallDraws wrote small_count
+        drawn = Pick(small, _mm256_load_si256(reinterpret_cast<const __m256i*>(small_count + i)), drawn);
       n_q8 = _mm256_slli_epi64(drawn, 8);
     }
     n_q8 = Pick(_mm256_cmpgt_epi64(n_q8, full_well), full_well, n_q8);  // <= 1e6 * 2^8 < 2^28
