@@ -10,11 +10,12 @@ namespace {
 // AVX2 has no count of leading zeros; the position of the leading one of
 // each 32-bit half comes from a float's exponent, as in GaussianAvx2
 // (random.cc): v & ~(v >> 1) keeps v's leading one and stays below 1.5 times
-// it, so the conversion cannot round up to the next power of two; a half
-// with bit 31 set converts to -2^31, whose exponent is the same once the sign
-// is masked off; a zero half gives exponent 0. The high half's exponent,
-// where non-zero, plus 32 is the larger of the two, so the lane's leading one
-// is at P = max(high + 32, low) - 127 and countl_zero = 63 - P.
+// it, so the conversion cannot round up to the next power of two. A half
+// with bit 31 set is negative as int32, of magnitude in (2^30, 2^31]: its
+// exponent (sign masked off) says bit 30 or 31, and both give the same even
+// count. A zero half gives exponent 0. The high half's exponent, where
+// non-zero, plus 32 is the larger of the two, so the lane's leading one is at
+// P = max(high + 32, low) - 127 and countl_zero = 63 - P.
 CAMSIM_AVX2_TARGET inline __m256i EvenLeadingZeros(__m256i x) {
   const __m256i lead = _mm256_andnot_si256(_mm256_srli_epi32(x, 1), x);
   const __m256i e = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(_mm256_cvtepi32_ps(lead)), 23),

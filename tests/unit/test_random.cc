@@ -188,6 +188,9 @@ TEST(ISqrt64Test, LanesMatchScalar) {
     for (uint64_t v : {r * r - 1, r * r, r * r + 1, r * r + 2 * r}) x.push_back(v);
   for (int b = 0; b < 64; ++b)
     for (uint64_t v : {(uint64_t{1} << b) - 1, uint64_t{1} << b, (uint64_t{1} << b) + 1}) x.push_back(v);
+  // Halves with bit 31 set (negative as int32 in the lanes' exponent trick).
+  for (uint64_t h : {0x80000000ull, 0xA0000000ull, 0xBFFFFFFFull, 0xC0000001ull, 0xFFFFFFFFull})
+    for (uint64_t v : {h, h << 32, (h << 32) | h, (h << 32) | 1}) x.push_back(v);
   for (uint64_t i = 256; i <= 1024; ++i)
     for (int shift = 0; shift < 64; shift += 2)
       for (int d = -2; d <= 2; ++d) x.push_back(((i << 54) + static_cast<uint64_t>(d)) >> shift);
