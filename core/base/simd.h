@@ -42,10 +42,13 @@ namespace avx2 {
 CAMSIM_AVX2_TARGET inline __m256i LoadU32x4(const uint32_t* p) {
   return _mm256_cvtepu32_epi64(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
 }
-// The low halves of four 64-bit lanes as four uint32.
+// The low halves of four 64-bit lanes as four 32-bit words.
+CAMSIM_AVX2_TARGET inline __m128i Low32x4(__m256i v) {
+  return _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6)));
+}
+// The same, stored as four uint32.
 CAMSIM_AVX2_TARGET inline void StoreLow32x4(__m256i v, uint32_t* p) {
-  _mm_storeu_si128(reinterpret_cast<__m128i*>(p),
-                   _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6))));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(p), Low32x4(v));
 }
 // a > b as unsigned 64-bit lanes (AVX2 compares signed): all ones or 0.
 CAMSIM_AVX2_TARGET inline __m256i GreaterU64(__m256i a, __m256i b) {

@@ -237,10 +237,6 @@ CAMSIM_AVX2_TARGET inline __m128i PixelWords(const T (*v)[RandomLanes::kLanes], 
   const __m128i odd = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(&v[w + 2][i / 2]));
   return _mm_unpacklo_epi32(even, odd);
 }
-// The low halves of four 64-bit lanes as four int32.
-CAMSIM_AVX2_TARGET inline __m128i Low32x4(__m256i v) {
-  return _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6)));
-}
 // RoundShift(p, 16) of signed lanes whose results fit int32, in the low
 // halves: a logical shift gives the arithmetic shift's low 32 bits.
 CAMSIM_AVX2_TARGET inline __m256i RoundShift16Low(__m256i p) {
@@ -287,7 +283,7 @@ CAMSIM_AVX2_TARGET void MeanCharge(const MeanIn& b, int count, uint32_t* mean_q8
         dsnu_low = RoundShift16Low(_mm256_mul_epi32(dsnu, z2));
       }
       mu = _mm256_srli_epi64(_mm256_add_epi64(_mm256_mul_epu32(mu, gain), half16), 16);  // < 2^35
-      offset = _mm_add_epi32(offset, Low32x4(dsnu_low));
+      offset = _mm_add_epi32(offset, avx2::Low32x4(dsnu_low));
     }
     if (b.column != nullptr) offset = _mm_add_epi32(offset, _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.column + i)));
     // The portable pass saturates dark + smear at 2^32 - 1 first (a uint32);
@@ -391,7 +387,7 @@ CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, in
     n_q8 = Pick(_mm256_cmpgt_epi64(n_q8, full_well), full_well, n_q8);  // <= 1e6 * 2^8 < 2^28
     sum = _mm256_add_epi64(sum, n_q8);
     const __m256i noise = RoundShift16Low(_mm256_mul_epi32(read, _mm256_cvtepi32_epi64(PixelWords(b.tz, 1, i))));
-    const __m128i v32 = _mm_add_epi32(_mm_add_epi32(Low32x4(n_q8), Low32x4(noise)),
+    const __m128i v32 = _mm_add_epi32(_mm_add_epi32(avx2::Low32x4(n_q8), avx2::Low32x4(noise)),
                                       _mm_loadu_si128(reinterpret_cast<const __m128i*>(b.offset_q8 + i)));
     const __m256i v = _mm256_cvtepi32_epi64(v32);
     const __m256i vk = _mm256_add_epi64(_mm256_mul_epi32(v, k_low), _mm256_slli_epi64(v, 31));
