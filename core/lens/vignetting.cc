@@ -53,9 +53,15 @@ inline uint32_t ApplyGain(uint32_t v, uint32_t g) {
   return low | (0u - static_cast<uint32_t>(high != 0));
 }
 
-// out[x] = ApplyGain(in[x], gain[x]).
-template <typename Gain>
-void ApplyGains(const uint32_t* __restrict in, const Gain* __restrict gain, uint32_t* __restrict out, int n) {
+// out[x] = ApplyGain(in[x], gain[x]) for one channel: curve gains (uint32)
+// or a mask's (uint16). Functions of their own, compiled twice: the AVX2
+// copy takes eight columns a step, where the SSE2 loop took four.
+CAMSIM_CPU_CLONES
+void ApplyGains(const uint32_t* __restrict in, const uint32_t* __restrict gain, uint32_t* __restrict out, int n) {
+  for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[x]);
+}
+CAMSIM_CPU_CLONES
+void ApplyGains(const uint32_t* __restrict in, const uint16_t* __restrict gain, uint32_t* __restrict out, int n) {
   for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[x]);
 }
 
@@ -114,24 +120,13 @@ inline void ApplyRow(const RowArgs& a, int channels, const SiteRow* site, const 
   for (int c = 0; c < channels; ++c) ApplyGains(a.rows[0].ch[c] + x0, gain, a.out[c] + x0, n);
 }
 
-// ApplyGains of curve gains as a function of its own, compiled twice: the
-// AVX2 copy takes eight columns a step (the SSE2 loop inlined above, four).
-CAMSIM_CPU_CLONES
-void ApplyCurveGains(const uint32_t* __restrict in, const uint32_t* __restrict gain, uint32_t* __restrict out, int n) {
-  for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[x]);
-}
-
-// The two entry points. Not CAMSIM_CPU_CLONES: with the loops inlined into
-// an AVX2 copy, GCC 12 -O2 left them scalar (callgrind: 81M instructions per
-// 1080p frame in the sensor path's vignetting against 59M for these SSE2
-// loops). The all-channel curve rows call ApplyCurveGains instead.
+// The two entry points. Not CAMSIM_CPU_CLONES: with the site-only loops
+// inlined into an AVX2 copy, GCC 12 -O2 left them scalar (callgrind: 81M
+// instructions per 1080p frame in the sensor path's vignetting against 59M
+// for these SSE2 loops).
 // Curve gains for columns [x0, x0 + n).
 void ApplyCurveRow(const RowArgs& a, int channels, const SiteRow* site, const uint32_t* gain, int x0, int n) {
-  if (site != nullptr) {
-    ApplyRow(a, channels, site, gain, x0, n);
-    return;
-  }
-  for (int c = 0; c < channels; ++c) ApplyCurveGains(a.rows[0].ch[c] + x0, gain, a.out[c] + x0, n);
+  ApplyRow(a, channels, site, gain, x0, n);
 }
 // A mask image's row of gains for the whole row.
 void ApplyMaskRow(const RowArgs& a, int channels, const SiteRow* site, const uint16_t* mask) {
