@@ -49,18 +49,6 @@ void AddRowStats(const uint32_t* const* rows, int channels, bool mosaic, Cfa cfa
   s->count[odd_colour] += width / 2;
 }
 
-// Three planes into RGB triplets (the commonest tap: a whole-pipeline U32
-// output). Compiled for AVX2 too, where GCC vectorises it with permutes.
-CAMSIM_CPU_CLONES
-void InterleaveU32(const uint32_t* __restrict r0, const uint32_t* __restrict r1, const uint32_t* __restrict r2,
-                   uint32_t* __restrict dst, int width) {
-  for (int x = 0; x < width; ++x) {
-    dst[3 * x] = r0[x];
-    dst[3 * x + 1] = r1[x];
-    dst[3 * x + 2] = r2[x];
-  }
-}
-
 // Q0.16 full scale to 8 bits: round(v * 255 / 65535), ties up. As
 // 65535 = 255 * 257 that is round(v / 257) = floor((v + 128.5) / 257),
 // which is (v + 128) / 257: no multiple of 257 lies in (v + 128, v + 128.5].
@@ -72,59 +60,52 @@ inline uint8_t ToU8(uint32_t v) {
   return static_cast<uint8_t>((t - (t >> 8)) >> 8);
 }
 
-// Three planes into RGB8 triplets (the display output of the demo camera).
-CAMSIM_CPU_CLONES
-void InterleaveU8(const uint32_t* __restrict r0, const uint32_t* __restrict r1, const uint32_t* __restrict r2,
-                  uint8_t* __restrict dst, int width) {
-  for (int x = 0; x < width; ++x) {
-    dst[3 * x] = ToU8(r0[x]);
-    dst[3 * x + 1] = ToU8(r1[x]);
-    dst[3 * x + 2] = ToU8(r2[x]);
+inline uint16_t ToU16(uint32_t v) { return static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v); }
+inline uint32_t ToU32(uint32_t v) { return v; }
+
+// A row's planes (1 or 3) converted and interleaved into dst. The row
+// pointers are locals: a store through dst, a uint8_t store in particular,
+// could alias them and would make the compiler reload them every sample.
+template <typename T, typename Convert>
+inline void Interleave(const uint32_t* const* rows, int channels, T* __restrict dst, int width, Convert convert) {
+  const uint32_t* __restrict r0 = rows[0];
+  if (channels == 1) {
+    for (int x = 0; x < width; ++x) dst[x] = convert(r0[x]);
+    return;
   }
+  const uint32_t* __restrict r1 = rows[1];
+  const uint32_t* __restrict r2 = rows[2];
+  for (int x = 0; x < width; ++x) {
+    dst[3 * x] = convert(r0[x]);
+    dst[3 * x + 1] = convert(r1[x]);
+    dst[3 * x + 2] = convert(r2[x]);
+  }
+}
+
+// One per tap format, each compiled for AVX2 too, where GCC vectorises the
+// three-plane interleave with permutes.
+CAMSIM_CPU_CLONES
+void InterleaveU32(const uint32_t* const* rows, int channels, uint32_t* dst, int width) {
+  Interleave(rows, channels, dst, width, ToU32);
+}
+CAMSIM_CPU_CLONES
+void InterleaveU16(const uint32_t* const* rows, int channels, uint16_t* dst, int width) {
+  Interleave(rows, channels, dst, width, ToU16);
+}
+CAMSIM_CPU_CLONES
+void InterleaveU8(const uint32_t* const* rows, int channels, uint8_t* dst, int width) {
+  Interleave(rows, channels, dst, width, ToU8);
 }
 
 }  // namespace
 
 void WriteTapRow(const Tap& tap, const uint32_t* const* rows, int channels, int y, int width) {
   CAMSIM_DCHECK(channels == 1 || channels == 3);
-  // Converts and interleaves the row into dst: a loop per channel count, with
-  // the row pointers in locals (a store through dst, a uint8_t store in
-  // particular, could alias them and would make the compiler reload them for
-  // every sample).
-  const auto interleave = [rows, channels, width](auto* dst, auto convert) {
-    const uint32_t* r0 = rows[0];
-    if (channels == 1) {
-      for (int x = 0; x < width; ++x) dst[x] = convert(r0[x]);
-      return;
-    }
-    const uint32_t* r1 = rows[1];
-    const uint32_t* r2 = rows[2];
-    for (int x = 0; x < width; ++x) {
-      dst[3 * x] = convert(r0[x]);
-      dst[3 * x + 1] = convert(r1[x]);
-      dst[3 * x + 2] = convert(r2[x]);
-    }
-  };
   const ptrdiff_t offset = static_cast<ptrdiff_t>(y) * tap.stride;
   switch (tap.format) {
-    case TapFormat::kU32:
-      if (channels == 3) {
-        InterleaveU32(rows[0], rows[1], rows[2], static_cast<uint32_t*>(tap.data) + offset, width);
-        break;
-      }
-      interleave(static_cast<uint32_t*>(tap.data) + offset, [](uint32_t v) { return v; });
-      break;
-    case TapFormat::kU16:
-      interleave(static_cast<uint16_t*>(tap.data) + offset,
-                 [](uint32_t v) { return static_cast<uint16_t>(v > 0xFFFFu ? 0xFFFFu : v); });
-      break;
-    case TapFormat::kU8:
-      if (channels == 3) {
-        InterleaveU8(rows[0], rows[1], rows[2], static_cast<uint8_t*>(tap.data) + offset, width);
-        break;
-      }
-      interleave(static_cast<uint8_t*>(tap.data) + offset, ToU8);
-      break;
+    case TapFormat::kU32: InterleaveU32(rows, channels, static_cast<uint32_t*>(tap.data) + offset, width); break;
+    case TapFormat::kU16: InterleaveU16(rows, channels, static_cast<uint16_t*>(tap.data) + offset, width); break;
+    case TapFormat::kU8: InterleaveU8(rows, channels, static_cast<uint8_t*>(tap.data) + offset, width); break;
   }
 }
 
