@@ -268,12 +268,24 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
     }
     solved += t - s + 1;
     for (int c = 0; c < channels; ++c) u[c][s] = int64_t{line[c][s]} << kG;
+    // (r, e) are a function of (b_i, r_{i-1}) alone. Where b is constant r
+    // settles on a fixed point, so the last step's inputs and results are
+    // kept and reused when they repeat: the same bits without the divisions
+    // (91 % of the row steps of BM_PipelineDof's scene; b = 0 never occurs
+    // inside a segment, so it marks "nothing kept").
     uint32_t r = kOneW;
+    uint32_t kept_b = 0, kept_r = 0, kept_next = 0, kept_e = 0;
     for (int i = s + 1; i <= t; ++i) {
       const uint32_t b = beta[i];
-      const uint64_t D = DOf(b, r);
-      r = ROf(D, b);
-      e[i - 1] = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
+      if (b != kept_b || r != kept_r) {
+        const uint64_t D = DOf(b, r);
+        kept_b = b;
+        kept_r = r;
+        kept_next = ROf(D, b);
+        kept_e = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
+      }
+      r = kept_next;
+      e[i - 1] = kept_e;
       for (int c = 0; c < channels; ++c) {
         const int64_t prev = u[c][i - 1];
         u[c][i] = prev + MulQ30((int64_t{line[c][i]} << kG) - prev, r);
