@@ -52,6 +52,27 @@ inline uint32_t ROf(uint64_t D, uint32_t b) {
   return DivQ30(D, D + (uint64_t{b} << (kW - dof::kBetaFracBits)));
 }
 
+// One forward step's weights, (b_i, r_{i-1}) -> (r_i, e_{i-1} = 1 / D_i),
+// keeping the last step's inputs and results: they depend on (b, r) alone, so
+// a repeat reuses them with the same bits and no division. Repeats are the
+// rule: along a row where b is constant r settles on a fixed point (91 % of
+// the row steps of BM_PipelineDof's scene), and neighbouring columns of a
+// column tile mostly share b and r (94 % of its downward steps). b = 0 never
+// reaches a step, so it marks "nothing kept". kWithE: also compute e.
+template <bool kWithE>
+struct SweepStep {
+  uint32_t b = 0, r = 0;     // the inputs kept
+  uint32_t next = 0, e = 0;  // their r_i and (kWithE) e_{i-1}
+  void Take(uint32_t b_in, uint32_t r_in) {
+    if (b_in == b && r_in == r) return;
+    const uint64_t D = DOf(b_in, r_in);
+    b = b_in;
+    r = r_in;
+    next = ROf(D, b_in);
+    if constexpr (kWithE) e = DivQ30(kOneW, D);
+  }
+};
+
 inline uint32_t OutOf(int64_t y) { return SatU32(RoundShift(y, kG)); }
 
 struct Geometry2 {
@@ -268,24 +289,12 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
     }
     solved += t - s + 1;
     for (int c = 0; c < channels; ++c) u[c][s] = int64_t{line[c][s]} << kG;
-    // (r, e) are a function of (b_i, r_{i-1}) alone. Where b is constant r
-    // settles on a fixed point, so the last step's inputs and results are
-    // kept and reused when they repeat: the same bits without the divisions
-    // (91 % of the row steps of BM_PipelineDof's scene; b = 0 never occurs
-    // inside a segment, so it marks "nothing kept").
     uint32_t r = kOneW;
-    uint32_t kept_b = 0, kept_r = 0, kept_next = 0, kept_e = 0;
+    SweepStep<true> step;
     for (int i = s + 1; i <= t; ++i) {
-      const uint32_t b = beta[i];
-      if (b != kept_b || r != kept_r) {
-        const uint64_t D = DOf(b, r);
-        kept_b = b;
-        kept_r = r;
-        kept_next = ROf(D, b);
-        kept_e = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
-      }
-      r = kept_next;
-      e[i - 1] = kept_e;
+      step.Take(beta[i], r);
+      r = step.next;
+      e[i - 1] = step.e;
       for (int c = 0; c < channels; ++c) {
         const int64_t prev = u[c][i - 1];
         u[c][i] = prev + MulQ30((int64_t{line[c][i]} << kG) - prev, r);
@@ -616,6 +625,8 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
     const uint32_t* link = links(i);
     const RowIn& in = a.rows[i - lo];
     uint32_t* e = i - 1 >= yb ? eb + static_cast<size_t>(i - 1 - yb) * n : nullptr;
+    SweepStep<true> step;      // e_{i-1} where a block row needs it
+    SweepStep<false> step_r;   // r alone above the block
     for (int x = 0; x < w; ++x) {
       const uint32_t b = link[x];
       if (b == 0) {  // decoupled: r = 1 restarts the sweep here (u = x exactly)
@@ -625,9 +636,14 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
       }
       mark(i - 1, x);
       mark(i, x);
-      const uint64_t D = DOf(b, rf[x]);
-      if (e != nullptr) e[x] = DivQ30(kOneW, D);  // e_{i-1} = 1 / D_i
-      rf[x] = ROf(D, b);
+      if (e != nullptr) {
+        step.Take(b, rf[x]);
+        e[x] = step.e;
+        rf[x] = step.next;
+      } else {
+        step_r.Take(b, rf[x]);
+        rf[x] = step_r.next;
+      }
     }
     for (int c = 0; c < 3; ++c) dof::PullRow(uf[c], in.ch[c] + x0, rf, w);
     keep(i);
@@ -640,9 +656,15 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
     for (int i = hi - 1; i > ye; --i) {
       const uint32_t* link = links(i + 1);
       const RowIn& in = a.rows[i - lo];
+      SweepStep<false> step;
       for (int x = 0; x < w; ++x) {
         const uint32_t b = link[x];
-        rb[x] = b == 0 ? kOneW : ROf(DOf(b, rb[x]), b);
+        if (b == 0) {
+          rb[x] = kOneW;
+          continue;
+        }
+        step.Take(b, rb[x]);
+        rb[x] = step.next;
       }
       for (int c = 0; c < 3; ++c) dof::PullRow(ub[c], in.ch[c] + x0, rb, w);
     }
