@@ -10,8 +10,7 @@ namespace camsim::host {
 
 int StripRows(int requested, int height, int threads) {
   if (requested > 0) return requested;
-  if (threads <= 1) return height < 1 ? 1 : height;
-  const int strips = kAutoStripsPerThread * threads;
+  const int strips = threads < 1 ? 1 : threads;
   const int rows = (height + strips - 1) / strips;
   return rows < 1 ? 1 : rows;
 }

@@ -18,15 +18,14 @@
 
 namespace camsim::host {
 
-// Rows per strip: `requested` when > 0; else (the default) the whole frame on
-// one thread and kAutoStripsPerThread strips per thread otherwise. Every strip starts with empty
-// rings, so it recomputes the rows its stages' windows read above and below
-// it (with diffusion DoF, 2 x column window + the later stages' windows): the
-// fewer the strips the less of that, but with one strip per thread the
-// thread with the costlier half of the frame keeps the other waiting
-// (BM_PipelineDof/1920/1080/2/0: 174 ms wall against 121 ms CPU). The bytes
-// are the same for any strip height.
-inline constexpr int kAutoStripsPerThread = 4;
+// Rows per strip: `requested` when > 0; else (the default) one strip per
+// thread, ceil(height / threads) rows. Every strip starts with empty rings,
+// so it recomputes the rows its stages' windows read above and below it
+// (with diffusion DoF, 2 x column window + the later stages' windows); more
+// strips per thread would balance uneven frames but recompute more, and on
+// BM_PipelineDof/1920/1080/2 one strip per thread won (56-63 ms against
+// 66-70 ms for four; docs/performance.md). The bytes are the same for any
+// strip height.
 int StripRows(int requested, int height, int threads);
 
 class FrameRenderer {

@@ -18,7 +18,7 @@ struct RunOptions {
   std::string stages;                  // --stages a,b,c (comma-separated)
   std::string report_path;             // --report FILE (JSON)
   int threads = 1;
-  int strip_rows = 0;                  // 0: StripRows' default (whole frame on 1 thread, else 4 per thread)
+  int strip_rows = 0;                  // 0: StripRows' default (one strip per thread)
   uint32_t first_frame = 0;            // frame index of the first input (keys noise)
   bool dump_stages = false;
   bool quiet = false;

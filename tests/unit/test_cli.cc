@@ -83,20 +83,22 @@ TEST(Cli, ThreadsAndStripRowsGiveTheSameBytes) {
   EXPECT_EQ(Slurp(a + "/aisle_0001.raw"), Slurp(b + "/aisle_0001.raw"));
 }
 
-// Without --strip-rows one thread runs the whole frame as one strip (the
-// fewest rows recomputed at strip edges), N threads get 4 strips each
-// (host::StripRows); an explicit height wins. The report says what was used.
+// Without --strip-rows each thread runs one strip (the fewest rows
+// recomputed at strip edges; host::StripRows); an explicit height wins. The
+// report says what was used.
 TEST(Cli, DefaultStripsFollowTheThreadCount) {
   EXPECT_EQ(camsim::host::StripRows(0, 1080, 1), 1080);
-  EXPECT_EQ(camsim::host::StripRows(0, 1080, 2), 135);
-  EXPECT_EQ(camsim::host::StripRows(0, 7, 3), 1);
+  EXPECT_EQ(camsim::host::StripRows(0, 1080, 2), 540);
+  EXPECT_EQ(camsim::host::StripRows(0, 1080, 3), 360);
+  EXPECT_EQ(camsim::host::StripRows(0, 7, 3), 3);
+  EXPECT_EQ(camsim::host::StripRows(0, 1080, 0), 1080);
   EXPECT_EQ(camsim::host::StripRows(0, 1, 4), 1);
   EXPECT_EQ(camsim::host::StripRows(5, 1080, 2), 5);
   const std::string out = TempDir("auto_strip");
   const Result r = Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out +
                           " --quiet --threads 2 --report " + out + "/report.json");
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(Slurp(out + "/report.json").find("\"threads\": 2, \"strip_rows\": 60,"), std::string::npos);
+  EXPECT_NE(Slurp(out + "/report.json").find("\"threads\": 2, \"strip_rows\": 240,"), std::string::npos);
   EXPECT_NE(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out + " --strip-rows 0").code, 0)
       << "an explicit strip height must be >= 1";
 }
