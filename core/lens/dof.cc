@@ -600,6 +600,22 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   for (int c = 0; c < 3; ++c) us[c] = reinterpret_cast<int64_t*>(take64(n * kBlock));
   uint8_t* linked = p;  // [row - yb][x]: 1 when the row is coupled to a neighbour
 
+  // A tile whose window holds no link (in focus) is its own solution: every
+  // r and e is 1, so the sweeps would return the input bits. Copy it.
+  bool coupled = false;
+  for (int i = lo + 1; i <= hi && !coupled; ++i) {
+    const uint32_t* link = links(i);
+    for (int x = 0; x < w; ++x) coupled |= link[x] != 0;
+  }
+  if (!coupled) {
+    for (int i = yb; i <= ye; ++i)
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t* in = a.rows[i - lo].ch[c] + x0;
+        uint32_t* out = cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0;
+        for (int x = 0; x < w; ++x) out[x] = in[x];
+      }
+    return;
+  }
   for (int k = 0; k <= ye - yb; ++k)
     for (int x = 0; x < w; ++x) linked[static_cast<size_t>(k) * n + x] = 0;
   auto mark = [&](int row, int x) {

@@ -64,8 +64,10 @@
 //          Output: RoundShift(y, 16), within [min, max] of the input line.
 // Skipping: b = 0 decouples neighbours exactly (r = e = 1), so pixels whose
 // both links are 0 (CoC below min_coc on either side) are copied, not solved,
-// and cost no division; StageStats::skipped_px counts them. (The column pass
-// still reads its window's depth rows for them.)
+// and cost no division; StageStats::skipped_px counts them. The column pass
+// copies a whole tile (kTile columns x one block) whose window has no link,
+// and otherwise sweeps every column of the tile; it still reads the window's
+// depth rows to find the links.
 //
 // Gather DoF (eq. 11, reverse-mapped z-buffer, DofGatherStage): each source
 // pixel q spreads its radiance uniformly over a disc of radius

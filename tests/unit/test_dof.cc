@@ -604,6 +604,31 @@ TEST(DofSkipping, CountsSolvedPixels) {
     }
 }
 
+// A column tile (DofColumnStage::kTile columns) whose window has no link is
+// copied, not swept: the outer tiles are in focus, the middle one is not.
+TEST(DofSkipping, InFocusColumnTilesAreCopied) {
+  constexpr int kTile = DofColumnStage::kTile;
+  const int w = 3 * kTile, h = 2 * DofColumnStage::kBlock + 5;
+  test::Scene s = test::TexturedScene(w, h);
+  SetDepth(&s, [](int x, int) { return x >= kTile && x < 2 * kTile ? 1.0 : 3.0; });
+  PipelineConfig p = DofPipeline(w, h, DofMethod::kDiffusion);
+  WorkerStats st;
+  const std::vector<uint32_t> out = RunDof(p, s, 16, &st);
+  EXPECT_EQ(st.stage[1].skipped_px, int64_t{2} * kTile * h) << "columns";
+  int changed = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      for (int c = 0; c < 3; ++c) {
+        if (x >= kTile && x < 2 * kTile)
+          changed += out[3 * i + c] != s.plane[c][i];
+        else
+          ASSERT_EQ(out[3 * i + c], s.plane[c][i]) << "in-focus tiles are copied; x " << x << " y " << y;
+      }
+    }
+  EXPECT_GT(changed, kTile * h) << "the middle tile is blurred";
+}
+
 TEST(DofSkipping, GatherCopiesRowsWithoutBlur) {
   const int w = 40, h = 60;
   test::Scene s = test::TexturedScene(w, h);
