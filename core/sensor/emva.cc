@@ -329,7 +329,9 @@ CAMSIM_AVX2_TARGET void SmallDraws(const ReadoutIn& b, int count, uint64_t* smal
   if (_mm_testz_si128(any, any)) return;
   for (int i = 0; i < count; i += 4)
     _mm256_store_si256(reinterpret_cast<__m256i*>(small_count + i), _mm256_setzero_si256());
-  uint32_t lambda[kMaxPixels], u[kMaxPixels], drawn[kMaxPixels];
+  // Zeroed only so that GCC sees them written before the call (it cannot see
+  // that SampleSmallLanes reads [0, n) alone).
+  uint32_t lambda[kMaxPixels] = {}, u[kMaxPixels] = {}, drawn[kMaxPixels];
   int index[kMaxPixels], n = 0;
   for (int i = 0; i < count; ++i) {  // branch-free: every pixel is written, only small ones advance n
     lambda[n] = b.mean_q8[i];
