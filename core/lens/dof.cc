@@ -269,11 +269,16 @@ size_t LineWorkBytes(int n) {
   return AlignUp(sizeof(uint32_t) * static_cast<size_t>(n)) + 3 * AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
 }
 
-int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work) {
+namespace {
+// SolveLine for a channel count known at compile time: each channel's sweep
+// is a chain carried in a register, and the kChannels chains of a step are
+// independent, so they overlap (the same operations, so the same bits).
+template <int kChannels>
+int SolveLineN(uint32_t* const* line, const uint32_t* beta, int n, uint8_t* work) {
   uint32_t* e = reinterpret_cast<uint32_t*>(work);
-  int64_t* u[3];
+  int64_t* u[kChannels];
   uint8_t* p = work + AlignUp(sizeof(uint32_t) * static_cast<size_t>(n));
-  for (int c = 0; c < 3; ++c) {
+  for (int c = 0; c < kChannels; ++c) {
     u[c] = reinterpret_cast<int64_t*>(p);
     p += AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
   }
@@ -288,52 +293,39 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
       continue;
     }
     solved += t - s + 1;
-    for (int c = 0; c < channels; ++c) u[c][s] = int64_t{line[c][s]} << kG;
+    int64_t v[kChannels];  // u_{i-1}, then y_{i+1}
+    for (int c = 0; c < kChannels; ++c) u[c][s] = v[c] = int64_t{line[c][s]} << kG;
     uint32_t r = kOneW;
     SweepStep<true> step;
     for (int i = s + 1; i <= t; ++i) {
       step.Take(beta[i], r);
       r = step.next;
       e[i - 1] = step.e;
-      for (int c = 0; c < channels; ++c) {
-        const int64_t prev = u[c][i - 1];
-        u[c][i] = prev + MulQ30((int64_t{line[c][i]} << kG) - prev, r);
+      for (int c = 0; c < kChannels; ++c) {
+        v[c] += MulQ30((int64_t{line[c][i]} << kG) - v[c], r);
+        u[c][i] = v[c];
       }
     }
-    if (channels == 3) {
-      // The three channels' back substitutions are independent chains: one
-      // loop interleaves them (3x the instruction-level parallelism of a
-      // loop per channel; the same operations, so the same bits).
-      int64_t y0 = u[0][t], y1 = u[1][t], y2 = u[2][t];
-      uint32_t* o0 = line[0];
-      uint32_t* o1 = line[1];
-      uint32_t* o2 = line[2];
-      o0[t] = OutOf(y0);
-      o1[t] = OutOf(y1);
-      o2[t] = OutOf(y2);
-      for (int i = t - 1; i >= s; --i) {
-        const uint32_t ei = e[i];
-        y0 += MulQ30(u[0][i] - y0, ei);
-        y1 += MulQ30(u[1][i] - y1, ei);
-        y2 += MulQ30(u[2][i] - y2, ei);
-        o0[i] = OutOf(y0);
-        o1[i] = OutOf(y1);
-        o2[i] = OutOf(y2);
-      }
-    } else {
-      for (int c = 0; c < channels; ++c) {
-        int64_t y = u[c][t];
-        uint32_t* out = line[c];
-        out[t] = OutOf(y);
-        for (int i = t - 1; i >= s; --i) {
-          y += MulQ30(u[c][i] - y, e[i]);
-          out[i] = OutOf(y);
-        }
+    for (int c = 0; c < kChannels; ++c) line[c][t] = OutOf(v[c]);
+    for (int i = t - 1; i >= s; --i) {
+      const uint32_t ei = e[i];
+      for (int c = 0; c < kChannels; ++c) {
+        v[c] += MulQ30(u[c][i] - v[c], ei);
+        line[c][i] = OutOf(v[c]);
       }
     }
     s = t + 1;
   }
   return solved;
+}
+}  // namespace
+
+int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work) {
+  switch (channels) {
+    case 1: return SolveLineN<1>(line, beta, n, work);
+    case 2: return SolveLineN<2>(line, beta, n, work);
+    default: return SolveLineN<3>(line, beta, n, work);
+  }
 }
 
 }  // namespace dof

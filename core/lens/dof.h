@@ -191,7 +191,7 @@ inline int64_t MulQ30(int64_t d, uint32_t w) {
 void PullRow(int64_t* u, const uint32_t* in, const uint32_t* w, int n);
 void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n);
 
-// Solves one line of n samples for `channels` channels in place: beta[i]
+// Solves one line of n samples for `channels` (1 .. 3) channels in place: beta[i]
 // (i = 1 .. n - 1) couples samples i - 1 and i; beta[0] and beta[n] are
 // ignored (insulated ends). work: 2 n uint32 + 3 n int64 (LineWorkBytes).
 // Returns the number of samples solved (those with a non-zero link).
