@@ -469,7 +469,7 @@ size_t DofColumnStage::ScratchBytes(int width) const {
   const size_t n = static_cast<size_t>(width < kTile ? width : kTile);
   const size_t nb = n * kBlock;
   return 2 * AlignUp(sizeof(uint32_t) * n) + 6 * AlignUp(sizeof(int64_t) * n) + AlignUp(sizeof(uint32_t) * nb) +
-         3 * AlignUp(sizeof(int64_t) * nb) + AlignUp(nb);
+         3 * AlignUp(sizeof(int64_t) * nb);
 }
 
 namespace {
@@ -590,7 +590,6 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   p += AlignUp(sizeof(uint32_t) * n * kBlock);
   int64_t* us[3];  // [row - yb][x]: forward u of the block's rows
   for (int c = 0; c < 3; ++c) us[c] = reinterpret_cast<int64_t*>(take64(n * kBlock));
-  uint8_t* linked = p;  // [row - yb][x]: 1 when the row is coupled to a neighbour
 
   // A tile whose window holds no link (in focus) is its own solution: every
   // r and e is 1, so the sweeps would return the input bits. Copy it.
@@ -608,11 +607,6 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
       }
     return;
   }
-  for (int k = 0; k <= ye - yb; ++k)
-    for (int x = 0; x < w; ++x) linked[static_cast<size_t>(k) * n + x] = 0;
-  auto mark = [&](int row, int x) {
-    if (row >= yb && row <= ye) linked[static_cast<size_t>(row - yb) * n + x] = 1;
-  };
   auto start = [w, x0](const RowIn& in, uint32_t* r, int64_t* const* u) {
     for (int x = 0; x < w; ++x) {
       r[x] = kOneW;
@@ -642,8 +636,6 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
         rf[x] = kOneW;
         continue;
       }
-      mark(i - 1, x);
-      mark(i, x);
       if (e != nullptr) {
         step.Take(b, rf[x]);
         e[x] = step.e;
@@ -681,7 +673,6 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
     for (int x = 0; x < w; ++x) {
       const uint32_t b = link[x];
       if (b == 0) continue;
-      mark(ye, x);
       const uint64_t Dp = DOf(b, rb[x]);
       const uint64_t tb = RoundShiftU(uint64_t{b} * rf[x], dof::kBetaFracBits);
       const uint32_t wt = DivQ30(tb, Dp + tb);
@@ -696,10 +687,14 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
       dof::BackRow(uf[c], us[c] + o, i < ye ? eb + o : nullptr,
                    cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0, w);
   }
-  for (int k = 0; k <= ye - yb; ++k) {
-    int32_t s = 0;
-    for (int x = 0; x < w; ++x) s += linked[static_cast<size_t>(k) * n + x];
-    solved_rows[k] += s;
+  // Solved pixels: those with a link to a neighbour inside the window.
+  for (int i = yb; i <= ye; ++i) {
+    const uint32_t* above = links(i);
+    const uint32_t* below = links(i + 1);
+    const bool has_above = i > lo, has_below = i < hi;
+    int32_t count = 0;
+    for (int x = 0; x < w; ++x) count += (has_above && above[x] != 0) || (has_below && below[x] != 0);
+    solved_rows[i - yb] += count;
   }
 }
 

@@ -604,6 +604,21 @@ TEST(DofSkipping, CountsSolvedPixels) {
     }
 }
 
+// A pixel is solved when it links to a neighbour on either side, also across
+// a column block's edge: row 31 ends block 0, has no link above (row 30 is in
+// focus) and links to row 32 below.
+TEST(DofSkipping, BlockEdgeRowLinkedBelowIsSolved) {
+  const int w = 8, h = 2 * DofColumnStage::kBlock;
+  test::Scene s = test::TexturedScene(w, h);
+  SetDepth(&s, [](int, int y) { return y < DofColumnStage::kBlock - 1 ? 3.0 : 1.0; });
+  PipelineConfig p = DofPipeline(w, h, DofMethod::kDiffusion);
+  for (const int strip : {16, h}) {
+    WorkerStats st;
+    RunDof(p, s, strip, &st);
+    EXPECT_EQ(st.stage[1].skipped_px, int64_t{w} * (DofColumnStage::kBlock - 1)) << "strip " << strip;
+  }
+}
+
 // A column tile (DofColumnStage::kTile columns) whose window has no link is
 // copied, not swept: the outer tiles are in focus, the middle one is not.
 TEST(DofSkipping, InFocusColumnTilesAreCopied) {
