@@ -484,7 +484,7 @@ TEST(DofBoth, PointAtFocusStaysSharp) {
   const int w = 41, h = 41;
   test::Scene s = PointScene(w, h);
   // The point at the focus distance; everything else far out of focus.
-  SetDepth(&s, [w, h](int x, int y) { return x == w / 2 && y == h / 2 ? 3.0 : 0.5; });
+  SetDepth(&s, [](int x, int y) { return x == w / 2 && y == h / 2 ? 3.0 : 0.5; });
   PipelineConfig p = DofPipeline(w, h, DofMethod::kDiffusion);
   const size_t centre = static_cast<size_t>(h / 2) * w + w / 2;
   const std::vector<uint32_t> out = RunDof(p, s, 8);
