@@ -1,5 +1,7 @@
 #include "core/sensor/emva.h"
 
+#include <cmath>
+
 #include "core/base/check.h"
 #include "core/base/detmath.h"
 #include "core/base/simd.h"
@@ -95,7 +97,12 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   read_q8_ = Q<23, 8>::FromDouble(c.dark_noise_e).raw;
   dark_q8_ = Q<24, 8>::FromDouble(dark_e_).raw;
   full_well_q8_ = Q<24, 8>::FromDouble(c.full_well_e).raw;
-  black_ = Q<16, 0>::FromDouble(c.black_level_dn).raw;
+  // round(K v + BL) = floor((v K_mant + 2^(s-1) + frac(BL) 2^s) / 2^s) + floor(BL), s = K.shift + 8: the
+  // fraction joins the rounding constant (exact: frac(BL) 2^s is a double scaled by a power of two, < 2^49).
+  const double whole_black = std::floor(c.black_level_dn);
+  black_ = static_cast<int64_t>(whole_black);
+  black_round_ = (int64_t{1} << (k_scale_.shift + 7)) +
+                 std::llround(std::ldexp(c.black_level_dn - whole_black, k_scale_.shift + 8));
   smear_ = c.smear_row_transfer_us > 0 && c.smear_leak > 0;
   row_fpn_q8_ = Q<23, 8>::FromDouble(c.row_fpn_e).raw;
   col_fpn_q8_ = Q<23, 8>::FromDouble(c.column_fpn_e).raw;
@@ -309,6 +316,7 @@ struct ReadoutIn {
   int64_t read_q8;                  // <= 2^18
   uint32_t k_mant;                  // K = k_mant * 2^-(k_shift - 8), k_mant in [2^31, 2^32)
   int k_shift;                      // 22 .. 49
+  int64_t k_round;                  // SensorStage::black_round_, < 2^50
   int64_t black;
   int max_dn;
 };
@@ -352,14 +360,14 @@ CAMSIM_AVX2_TARGET void SmallDraws(const ReadoutIn& b, int count, uint64_t* smal
 //   gathered first and drawn together (PoissonTable::SampleSmallLanes).
 //   Readout: |v| < 2^29 (emva.h) fits int32; v * K = v (k_mant - 2^31) + v 2^31
 //   in signed 64-bit products; the arithmetic shift by k_shift is a logical one
-//   of the sum plus 2^62 (a multiple of 2^k_shift; |v * K| < 2^61), minus 2^(62 - k_shift).
+//   of the sum plus 2^62 (a multiple of 2^k_shift; |v * K| + k_round < 2^62), minus 2^(62 - k_shift).
 CAMSIM_AVX2_TARGET void Readout(const ReadoutIn& b, int count, uint32_t* out, int64_t electrons[2]) {
   const __m256i zero = _mm256_setzero_si256();
   const __m256i small_q8 = _mm256_set1_epi64x(PoissonTable::kSmallQ8);
   const __m256i full_well = _mm256_set1_epi64x(static_cast<int64_t>(b.full_well_q8));
   const __m256i read = _mm256_set1_epi64x(b.read_q8);
   const __m256i k_low = _mm256_set1_epi64x(static_cast<int64_t>(b.k_mant) - (int64_t{1} << 31));
-  const __m256i k_bias = _mm256_set1_epi64x((int64_t{1} << (b.k_shift - 1)) + (int64_t{1} << 62));
+  const __m256i k_bias = _mm256_set1_epi64x(b.k_round + (int64_t{1} << 62));
   const __m128i k_shift = _mm_cvtsi32_si128(b.k_shift);
   const __m256i unbias = _mm256_set1_epi64x((int64_t{1} << (62 - b.k_shift)) - b.black);
   const __m256i max_dn = _mm256_set1_epi64x(b.max_dn);
@@ -439,10 +447,10 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   CAMSIM_DCHECK(pattern_ == nullptr || channels == input_channels_);  // the planner's SetInputChannels
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
-  // RoundShift(v * K.mant, K.shift + 8) with the rounding constant hoisted:
+  // round(K v + BL) = ((v * K.mant + black_round_) >> (K.shift + 8)) + floor(BL):
   // K in [1e-3, 2.6e5] (Configure's ranges) keeps K.shift + 8 in [22, 49].
   const int k_shift = k_scale_.shift + 8;
-  const int64_t k_half = int64_t{1} << (k_shift - 1);
+  const int64_t k_half = black_round_;  // with the black level's fraction
   const int64_t k_mant = static_cast<int64_t>(k_scale_.mant);
   for (int c = 0; c < channels; ++c) {
     const uint32_t channel = static_cast<uint32_t>(c);
@@ -570,7 +578,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       if (lanes > 0) {
         const sensor_lanes::ReadoutIn r{mean_q8,      offset_q8,     sigma_q16,  t.v,          tz,
                                         shot_noise ? &poisson_ : nullptr,      full_well_q8_, read_q8_,
-                                        k_scale_.mant, k_shift,      black_,     max_dn_};
+                                        k_scale_.mant, k_shift,      black_round_, black_, max_dn_};
         sensor_lanes::Readout(r, lanes, out, electrons);
       }
 #endif

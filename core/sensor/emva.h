@@ -4,7 +4,7 @@
 //   mu_e  = p * QE[c] * (1 + prnu * z1) + dark_current * t * 2^((T - T_ref) / T_double)
 //   n     = min(Poisson(mu_e), full_well)               shot noise, saturation
 //   v     = n + dsnu * z2 + dark_noise * z3             offset pattern, read noise
-//   DN    = clamp(round(K * v) + black_level, 0, 2^bits - 1)
+//   DN    = clamp(round(K * v + black_level), 0, 2^bits - 1)   one rounding: the black level may be fractional
 // z1, z2: fixed-pattern normals keyed by (seed, x, y) only, the same every
 // frame; z3 and the Poisson draw: keyed by (seed, frame, x, y).
 //
@@ -180,7 +180,8 @@ class SensorStage final : public Stage {
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
   uint64_t full_well_q8_ = 0;
   UScale k_scale_;           // K
-  int64_t black_ = 0;
+  int64_t black_ = 0;        // floor(black level), whole DN
+  int64_t black_round_ = 0;  // 2^(k_shift - 1) + its fraction * 2^k_shift: round(K v + black level) in one step
   int max_dn_ = 0;
   bool smear_ = false;
   GaussianTable gauss_;
