@@ -12,6 +12,10 @@ Status CfaStage::Configure(const CfaConfig& c, const SensorGeometry& g) {
   if (!(sum > 0.0)) return InvalidArgument("cfa.mono_weights", "weights must not all be 0");
   weight_[0] = Q<0, 16>::FromDouble(c.mono_weights[0] / sum).raw;
   weight_[2] = Q<0, 16>::FromDouble(c.mono_weights[2] / sum).raw;
+  // R and B round on their own, so both can round up a half: with no G weight
+  // they could sum to 65537. B gives way then, so G (the remainder) is never
+  // negative.
+  if (weight_[0] + weight_[2] > 65536u) weight_[2] = 65536u - weight_[0];
   weight_[1] = 65536u - weight_[0] - weight_[2];  // a flat grey stays exactly grey
   return Status::Ok();
 }

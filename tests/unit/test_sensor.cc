@@ -305,6 +305,32 @@ TEST(Sensor, BayerPhasePutsEachColourOnItsSites) {
   EXPECT_EQ(CfaColour(Cfa::kBayerGB, 0, 1), kRed);
 }
 
+// Mono weights sum to exactly 1 in Q0.16 however R and B round: here both
+// round a half up (32767.5 and 32768.5), which once left G at 2^32 - 1.
+TEST(Cfa, MonoWeightsNeverLeaveGreyOrWrapGreen) {
+  CfaConfig c;
+  c.mono_weights[0] = 65535.0 / 131072.0;
+  c.mono_weights[1] = 0.0;
+  c.mono_weights[2] = 65537.0 / 131072.0;
+  CfaStage s;
+  ASSERT_TRUE(s.Configure(c, SensorGeometry{4, 1, Cfa::kMono, 12}).ok());
+  const uint32_t grey[4] = {0, 1000, 123456, 0xFFFFFFFFu};
+  const uint32_t none[4] = {0, 0, 0, 0};
+  uint32_t out[4];
+  RowIn in;
+  RowArgs a;
+  a.width = 4;
+  a.rows = &in;
+  a.row_count = 1;
+  a.out[0] = out;
+  in.ch[0] = in.ch[1] = in.ch[2] = grey;
+  s.ProcessRow(a);
+  for (int x = 0; x < 4; ++x) EXPECT_EQ(out[x], grey[x]) << "grey " << x;
+  in.ch[0] = in.ch[2] = none;  // green alone: its weight is 0
+  s.ProcessRow(a);
+  for (int x = 0; x < 4; ++x) EXPECT_EQ(out[x], 0u) << "green " << x;
+}
+
 // Bounds of each stage against its double reference (stated, then measured).
 constexpr double kExposureMaxErrorPhotons = 0.5 / 256 + 1e-6;  // one Q24.8 rounding (+ factor rounding)
 // The sensor's: one final rounding, plus K times the charge's errors: QE in
