@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -306,10 +307,15 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
   while (std::getline(ss, name, ','))
     if (!name.empty()) names.push_back(name);
   // --stages keeps the configured order and runs only the named stages.
-  for (const std::string& n : names) {
+  for (size_t i = 0; i < names.size(); ++i) {
     StageId id;
-    if (!StageFromName(n.c_str(), &id)) {
-      *error = "--stages: unknown stage '" + n + "'";
+    if (!StageFromName(names[i].c_str(), &id)) {
+      *error = "--stages: unknown stage '" + names[i] + "'";
+      return false;
+    }
+    // A repeat would be kept once per listing: more entries than kept[] holds.
+    if (std::find(names.begin(), names.begin() + i, names[i]) != names.begin() + i) {
+      *error = "--stages: stage '" + names[i] + "' is named more than once";
       return false;
     }
   }
@@ -320,7 +326,7 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
     for (const std::string& n : names)
       if (n == StageName(p.order[i])) kept[count++] = p.order[i];
   if (count != static_cast<int>(names.size())) {
-    *error = "--stages: every named stage must be in [pipeline] stages (and named once)";
+    *error = "--stages: every named stage must be in [pipeline] stages, once";
     return false;
   }
   for (int i = 0; i < count; ++i) p.order[i] = kept[i];

@@ -162,6 +162,20 @@ TEST(Cli, StagesAndDumpWriteIntermediates) {
   EXPECT_TRUE(Exists(out + "/aisle_0001.1_vignetting.exr"));
 }
 
+// A repeated name used to be kept once per listing, past the end of a
+// stack array of one entry per stage.
+TEST(Cli, StagesRefuseARepeatedName) {
+  const std::string out = TempDir("stages_twice");
+  const Result twice = Camsim("run --input " + kScene + " --out " + out + " --stages exposure,sensor,sensor");
+  EXPECT_EQ(twice.code, 1);
+  EXPECT_NE(twice.err.find("--stages: stage 'sensor' is named more than once"), std::string::npos) << twice.err;
+  std::string many = "sensor";
+  for (int i = 0; i < 16; ++i) many += ",sensor";
+  const Result overflow = Camsim("run --input " + kScene + " --out " + out + " --stages " + many);
+  EXPECT_EQ(overflow.code, 1);
+  EXPECT_NE(overflow.err.find("'sensor' is named more than once"), std::string::npos) << overflow.err;
+}
+
 TEST(Cli, ConfigTypoNamesKeyAndLine) {
   const std::string dir = TempDir("typo");
   std::ofstream(dir + "/bad.toml") << "[sensor]\nadc_bits = 12\nful_well_e = 100\n";
