@@ -30,6 +30,7 @@ const char kUsage[] =
     "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE]\n"
     "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
+    "      --depth: a separate depth file, for a single input frame\n"
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"

@@ -366,6 +366,13 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
+  if (!o.depth_path.empty() && files.size() > 1) {
+    std::fprintf(stderr,
+                 "camsim: --depth %s: the inputs are %zu frames, and one depth file cannot describe a sequence "
+                 "(give each frame its depth channel in its own EXR)\n",
+                 o.depth_path.c_str(), files.size());
+    return 1;
+  }
   if (o.out_dir.empty()) {
     std::fprintf(stderr, "camsim: --out DIR is required\n");
     return 1;
@@ -394,7 +401,7 @@ int RunCommand(const RunOptions& o) {
 
   for (size_t f = 0; f < files.size(); ++f) {
     io::SceneFrame scene;
-    if (!io::LoadSceneExr(files[f], files.size() == 1 ? o.depth_path : "", &scene, &error)) {
+    if (!io::LoadSceneExr(files[f], o.depth_path, &scene, &error)) {
       error = "frame " + std::to_string(f) + ": " + error;
       exit_code = 1;
       break;

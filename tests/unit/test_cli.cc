@@ -176,6 +176,24 @@ TEST(Cli, StagesRefuseARepeatedName) {
   EXPECT_NE(overflow.err.find("'sensor' is named more than once"), std::string::npos) << overflow.err;
 }
 
+// One depth file cannot describe a sequence; it used to be dropped silently.
+TEST(Cli, DepthFileWithASequenceIsAnError) {
+  const std::string dir = TempDir("depth_seq");
+  std::system(("cp '" + kScene + "' '" + dir + "/seq_0001.exr' && cp '" + kScene + "' '" + dir + "/seq_0002.exr'")
+                  .c_str());
+  const Result r = Camsim("run --input " + dir + "/seq_%04d.exr --depth " + kScene + " --out " + dir +
+                          "/out --stages exposure,cfa,sensor --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--depth " + kScene + ": the inputs are 2 frames, and one depth file cannot describe a "
+                       "sequence"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(Exists(dir + "/out/seq_0001.raw"));
+  const Result one = Camsim("run --input " + dir + "/seq_0001.exr --depth " + kScene + " --out " + dir +
+                            "/out --stages exposure,cfa,sensor --quiet");
+  EXPECT_EQ(one.code, 0) << one.err;
+}
+
 TEST(Cli, ConfigTypoNamesKeyAndLine) {
   const std::string dir = TempDir("typo");
   std::ofstream(dir + "/bad.toml") << "[sensor]\nadc_bits = 12\nful_well_e = 100\n";
