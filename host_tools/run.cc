@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <map>
 #include <sstream>
 
 #include "hal/clock.h"
@@ -26,6 +28,62 @@ std::string Stem(const std::string& path) {
   std::string name = path.substr(path.find_last_of('/') + 1);
   const size_t dot = name.find_last_of('.');
   return dot == std::string::npos ? name : name.substr(0, dot);
+}
+
+// The name a --dump-stages image of running stage r takes after the stem.
+std::string DumpSuffix(int r, StageId id) { return "." + std::to_string(r) + "_" + StageName(id); }
+
+// The files a frame with this stem writes under `plan` (as the writers in
+// RunCommand name them).
+std::vector<std::string> FrameOutputs(const std::string& stem, const Plan& plan, bool dump_stages) {
+  std::vector<std::string> out;
+  const Domain d = plan.output.domain;
+  int r = 0, sensor = -1;
+  for (int i = 0; i < plan.count; ++i)
+    if (plan.entries[i].runs) {
+      if (plan.entries[i].id == StageId::kSensor) sensor = r;
+      if (dump_stages) out.push_back(stem + DumpSuffix(r, plan.entries[i].id) + ".exr");
+      ++r;
+    }
+  if (d == Domain::kLinear || d == Domain::kEncoded) out.push_back(stem + ".png");
+  else if (d != Domain::kDigital) out.push_back(stem + ".exr");
+  if (d == Domain::kDigital || sensor >= 0)
+    out.insert(out.end(), {stem + ".raw.pgm", stem + ".raw", stem + ".raw.json"});
+  return out;
+}
+
+// A path as the file system resolves it, to compare names: the directory
+// always, the last component only when `follow` (an input is read through a
+// symbolic link; an output replaces the link).
+std::string Resolved(const std::string& path, bool follow) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p(path);
+  fs::path r;
+  if (follow) r = fs::weakly_canonical(p, ec);
+  else r = fs::weakly_canonical(fs::absolute(p, ec).parent_path(), ec) / p.filename();
+  return ec ? path : r.lexically_normal().string();
+}
+
+// Claims the output paths of `who`; false (*error naming both) when one would
+// overwrite an input or a file another frame (or the report) writes.
+bool ClaimOutputs(const std::vector<std::string>& paths, const std::string& who,
+                  const std::map<std::string, std::string>& inputs, std::map<std::string, std::string>* claimed,
+                  std::string* error) {
+  for (const std::string& p : paths) {
+    const std::string key = Resolved(p, false);
+    const auto in = inputs.find(key);
+    if (in != inputs.end()) {
+      *error = who + " would write '" + p + "', overwriting the input '" + in->second + "'";
+      return false;
+    }
+    const auto [at, fresh] = claimed->emplace(key, who);
+    if (!fresh && at->second != who) {
+      *error = at->second + " and " + who + " would both write '" + p + "' (outputs are named after the input file)";
+      return false;
+    }
+  }
+  return true;
 }
 
 std::string JsonString(const std::string& s) {
@@ -366,6 +424,15 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
+  // Inputs by resolved path, and the paths outputs claim: no output may
+  // overwrite an input or another output of this run.
+  std::map<std::string, std::string> inputs, claimed;
+  for (const std::string& in : files) inputs.emplace(Resolved(in, true), in);
+  if (!o.depth_path.empty()) inputs.emplace(Resolved(o.depth_path, true), o.depth_path);
+  if (!o.report_path.empty() && !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &error)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
   if (!o.depth_path.empty() && files.size() > 1) {
     std::fprintf(stderr,
                  "camsim: --depth %s: the inputs are %zu frames, and one depth file cannot describe a sequence "
@@ -498,6 +565,19 @@ int RunCommand(const RunOptions& o) {
     if (o.dump_stages)
       for (int i = 0; i < plan.running; ++i) add_tap(i, TapFormat::kU32);
 
+    // Before the first frame writes anything, every frame's files under this
+    // plan; later frames again, in case auto exposure changed the plan.
+    const auto frame_name = [&](size_t g) { return "frame " + std::to_string(g) + " (" + files[g] + ")"; };
+    bool claims_ok = true;
+    const size_t claim_end = f == 0 ? files.size() : f + 1;
+    for (size_t g = f; g < claim_end && claims_ok; ++g)
+      claims_ok = ClaimOutputs(FrameOutputs(o.out_dir + "/" + Stem(files[g]), plan, o.dump_stages), frame_name(g),
+                               inputs, &claimed, &error);
+    if (!claims_ok) {
+      exit_code = 1;
+      break;
+    }
+
     std::vector<WorkerStats> worker_stats(static_cast<size_t>(o.threads));
     const uint32_t frame_index = o.first_frame + static_cast<uint32_t>(f);
     const uint64_t t0 = hal::NowNs();
@@ -597,9 +677,8 @@ int RunCommand(const RunOptions& o) {
         const std::vector<uint8_t>& b = buffers[first_dump + static_cast<size_t>(r)];
         std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(b.data()),
                                    reinterpret_cast<const uint32_t*>(b.data()) + b.size() / 4);
-        char suffix[64];
-        std::snprintf(suffix, sizeof suffix, ".%d_%s", r, StageName(plan.entries[i].id));
-        ok = WriteStageImage(stem + suffix, plan.entries[i].out, data, w, h, &rec.outputs, &error);
+        ok = WriteStageImage(stem + DumpSuffix(r, plan.entries[i].id), plan.entries[i].out, data, w, h, &rec.outputs,
+                             &error);
         ++r;
       }
     }

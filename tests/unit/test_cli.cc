@@ -176,6 +176,50 @@ TEST(Cli, StagesRefuseARepeatedName) {
   EXPECT_NE(overflow.err.find("'sensor' is named more than once"), std::string::npos) << overflow.err;
 }
 
+// Outputs are named after the input's stem in --out: refused before anything
+// is written when that would overwrite an input or another frame's output.
+TEST(Cli, RunRefusesToOverwriteAnInputOrAnotherFramesOutput) {
+  const std::string dir = TempDir("clobber");
+  std::system(("mkdir -p '" + dir + "/a' '" + dir + "/b' '" + dir + "/c' && cp '" + kScene + "' '" + dir +
+               "/a/0001.exr' && cp '" + kScene + "' '" + dir + "/b/0001.exr' && cp '" + kScene + "' '" + dir +
+               "/c/x.exr' && cp '" + kScene + "' '" + dir + "/c/x.EXR'")
+                  .c_str());
+  const std::string scene = Slurp(kScene);
+  // --stages exposure ends in photons, written as <stem>.exr: the input itself.
+  const Result self = Camsim("run --input " + dir + "/a/0001.exr --out " + dir + "/a/. --stages exposure --quiet");
+  EXPECT_EQ(self.code, 1);
+  EXPECT_NE(self.err.find("frame 0 (" + dir + "/a/0001.exr) would write '" + dir + "/a/./0001.exr', overwriting "
+                          "the input '" + dir + "/a/0001.exr'"),
+            std::string::npos)
+      << self.err;
+  EXPECT_TRUE(Slurp(dir + "/a/0001.exr") == scene);
+  const Result report = Camsim("run --input " + dir + "/a/0001.exr --out " + dir + "/out --report " + dir +
+                               "/a/0001.exr --quiet");
+  EXPECT_EQ(report.code, 1);
+  EXPECT_NE(report.err.find("--report would write '" + dir + "/a/0001.exr', overwriting the input"), std::string::npos)
+      << report.err;
+  EXPECT_TRUE(Slurp(dir + "/a/0001.exr") == scene);
+  // Two inputs with one stem.
+  const Result same = Camsim("run --input " + dir + "/a/0001.exr " + dir + "/b/0001.exr --out " + dir +
+                             "/out --stages exposure,cfa,sensor --quiet");
+  EXPECT_EQ(same.code, 1);
+  EXPECT_NE(same.err.find("frame 0 (" + dir + "/a/0001.exr) and frame 1 (" + dir + "/b/0001.exr) would both write '" +
+                          dir + "/out/0001.raw.pgm'"),
+            std::string::npos)
+      << same.err;
+  const Result cased = Camsim("run --input " + dir + "/c --out " + dir + "/out --stages exposure,cfa,sensor --quiet");
+  EXPECT_EQ(cased.code, 1);
+  EXPECT_NE(cased.err.find("would both write '" + dir + "/out/x.raw.pgm'"), std::string::npos) << cased.err;
+  EXPECT_FALSE(Exists(dir + "/out/0001.raw.pgm"));
+  EXPECT_FALSE(Exists(dir + "/out/x.raw.pgm"));
+  // The same directory is fine when no output takes an input's name.
+  const Result beside = Camsim("run --input " + dir + "/a/0001.exr --out " + dir + "/a --stages exposure,cfa,sensor "
+                               "--quiet");
+  EXPECT_EQ(beside.code, 0) << beside.err;
+  EXPECT_TRUE(Exists(dir + "/a/0001.raw"));
+  EXPECT_TRUE(Slurp(dir + "/a/0001.exr") == scene);
+}
+
 // One depth file cannot describe a sequence; it used to be dropped silently.
 TEST(Cli, DepthFileWithASequenceIsAnError) {
   const std::string dir = TempDir("depth_seq");
