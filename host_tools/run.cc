@@ -201,6 +201,15 @@ void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
   }
 }
 
+// The GenICam PFNC name of the .raw file's layout as JSON: samples of adc_bits
+// in the low bits of 2-byte words is Mono10/12/14/16 or Bayer**10/12/14/16;
+// other depths (8 bits in 2 bytes, odd depths) have no PFNC name: null.
+std::string RawPixelFormat(const RunConfig& rc) {
+  const int bits = rc.core.geometry.adc_bits;
+  if (bits != 10 && bits != 12 && bits != 14 && bits != 16) return "null";
+  return JsonString(CfaName(rc.core.geometry.cfa) + std::to_string(bits));
+}
+
 // Writes one tapped image as the file type its domain calls for.
 bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const std::vector<uint32_t>& data, int w,
                      int h, std::vector<std::string>* written, std::string* error) {
@@ -649,11 +658,13 @@ int RunCommand(const RunOptions& o) {
     auto write_raw = [&](const std::vector<uint8_t>& buf) {
       const uint16_t* px = reinterpret_cast<const uint16_t*>(buf.data());
       std::ostringstream side;
-      side << "{\"width\": " << w << ", \"height\": " << h << ", \"pixel_format\": "
-           << JsonString(std::string(CfaName(rc.core.geometry.cfa)) + (rc.core.geometry.adc_bits > 8 ? "16" : "8"))
-           << ", \"adc_bits\": " << rc.core.geometry.adc_bits << ", \"black_level_dn\": "
-           << Num(rc.core.sensor.black_level_dn) << ", \"byte_order\": \"little\", \"frame\": " << frame_index
-           << ", \"seed\": " << rc.core.seed << ", \"source\": " << JsonString(scene.source) << "}\n";
+      const int bits = rc.core.geometry.adc_bits;
+      side << "{\"width\": " << w << ", \"height\": " << h << ", \"pixel_format\": " << RawPixelFormat(rc)
+           << ", \"cfa\": " << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << bits
+           << ", \"bytes_per_pixel\": 2, \"significant_bits\": " << bits
+           << ", \"alignment\": \"lsb\", \"byte_order\": \"little\", \"black_level_dn\": "
+           << Num(rc.core.sensor.black_level_dn) << ", \"frame\": " << frame_index << ", \"seed\": " << rc.core.seed
+           << ", \"source\": " << JsonString(scene.source) << "}\n";
       ok = ok && io::WritePgm16(stem + ".raw.pgm", px, w, h, w, max_dn, &error) &&
            io::WriteRaw16(stem + ".raw", px, w, h, w, &error) && io::WriteTextFile(stem + ".raw.json", side.str(), &error);
       if (ok) rec.outputs.insert(rec.outputs.end(), {stem + ".raw.pgm", stem + ".raw", stem + ".raw.json"});

@@ -176,6 +176,39 @@ TEST(Cli, StagesRefuseARepeatedName) {
   EXPECT_NE(overflow.err.find("'sensor' is named more than once"), std::string::npos) << overflow.err;
 }
 
+// The raw file holds each sample in the low adc_bits of a little-endian
+// 16-bit word; the sidecar says so, and names the GenICam PFNC format only
+// where one describes that layout (none does for 8 bits in 2 bytes).
+TEST(Cli, RawSidecarDescribesTheSamples) {
+  const std::string out = TempDir("sidecar");
+  const std::string small = " --quiet --set sensor.width=64 --set sensor.height=48";
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out + small).code, 0);
+  const std::string twelve = Slurp(out + "/aisle_0001.raw.json");
+  EXPECT_NE(twelve.find("\"pixel_format\": \"BayerRG12\", \"cfa\": \"BayerRG\", \"adc_bits\": 12, "
+                        "\"bytes_per_pixel\": 2, \"significant_bits\": 12, \"alignment\": \"lsb\", "
+                        "\"byte_order\": \"little\""),
+            std::string::npos)
+      << twelve;
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + out + small +
+                   " --set sensor.adc_bits=8 --set sensor.cfa=Mono")
+                .code,
+            0);
+  const std::string eight = Slurp(out + "/aisle_0001.raw.json");
+  EXPECT_NE(eight.find("\"pixel_format\": null, \"cfa\": \"Mono\", \"adc_bits\": 8, \"bytes_per_pixel\": 2, "
+                       "\"significant_bits\": 8, \"alignment\": \"lsb\""),
+            std::string::npos)
+      << eight;
+  const std::string raw = Slurp(out + "/aisle_0001.raw");
+  ASSERT_EQ(raw.size(), 64u * 48u * 2u);
+  int high = 0, low = 0;  // bytes set in the high and low halves of the samples
+  for (size_t i = 0; i < raw.size(); i += 2) {
+    low += raw[i] != 0;
+    high += raw[i + 1] != 0;
+  }
+  EXPECT_GT(low, 0);
+  EXPECT_EQ(high, 0);  // 8-bit samples in the low byte
+}
+
 // Outputs are named after the input's stem in --out: refused before anything
 // is written when that would overwrite an input or another frame's output.
 TEST(Cli, RunRefusesToOverwriteAnInputOrAnotherFramesOutput) {
