@@ -4,13 +4,13 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <functional>
 #include <sstream>
 
 #include <toml++/toml.h>
 
 #include "host_tools/calibration.h"
+#include "host_tools/io/text_read.h"
 
 namespace camsim::host {
 namespace {
@@ -788,14 +788,12 @@ bool ParseConfig(const std::string& text, const std::string& source, RunConfig* 
 }
 
 bool LoadConfigFile(const std::string& path, RunConfig* c, Origins* origins, std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
-    *error = path + ": cannot open configuration file";
+  std::string text, why;
+  if (!io::ReadTextFile(path, &text, &why)) {
+    *error = path + ": cannot read configuration file: " + why;
     return false;
   }
-  std::stringstream text;
-  text << in.rdbuf();
-  return ParseConfig(text.str(), path, c, origins, error);
+  return ParseConfig(text, path, c, origins, error);
 }
 
 bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins, std::string* error) {

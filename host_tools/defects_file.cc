@@ -4,7 +4,9 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
+#include <sstream>
+
+#include "host_tools/io/text_read.h"
 
 namespace camsim::host {
 namespace {
@@ -48,11 +50,12 @@ bool ParseDouble(const std::string& s, double* v) {
 
 bool LoadDefectsFile(const std::string& path, int width, int height, int adc_bits, std::vector<DefectPixel>* out,
                      std::string* error) {
-  std::ifstream file(path);
-  if (!file) {
-    *error = path + ": cannot open the defects file";
+  std::string text, why;
+  if (!io::ReadTextFile(path, &text, &why)) {
+    *error = path + ": cannot read the defects file: " + why;
     return false;
   }
+  std::istringstream file(text);
   struct Entry {
     DefectPixel d;
     int line;

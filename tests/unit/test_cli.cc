@@ -271,6 +271,19 @@ TEST(Cli, DepthFileWithASequenceIsAnError) {
   EXPECT_EQ(one.code, 0) << one.err;
 }
 
+// A directory opens as a file on Linux and reads as nothing: it used to pass
+// as an empty (all defaults) configuration.
+TEST(Cli, ConfigThatIsADirectoryIsRefused) {
+  const std::string dir = TempDir("config_dir");
+  const Result check = Camsim("config --check " + dir);
+  EXPECT_EQ(check.code, 1);
+  EXPECT_NE(check.err.find(dir + ": cannot read configuration file: is a directory"), std::string::npos)
+      << check.err;
+  const Result run = Camsim("run --config " + dir + " --input " + kScene + " --out " + dir + "/out");
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find(dir + ": cannot read configuration file"), std::string::npos) << run.err;
+}
+
 TEST(Cli, ConfigTypoNamesKeyAndLine) {
   const std::string dir = TempDir("typo");
   std::ofstream(dir + "/bad.toml") << "[sensor]\nadc_bits = 12\nful_well_e = 100\n";

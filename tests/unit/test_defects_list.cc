@@ -172,5 +172,17 @@ TEST(DefectsFile, ErrorsNameFileLineColumnAndProblem) {
   EXPECT_NE(error.find("/nonexistent/defects.csv"), std::string::npos);
 }
 
+// A directory opens on Linux and reads as no lines, and a read error ended the
+// list early: both used to load as a list with no defects.
+TEST(DefectsFile, DirectoryAndReadErrorAreRefused) {
+  std::vector<DefectPixel> list;
+  std::string error;
+  const std::string dir = testing::TempDir();
+  EXPECT_FALSE(host::LoadDefectsFile(dir, kW, kH, 12, &list, &error));
+  EXPECT_EQ(error, dir + ": cannot read the defects file: is a directory, not a file");
+  EXPECT_FALSE(host::LoadDefectsFile("/proc/self/mem", kW, kH, 12, &list, &error));  // reading offset 0 fails (EIO)
+  EXPECT_EQ(error.rfind("/proc/self/mem: cannot read the defects file: read failed: ", 0), 0u) << error;
+}
+
 }  // namespace
 }  // namespace camsim

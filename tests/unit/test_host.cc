@@ -55,6 +55,21 @@ TEST(Config, ErrorsNameKeyAndLine) {
   EXPECT_EQ(error, "f.toml:2: sensor.full_well_e must be in [1, 1e6] electrons");
 }
 
+// Only a regular file is a configuration: a directory reads as nothing on
+// Linux, and a read error used to end the text early instead of failing.
+TEST(Config, DirectoryAndReadErrorAreRefused) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  const std::string dir = testing::TempDir();
+  EXPECT_FALSE(LoadConfigFile(dir, &c, &o, &error));
+  EXPECT_EQ(error, dir + ": cannot read configuration file: is a directory, not a file");
+  EXPECT_FALSE(LoadConfigFile("/proc/self/mem", &c, &o, &error));  // reading offset 0 fails (EIO)
+  EXPECT_EQ(error.rfind("/proc/self/mem: cannot read configuration file: read failed: ", 0), 0u) << error;
+  EXPECT_FALSE(LoadConfigFile("/nonexistent/c.toml", &c, &o, &error));
+  EXPECT_EQ(error, "/nonexistent/c.toml: cannot read configuration file: No such file or directory");
+}
+
 TEST(SceneInput, CropTakesTheCentreAndScaleAverages) {
   io::FloatPlane in;
   in.width = 4;

@@ -1,0 +1,42 @@
+#include "host_tools/io/text_read.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace camsim::io {
+
+bool ReadTextFile(const std::string& path, std::string* text, std::string* error) {
+  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    *error = std::strerror(errno);
+    return false;
+  }
+  struct stat st;
+  bool ok = false;
+  if (fstat(fd, &st) != 0) *error = std::strerror(errno);
+  else if (S_ISDIR(st.st_mode)) *error = "is a directory, not a file";
+  else if (!S_ISREG(st.st_mode)) *error = "is not a regular file";
+  else ok = true;
+  std::string bytes;
+  char buf[65536];
+  while (ok) {
+    const ssize_t n = read(fd, buf, sizeof buf);
+    if (n > 0) {
+      bytes.append(buf, static_cast<size_t>(n));
+    } else if (n == 0) {
+      break;
+    } else if (errno != EINTR) {
+      *error = std::string("read failed: ") + std::strerror(errno);
+      ok = false;
+    }
+  }
+  close(fd);
+  if (ok) text->swap(bytes);
+  return ok;
+}
+
+}  // namespace camsim::io
