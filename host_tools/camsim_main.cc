@@ -227,7 +227,7 @@ int Emva(int argc, char** argv) {
       return 1;
     }
   camsim::host::EmvaReport report;
-  if (!camsim::host::MeasureEmva(rc, options, &report, &error)) {
+  if (!camsim::host::MeasureEmva(rc, origins, options, &report, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }

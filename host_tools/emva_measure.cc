@@ -18,7 +18,7 @@ constexpr double kPrnuFraction = 0.50; // EMVA 1288: PRNU at 50 % of saturation
 // A configured pipeline of exposure and sensor only, and its flat-field input.
 class Bench {
  public:
-  bool Init(const RunConfig& config, int size, std::string* error) {
+  bool Init(const RunConfig& config, const Origins& origins, int size, std::string* error) {
     PipelineConfig p = config.core;
     p.geometry.width = size;
     p.geometry.height = size;
@@ -28,7 +28,7 @@ class Bench {
     p.order_count = 2;
     const Status s = pipeline_.Configure(p, 1, false);
     if (!s.ok()) {
-      *error = DescribeStatus(s, Origins{});
+      *error = DescribeStatus(s, origins);
       return false;
     }
     workspace_.resize(pipeline_.WorkspaceBytes());
@@ -188,14 +188,15 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   return f;
 }
 
-bool MeasureEmva(const RunConfig& config, const EmvaOptions& o, EmvaReport* report, std::string* error) {
+bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOptions& o, EmvaReport* report,
+                 std::string* error) {
   if (o.size < 16 || o.size > 4096 || o.levels < 20 || o.levels > 1000 || o.average_frames < 2 ||
       o.average_frames > 256) {
     *error = "emva: size must be 16..4096, levels 20..1000, average frames 2..256";
     return false;
   }
   Bench bench;
-  if (!bench.Init(config, o.size, error)) return false;
+  if (!bench.Init(config, origins, o.size, error)) return false;
   constexpr int kG = 1;
   uint32_t frame = 0;  // every frame pair gets its own frame numbers (independent noise)
   const PairStats dark = MeasurePair(bench, 0.0, frame);

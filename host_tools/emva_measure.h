@@ -63,7 +63,9 @@ EmvaFigures ConfiguredEmva(const RunConfig& config);
 
 // Measures the configuration's sensor (its [sensor] and [exposure] settings;
 // frame size, CFA and every other stage are replaced by the set-up above).
-bool MeasureEmva(const RunConfig& config, const EmvaOptions& options, EmvaReport* report, std::string* error);
+// Range errors name the key's origin (file:line or --set).
+bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOptions& options, EmvaReport* report,
+                 std::string* error);
 
 // The analysis shared by the emulated measurement and recorded datasets
 // (camsim emva --dataset), for one channel.

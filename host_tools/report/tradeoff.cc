@@ -145,9 +145,8 @@ const char* UnitName(Domain d) {
 
 // Runs one configuration: timing on one worker (the fastest of `frames`),
 // then one untimed run with every stage tapped for the errors.
-bool Measure(RunConfig rc, const io::SceneFrame& scene, const io::FloatPlane* mask, int frames, Setting* out,
-             std::string* error) {
-  Origins origins;
+bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, const io::FloatPlane* mask, int frames,
+             Setting* out, std::string* error) {
   if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error)) return false;
   Pipeline p;
   const Status s = p.Configure(rc.core, 1, mask != nullptr);
@@ -276,7 +275,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
   Setting base;
   base.knob = "(as configured)";
   base.configured = true;
-  if (!Measure(rc, scene, has_mask ? &mask : nullptr, o.frames, &base, &error)) {
+  if (!Measure(rc, origins, scene, has_mask ? &mask : nullptr, o.frames, &base, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
@@ -298,7 +297,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
       s.knob = k.key;
       s.value = v;
       s.configured = ConfigToToml(variant, false) == ConfigToToml(rc, false);
-      if (!Measure(variant, scene, has_mask ? &mask : nullptr, o.frames, &s, &error)) {
+      if (!Measure(variant, vo, scene, has_mask ? &mask : nullptr, o.frames, &s, &error)) {
         std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
         return 1;
       }

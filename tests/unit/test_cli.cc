@@ -306,6 +306,21 @@ TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
   EXPECT_NE(nan.err.find("exposure.f_number"), std::string::npos) << nan.err;
 }
 
+// `camsim emva` and `camsim tradeoff` name the file and line of an
+// out-of-range value, as `camsim run` does (they used to say "(default value)").
+TEST(Cli, EmvaAndTradeoffRangeErrorsNameKeyAndLine) {
+  const std::string dir = TempDir("range_tools");
+  std::ofstream(dir + "/bad.toml") << "[exposure]\n\nf_number = 0.1\n";
+  const Result emva = Camsim("emva --config " + dir + "/bad.toml --size 16 --levels 20");
+  EXPECT_EQ(emva.code, 1);
+  EXPECT_NE(emva.err.find("bad.toml:3: exposure.f_number must be in [0.5, 128]"), std::string::npos) << emva.err;
+  const Result tradeoff = Camsim("tradeoff --config " + dir + "/bad.toml --input " + kScene + " --out " + dir +
+                                 "/out --frames 1");
+  EXPECT_EQ(tradeoff.code, 1);
+  EXPECT_NE(tradeoff.err.find("bad.toml:3: exposure.f_number must be in [0.5, 128]"), std::string::npos)
+      << tradeoff.err;
+}
+
 TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   const std::string dir = TempDir("badin");
   // A sequence: a good frame, then a truncated one.

@@ -77,7 +77,7 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     }
     const double dsnu_tol = std::max(kNonUniformityTol, 4.0 * DsnuRelativeError(ConfiguredEmva(rc), o));
     EmvaReport r;
-    ASSERT_TRUE(MeasureEmva(rc, o, &r, &error)) << p.name << ": " << error;
+    ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << p.name << ": " << error;
     const std::string n = p.name;
     ExpectNearRel(r.measured.system_gain, r.configured.system_gain, kGainTol, n + " K");
     for (int c = 0; c < 3; ++c) ExpectNearRel(r.measured.qe[c], r.configured.qe[c], kQeTol, n + " QE");
@@ -100,7 +100,7 @@ TEST(Emva, AnalogGainScalesTheMeasuredK) {
   EmvaOptions o;
   o.size = 96;
   EmvaReport r;
-  ASSERT_TRUE(MeasureEmva(rc, o, &r, &error)) << error;
+  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
   EXPECT_NEAR(r.measured.system_gain, 0.24 * std::pow(10.0, 6.0 / 20.0), 0.03 * 0.479);
   // The ADC now clips first: (4095 - 64) / 0.479 = 8418 e-, well below the 14837 e- well.
   EXPECT_LT(r.measured.saturation_e, 9000.0);
