@@ -932,8 +932,11 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   p.geometry.width = c->width > 0 ? c->width : input_width;
   p.geometry.height = c->height > 0 ? c->height : input_height;
   if (c->fit == SceneFit::kCrop && (p.geometry.width > input_width || p.geometry.height > input_height)) {
-    *error = DescribeStatus(InvalidArgument("sensor.width", "is larger than the input; use sensor.scene_fit = \"scale\""),
-                            origins);
+    const bool wide = p.geometry.width > input_width;  // the width, when both are too large
+    const std::string why = "is " + std::to_string(wide ? p.geometry.width : p.geometry.height) +
+                            ", larger than the input's " + std::to_string(wide ? input_width : input_height) +
+                            "; use sensor.scene_fit = \"scale\"";
+    *error = DescribeStatus(InvalidArgument(wide ? "sensor.width" : "sensor.height", why.c_str()), origins);
     return false;
   }
   if (c->output_bits != 8 && c->output_bits != 16) {

@@ -55,6 +55,20 @@ TEST(Config, ErrorsNameKeyAndLine) {
   EXPECT_EQ(error, "f.toml:2: sensor.full_well_e must be in [1, 1e6] electrons");
 }
 
+// The crop check names the dimension that is too large, with its origin (it
+// used to name sensor.width for either).
+TEST(Config, CropErrorNamesTheDimensionTooLarge) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  ASSERT_TRUE(ParseConfig("[sensor]\nadc_bits = 12\nheight = 700\n", "f.toml", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 800, 600, o, 1, &error));
+  EXPECT_EQ(error, "f.toml:3: sensor.height is 700, larger than the input's 600; use sensor.scene_fit = \"scale\"");
+  ASSERT_TRUE(ApplyOverride("sensor.width=900", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 800, 600, o, 1, &error));  // both too large: the width first
+  EXPECT_EQ(error, "--set: sensor.width is 900, larger than the input's 800; use sensor.scene_fit = \"scale\"");
+}
+
 // Only a regular file is a configuration: a directory reads as nothing on
 // Linux, and a read error used to end the text early instead of failing.
 TEST(Config, DirectoryAndReadErrorAreRefused) {
