@@ -3,8 +3,10 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <sstream>
 
 #include "core/pipeline/pipeline_ref.h"
@@ -267,7 +269,15 @@ int TradeoffCommand(const TradeoffOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
-  mkdir(o.out_dir.c_str(), 0755);
+  const int made = mkdir(o.out_dir.c_str(), 0755);
+  const int mkdir_errno = errno;
+  struct stat st;
+  if (stat(o.out_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    const char* why =
+        made == 0 || mkdir_errno == EEXIST ? "a file of that name is in the way" : std::strerror(mkdir_errno);
+    std::fprintf(stderr, "camsim: cannot create output directory '%s': %s\n", o.out_dir.c_str(), why);
+    return 2;
+  }
 
   // The configuration as given; it stays in the results only when no knob is
   // swept (otherwise the knob's configured value is the same run).
@@ -370,9 +380,27 @@ int TradeoffCommand(const TradeoffOptions& o) {
   spec.x_label = "ms per frame (1 thread)";
   spec.y_label = "RMS error, " + base.output_unit;
   spec.log_y = true;
-  if (!io::WriteTextFile(o.out_dir + "/tradeoff.csv", csv.str(), &error) ||
-      !io::WriteTextFile(o.out_dir + "/tradeoff.md", md.str(), &error) ||
-      !WriteScatterPng(o.out_dir + "/tradeoff.png", spec, points, &error)) {
+  // The three files belong together: each is written as NAME.new, and only
+  // when all are written (and no directory takes a final name, which rename
+  // cannot replace) are they renamed over the old ones.
+  const std::string out = o.out_dir + "/tradeoff";
+  const std::string names[3] = {out + ".csv", out + ".md", out + ".png"};
+  bool ok = io::WriteTextFile(names[0] + ".new", csv.str(), &error) &&
+            io::WriteTextFile(names[1] + ".new", md.str(), &error) &&
+            WriteScatterPng(names[2] + ".new", spec, points, &error);
+  for (int i = 0; i < 3 && ok; ++i)
+    if (lstat(names[i].c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
+      error = "cannot write '" + names[i] + "': a directory of that name is in the way";
+      ok = false;
+    }
+  for (int i = 0; i < 3 && ok; ++i)
+    if (std::rename((names[i] + ".new").c_str(), names[i].c_str()) != 0) {
+      error = "cannot write '" + names[i] + "': renaming '" + names[i] + ".new' onto it failed: " +
+              std::strerror(errno);
+      ok = false;
+    }
+  if (!ok) {
+    for (const std::string& n : names) std::remove((n + ".new").c_str());
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 2;
   }

@@ -321,6 +321,33 @@ TEST(Cli, EmvaAndTradeoffRangeErrorsNameKeyAndLine) {
       << tradeoff.err;
 }
 
+// tradeoff.csv, .md and .png belong together: when one cannot be written the
+// old three stay. The output directory must be made (it used to be ignored).
+TEST(Cli, TradeoffWritesAllThreeOrNone) {
+  const std::string dir = TempDir("tradeoff_all");
+  const std::string args = "tradeoff --input " + kScene + " --frames 1 --set sensor.width=64 --set sensor.height=48" +
+                           " --set 'pipeline.stages=[\"exposure\", \"cfa\", \"sensor\"]' --out ";
+  std::ofstream(dir + "/file") << "x";
+  const Result nodir = Camsim(args + dir + "/file/sub");
+  EXPECT_EQ(nodir.code, 2);
+  EXPECT_NE(nodir.err.find("cannot create output directory '" + dir + "/file/sub'"), std::string::npos) << nodir.err;
+  const std::string out = dir + "/out";
+  std::system(("mkdir -p '" + out + "/tradeoff.png'").c_str());  // the PNG cannot replace a directory
+  std::ofstream(out + "/tradeoff.csv") << "old csv";
+  std::ofstream(out + "/tradeoff.md") << "old md";
+  const Result blocked = Camsim(args + out);
+  EXPECT_EQ(blocked.code, 2);
+  EXPECT_NE(blocked.err.find(out + "/tradeoff.png"), std::string::npos) << blocked.err;
+  EXPECT_EQ(Slurp(out + "/tradeoff.csv"), "old csv");
+  EXPECT_EQ(Slurp(out + "/tradeoff.md"), "old md");
+  EXPECT_FALSE(Exists(out + "/tradeoff.csv.new"));
+  std::system(("rmdir '" + out + "/tradeoff.png'").c_str());
+  const Result ok = Camsim(args + out);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(Slurp(out + "/tradeoff.csv").rfind("knob,value,", 0), 0u);
+  EXPECT_EQ(Slurp(out + "/tradeoff.png").substr(1, 3), "PNG");
+}
+
 TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   const std::string dir = TempDir("badin");
   // A sequence: a good frame, then a truncated one.
