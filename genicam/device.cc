@@ -351,7 +351,6 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
 
   using namespace reg;
   const auto& c = finished.core;
-  const double exposure = std::min(std::max(c.exposure.exposure_time_us, 1.0), 1e6);
   const uint64_t initial[][2] = {
       {kSensorWidth, static_cast<uint64_t>(sensor_.width)},
       {kSensorHeight, static_cast<uint64_t>(sensor_.height)},
@@ -366,7 +365,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kAcquisitionFrameCount, 1},
       {kAcquisitionFrameRate, DoubleBits(25.0)},  // Aravis's fake camera default
       {kAcquisitionFrameRateEnable, 1},
-      {kExposureTime, DoubleBits(exposure)},
+      {kExposureTime, DoubleBits(c.exposure.exposure_time_us)},  // the core checked it: [1, 1e8]
       {kExposureAuto, kAutoOff},
       {kTriggerSelector, 0},
       {kTriggerMode, 0},
@@ -422,6 +421,13 @@ bool GigeDevice::WriteMemory(uint32_t address, const void* data, uint32_t size) 
   if (size == 0 || address >= ARV_FAKE_CAMERA_MEMORY_SIZE || size > ARV_FAKE_CAMERA_MEMORY_SIZE - address)
     return false;
   return arv_fake_camera_write_memory(fake_, address, size, data);
+}
+
+bool GigeDevice::ReadMemory(uint32_t address, void* data, uint32_t size) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (size == 0 || address >= ARV_FAKE_CAMERA_MEMORY_SIZE || size > ARV_FAKE_CAMERA_MEMORY_SIZE - address)
+    return false;
+  return arv_fake_camera_read_memory(fake_, address, size, data);
 }
 
 void GigeDevice::SyncNow() {

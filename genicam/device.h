@@ -98,6 +98,7 @@ class GigeDevice {
   // invariants (empty when they hold: every writable register holds its value
   // in use, every value in use is valid, the window is on the sensor).
   bool WriteMemory(uint32_t address, const void* data, uint32_t size);
+  bool ReadMemory(uint32_t address, void* data, uint32_t size) const;  // as a client's read
   void SyncNow();
   bool RenderNow(std::vector<uint8_t>* frame);
   std::string CheckInvariants() const;

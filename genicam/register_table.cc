@@ -178,7 +178,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                   "Free-run frame rate when AcquisitionFrameRateEnable is on.", "Hz"));
   t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,
                    "On: free-run at AcquisitionFrameRate; off: as fast as frames are rendered."));
-  t.push_back(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e6, "Exposure time.", "us"));
+  // The core's whole range (core/aperture/exposure.cc): any configured exposure is reported as rendered.
+  t.push_back(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8, "Exposure time.", "us"));
   t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));
   t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
                    {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},

@@ -38,14 +38,14 @@ check "values: 640x480 BayerRG12" grep -q "'PixelFormat' = 'BayerRG12'" "$tmp/va
 tool control Width=320 Height=240 PixelFormat=BayerRG8 ExposureTime=2000 Gain=6 >/dev/null
 sleep 0.1  # the device checks writes every 2 ms
 check "control: writes read back" test "$(tool control Width Height PixelFormat ExposureTime GainRaw | tr '\n' ' ')" = \
-  "Width = 320 px min:2 max:640 inc:2 Height = 240 px min:2 max:480 inc:2 PixelFormat = BayerRG8 ExposureTime = 2000 us min:1 max:1e+06 GainRaw = 60 min:0 max:480 "
+  "Width = 320 px min:2 max:640 inc:2 Height = 240 px min:2 max:480 inc:2 PixelFormat = BayerRG8 ExposureTime = 2000 us min:1 max:1e+08 GainRaw = 60 min:0 max:480 "
 check "control: PayloadSize follows (320 x 240 x 1 B)" test "$(tool control PayloadSize)" = "PayloadSize = 76800"
 out=$(arv-tool-0.8 -a $addr --range-check=enable control Width=9999 2>&1)
 check "range check on: the XML's maximum refuses Width=9999" sh -c "echo '$out' | grep -q 'greater than allowed maximum'"
 tool control Width=9999 ExposureTime=-5 >/dev/null
 sleep 0.1
 check "range check off: the device refuses Width=9999 and ExposureTime=-5" test \
-  "$(tool control Width ExposureTime | tr '\n' ' ')" = "Width = 320 px min:2 max:640 inc:2 ExposureTime = 2000 us min:1 max:1e+06 "
+  "$(tool control Width ExposureTime | tr '\n' ' ')" = "Width = 320 px min:2 max:640 inc:2 ExposureTime = 2000 us min:1 max:1e+08 "
 kill -INT $pid
 wait $pid
 check "camsim-gige stops cleanly on SIGINT" test $? -eq 0

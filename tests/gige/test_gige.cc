@@ -75,6 +75,29 @@ void Start(Client& c) {
   ASSERT_EQ(e, nullptr) << e->message;
 }
 
+// Register bytes as a client sends them (big-endian; Float: an 8-byte double).
+std::vector<uint8_t> Be32(uint32_t v) { return {uint8_t(v >> 24), uint8_t(v >> 16), uint8_t(v >> 8), uint8_t(v)}; }
+std::vector<uint8_t> Be64(double x) {
+  uint64_t v;
+  std::memcpy(&v, &x, 8);
+  std::vector<uint8_t> b(8);
+  for (int i = 0; i < 8; ++i) b[i] = uint8_t(v >> (56 - 8 * i));
+  return b;
+}
+// Register access on a device without network (DeviceOptions::serve false).
+void WriteReg(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
+  ASSERT_TRUE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
+}
+double ReadRegDouble(const GigeDevice& d, uint32_t address) {
+  uint8_t b[8] = {};
+  EXPECT_TRUE(d.ReadMemory(address, b, 8));
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = v << 8 | b[i];
+  double x;
+  std::memcpy(&x, &v, 8);
+  return x;
+}
+
 // ---------------------------------------------------------------- XML / table
 
 TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
@@ -304,21 +327,11 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
   o.serve = false;
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  auto be32 = [](uint32_t v) {
-    return std::vector<uint8_t>{uint8_t(v >> 24), uint8_t(v >> 16), uint8_t(v >> 8), uint8_t(v)};
-  };
-  auto be64 = [](double x) {
-    uint64_t v;
-    std::memcpy(&v, &x, 8);
-    std::vector<uint8_t> b(8);
-    for (int i = 0; i < 8; ++i) b[i] = uint8_t(v >> (56 - 8 * i));
-    return b;
-  };
   const std::vector<std::pair<uint32_t, std::vector<uint8_t>>> bad = {
-      {reg::kWidth, be32(65)},        {reg::kWidth, be32(0)},         {reg::kOffsetY, be32(47)},
-      {reg::kPixelFormat, be32(7)},   {reg::kGainRaw, be32(481)},     {reg::kTriggerSource, be32(5)},
-      {reg::kGain, be64(48.5)},       {reg::kExposureTime, be64(0.5)}, {reg::kSimFNumber, be64(-1.0)},
-      {reg::kAcquisitionFrameRateEnable, be32(2)}, {reg::kBlackLevel, be64(1e300)}};
+      {reg::kWidth, Be32(65)},        {reg::kWidth, Be32(0)},         {reg::kOffsetY, Be32(47)},
+      {reg::kPixelFormat, Be32(7)},   {reg::kGainRaw, Be32(481)},     {reg::kTriggerSource, Be32(5)},
+      {reg::kGain, Be64(48.5)},       {reg::kExposureTime, Be64(0.5)}, {reg::kSimFNumber, Be64(-1.0)},
+      {reg::kAcquisitionFrameRateEnable, Be32(2)}, {reg::kBlackLevel, Be64(1e300)}, {reg::kExposureTime, Be64(2e8)}};
   for (const auto& w : bad) {
     ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
     d->SyncNow();
@@ -330,8 +343,8 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
   EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
   // Valid: a 16x8 window at (2, 4) in 8-bit, and exposure 2 ms.
   for (const auto& w : std::vector<std::pair<uint32_t, std::vector<uint8_t>>>{
-           {reg::kWidth, be32(16)}, {reg::kHeight, be32(8)}, {reg::kOffsetX, be32(2)}, {reg::kOffsetY, be32(4)},
-           {reg::kPixelFormat, be32(genicam::BayerCode(Cfa::kBayerRG, 8))}, {reg::kExposureTime, be64(2000.0)}})
+           {reg::kWidth, Be32(16)}, {reg::kHeight, Be32(8)}, {reg::kOffsetX, Be32(2)}, {reg::kOffsetY, Be32(4)},
+           {reg::kPixelFormat, Be32(genicam::BayerCode(Cfa::kBayerRG, 8))}, {reg::kExposureTime, Be64(2000.0)}})
     ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
@@ -339,6 +352,30 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 1, genicam::BayerCode(Cfa::kBayerRG, 8), 2, 4, 16, 8,
                                   {"exposure.exposure_time_us=2000.0"}));
+}
+
+// The configured exposure may be longer than 1 s (the core allows 100 s): the
+// register reports it, and a later write of another pipeline register keeps it.
+TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  // f/64 keeps the 2 s exposure below saturation, so 1 s and 2 s frames differ.
+  o.overrides.insert(o.overrides.end(), {"exposure.exposure_time_us=2000000", "exposure.f_number=64"});
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2e6);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_TRUE(frame == ReferenceFrame(o, 0, code, 0, 0, 64, 48));
+  EXPECT_FALSE(frame == ReferenceFrame(o, 0, code, 0, 0, 64, 48, {"exposure.exposure_time_us=1000000"}));
+  WriteReg(*d, reg::kGain, Be64(1.0));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(d->writes_refused(), 0u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2e6);
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_TRUE(frame == ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"sensor.gain_db=1.0"})) << "exposure changed";
 }
 
 // ---------------------------------------------------------------- end to end
@@ -621,7 +658,7 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   Client& c = *client_;
   ArvDevice* dev = c.device();
   // Aravis's default range-check policy is off, so these reach the device.
-  SetFloat(c, "ExposureTime", 5e7);
+  SetFloat(c, "ExposureTime", 2e8);
   SetFloat(c, "Gain", -3.0);
   SetInt(c, "Width", 1000);
   SetInt(c, "OffsetX", 3);  // off the Bayer increment
@@ -649,7 +686,7 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   // With Aravis's range checks on, the XML's limits refuse on the client already.
   arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_ENABLE);
   GError* e = nullptr;
-  arv_camera_set_float(c.camera(), "ExposureTime", 5e7, &e);
+  arv_camera_set_float(c.camera(), "ExposureTime", 2e8, &e);
   EXPECT_NE(e, nullptr);
   g_clear_error(&e);
   arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_DISABLE);
