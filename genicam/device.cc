@@ -715,7 +715,7 @@ void GigeDevice::AutoAdjust(double frac) {
   if (!auto_state_valid_ || AutoKey() != auto_key_) {
     AutoExposureConfig c;
     c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
-    c.target = std::min(std::max(AppliedDouble(kSimAutoTarget), 0.005), 0.9);  // the controller's range
+    c.target = AppliedDouble(kSimAutoTarget);  // the register's range is inside the controller's
     c.exposure_time_min_us = ea != kAutoOff ? ef->min : t0;
     c.exposure_time_max_us = ea != kAutoOff ? ef->max : t0;
     c.gain_min_db = ga != kAutoOff ? gf->min : g0;

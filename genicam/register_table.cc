@@ -236,7 +236,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
                   "Register syncs completed: two more than when a write was sent means the write was checked "
                   "and applied (or refused)."));
-  t.push_back(Flt("SimAutoTarget", sim, kSimAutoTarget, 0.01, 0.99,
+  // At most 0.9: the core's controller needs the target below its saturated level (core/control/auto_exposure.h).
+  t.push_back(Flt("SimAutoTarget", sim, kSimAutoTarget, 0.01, 0.9,
                   "Mean raw level (fraction of full scale) the Auto features aim for.", ""));
   return t;
 }

@@ -378,6 +378,23 @@ TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
   EXPECT_TRUE(frame == ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"sensor.gain_db=1.0"})) << "exposure changed";
 }
 
+// SimAutoTarget takes what the controller uses (0.01 .. 0.9), and nothing more.
+TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.95));
+  d->SyncNow();
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kSimAutoTarget), 0.4);
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.9));
+  d->SyncNow();
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kSimAutoTarget), 0.9);
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // ---------------------------------------------------------------- end to end
 
 class GigeE2E : public ::testing::Test {
