@@ -54,6 +54,11 @@ double BitsDouble(uint64_t b) {
   std::memcpy(&v, &b, 8);
   return v;
 }
+std::string Fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
 
 // Aravis's fake camera starts even when it cannot bind its GVCP port (it
 // then answers nobody), so the address is tried first: one camera per
@@ -489,9 +494,11 @@ void GigeDevice::WriteDerived() {
   applied_[kSimStageEnable] = Read(kSimStageEnable);
 }
 
-bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error) {
+bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config,
+                         std::string* error) const {
   using namespace reg;
-  host::RunConfig rc = base_config_;
+  host::RunConfig& rc = *config;
+  rc = base_config_;
   rc.core.exposure.exposure_time_us = BitsDouble(r.at(kExposureTime));
   rc.core.exposure.f_number = BitsDouble(r.at(kSimFNumber));
   rc.core.sensor.gain_db = BitsDouble(r.at(kGain));
@@ -518,6 +525,12 @@ bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages
     *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
     return false;
   }
+  return true;
+}
+
+bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error) {
+  host::RunConfig rc;
+  if (!PlanFor(r, stages, &rc, error)) return false;
   if (!renderer_->Configure(rc, origins_, scenes_[0].width, scenes_[0].height, nullptr, error)) return false;
   current_scene_ = -1;  // the input is prepared again for the new pipeline
   return true;
@@ -709,11 +722,12 @@ void GigeDevice::AutoAdjust(double frac) {
   // that are Off held at their current value. It keeps its state from frame
   // to frame; a change of mode, target or SimFNumber, or a host write of
   // ExposureTime or Gain, starts it afresh from the applied values.
-  const Feature* ef = FindFeature(table_, "ExposureTime");
-  const Feature* gf = FindFeature(table_, "Gain");
-  const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
   if (!auto_state_valid_ || AutoKey() != auto_key_) {
-    AutoExposureConfig c;
+    const Feature* ef = FindFeature(table_, "ExposureTime");
+    const Feature* gf = FindFeature(table_, "Gain");
+    const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
+    AutoExposureConfig& c = auto_config_;
+    c = AutoExposureConfig();
     c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
     c.target = AppliedDouble(kSimAutoTarget);  // the register's range is inside the controller's
     c.exposure_time_min_us = ea != kAutoOff ? ef->min : t0;
@@ -721,23 +735,111 @@ void GigeDevice::AutoAdjust(double frac) {
     c.gain_min_db = ga != kAutoOff ? gf->min : g0;
     c.gain_max_db = ga != kAutoOff ? gf->max : g0;
     // The aperture stays where SimFNumber puts it (no f-number range given).
-    if (!auto_exposure_.Configure(c, {t0, g0, AppliedDouble(kSimFNumber)}).ok()) return;
-    auto_state_valid_ = true;
+    if (!RestartAuto()) return;
   }
-  const ExposureSettings s = auto_exposure_.Update(frac);
-  Registers next = applied_;
-  next[kExposureTime] = DoubleBits(s.exposure_time_us);
-  const double g1 = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
-  next[kGain] = DoubleBits(g1);
-  next[kGainRaw] = static_cast<uint64_t>(std::lround(g1 * 10));
-  const bool once_done = auto_exposure_.done() || !auto_exposure_.active();
+  double ev_measured = auto_exposure_.ev();  // the EV of the frame just measured
+  ExposureSettings s = auto_exposure_.Update(frac);
+  Registers next = AutoRegisters(s);
+  std::string error;
+  if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) {
+    // The pipeline refuses the request (CCD smear and motion blur need a
+    // minimum exposure, for example): the controller's range ends where the
+    // pipeline's does, and it starts afresh from the applied settings.
+    const double t1 = s.exposure_time_us, g1 = std::round(s.gain_db * 10) / 10;
+    LimitAutoRange(s);
+    const AutoExposureConfig& c = auto_config_;
+    LogOnce(error, "camsim-gige: auto exposure: the pipeline refuses ExposureTime " + Fmt(t1) + " us, Gain " +
+                       Fmt(g1) + " dB (" + error + "); its range is now ExposureTime " + Fmt(c.exposure_time_min_us) +
+                       ".." + Fmt(c.exposure_time_max_us) + " us, Gain " + Fmt(c.gain_min_db) + ".." +
+                       Fmt(c.gain_max_db) + " dB");
+    if (!RestartAuto()) return;
+    ev_measured = auto_exposure_.ev();
+    s = auto_exposure_.Update(frac);
+    next = AutoRegisters(s);
+    if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return StopAuto(error);
+  }
+  // Once ends when the controller settles, or when a frame taken at the end
+  // of its range still asks to go further (the target is out of reach).
+  const double e = auto_exposure_.last_error_ev();
+  const bool pinned = (ev_measured <= auto_exposure_.ev_min() + 1e-9 && e < 0) ||
+                      (ev_measured >= auto_exposure_.ev_max() - 1e-9 && e > 0);
+  const bool once_done = auto_exposure_.done() || !auto_exposure_.active() || pinned;
   if (ea == kAutoOnce && once_done) next[kExposureAuto] = kAutoOff;
   if (ga == kAutoOnce && once_done) next[kGainAuto] = kAutoOff;
-  std::string error;
-  if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return;
   for (const auto& kv : next)
     if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
   auto_key_ = AutoKey();
+}
+
+GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const {
+  using namespace reg;
+  Registers next = applied_;
+  next[kExposureTime] = DoubleBits(s.exposure_time_us);
+  const double g = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
+  next[kGain] = DoubleBits(g);
+  next[kGainRaw] = static_cast<uint64_t>(std::lround(g * 10));
+  return next;
+}
+
+bool GigeDevice::RestartAuto() {
+  using namespace reg;
+  const Status st = auto_exposure_.Configure(
+      auto_config_, {AppliedDouble(kExposureTime), AppliedDouble(kGain), AppliedDouble(kSimFNumber)});
+  if (!st.ok()) {
+    StopAuto(host::DescribeStatus(st, origins_));
+    return false;
+  }
+  auto_state_valid_ = true;
+  return true;
+}
+
+void GigeDevice::StopAuto(const std::string& error) {
+  using namespace reg;
+  LogOnce("off: " + error, "camsim-gige: ExposureAuto and GainAuto turned Off: " + error);
+  SetApplied(kExposureAuto, kAutoOff);
+  SetApplied(kGainAuto, kAutoOff);
+  auto_state_valid_ = false;
+}
+
+void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
+  using namespace reg;
+  const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
+  Registers probe = applied_;
+  auto accepted = [&](double t, double g) {
+    probe[kExposureTime] = DoubleBits(t);
+    probe[kGain] = DoubleBits(g);
+    probe[kGainRaw] = static_cast<uint64_t>(std::lround(g * 10));
+    host::RunConfig rc;
+    std::string error;
+    return PlanFor(probe, stage_enabled_, &rc, &error);
+  };
+  // Exposure first, at the applied gain: bisection on log2(t) between the
+  // applied value (accepted) and the request (refused).
+  double t = want.exposure_time_us;
+  if (t != t0 && !accepted(t, g0)) {
+    const double log_ratio = std::log2(t / t0);
+    double ok = 0, bad = 1;
+    for (int i = 0; i < 20; ++i) {
+      const double mid = (ok + bad) / 2;
+      (accepted(t0 * std::exp2(mid * log_ratio), g0) ? ok : bad) = mid;
+    }
+    t = t0 * std::exp2(ok * log_ratio);
+    (log_ratio < 0 ? auto_config_.exposure_time_min_us : auto_config_.exposure_time_max_us) = t;
+  }
+  // Then gain, at that exposure, in GainRaw's 0.1 dB steps.
+  const long raw0 = std::lround(g0 * 10), raw1 = std::lround(want.gain_db * 10);
+  if (raw1 != raw0 && !accepted(t, raw1 / 10.0)) {
+    long ok = raw0, bad = raw1;
+    while (ok - bad > 1 || bad - ok > 1) {
+      const long mid = ok + (bad - ok) / 2;
+      (accepted(t, mid / 10.0) ? ok : bad) = mid;
+    }
+    (raw1 < raw0 ? auto_config_.gain_min_db : auto_config_.gain_max_db) = ok / 10.0;
+  }
+}
+
+void GigeDevice::LogOnce(const std::string& key, const std::string& message) {
+  if (logged_.insert(key).second) std::fprintf(stderr, "%s\n", message.c_str());
 }
 
 std::array<uint64_t, 6> GigeDevice::AutoKey() const {

@@ -23,6 +23,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -118,12 +119,21 @@ class GigeDevice {
   uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
   void SetApplied(uint32_t address, uint64_t value);  // register and applied value
   void Sync();                                            // under mutex_
+  // The run configuration for registers r and stage switches, checked by
+  // planning a pipeline (cheap: no tables); the renderer is not touched.
+  bool PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config, std::string* error) const;
   bool Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
+  Registers AutoRegisters(const ExposureSettings& s) const;  // applied_ with the controller's settings
+  bool RestartAuto();                       // the controller afresh on auto_config_ from the applied values
+  void StopAuto(const std::string& error);  // both Auto features Off, the error logged
+  // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
+  void LimitAutoRange(const ExposureSettings& want);
+  void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
   void RestartStream();  // not under mutex_
   void SyncLoop();
   void TriggerLoop();
@@ -146,6 +156,8 @@ class GigeDevice {
   std::vector<uint8_t> rgb_;
   bool has_rgb_ = false;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
+  AutoExposureConfig auto_config_;  // its configuration (ranges narrowed by LimitAutoRange)
+  std::set<std::string> logged_;    // LogOnce keys
   bool auto_state_valid_ = false;
   // Modes, target, exposure, gain and f-number applied: a change the
   // controller did not make restarts it.

@@ -88,6 +88,11 @@ std::vector<uint8_t> Be64(double x) {
 void WriteReg(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
   ASSERT_TRUE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
 }
+uint32_t ReadReg32(const GigeDevice& d, uint32_t address) {
+  uint8_t b[4] = {};
+  EXPECT_TRUE(d.ReadMemory(address, b, 4));
+  return uint32_t(b[0]) << 24 | uint32_t(b[1]) << 16 | uint32_t(b[2]) << 8 | b[3];
+}
 double ReadRegDouble(const GigeDevice& d, uint32_t address) {
   uint8_t b[8] = {};
   EXPECT_TRUE(d.ReadMemory(address, b, 8));
@@ -393,6 +398,49 @@ TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   EXPECT_EQ(d->writes_refused(), 1u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimAutoTarget), 0.9);
   EXPECT_EQ(d->CheckInvariants(), "");
+}
+
+// Auto exposure asks for what the pipeline refuses: with CCD smear the core
+// needs exposure >= leak (1) x row transfer time (1000 us). The controller's
+// range ends there: Once stops at the limit and turns Off, Continuous holds
+// there, and the refusal is logged once.
+TEST(GigeRegisters, AutoExposureStopsWhereThePipelineDoes) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  o.overrides.push_back("sensor.smear_row_transfer_us=1000");
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.01));  // far below the level at 1 ms
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoOnce));
+  d->SyncNow();
+  testing::internal::CaptureStderr();
+  std::vector<uint8_t> frame;
+  uint32_t frames = 0;
+  for (; frames < 20 && ReadReg32(*d, reg::kExposureAuto) == genicam::kAutoOnce; ++frames)
+    ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), uint32_t(genicam::kAutoOff)) << "Once ends at the limit";
+  double t = ReadRegDouble(*d, reg::kExposureTime);
+  EXPECT_GE(t, 1000.0);
+  EXPECT_LT(t, 1001.0) << "Once stopped short of the limit";
+  EXPECT_EQ(d->CheckInvariants(), "");
+  ASSERT_TRUE(d->RenderNow(&frame));
+  char exposure[64];
+  std::snprintf(exposure, sizeof exposure, "exposure.exposure_time_us=%.17g", t);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  EXPECT_TRUE(frame == ReferenceFrame(o, frames, code, 0, 0, 64, 48, {exposure})) << "not rendered as reported";
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
+  d->SyncNow();
+  for (int i = 0; i < 8; ++i) ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), uint32_t(genicam::kAutoContinuous));
+  t = ReadRegDouble(*d, reg::kExposureTime);
+  EXPECT_GE(t, 1000.0);
+  EXPECT_LT(t, 1001.0) << "Continuous left the limit";
+  const std::string log = testing::internal::GetCapturedStderr();
+  const std::string refused = "the pipeline refuses";
+  size_t logged = 0;
+  for (size_t at = log.find(refused); at != std::string::npos; at = log.find(refused, at + 1)) ++logged;
+  EXPECT_EQ(logged, 1u) << log;
+  EXPECT_NE(log.find("sensor.smear_row_transfer_us"), std::string::npos) << log;
 }
 
 // ---------------------------------------------------------------- end to end
