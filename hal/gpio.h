@@ -6,7 +6,9 @@
 #pragma once
 
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -95,6 +97,8 @@ class BusOutput : public OutputLine {
 std::unique_ptr<BusOutput> OpenBusOutput(const std::string& spec, std::string* error);
 
 // A line in memory: Set() on it (as an output) wakes WaitEdge() (as an input).
+// Edges not yet waited for are queued with their direction; past
+// kMaxPendingEdges the oldest is dropped.
 class MemoryLine : public InputLine, public OutputLine {
  public:
   explicit MemoryLine(std::string name) : name_(std::move(name)) {}
@@ -103,14 +107,15 @@ class MemoryLine : public InputLine, public OutputLine {
   std::string Name() const override { return name_; }
   bool level() const;
   int edges() const;  // edges seen so far
+  static constexpr size_t kMaxPendingEdges = 64;
 
  private:
   std::string name_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   bool level_ = false;
-  int edges_ = 0, consumed_ = 0;
-  Edge last_ = Edge::kRising;
+  int edges_ = 0;
+  std::deque<Edge> pending_;  // not yet returned by WaitEdge, oldest first
 };
 
 }  // namespace camsim::hal

@@ -140,9 +140,9 @@ std::unique_ptr<OutputLine> OpenGpiodOutput(const std::string& spec, const std::
 
 int MemoryLine::WaitEdge(int timeout_ms, Edge* edge, std::string*) {
   std::unique_lock<std::mutex> lock(mutex_);
-  if (!changed_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return consumed_ < edges_; })) return 0;
-  ++consumed_;
-  *edge = last_;
+  if (!changed_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return !pending_.empty(); })) return 0;
+  *edge = pending_.front();
+  pending_.pop_front();
   return 1;
 }
 
@@ -151,7 +151,8 @@ bool MemoryLine::Set(bool high, std::string*) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (high == level_) return true;
     level_ = high;
-    last_ = high ? Edge::kRising : Edge::kFalling;
+    if (pending_.size() == kMaxPendingEdges) pending_.pop_front();
+    pending_.push_back(high ? Edge::kRising : Edge::kFalling);
     ++edges_;
   }
   changed_.notify_all();

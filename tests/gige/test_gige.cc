@@ -238,6 +238,36 @@ TEST(GigeGpio, MissingChipGivesAClearError) {
   EXPECT_NE(error.find("/dev/null"), std::string::npos) << error;
 }
 
+// Edges that arrive before the waiter wakes keep their own direction: a
+// pulse (rise, fall) is one rising and one falling edge, in that order.
+TEST(GigeGpio, MemoryLineReportsEachEdgeWithItsDirection) {
+  hal::MemoryLine line("test");
+  std::string error;
+  hal::Edge edge;
+  ASSERT_TRUE(line.Set(true, &error));
+  ASSERT_TRUE(line.Set(false, &error));
+  ASSERT_EQ(line.WaitEdge(0, &edge, &error), 1);
+  EXPECT_EQ(edge, hal::Edge::kRising);
+  ASSERT_EQ(line.WaitEdge(0, &edge, &error), 1);
+  EXPECT_EQ(edge, hal::Edge::kFalling);
+  EXPECT_EQ(line.WaitEdge(0, &edge, &error), 0);
+  // Bounded: the newest kMaxPendingEdges are kept, the last one being the level's.
+  const int n = 3 * static_cast<int>(hal::MemoryLine::kMaxPendingEdges) + 1;
+  for (int i = 0; i < n; ++i) ASSERT_TRUE(line.Set(i % 2 == 0, &error));
+  EXPECT_EQ(line.edges(), 2 + n);
+  size_t pending = 0;
+  hal::Edge last = hal::Edge::kFalling;
+  for (; line.WaitEdge(0, &edge, &error) == 1; ++pending) {
+    if (pending > 0) {
+      EXPECT_NE(edge, last) << "edge " << pending;
+    }
+    last = edge;
+  }
+  EXPECT_EQ(pending, hal::MemoryLine::kMaxPendingEdges);
+  EXPECT_EQ(last, hal::Edge::kRising);
+  EXPECT_TRUE(line.level());
+}
+
 TEST(GigeGpio, DeviceRefusesToStartWithAMissingTriggerLineOnly) {
   DeviceOptions o = SmallDevice();
   o.trigger_line = "camsim-no-such-chip:1";
