@@ -487,11 +487,16 @@ void GigeDevice::WriteDerived() {
   Write(kFakeTriggerMode, Applied(kTriggerMode));
   Write(kFakeTriggerSource, 1);  // the fake camera's "Software": camsim forwards both sources to it
   Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
-  const uint32_t line = Applied(kLineSelector);
-  Write(kLineMode, line == 0 ? 0 : 1);
+  Write(kLineMode, Applied(kLineSelector) == 0 ? 0 : 1);
+  WriteLineStatus();
   Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
   Write(kSimStageEnable, stage_enabled_.empty() ? 0 : (stage_enabled_[Applied(kSimStageSelector)] ? 1 : 0));
   applied_[kSimStageEnable] = Read(kSimStageEnable);
+}
+
+void GigeDevice::WriteLineStatus() {
+  using namespace reg;
+  Write(kLineStatus, (Applied(kLineSelector) == 0 ? trigger_level_ : strobe_level_) ? 1 : 0);
 }
 
 bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config,
@@ -692,6 +697,8 @@ void GigeDevice::TriggerLoop() {
     }
     if (r == 0) continue;
     std::lock_guard<std::mutex> lock(mutex_);
+    trigger_level_ = edge == hal::Edge::kRising;
+    WriteLineStatus();
     const hal::Edge want = Applied(reg::kTriggerActivation) == 0 ? hal::Edge::kRising : hal::Edge::kFalling;
     if (edge == want && Read(reg::kAcquisition) != 0 && Applied(reg::kTriggerMode) == 1 &&
         Applied(reg::kTriggerSource) == kSourceLine0) {
@@ -953,9 +960,17 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   const bool strobe = strobe_ && Applied(kLineSource) == kLineSourceExposureActive;
   std::string line_error;
   if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
-  if (strobe && !strobe_->Set(true, &line_error)) line_error_ = line_error;
+  auto set_strobe = [&](bool high) {
+    if (strobe_->Set(high, &line_error)) {
+      strobe_level_ = high;
+      WriteLineStatus();
+    } else {
+      line_error_ = line_error;
+    }
+  };
+  if (strobe) set_strobe(true);
   renderer_->Render(index, taps, n, nullptr);
-  if (strobe && !strobe_->Set(false, &line_error)) line_error_ = line_error;
+  if (strobe) set_strobe(false);
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
 
   // Mean raw level in the window, for the Auto features.

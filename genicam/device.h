@@ -124,6 +124,7 @@ class GigeDevice {
   bool PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config, std::string* error) const;
   bool Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
+  void WriteLineStatus();  // the selected line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
@@ -169,6 +170,9 @@ class GigeDevice {
   hal::InputLine* trigger_ = nullptr;
   hal::OutputLine* strobe_ = nullptr;
   std::string line_error_;
+  // LineStatus: the trigger input after its last edge (low before one), the
+  // strobe output as last driven.
+  bool trigger_level_ = false, strobe_level_ = false;
 
   ArvGvFakeCamera* gv_ = nullptr;
   ArvFakeCamera* fake_ = nullptr;

@@ -207,7 +207,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}}, "Direction of the selected line."));
   t.push_back(Enum("LineSource", io, kLineSource, true, {{"Off", kLineSourceOff}, {"ExposureActive", kLineSourceExposureActive}},
                    "What drives the strobe output (Line1)."));
-  t.push_back(Bool("LineStatus", io, kLineStatus, false, "Level of the selected line."));
+  t.push_back(Bool("LineStatus", io, kLineStatus, false,
+                   "Level of the selected line: Line0 after its last edge (low before one), Line1 as last driven."));
 
   const char* tl = "TransportLayerControl";
   // Computed by the client from the registers it has just written: never stale.

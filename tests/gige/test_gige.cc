@@ -473,6 +473,43 @@ TEST(GigeRegisters, AutoExposureStopsWhereThePipelineDoes) {
   EXPECT_NE(log.find("sensor.smear_row_transfer_us"), std::string::npos) << log;
 }
 
+// An output the device cannot lower: the strobe stays high, and LineStatus says so.
+class StuckHighLine : public hal::OutputLine {
+ public:
+  bool Set(bool high, std::string* error) override {
+    if (high) return true;
+    *error = "stuck high";
+    return false;
+  }
+  std::string Name() const override { return "stuck"; }
+};
+
+// LineStatus on Line1 is the strobe's level as last driven.
+TEST(GigeRegisters, LineStatusFollowsTheStrobe) {
+  for (bool stuck : {false, true}) {
+    SCOPED_TRACE(stuck ? "stuck high" : "memory line");
+    hal::MemoryLine memory("strobe");
+    StuckHighLine stuck_line;
+    DeviceOptions o = SmallDevice();
+    o.serve = false;
+    o.strobe = stuck ? static_cast<hal::OutputLine*>(&stuck_line) : &memory;
+    auto d = StartDevice(o);
+    ASSERT_NE(d, nullptr);
+    WriteReg(*d, reg::kLineSelector, Be32(1));
+    WriteReg(*d, reg::kLineSource, Be32(genicam::kLineSourceExposureActive));
+    d->SyncNow();
+    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), 0u) << "before a frame";
+    std::vector<uint8_t> frame;
+    ASSERT_TRUE(d->RenderNow(&frame));
+    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), stuck ? 1u : 0u);
+    EXPECT_EQ(d->line_error(), stuck ? "stuck high" : "");
+    EXPECT_EQ(memory.edges(), stuck ? 0 : 2);
+    WriteReg(*d, reg::kLineSelector, Be32(0));  // Line0: no trigger line, low
+    d->SyncNow();
+    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), 0u);
+  }
+}
+
 // ---------------------------------------------------------------- end to end
 
 class GigeE2E : public ::testing::Test {
@@ -691,6 +728,33 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   EXPECT_TRUE(c.Grab(300).empty());
   trigger.Set(false, &err);
   EXPECT_FALSE(c.Grab(3000).empty());
+}
+
+// LineStatus on Line0 is the trigger input's level after its last edge.
+TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  StartWith(o);
+  Client& c = *client_;
+  auto status = [&] { return arv_camera_get_boolean(c.camera(), "LineStatus", nullptr); };
+  // Waits up to 2 s for LineStatus to read `want` (the trigger thread takes the edge).
+  auto reads = [&](bool want) {
+    for (int i = 0; i < 400 && status() != want; ++i) Sleep(5);
+    return status() == want;
+  };
+  Set(c, "LineSelector", "Line0");
+  EXPECT_FALSE(status());
+  std::string err;
+  trigger_.Set(true, &err);
+  EXPECT_TRUE(reads(true)) << "high trigger input";
+  Set(c, "LineSelector", "Line1");  // the strobe: not driven
+  Settle();
+  EXPECT_FALSE(status());
+  Set(c, "LineSelector", "Line0");
+  Settle();
+  EXPECT_TRUE(status());
+  trigger_.Set(false, &err);
+  EXPECT_TRUE(reads(false)) << "low trigger input";
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
