@@ -1,6 +1,8 @@
 // camsim-gige: the camera pipeline served as a GigE Vision camera.
 #include <arv.h>
 
+#include <cctype>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -22,6 +24,17 @@ const char kUsage[] =
     "  SIGINT/SIGTERM). Lines: a GPIO line (libgpiod) or unix:DIR, a loopback trigger\n"
     "  bus shared by a rig of cameras (fire it with camsim-trigger). Receivers at\n"
     "  1080p need a 4 MiB socket buffer: see docs/gige.md.\n";
+
+// The whole of s as a decimal integer in [min, max] (no spaces, no '+').
+bool ParseInt(const std::string& s, long min, long max, long* out) {
+  if (s.empty() || !(std::isdigit(static_cast<unsigned char>(s[0])) || s[0] == '-')) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(s.c_str(), &end, 10);
+  if (*end || errno != 0 || v < min || v > max) return false;
+  *out = v;
+  return true;
+}
 
 volatile std::sig_atomic_t g_stop = 0;
 void OnSignal(int) { g_stop = 1; }
@@ -51,14 +64,17 @@ int main(int argc, char** argv) {
     else if (a == "--trigger-line") o.trigger_line = value();
     else if (a == "--strobe-line") o.strobe_line = value();
     else if (a == "--xml-out") o.xml_path = value();
-    else if (a == "--threads") {
-      o.threads = std::atoi(value().c_str());
-      if (o.threads < 1 || o.threads > 64) {
-        std::fprintf(stderr, "camsim-gige: --threads must be 1..64\n");
+    else if (a == "--threads" || a == "--frames") {
+      const std::string v = value();
+      const long min = a == "--threads" ? 1 : 0, max = a == "--threads" ? 64 : 0x7fffffffL;
+      long n = 0;
+      if (!ParseInt(v, min, max, &n)) {
+        std::fprintf(stderr, "camsim-gige: %s needs an integer %ld..%ld, not '%s'\n", a.c_str(), min, max, v.c_str());
         return 1;
       }
-    } else if (a == "--frames") frames = std::atol(value().c_str());
-    else if (a == "--help" || a == "-h") {
+      if (a == "--threads") o.threads = static_cast<int>(n);
+      else frames = n;
+    } else if (a == "--help" || a == "-h") {
       std::fputs(kUsage, stdout);
       return 0;
     } else {
