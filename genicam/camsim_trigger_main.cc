@@ -52,9 +52,10 @@ int main(int argc, char** argv) {
       return 1;
     }
     // Ranges: frame indices are 31-bit (SimFrameIndex); an hour at most between pulses.
+    const long min = target == &count ? 1 : 0;
     const long max = target == &first ? 0x7fffffffL : target == &count ? 1000000L : 3600000L;
-    if (i + 1 >= argc || !ParseInt(argv[i + 1], target == &count ? 1 : 0, max, target)) {
-      std::fprintf(stderr, "camsim-trigger: %s needs an integer 0..%ld\n", a.c_str(), max);
+    if (i + 1 >= argc || !ParseInt(argv[i + 1], min, max, target)) {
+      std::fprintf(stderr, "camsim-trigger: %s needs an integer %ld..%ld\n", a.c_str(), min, max);
       return 1;
     }
     ++i;
