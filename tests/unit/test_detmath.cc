@@ -15,12 +15,15 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Distance in units in the last place of `ref` (both finite, same sign).
+// Infinite for a NaN result, so that it fails a bound: std::max(worst, NaN)
+// would keep worst and hide it.
 double UlpDiff(double got, long double ref) {
   const double r = static_cast<double>(ref);
   int e = 0;
   std::frexp(r, &e);
   const long double ulp = std::ldexp(1.0L, std::max(e - 53, -1074));
-  return static_cast<double>(std::fabs(static_cast<long double>(got) - ref) / ulp);
+  const double d = static_cast<double>(std::fabs(static_cast<long double>(got) - ref) / ulp);
+  return std::isnan(d) ? std::numeric_limits<double>::infinity() : d;
 }
 
 // On x86-64 (80-bit) and aarch64 (128-bit) long double is a reference precise
@@ -305,6 +308,7 @@ TEST(DetMathTest, InvNormalCdfResidual) {
         break;  // centre
     }
     const double z = InvNormalCdf(p);
+    ASSERT_TRUE(std::isfinite(z)) << "p = " << p;
     const double phi = std::exp(-0.5 * z * z) / std::sqrt(2.0 * std::numbers::pi);
     // Phi(z) - p without cancellation: via erf near the centre (0.5 - p exact), erfc in the tails.
     const double resid = (p >= 0.25 && p <= 0.75) ? 0.5 * std::erf(z / std::sqrt(2.0)) - (p - 0.5)

@@ -447,7 +447,15 @@ TEST(DofDiffusion, BitExactForEveryStripHeightAndThreads) {
       ASSERT_TRUE(b->status.ok());
       for (int strip : {1, 7, 64}) EXPECT_EQ(test::RunFrameThreads(*b, s, 0, strip, threads), ref) << threads << " " << strip;
     }
-    EXPECT_NE(std::vector<uint32_t>(ref.begin(), ref.end()), std::vector<uint32_t>()) << "ran";
+    // Every sample written, and the depth ramp blurred most of them: equal
+    // outputs of a stage that did nothing would prove nothing.
+    size_t changed = 0;
+    for (size_t i = 0; i < ref.size(); ++i) {
+      ASSERT_NE(ref[i], 0xDEADBEEFu) << "sample " << i << " never written";
+      changed += ref[i] != s.plane[i % 3][i / 3];
+    }
+    EXPECT_GT(changed, ref.size() / 2) << "method " << static_cast<int>(m);
+    RecordProperty(m == DofMethod::kDiffusion ? "diffusion_changed" : "gather_changed", std::to_string(changed));
   }
 }
 

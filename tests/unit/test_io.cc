@@ -111,9 +111,28 @@ TEST(LoadSceneExr, BundledBlenderScene) {
   }
   EXPECT_GT(peak, 100.0f);  // the emissive lamp, radiance ~400
   EXPECT_LT(peak, 65504.0f);
-  float max_motion = 0.0f;
-  for (float v : f.motion_x.data) max_motion = std::max(max_motion, std::abs(v));
-  EXPECT_TRUE(std::isfinite(max_motion));
+  // Motion vectors (Vector.X, Y: towards the previous frame) are finite (NaN
+  // would slip past std::max). The first frame has no previous one: ~0. The
+  // second moves the scene along both axes (the camera dollies forward).
+  SceneFrame second;
+  ASSERT_TRUE(LoadSceneExr(std::string(CAMSIM_SOURCE_DIR) + "/scenes/aisle_0002.exr", "", &second, &error)) << error;
+  ASSERT_TRUE(second.has_motion);
+  for (const SceneFrame* s : {&f, &second})
+    for (const FloatPlane* p : {&s->motion_x, &s->motion_y}) {
+      float max_motion = 0.0f;
+      for (float v : p->data) {
+        ASSERT_TRUE(std::isfinite(v));
+        max_motion = std::max(max_motion, std::abs(v));
+      }
+      const bool x = p == &s->motion_x;
+      if (s == &f) {
+        EXPECT_LT(max_motion, 0.01f) << (x ? "x" : "y");
+      } else {
+        RecordProperty(x ? "max_motion_x_px" : "max_motion_y_px", std::to_string(max_motion));
+        EXPECT_GT(max_motion, 0.5f) << (x ? "x" : "y");
+        EXPECT_LT(max_motion, 640.0f) << (x ? "x" : "y");
+      }
+    }
 }
 
 TEST_F(IoTest, FloatRoundTripSanitises) {

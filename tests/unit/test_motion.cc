@@ -175,7 +175,9 @@ TEST(MotionBlur, StillCameraIsLeftOut) {
   c.motion_blur.source = MotionSource::kCamera;
   c.motion_blur.line_time_us = 20.0;
   auto rs = test::Build(c);
+  ASSERT_TRUE(rs->status.ok());  // a refused config would leave runs at its default, false
   EXPECT_FALSE(rs->pipeline.plan().entries[0].runs);
+  EXPECT_STREQ(rs->pipeline.plan().entries[0].reason, "camera is still (zero angular and linear velocity)");
 }
 
 // Measures the subpixel position of a bright-to-dark vertical edge in row y:

@@ -98,6 +98,7 @@ TEST(Pipeline, NoiseIsKeyedByFrameAndSeed) {
   EXPECT_NE(RunFrame(*b, scene, 1, 32), f0);
   c.seed = 2;
   auto b2 = Build(c);
+  ASSERT_TRUE(b2->status.ok());  // else its unwritten output differs from f0 anyway
   EXPECT_NE(RunFrame(*b2, scene, 0, 32), f0);
 }
 
@@ -172,11 +173,15 @@ TEST(Pipeline, WorkspaceTooSmallIsAConfigurationError) {
 }
 
 TEST(Pipeline, WorkspaceGrowsWithWidthNotHeight) {
-  PipelineConfig a = DemoConfig(640, 480), b = DemoConfig(640, 4800);
-  Pipeline pa, pb;
+  PipelineConfig a = DemoConfig(640, 480), b = DemoConfig(640, 4800), c = DemoConfig(1280, 480);
+  Pipeline pa, pb, pc;
   ASSERT_TRUE(pa.Configure(a, 1, false).ok());
   ASSERT_TRUE(pb.Configure(b, 1, false).ok());
+  ASSERT_TRUE(pc.Configure(c, 1, false).ok());
   EXPECT_EQ(pa.WorkerBytes(), pb.WorkerBytes());  // line rings, no frame buffers
+  // Rows twice as wide: the rings (and so the worker memory) about double.
+  EXPECT_GT(pc.WorkerBytes(), pa.WorkerBytes() * 3 / 2);
+  EXPECT_LE(pc.WorkerBytes(), pa.WorkerBytes() * 2);
 }
 
 TEST(Pipeline, NoHeapAllocationWhileProcessing) {
