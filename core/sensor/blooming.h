@@ -22,7 +22,7 @@
 // comparing photons with a per-colour threshold (a vectorisable pass).
 //
 // Formats: in/out Photons Q24.8, 1 channel (mosaic or mono) or 3.
-//          charge Q.8 electrons in uint64: photons * QE (Q0.16), rounded ties up;
+//          charge Q.8 electrons in uint64: photons * QE (Q1.16), rounded ties up;
 //          back to photons: level * 2^16 / QE, rounded ties up, saturated at 2^32 - 1.
 //          A colour with QE 0 never saturates and receives no charge (spill into it is lost).
 #pragma once

@@ -221,7 +221,7 @@ Status SensorStage::Init(Arena& tables) {
 SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) const {
   // |prnu_q16_ * z| >> 16 <= 0.5 * 2^16 * |z| and |dsnu_q8_ * z| >> 16 <= 2.6e5 * |z|
   // (Configure's ranges; |z| <= GaussianTable's largest sample): both fit int32.
-  const int64_t gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q1.16
+  const int64_t gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q3.16 (< 4.2)
   return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain),
                       static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
 }
@@ -255,7 +255,7 @@ CAMSIM_AVX2_TARGET inline __m256i Pick(__m256i mask, __m256i a, __m256i b) { ret
 // Pass 1's inputs for one block (pointers at the block's first pixel).
 struct MeanIn {
   const uint32_t* in;               // photons, Q24.8
-  uint32_t qe[2];                   // Q0.16, even and odd columns
+  uint32_t qe[2];                   // Q1.16, even and odd columns
   const Normals* fz;                // fixed-pattern normals, or null
   const int32_t* pattern;           // the pattern table's (gain, DSNU) pairs, or null
   int64_t prnu_q16, dsnu_q8;
@@ -278,7 +278,7 @@ CAMSIM_AVX2_TARGET void MeanCharge(const MeanIn& b, int count, uint32_t* mean_q8
     __m256i mu = _mm256_srli_epi64(_mm256_add_epi64(_mm256_mul_epu32(avx2::LoadU32x4(b.in + i), qe), half16), 16);
     __m128i offset = _mm_set1_epi32(b.row_offset);
     if (patterns) {
-      __m256i gain, dsnu_low;  // Q1.16 >= 0 and Q.8 electrons, in the low halves
+      __m256i gain, dsnu_low;  // Q3.16 >= 0 and Q.8 electrons, in the low halves
       if (b.pattern != nullptr) {
         gain = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(b.pattern + 2 * i));
         dsnu_low = _mm256_srli_epi64(gain, 32);

@@ -28,8 +28,9 @@
 //
 // Artefacts beyond the EMVA model (all off by default):
 //   row / column FPN: offsets z_row(y) * row_fpn_e and z_col(x) * column_fpn_e
-//     added to v like the DSNU (fixed: keyed by (seed, y) and (seed, x) only;
-//     the column offsets are a table built at Init, one int32 per column).
+//     added to v like the DSNU (fixed: keyed by (seed, y, channel) and (seed,
+//     x, channel) only; the column offsets are a table built at Init, one
+//     int32 per channel and column).
 //   defect pixels (a seeded map): the defect draw's first word u picks
 //     hot   (u < h):           extra dark charge hot_pixel_dark_e_per_s * t
 //                              * 2^((T - T_ref) / T_double) * (0.5 + u'),
@@ -54,7 +55,8 @@
 //
 // Formats: in  Photons Q24.8, 1 channel (mosaic / mono) or 3 (one sensor per colour)
 //          out Digital DN integer, 1 or 3 channels
-//          QE, PRNU gain: Q0.16 / Q1.16 (64-bit products, rounded ties up)
+//          QE, PRNU gain: Q1.16 / Q3.16 (1.0 = 65536; the gain 1 + prnu z reaches
+//          1 + 0.5 * 6.34 at 50 % PRNU; 64-bit products, rounded ties up)
 //          mean and charge: Q24.8 electrons (uint32, saturating; full well <= 1e6 e-)
 //          v: int64 Q.8; K as UScale, v * K in int64 (|v| < 2^29, mantissa < 2^32)
 //          normals: Q15.16 from GaussianTable; Poisson: PoissonTable (exact
@@ -164,7 +166,7 @@ class SensorStage final : public Stage {
   const uint32_t* listed_row_ = nullptr;      // height + 1 offsets into listed_: row y is [row[y], row[y + 1])
   double exposure_time_us_ = 0.0;
   const int32_t* column_offset_ = nullptr;  // column FPN, Q.8 electrons (width entries; null when off)
-  // Fixed-pattern table: per channel, row and column the PRNU gain (Q1.16,
+  // Fixed-pattern table: per channel, row and column the PRNU gain (Q3.16,
   // >= 0) and the DSNU offset (Q.8 electrons), exactly as drawn per frame.
   struct PatternEntry {
     int32_t gain_q16;

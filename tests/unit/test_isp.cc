@@ -24,7 +24,7 @@ namespace {
 using ref::RefImage;
 
 // Error bounds against the references, in LSB of the output (1/65535 of full scale).
-// Black level: one rounding, plus the scale's 2^-32 relative rounding on results <= 65535 (< 2e-5).
+// Black level: one rounding, plus the scale's relative rounding and the offset's (< 2.3e-5, black_level.h).
 constexpr double kBlackLevelMaxErr = 0.5 + 1e-4;
 // White balance: one rounding, plus the gain's 2^-32 relative rounding on products <= 16 * 65535 (< 3e-4).
 constexpr double kWhiteBalanceMaxErr = 0.5 + 1e-3;
