@@ -501,7 +501,8 @@ TEST(DofBoth, PointAtFocusStaysSharp) {
   SetDepth(&s, [](int, int) { return 3.0; });
   p.dof.method = DofMethod::kGather;
   const std::vector<uint32_t> g = RunDof(p, s, 8);
-  for (size_t i = 0; i < centre * 3 + 3; ++i) ASSERT_EQ(g[i], s.plane[i % 3][i / 3]);
+  ASSERT_EQ(g.size(), static_cast<size_t>(w) * h * 3);
+  for (size_t i = 0; i < g.size(); ++i) ASSERT_EQ(g[i], s.plane[i % 3][i / 3]) << "sample " << i;
 }
 
 // Per-axis variance (px^2) of a point's spread, background removed.

@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "core/isp/gamma.h"
+#include "core/isp/isp_ref.h"
 #include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
@@ -176,10 +177,10 @@ std::vector<uint16_t> GammaTable(const PipelineConfig& c) {
   return std::vector<uint16_t>(g.table(), g.table() + GammaStage::kTableSize);
 }
 
-// The raw DN of a pixel at the full well, noise off: min(round(K * FW) + BL, max).
+// The raw DN of a pixel at the full well, noise off: min(round(K * FW + BL), max).
 uint32_t SaturatedDn(const PipelineConfig& c) {
   const double k = c.sensor.system_gain_dn_per_e * std::pow(10.0, c.sensor.gain_db / 20.0);
-  const double dn = RoundUp(k * c.sensor.full_well_e) + c.sensor.black_level_dn;
+  const double dn = RoundUp(k * c.sensor.full_well_e + c.sensor.black_level_dn);
   return static_cast<uint32_t>(std::min(dn, static_cast<double>((1 << c.geometry.adc_bits) - 1)));
 }
 
@@ -195,7 +196,7 @@ void CheckAllZero(const PipelineConfig& c, const Cuts& cuts, const std::string& 
   EXPECT_EQ(cuts.id.back(), StageId::kGamma) << what;
   for (size_t i = 0; i < cuts.id.size(); ++i) {
     const uint32_t expected =
-        cuts.format[i].domain == Domain::kDigital ? static_cast<uint32_t>(c.sensor.black_level_dn) : 0u;
+        cuts.format[i].domain == Domain::kDigital ? static_cast<uint32_t>(RoundUp(c.sensor.black_level_dn)) : 0u;
     EXPECT_EQ(std::count(cuts.out[i].begin(), cuts.out[i].end(), expected),
               static_cast<ptrdiff_t>(cuts.out[i].size()))
         << what << ": after " << StageName(cuts.id[i]) << " every sample should be " << expected;
@@ -211,8 +212,21 @@ void CheckAllMax(const PipelineConfig& c, const Cuts& cuts, const std::string& w
   const uint32_t raw = SaturatedDn(c);
   const std::vector<uint16_t> gamma = GammaTable(c);
   // Reflect-101 keeps the Bayer phase only for frames of 2 x 2 and more: in a
-  // single row or column demosaic mixes colours, so only its range is checked there.
+  // single row or column demosaic mixes colours.
   const bool phase_kept = (w >= 2 && h >= 2) || c.geometry.cfa == Cfa::kMono;
+  // There each demosaiced sample is the double reference's on the white-balanced
+  // mosaic (exact integer kernels and one rounding: the same value).
+  std::vector<uint32_t> mixed(static_cast<size_t>(w) * h * 3);
+  if (!phase_kept) {
+    ref::RefImage m{w, h, {std::vector<double>(static_cast<size_t>(w) * h)}};
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        m.planes[0][static_cast<size_t>(y) * w + x] =
+            ExpectedBalanced(c, ExpectedLinear(c, raw), CfaColour(c.geometry.cfa, x, y));
+    const ref::RefImage d = c.demosaic.method == DemosaicMethod::kMalvar ? ref::RefDemosaicMalvar(m, c.geometry.cfa)
+                                                                          : ref::RefDemosaicBilinear(m, c.geometry.cfa);
+    for (size_t k = 0; k < mixed.size(); ++k) mixed[k] = static_cast<uint32_t>(RoundUp(d.planes[k % 3][k / 3]));
+  }
   for (size_t i = 0; i < cuts.id.size(); ++i) {
     const LineFormat& f = cuts.format[i];
     size_t wrong = 0;
@@ -230,10 +244,10 @@ void CheckAllMax(const PipelineConfig& c, const Cuts& cuts, const std::string& w
             case StageId::kBlackLevel: expected = linear; break;
             case StageId::kWhiteBalance: expected = balanced; break;
             case StageId::kDemosaic:  // a flat colour plane stays flat
-              if (phase_kept) expected = balanced;
+              expected = phase_kept ? balanced : mixed[(static_cast<size_t>(y) * w + x) * 3 + ch];
               break;
             case StageId::kGamma:
-              if (phase_kept) expected = gamma[balanced];
+              expected = gamma[phase_kept ? balanced : mixed[(static_cast<size_t>(y) * w + x) * 3 + ch]];
               break;
             default: break;  // vignetting, cfa: saturated photons times a gain (checked via the sensor)
           }
