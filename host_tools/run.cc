@@ -33,22 +33,33 @@ std::string Stem(const std::string& path) {
 // The name a --dump-stages image of running stage r takes after the stem.
 std::string DumpSuffix(int r, StageId id) { return "." + std::to_string(r) + "_" + StageName(id); }
 
+// The raw sensor output's files: a PGM for one channel (mono or mosaic), a PPM
+// for three (RGB, when no CFA stage runs), the .raw samples and their sidecar.
+std::vector<std::string> RawOutputs(const std::string& stem, int channels) {
+  return {stem + (channels == 3 ? ".raw.ppm" : ".raw.pgm"), stem + ".raw", stem + ".raw.json"};
+}
+
 // The files a frame with this stem writes under `plan` (as the writers in
 // RunCommand name them).
 std::vector<std::string> FrameOutputs(const std::string& stem, const Plan& plan, bool dump_stages) {
   std::vector<std::string> out;
   const Domain d = plan.output.domain;
-  int r = 0, sensor = -1;
+  int r = 0, sensor = -1, raw_channels = plan.output.channels;
   for (int i = 0; i < plan.count; ++i)
     if (plan.entries[i].runs) {
-      if (plan.entries[i].id == StageId::kSensor) sensor = r;
+      if (plan.entries[i].id == StageId::kSensor) {
+        sensor = r;
+        raw_channels = plan.entries[i].out.channels;
+      }
       if (dump_stages) out.push_back(stem + DumpSuffix(r, plan.entries[i].id) + ".exr");
       ++r;
     }
   if (d == Domain::kLinear || d == Domain::kEncoded) out.push_back(stem + ".png");
   else if (d != Domain::kDigital) out.push_back(stem + ".exr");
-  if (d == Domain::kDigital || sensor >= 0)
-    out.insert(out.end(), {stem + ".raw.pgm", stem + ".raw", stem + ".raw.json"});
+  if (d == Domain::kDigital || sensor >= 0) {
+    const std::vector<std::string> raw = RawOutputs(stem, raw_channels);
+    out.insert(out.end(), raw.begin(), raw.end());
+  }
   return out;
 }
 
@@ -202,12 +213,13 @@ void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
 }
 
 // The GenICam PFNC name of the .raw file's layout as JSON: samples of adc_bits
-// in the low bits of 2-byte words is Mono10/12/14/16 or Bayer**10/12/14/16;
-// other depths (8 bits in 2 bytes, odd depths) have no PFNC name: null.
-std::string RawPixelFormat(const RunConfig& rc) {
+// in the low bits of 2-byte words is Mono10/12/14/16 or Bayer**10/12/14/16
+// (one channel), RGB10/12/14/16 (three, interleaved); other depths (8 bits in
+// 2 bytes, odd depths) have no PFNC name: null.
+std::string RawPixelFormat(const RunConfig& rc, int channels) {
   const int bits = rc.core.geometry.adc_bits;
   if (bits != 10 && bits != 12 && bits != 14 && bits != 16) return "null";
-  return JsonString(CfaName(rc.core.geometry.cfa) + std::to_string(bits));
+  return JsonString((channels == 3 ? std::string("RGB") : CfaName(rc.core.geometry.cfa)) + std::to_string(bits));
 }
 
 // Writes one tapped image as the file type its domain calls for.
@@ -650,37 +662,51 @@ int RunCommand(const RunOptions& o) {
       ApplyExposure(next, &rc);
     }
 
-    // Files: <stem>.png (ISP), <stem>.raw.pgm + .raw + .raw.json (sensor),
-    // <stem>.exr (linear domains), <stem>.<i>_<stage>.exr (--dump-stages).
+    // Files: <stem>.png (ISP), <stem>.raw.pgm or .raw.ppm + .raw + .raw.json
+    // (sensor), <stem>.exr (linear domains), <stem>.<i>_<stage>.exr (--dump-stages).
     const std::string stem = o.out_dir + "/" + Stem(files[f]);
     bool ok = true;
     const int max_dn = (1 << rc.core.geometry.adc_bits) - 1;
-    auto write_raw = [&](const std::vector<uint8_t>& buf) {
+    // One channel is a mosaic or mono frame; three are one sensor per colour
+    // (no CFA stage), written interleaved as RGB.
+    auto write_raw = [&](const std::vector<uint8_t>& buf, int channels) {
+      if (channels != 1 && channels != 3) {
+        error = stem + ".raw: the sensor output has " + std::to_string(channels) +
+                " channels; only 1 (mono or mosaic) or 3 (RGB) can be written";
+        ok = false;
+        return;
+      }
       const uint16_t* px = reinterpret_cast<const uint16_t*>(buf.data());
+      const ptrdiff_t stride = static_cast<ptrdiff_t>(w) * channels;
+      const std::vector<std::string> names = RawOutputs(stem, channels);
       std::ostringstream side;
       const int bits = rc.core.geometry.adc_bits;
-      side << "{\"width\": " << w << ", \"height\": " << h << ", \"pixel_format\": " << RawPixelFormat(rc)
-           << ", \"cfa\": " << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << bits
-           << ", \"bytes_per_pixel\": 2, \"significant_bits\": " << bits
+      side << "{\"width\": " << w << ", \"height\": " << h << ", \"channels\": " << channels
+           << (channels == 3 ? ", \"channel_order\": \"RGB\"" : "")
+           << ", \"pixel_format\": " << RawPixelFormat(rc, channels)
+           << ", \"cfa\": " << (channels == 3 ? "null" : JsonString(CfaName(rc.core.geometry.cfa)))
+           << ", \"adc_bits\": " << bits << ", \"bytes_per_pixel\": " << 2 * channels
+           << ", \"significant_bits\": " << bits
            << ", \"alignment\": \"lsb\", \"byte_order\": \"little\", \"black_level_dn\": "
            << Num(rc.core.sensor.black_level_dn) << ", \"frame\": " << frame_index << ", \"seed\": " << rc.core.seed
            << ", \"source\": " << JsonString(scene.source) << "}\n";
-      ok = ok && io::WritePgm16(stem + ".raw.pgm", px, w, h, w, max_dn, &error) &&
-           io::WriteRaw16(stem + ".raw", px, w, h, w, &error) && io::WriteTextFile(stem + ".raw.json", side.str(), &error);
-      if (ok) rec.outputs.insert(rec.outputs.end(), {stem + ".raw.pgm", stem + ".raw", stem + ".raw.json"});
+      ok = ok && io::WritePnm16(names[0], px, w, h, channels, stride, max_dn, &error) &&
+           io::WriteRaw16(names[1], px, w, h, channels, stride, &error) &&
+           io::WriteTextFile(names[2], side.str(), &error);
+      if (ok) rec.outputs.insert(rec.outputs.end(), names.begin(), names.end());
     };
     if (final_is_image) {
       ok = io::WritePng(stem + ".png", buffers[0].data(), w, h, out_fmt.channels, rc.output_bits, w * out_fmt.channels,
                         &error);
       if (ok) rec.outputs.push_back(stem + ".png");
     } else if (final_is_raw) {
-      write_raw(buffers[0]);
+      write_raw(buffers[0], out_fmt.channels);
     } else {
       std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(buffers[0].data()),
                                  reinterpret_cast<const uint32_t*>(buffers[0].data()) + buffers[0].size() / 4);
       ok = WriteStageImage(stem, out_fmt, data, w, h, &rec.outputs, &error);
     }
-    if (ok && raw_tap) write_raw(buffers[1]);
+    if (ok && raw_tap) write_raw(buffers[1], formats[static_cast<size_t>(sensor_index)].channels);
     if (ok && o.dump_stages) {
       int r = 0;
       for (int i = 0; i < plan.count && ok; ++i) {

@@ -138,21 +138,26 @@ bool EncodePng(std::FILE* f, const void* data, int width, int height, int channe
 
 }  // namespace
 
-bool WritePgm16(const std::string& path, const uint16_t* data, int width, int height,
+bool WritePnm16(const std::string& path, const uint16_t* data, int width, int height, int channels,
                 ptrdiff_t stride_samples, int maxval, std::string* error) {
-  if (!CheckImage(path, data, width, height, 1, stride_samples, error)) return false;
+  if (channels != 1 && channels != 3) {
+    *error = "cannot write " + Quoted(path) + ": PGM/PPM channels must be 1 or 3, not " + std::to_string(channels);
+    return false;
+  }
+  if (!CheckImage(path, data, width, height, channels, stride_samples, error)) return false;
   if (maxval < 1 || maxval > 65535) {
     *error = "cannot write " + Quoted(path) + ": maxval " + std::to_string(maxval) +
              " is outside 1..65535";
     return false;
   }
+  const int samples = width * channels;  // per row
   for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      const int v = data[y * stride_samples + x];
+    for (int i = 0; i < samples; ++i) {
+      const int v = data[y * stride_samples + i];
       if (v > maxval) {
-        *error = "cannot write " + Quoted(path) + ": sample (" + std::to_string(x) + "," +
-                 std::to_string(y) + ") = " + std::to_string(v) + " exceeds maxval " +
-                 std::to_string(maxval);
+        *error = "cannot write " + Quoted(path) + ": sample (" + std::to_string(i / channels) + "," +
+                 std::to_string(y) + ")" + (channels == 1 ? "" : std::string(1, "RGB"[i % channels])) + " = " +
+                 std::to_string(v) + " exceeds maxval " + std::to_string(maxval);
         return false;
       }
     }
@@ -160,19 +165,19 @@ bool WritePgm16(const std::string& path, const uint16_t* data, int width, int he
   return WriteViaFile(
       path,
       [&](std::FILE* f, std::string* err) {
-        const std::string header = "P5\n" + std::to_string(width) + " " + std::to_string(height) +
-                                   "\n" + std::to_string(maxval) + "\n";
+        const std::string header = std::string(channels == 1 ? "P5" : "P6") + "\n" + std::to_string(width) + " " +
+                                   std::to_string(height) + "\n" + std::to_string(maxval) + "\n";
         if (!Put(f, header.data(), header.size(), path, err)) return false;
         const size_t bytes = maxval < 256 ? 1 : 2;
-        std::vector<unsigned char> row(static_cast<size_t>(width) * bytes);
+        std::vector<unsigned char> row(static_cast<size_t>(samples) * bytes);
         for (int y = 0; y < height; ++y) {
           const uint16_t* src = data + y * stride_samples;
-          for (int x = 0; x < width; ++x) {
+          for (int i = 0; i < samples; ++i) {
             if (bytes == 1) {
-              row[x] = static_cast<unsigned char>(src[x]);
+              row[i] = static_cast<unsigned char>(src[i]);
             } else {
-              row[2 * x] = static_cast<unsigned char>(src[x] >> 8);
-              row[2 * x + 1] = static_cast<unsigned char>(src[x] & 0xff);
+              row[2 * i] = static_cast<unsigned char>(src[i] >> 8);
+              row[2 * i + 1] = static_cast<unsigned char>(src[i] & 0xff);
             }
           }
           if (!Put(f, row.data(), row.size(), path, err)) return false;
@@ -208,18 +213,23 @@ bool WritePng(const std::string& path, const void* data, int width, int height, 
       error);
 }
 
-bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height,
+bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height, int channels,
                 ptrdiff_t stride_samples, std::string* error) {
-  if (!CheckImage(path, data, width, height, 1, stride_samples, error)) return false;
+  if (channels < 1) {
+    *error = "cannot write " + Quoted(path) + ": " + std::to_string(channels) + " channels";
+    return false;
+  }
+  if (!CheckImage(path, data, width, height, channels, stride_samples, error)) return false;
   return WriteViaFile(
       path,
       [&](std::FILE* f, std::string* err) {
-        std::vector<unsigned char> row(static_cast<size_t>(width) * 2);
+        const int samples = width * channels;  // per row
+        std::vector<unsigned char> row(static_cast<size_t>(samples) * 2);
         for (int y = 0; y < height; ++y) {
           const uint16_t* src = data + y * stride_samples;
-          for (int x = 0; x < width; ++x) {
-            row[2 * x] = static_cast<unsigned char>(src[x] & 0xff);
-            row[2 * x + 1] = static_cast<unsigned char>(src[x] >> 8);
+          for (int i = 0; i < samples; ++i) {
+            row[2 * i] = static_cast<unsigned char>(src[i] & 0xff);
+            row[2 * i + 1] = static_cast<unsigned char>(src[i] >> 8);
           }
           if (!Put(f, row.data(), row.size(), path, err)) return false;
         }

@@ -19,11 +19,12 @@
 
 namespace camsim::io {
 
-// Binary PGM (P5) with the given maxval (1..65535; use 2^bits - 1). Per the
-// Netpbm spec, samples are big-endian 16-bit when maxval >= 256 and single
-// bytes when maxval < 256. A sample above maxval is an error.
-// Header: "P5\n<width> <height>\n<maxval>\n".
-bool WritePgm16(const std::string& path, const uint16_t* data, int width, int height,
+// Binary PGM (P5, channels = 1) or PPM (P6, channels = 3, interleaved RGB) with
+// the given maxval (1..65535; use 2^bits - 1). Per the Netpbm spec, samples are
+// big-endian 16-bit when maxval >= 256 and single bytes when maxval < 256. A
+// sample above maxval is an error. Header: "P5\n<width> <height>\n<maxval>\n"
+// (P6 for RGB).
+bool WritePnm16(const std::string& path, const uint16_t* data, int width, int height, int channels,
                 ptrdiff_t stride_samples, int maxval, std::string* error);
 
 // PNG, gray (channels = 1) or RGB (channels = 3), bit_depth 8 (data is
@@ -31,8 +32,9 @@ bool WritePgm16(const std::string& path, const uint16_t* data, int width, int he
 bool WritePng(const std::string& path, const void* data, int width, int height, int channels,
               int bit_depth, ptrdiff_t stride_samples, std::string* error);
 
-// Headerless little-endian 16-bit samples, rows packed (width samples each).
-bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height,
+// Headerless little-endian 16-bit samples, rows packed (width x channels
+// samples each, channels interleaved as in `data`).
+bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height, int channels,
                 ptrdiff_t stride_samples, std::string* error);
 
 // The text, byte for byte (JSON sidecars, reports).

@@ -209,6 +209,70 @@ TEST(Cli, RawSidecarDescribesTheSamples) {
   EXPECT_EQ(high, 0);  // 8-bit samples in the low byte
 }
 
+// Without a CFA stage the sensor puts out three channels (one sensor per
+// colour): the raw files hold all of them, interleaved as RGB, as a 16-bit PPM
+// and a sidecar that says so. They used to hold a third of it labelled Bayer.
+TEST(Cli, RawOutputOfAnRgbSensorKeepsAllThreeChannels) {
+  const std::string out = TempDir("raw_rgb");
+  const Result r = Camsim("run --input " + kScene + " --out " + out + " --stages exposure,sensor --quiet --report " +
+                          out + "/report.json --set sensor.width=64 --set sensor.height=48");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string side = Slurp(out + "/aisle_0001.raw.json");
+  EXPECT_NE(side.find("\"width\": 64, \"height\": 48, \"channels\": 3, \"channel_order\": \"RGB\", "
+                      "\"pixel_format\": \"RGB12\", \"cfa\": null, \"adc_bits\": 12, \"bytes_per_pixel\": 6, "
+                      "\"significant_bits\": 12"),
+            std::string::npos)
+      << side;
+  EXPECT_FALSE(Exists(out + "/aisle_0001.raw.pgm"));
+  const std::string ppm = Slurp(out + "/aisle_0001.raw.ppm");
+  const std::string header = "P6\n64 48\n4095\n";
+  ASSERT_EQ(ppm.size(), header.size() + 64u * 48u * 3u * 2u);
+  EXPECT_EQ(ppm.substr(0, header.size()), header);
+  const std::string raw = Slurp(out + "/aisle_0001.raw");
+  ASSERT_EQ(raw.size(), 64u * 48u * 3u * 2u);
+  // The PPM holds the .raw samples (big-endian there), and their per-channel
+  // means are the sensor stage's means in the report.
+  double sum[3] = {0, 0, 0};
+  for (size_t i = 0; i < raw.size() / 2; ++i) {
+    const unsigned lo = static_cast<unsigned char>(raw[2 * i]), hi = static_cast<unsigned char>(raw[2 * i + 1]);
+    ASSERT_EQ(static_cast<unsigned char>(ppm[header.size() + 2 * i]), hi) << "sample " << i;
+    ASSERT_EQ(static_cast<unsigned char>(ppm[header.size() + 2 * i + 1]), lo) << "sample " << i;
+    sum[i % 3] += hi * 256 + lo;
+  }
+  const std::string report = Slurp(out + "/report.json");
+  const size_t sensor = report.find("\"name\": \"sensor\"");
+  ASSERT_NE(sensor, std::string::npos) << report;
+  EXPECT_NE(report.find("\"channels\": 3, \"mosaic\": false", sensor), std::string::npos) << report;
+  const size_t mean = report.find("\"mean\": {", sensor);
+  ASSERT_NE(mean, std::string::npos) << report;
+  const char* names[3] = {"\"R\": ", "\"G\": ", "\"B\": "};
+  for (int c = 0; c < 3; ++c) {
+    const size_t at = report.find(names[c], mean);
+    ASSERT_NE(at, std::string::npos) << report;
+    EXPECT_NEAR(sum[c] / (64 * 48), std::stod(report.substr(at + 5)), 0.01) << "channel " << c;
+  }
+  EXPECT_NE(report.find("\"outputs\": [\"" + out + "/aisle_0001.raw.ppm\", \"" + out + "/aisle_0001.raw\", \"" + out +
+                        "/aisle_0001.raw.json\"]"),
+            std::string::npos)
+      << report;
+}
+
+// The overwrite check knows the RGB raw output's names.
+TEST(Cli, RgbRawOutputsAreClaimedBeforeWriting) {
+  const std::string dir = TempDir("raw_rgb_clobber");
+  std::system(("mkdir -p '" + dir + "/a' '" + dir + "/b' && cp '" + kScene + "' '" + dir + "/a/0001.exr' && cp '" +
+               kScene + "' '" + dir + "/b/0001.exr'")
+                  .c_str());
+  const Result same = Camsim("run --input " + dir + "/a/0001.exr " + dir + "/b/0001.exr --out " + dir +
+                             "/out --stages exposure,sensor --quiet");
+  EXPECT_EQ(same.code, 1);
+  EXPECT_NE(same.err.find("frame 0 (" + dir + "/a/0001.exr) and frame 1 (" + dir + "/b/0001.exr) would both write '" +
+                          dir + "/out/0001.raw.ppm'"),
+            std::string::npos)
+      << same.err;
+  EXPECT_FALSE(Exists(dir + "/out/0001.raw.ppm"));
+}
+
 // Outputs are named after the input's stem in --out: refused before anything
 // is written when that would overwrite an input or another frame's output.
 TEST(Cli, RunRefusesToOverwriteAnInputOrAnotherFramesOutput) {

@@ -366,14 +366,14 @@ TEST_F(IoTest, Pgm16HeaderAndBigEndianSamples) {
   const uint16_t data[] = {0x0102, 0x0fff, 0xdead, 0x0000, 0x0a0b, 0xbeef};
   const std::string path = Path("a.pgm");
   std::string error;
-  ASSERT_TRUE(WritePgm16(path, data, 2, 2, 3, 4095, &error)) << error;
+  ASSERT_TRUE(WritePnm16(path, data, 2, 2, 1, 3, 4095, &error)) << error;
   EXPECT_EQ(ReadBytes(path), std::string("P5\n2 2\n4095\n\x01\x02\x0f\xff\x00\x00\x0a\x0b", 20));
 
   const uint16_t bytes[] = {0, 7, 255};
-  ASSERT_TRUE(WritePgm16(path, bytes, 3, 1, 3, 255, &error)) << error;
+  ASSERT_TRUE(WritePnm16(path, bytes, 3, 1, 1, 3, 255, &error)) << error;
   EXPECT_EQ(ReadBytes(path), std::string("P5\n3 1\n255\n\x00\x07\xff", 14));
 
-  EXPECT_FALSE(WritePgm16(path, data, 2, 2, 3, 255, &error));  // 0x0102 > 255
+  EXPECT_FALSE(WritePnm16(path, data, 2, 2, 1, 3, 255, &error));  // 0x0102 > 255
   EXPECT_NE(error.find("maxval"), std::string::npos) << error;
   EXPECT_EQ(DirEntries(), std::vector<std::string>{"a.pgm"});
 }
@@ -382,8 +382,24 @@ TEST_F(IoTest, Raw16LittleEndian) {
   const uint16_t data[] = {0x0102, 0xffff, 0x1234, 0xabcd};
   const std::string path = Path("a.raw");
   std::string error;
-  ASSERT_TRUE(WriteRaw16(path, data, 1, 2, 2, &error)) << error;  // column 0 only
+  ASSERT_TRUE(WriteRaw16(path, data, 1, 2, 1, 2, &error)) << error;  // column 0 only
   EXPECT_EQ(ReadBytes(path), std::string("\x02\x01\x34\x12", 4));
+}
+
+// Three channels: interleaved RGB, a P6 header, samples in R, G, B order.
+TEST_F(IoTest, RgbPpmAndRawKeepEveryChannel) {
+  // 1x2 RGB pixels inside rows of 4 samples.
+  const uint16_t data[] = {0x0102, 0x0304, 0x0506, 0xffff, 0x0a0b, 0x0c0d, 0x0e0f, 0xffff};
+  std::string error;
+  ASSERT_TRUE(WritePnm16(Path("a.ppm"), data, 1, 2, 3, 4, 4095, &error)) << error;
+  EXPECT_EQ(ReadBytes(Path("a.ppm")),
+            std::string("P6\n1 2\n4095\n\x01\x02\x03\x04\x05\x06\x0a\x0b\x0c\x0d\x0e\x0f", 24));
+  ASSERT_TRUE(WriteRaw16(Path("a.raw"), data, 1, 2, 3, 4, &error)) << error;
+  EXPECT_EQ(ReadBytes(Path("a.raw")), std::string("\x02\x01\x04\x03\x06\x05\x0b\x0a\x0d\x0c\x0f\x0e", 12));
+  EXPECT_FALSE(WritePnm16(Path("b.ppm"), data, 1, 2, 2, 4, 4095, &error));
+  EXPECT_NE(error.find("channels must be 1 or 3, not 2"), std::string::npos) << error;
+  EXPECT_FALSE(WritePnm16(Path("b.ppm"), data, 1, 2, 3, 4, 255, &error));  // 0x0102 > 255
+  EXPECT_NE(error.find("sample (0,0)R = 258 exceeds maxval 255"), std::string::npos) << error;
 }
 
 TEST_F(IoTest, TextFile) {
@@ -473,7 +489,7 @@ TEST_F(IoTest, AtomicWriteIntoMissingDirectoryLeavesNothing) {
   const std::string path = Path("no_such_dir/out.pgm");
   const uint16_t data[] = {1, 2};
   std::string error;
-  EXPECT_FALSE(WritePgm16(path, data, 2, 1, 2, 255, &error));
+  EXPECT_FALSE(WritePnm16(path, data, 2, 1, 1, 2, 255, &error));
   EXPECT_NE(error.find(path), std::string::npos) << error;
   const float f[] = {1, 2};
   EXPECT_FALSE(WriteExrFloat(Path("no_such_dir/out.exr"), 2, 1, {{"Y", f, 2}}, &error));
