@@ -2,9 +2,10 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <sstream>
 #include <vector>
+
+#include "host_tools/io/text_read.h"
 
 namespace camsim::host {
 namespace {
@@ -160,23 +161,22 @@ bool ParseCalibration(const std::string& text, const std::string& source, bool f
 }
 
 bool LoadCalibration(const std::string& path, bool fisheye_hint, Calibration* out, std::string* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    *error = path + ": cannot open the calibration file";
+  std::string text, why;
+  if (!io::ReadTextFile(path, &text, &why)) {
+    *error = path + ": cannot read the calibration file: " + why;
     return false;
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ParseCalibration(ss.str(), path, fisheye_hint, out, error);
+  return ParseCalibration(text, path, fisheye_hint, out, error);
 }
 
 bool LoadDisplacementMesh(const std::string& path, std::vector<float>* dxdy, int* cols, int* rows, double* step,
                           std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
-    *error = path + ": cannot open the displacement mesh";
+  std::string file, why;
+  if (!io::ReadTextFile(path, &file, &why)) {
+    *error = path + ": cannot read the displacement mesh: " + why;
     return false;
   }
+  std::istringstream in(file);
   std::string text, line;
   while (std::getline(in, line)) text += line.substr(0, line.find('#')) + "\n";
   std::istringstream s(text);

@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <sstream>
 #include <vector>
 
 #include "host_tools/io/image_read.h"
+#include "host_tools/io/text_read.h"
 
 namespace camsim::host {
 namespace {
@@ -34,11 +34,12 @@ bool ParseNumber(const std::string& s, double* v) {
 }
 
 bool ParseDescriptor(const std::string& path, Descriptor* out, std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
-    *error = "cannot open EMVA 1288 descriptor '" + path + "'";
+  std::string file, why;
+  if (!io::ReadTextFile(path, &file, &why)) {
+    *error = path + ": cannot read the EMVA 1288 descriptor: " + why;
     return false;
   }
+  std::istringstream in(file);
   const std::string dir = path.find('/') == std::string::npos ? "" : path.substr(0, path.rfind('/') + 1);
   Descriptor d;
   std::string text;

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -125,7 +126,28 @@ TEST(Calibration, BadFilesSayWhatAndWhere) {
   EXPECT_FALSE(ParseCalibration(count, "c.yaml", false, &c, &error));
   EXPECT_NE(error.find("expected 4, 5, 8, 12 or 14"), std::string::npos) << error;
   EXPECT_FALSE(LoadCalibration("/nonexistent/cal.yml", false, &c, &error));
-  EXPECT_NE(error.find("/nonexistent/cal.yml: cannot open"), std::string::npos);
+  EXPECT_EQ(error, "/nonexistent/cal.yml: cannot read the calibration file: No such file or directory");
+}
+
+// A directory opens as a file on Linux and reads as nothing, and a read error
+// used to end the text early: both are refused, with the file and the reason.
+TEST(Calibration, DirectoryAndReadErrorAreRefused) {
+  Calibration c;
+  std::vector<float> dxdy;
+  int cols = 0, rows = 0;
+  double step = 0;
+  std::string error;
+  const std::string dir = testing::TempDir();
+  EXPECT_FALSE(LoadCalibration(dir, false, &c, &error));
+  EXPECT_EQ(error, dir + ": cannot read the calibration file: is a directory, not a file");
+  EXPECT_FALSE(LoadCalibration("/proc/self/mem", false, &c, &error));  // reading offset 0 fails (EIO)
+  EXPECT_EQ(error.rfind("/proc/self/mem: cannot read the calibration file: read failed: ", 0), 0u) << error;
+  EXPECT_FALSE(LoadDisplacementMesh(dir, &dxdy, &cols, &rows, &step, &error));
+  EXPECT_EQ(error, dir + ": cannot read the displacement mesh: is a directory, not a file");
+  EXPECT_FALSE(LoadDisplacementMesh("/proc/self/mem", &dxdy, &cols, &rows, &step, &error));
+  EXPECT_EQ(error.rfind("/proc/self/mem: cannot read the displacement mesh: read failed: ", 0), 0u) << error;
+  EXPECT_FALSE(LoadDisplacementMesh("/nonexistent/m.txt", &dxdy, &cols, &rows, &step, &error));
+  EXPECT_EQ(error, "/nonexistent/m.txt: cannot read the displacement mesh: No such file or directory");
 }
 
 TEST(Calibration, ScalesToTheSameAspectRatioOrRefuses) {

@@ -140,7 +140,20 @@ TEST(EmvaDataset, MalformedDatasetsNameTheFileAndLine) {
             std::string::npos);
   EXPECT_NE(MeasureError("n 12 128 128\nd 10\ni images/missing.png\ni images/p_0.png\n", dir).find("missing.png"),
             std::string::npos);
-  EXPECT_NE(MeasureError("", dir + "/nowhere").find("cannot open EMVA 1288 descriptor"), std::string::npos);
+  EXPECT_EQ(MeasureError("", dir + "/nowhere"),
+            dir + "/nowhere/bad.txt: cannot read the EMVA 1288 descriptor: No such file or directory");
+}
+
+// A directory opens as a file on Linux and reads as nothing, and a read error
+// used to end the text early: both are refused, with the file and the reason.
+TEST(EmvaDataset, DirectoryAndReadErrorAreRefused) {
+  EmvaDatasetReport r;
+  std::string error;
+  const std::string dir = TempDir("emva_dir_");
+  EXPECT_FALSE(MeasureEmvaDataset(dir, &r, &error));
+  EXPECT_EQ(error, dir + ": cannot read the EMVA 1288 descriptor: is a directory, not a file");
+  EXPECT_FALSE(MeasureEmvaDataset("/proc/self/mem", &r, &error));  // reading offset 0 fails (EIO)
+  EXPECT_EQ(error.rfind("/proc/self/mem: cannot read the EMVA 1288 descriptor: read failed: ", 0), 0u) << error;
 }
 
 }  // namespace
