@@ -246,7 +246,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
   }
   for (const std::string& a : o.overrides)
     if (!ApplyOverride(a, &rc, &origins, &error)) {
-      std::fprintf(stderr, "camsim: --set %s: %s\n", a.c_str(), error.c_str());
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());  // ApplyOverride names the --set
       return 1;
     }
   for (const char* a : kNoiseOff)

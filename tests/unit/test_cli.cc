@@ -385,6 +385,22 @@ TEST(Cli, EmvaAndTradeoffRangeErrorsNameKeyAndLine) {
       << tradeoff.err;
 }
 
+// A bad --set is named once, as `camsim run` and `camsim emva` name it
+// (tradeoff used to print "--set X: --set X: ...").
+TEST(Cli, TradeoffNamesABadSetOnce) {
+  const std::string dir = TempDir("tradeoff_set");
+  const std::string expected = "camsim: --set sensor.gain_db: expected section.key=value\n";
+  const Result tradeoff = Camsim("tradeoff --input " + kScene + " --out " + dir + "/out --set sensor.gain_db");
+  EXPECT_EQ(tradeoff.code, 1);
+  EXPECT_EQ(tradeoff.err, expected);
+  const Result run = Camsim("run --input " + kScene + " --out " + dir + "/out --set sensor.gain_db");
+  EXPECT_EQ(run.code, 1);
+  EXPECT_EQ(run.err, expected);
+  const Result emva = Camsim("emva --size 16 --set sensor.gain_db");
+  EXPECT_EQ(emva.code, 1);
+  EXPECT_EQ(emva.err, expected);
+}
+
 // tradeoff.csv, .md and .png belong together: when one cannot be written the
 // old three stay. The output directory must be made (it used to be ignored).
 TEST(Cli, TradeoffWritesAllThreeOrNone) {
