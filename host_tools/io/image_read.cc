@@ -1,5 +1,7 @@
 #include "host_tools/io/image_read.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -120,6 +122,11 @@ static bool DecodePngFile(const std::string& path, DecodedPng* png, std::string*
   std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) {
     *error = "cannot open '" + path + "': " + std::strerror(errno);
+    return false;
+  }
+  struct stat st;
+  if (fstat(fileno(f.get()), &st) == 0 && S_ISDIR(st.st_mode)) {  // opens on Linux, then fails to read
+    *error = "'" + path + "' is a directory, not a PNG file";
     return false;
   }
   PngErrorText err;

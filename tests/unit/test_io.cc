@@ -558,6 +558,23 @@ TEST_F(IoTest, ReadPngNormalises) {
   EXPECT_EQ(p.data.size(), 2u);  // unchanged
 }
 
+// A directory opens on Linux and fails only when read: it used to be
+// reported as "not a readable PNG file: Read Error".
+TEST_F(IoTest, ReadPngRefusesADirectory) {
+  const std::string d = Path("dir.png");
+  ASSERT_TRUE(fs::create_directory(d));
+  FloatPlane p;
+  std::vector<uint16_t> raw;
+  int w = 0, h = 0, depth = 0;
+  std::string error;
+  EXPECT_FALSE(ReadPng(d, &p, &error));
+  EXPECT_EQ(error, "'" + d + "' is a directory, not a PNG file");
+  EXPECT_FALSE(ReadMaskImage(d, &p, &error));
+  EXPECT_EQ(error, "'" + d + "' is a directory, not a PNG file");
+  EXPECT_FALSE(ReadPngGrayRaw(d, &raw, &w, &h, &depth, &error));
+  EXPECT_EQ(error, "'" + d + "' is a directory, not a PNG file");
+}
+
 TEST_F(IoTest, ReadMaskImageExr) {
   const std::string path = Path("mask.EXR");
   WriteTestExr(path, Box(0, 0, 1, 0), Box(0, 0, 1, 0),
