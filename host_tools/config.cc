@@ -519,17 +519,39 @@ size_t EditDistance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
-std::string Suggest(const std::string& wrong) {
+// " (did you mean 'X'?)" for the closest candidate (edit distance below 4),
+// or "". Candidates: (text compared with `wrong`, name shown).
+std::string Closest(const std::string& wrong, const std::vector<std::pair<std::string, std::string>>& candidates) {
   std::string best;
   size_t best_d = 4;  // suggest only close matches
-  for (const std::string& k : ConfigKeys()) {
-    const size_t d = std::min(EditDistance(wrong, k), EditDistance(wrong, k.substr(k.find('.') + 1)));
+  for (const auto& [text, shown] : candidates) {
+    const size_t d = EditDistance(wrong, text);
     if (d < best_d) {
       best_d = d;
-      best = k;
+      best = shown;
     }
   }
   return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+std::string SuggestSection(const std::string& wrong) {
+  std::vector<std::pair<std::string, std::string>> sections;
+  for (const Field& f : Fields())
+    if (sections.empty() || sections.back().first != f.section) sections.emplace_back(f.section, f.section);
+  return Closest(wrong, sections);
+}
+
+// A key of the same section close to `key`; else the same key in another
+// section (a key put under the wrong heading).
+std::string SuggestKey(const std::string& section, const std::string& key) {
+  std::vector<std::pair<std::string, std::string>> same, elsewhere;
+  for (const Field& f : Fields()) {
+    const std::string name = std::string(f.section) + "." + f.key;
+    if (section == f.section) same.emplace_back(f.key, name);
+    else if (key == f.key) elsewhere.emplace_back(f.key, name);
+  }
+  const std::string s = Closest(key, same);
+  return s.empty() ? Closest(key, elsewhere) : s;
 }
 
 // Shortest text that reads back as the same double.
@@ -680,14 +702,14 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
     bool known_section = false;
     for (const Field& f : Fields()) known_section |= section == f.section;
     if (t == nullptr || !known_section) {
-      *error = Where(section_node, source) + ": unknown section '" + section + "'" + Suggest(section);
+      *error = Where(section_node, source) + ": unknown section '" + section + "'" + SuggestSection(section);
       return false;
     }
     for (auto&& [key, node] : *t) {
       const std::string name = section + "." + std::string(key.str());
       const Field* f = FindField(section, std::string(key.str()));
       if (f == nullptr) {
-        *error = Where(node, source) + ": unknown key '" + name + "'" + Suggest(std::string(key.str()));
+        *error = Where(node, source) + ": unknown key '" + name + "'" + SuggestKey(section, std::string(key.str()));
         return false;
       }
       std::string why;
@@ -807,13 +829,16 @@ bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins
   std::string value = assignment.substr(eq + 1);
   const Field* f = FindField(section, key);
   if (f == nullptr) {
-    *error = "--set: unknown key '" + section + "." + key + "'" + Suggest(key);
+    *error = "--set: unknown key '" + section + "." + key + "'" + SuggestKey(section, key);
     return false;
   }
-  // Bare words for enums and strings are accepted without quotes.
+  // A string (a path: /abs, ./rel, C:\x) is taken as written unless quoted;
+  // an enum accepts a bare word.
+  const bool quoted = !value.empty() && (value[0] == '"' || value[0] == '\'');
   const bool bare = !value.empty() && std::isalpha(static_cast<unsigned char>(value[0])) && value != "true" &&
                     value != "false" && value != "inf" && value != "nan";
-  if (bare && (f->kind == Kind::kEnum || f->kind == Kind::kString)) value = "\"" + value + "\"";
+  if (f->kind == Kind::kString && !quoted) value = TomlString(value);
+  else if (f->kind == Kind::kEnum && bare) value = "\"" + value + "\"";
   RunConfig updated = *c;
   Origins o;
   std::string why;

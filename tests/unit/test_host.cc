@@ -39,6 +39,37 @@ TEST(Config, OverridesAcceptBareWordsAndNameTheirOrigin) {
   EXPECT_EQ(c.core.geometry.cfa, Cfa::kBayerBG);  // failed overrides change nothing
 }
 
+// A string value is taken as written, so paths need no TOML quotes (they used
+// to fail as "could not determine value type"); a quoted one is read as TOML.
+TEST(Config, OverridesTakePathsAsWritten) {
+  RunConfig c;
+  Origins origins;
+  std::string error;
+  for (const std::string path : {"/abs/mask.png", "./rel/mask.png", "../up.exr", "C:\\masks\\m.png", "a b\"c.png"}) {
+    ASSERT_TRUE(ApplyOverride("vignetting.mask=" + path, &c, &origins, &error)) << path << ": " << error;
+    EXPECT_EQ(c.vignetting_mask, path);
+  }
+  ASSERT_TRUE(ApplyOverride("vignetting.mask=\"/quoted.png\"", &c, &origins, &error)) << error;
+  EXPECT_EQ(c.vignetting_mask, "/quoted.png");
+  EXPECT_FALSE(ApplyOverride("sensor.adc_bits=/12", &c, &origins, &error));  // numbers stay numbers
+}
+
+// Suggestions come from the key's own section, or name the same key under
+// another heading; an unrelated section's look-alike is not offered.
+TEST(Config, UnknownKeysSuggestFromTheirSection) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  EXPECT_FALSE(ParseConfig("[sensor]\nful_well_e = 1\n", "f.toml", &c, &o, &error));
+  EXPECT_NE(error.find("did you mean 'sensor.full_well_e'"), std::string::npos) << error;
+  EXPECT_FALSE(ParseConfig("[exposure]\ngain_db = 6\n", "f.toml", &c, &o, &error));
+  EXPECT_NE(error.find("did you mean 'sensor.gain_db'"), std::string::npos) << error;
+  EXPECT_FALSE(ParseConfig("[sensr]\nx = 1\n", "f.toml", &c, &o, &error));
+  EXPECT_NE(error.find("did you mean 'sensor'"), std::string::npos) << error;
+  EXPECT_FALSE(ApplyOverride("sensor.nope=1", &c, &o, &error));
+  EXPECT_EQ(error, "--set: unknown key 'sensor.nope'");
+}
+
 TEST(Config, ErrorsNameKeyAndLine) {
   RunConfig c;
   Origins o;
