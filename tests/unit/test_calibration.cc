@@ -6,6 +6,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <vector>
 
@@ -232,8 +233,19 @@ TEST(Calibration, PatternCommandWritesLoadableTargets) {
   const std::string cal = dir + "/cal.yml";
   std::ofstream(cal) << kOpenCv;
   EXPECT_EQ(RunCamsim("run --input " + dir + "/dot-grid.exr --out " + dir + "/out --calibration " + cal + " --quiet"), 0);
-  struct stat st;
-  EXPECT_EQ(stat((dir + "/out/dot-grid.png").c_str(), &st), 0);
+  // The calibration moved the dots: the raw frame differs from a run without
+  // it (the same seed and frame, so the same noise).
+  EXPECT_EQ(RunCamsim("run --input " + dir + "/dot-grid.exr --out " + dir + "/plain --quiet"), 0);
+  const auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string distorted = bytes(dir + "/out/dot-grid.raw"), plain = bytes(dir + "/plain/dot-grid.raw");
+  ASSERT_EQ(distorted.size(), 160u * 120u * 2u);
+  ASSERT_EQ(plain.size(), distorted.size());
+  size_t moved = 0;
+  for (size_t i = 0; i < plain.size(); i += 2) moved += plain.compare(i, 2, distorted, i, 2) != 0;
+  EXPECT_GT(moved, plain.size() / 2 / 10) << "samples changed by the calibration";
   // ... and refused for a 16:9 one.
   ASSERT_EQ(RunCamsim("pattern dot-grid --out " + dir + "/wide.exr --width 160 --height 90 --supersample 1"), 0);
   EXPECT_EQ(RunCamsim("run --input " + dir + "/wide.exr --out " + dir + "/out2 --calibration " + cal + " --quiet"), 1);
