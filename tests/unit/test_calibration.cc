@@ -1,6 +1,5 @@
 // Calibration files (OpenCV FileStorage YAML, ROS camera_info YAML), their
 // fitting to the sensor size, the [distortion] config and `camsim pattern`.
-#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
