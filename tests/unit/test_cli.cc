@@ -257,22 +257,6 @@ TEST(Cli, RawOutputOfAnRgbSensorKeepsAllThreeChannels) {
       << report;
 }
 
-// The overwrite check knows the RGB raw output's names.
-TEST(Cli, RgbRawOutputsAreClaimedBeforeWriting) {
-  const std::string dir = TempDir("raw_rgb_clobber");
-  std::system(("mkdir -p '" + dir + "/a' '" + dir + "/b' && cp '" + kScene + "' '" + dir + "/a/0001.exr' && cp '" +
-               kScene + "' '" + dir + "/b/0001.exr'")
-                  .c_str());
-  const Result same = Camsim("run --input " + dir + "/a/0001.exr " + dir + "/b/0001.exr --out " + dir +
-                             "/out --stages exposure,sensor --quiet");
-  EXPECT_EQ(same.code, 1);
-  EXPECT_NE(same.err.find("frame 0 (" + dir + "/a/0001.exr) and frame 1 (" + dir + "/b/0001.exr) would both write '" +
-                          dir + "/out/0001.raw.ppm'"),
-            std::string::npos)
-      << same.err;
-  EXPECT_FALSE(Exists(dir + "/out/0001.raw.ppm"));
-}
-
 // Outputs are named after the input's stem in --out: refused before anything
 // is written when that would overwrite an input or another frame's output.
 TEST(Cli, RunRefusesToOverwriteAnInputOrAnotherFramesOutput) {
@@ -296,14 +280,18 @@ TEST(Cli, RunRefusesToOverwriteAnInputOrAnotherFramesOutput) {
   EXPECT_NE(report.err.find("--report would write '" + dir + "/a/0001.exr', overwriting the input"), std::string::npos)
       << report.err;
   EXPECT_TRUE(Slurp(dir + "/a/0001.exr") == scene);
-  // Two inputs with one stem.
-  const Result same = Camsim("run --input " + dir + "/a/0001.exr " + dir + "/b/0001.exr --out " + dir +
-                             "/out --stages exposure,cfa,sensor --quiet");
-  EXPECT_EQ(same.code, 1);
-  EXPECT_NE(same.err.find("frame 0 (" + dir + "/a/0001.exr) and frame 1 (" + dir + "/b/0001.exr) would both write '" +
-                          dir + "/out/0001.raw.pgm'"),
-            std::string::npos)
-      << same.err;
+  // Two inputs with one stem, for a mosaic and for a 3-channel sensor (whose raw image is a PPM).
+  for (const auto& [stages, raw] :
+       {std::pair{"exposure,cfa,sensor", "raw.pgm"}, std::pair{"exposure,sensor", "raw.ppm"}}) {
+    const Result same = Camsim("run --input " + dir + "/a/0001.exr " + dir + "/b/0001.exr --out " + dir +
+                               "/out --stages " + stages + " --quiet");
+    EXPECT_EQ(same.code, 1);
+    EXPECT_NE(same.err.find("frame 0 (" + dir + "/a/0001.exr) and frame 1 (" + dir + "/b/0001.exr) would both write '" +
+                            dir + "/out/0001." + raw + "'"),
+              std::string::npos)
+        << same.err;
+    EXPECT_FALSE(Exists(dir + "/out/0001." + raw));
+  }
   const Result cased = Camsim("run --input " + dir + "/c --out " + dir + "/out --stages exposure,cfa,sensor --quiet");
   EXPECT_EQ(cased.code, 1);
   EXPECT_NE(cased.err.find("would both write '" + dir + "/out/x.raw.pgm'"), std::string::npos) << cased.err;

@@ -230,7 +230,8 @@ TEST(Sensor, LanesGiveThePortableBytes) {
       c.prnu_percent = 2.0;
       c.dsnu_e = 3.0;
       if (variant == 1) c.fixed_pattern_table = true;
-      if (variant == 2) c.row_fpn_e = 40.0, c.column_fpn_e = 25.0, c.smear_row_transfer_us = 1.0, c.black_level_dn = 14.7;
+      if (variant == 2)
+        c.row_fpn_e = 40.0, c.column_fpn_e = 25.0, c.smear_row_transfer_us = 1.0, c.black_level_dn = 14.7;
       if (variant == 3) c.shot_noise = false, c.prnu_percent = 50.0;
       if (variant == 4) c.gain_db = 30.0, c.dark_noise_e = 900.0, c.black_level_dn = 0.0;
       if (variant == 5) c.prnu_percent = 50.0, c.fixed_pattern_table = true, c.full_well_e = 1e6;
