@@ -19,8 +19,7 @@ bool ReadTextFile(const std::string& path, std::string* text, std::string* error
   bool ok = false;
   if (fstat(fd, &st) != 0) *error = std::strerror(errno);
   else if (S_ISDIR(st.st_mode)) *error = "is a directory, not a file";
-  else if (!S_ISREG(st.st_mode)) *error = "is not a regular file";
-  else ok = true;
+  else ok = true;  // a regular file, or a pipe: --config <(...), /dev/stdin
   std::string bytes;
   char buf[65536];
   while (ok) {

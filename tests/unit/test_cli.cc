@@ -336,6 +336,19 @@ TEST(Cli, ConfigThatIsADirectoryIsRefused) {
   EXPECT_NE(run.err.find(dir + ": cannot read configuration file"), std::string::npos) << run.err;
 }
 
+// A pipe is read like a file (--config <(...), /dev/stdin): only directories are refused.
+TEST(Cli, ConfigFromAPipeIsRead) {
+  const std::string err = TempDir("config_pipe") + "/err";
+  const auto check = [&](const std::string& toml) {
+    const std::string cmd = "printf '" + toml + "' | " + CAMSIM_BINARY + " config --check /dev/stdin 2>'" + err + "'";
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  EXPECT_EQ(check("[sensor]\\nadc_bits = 10\\n"), 0) << Slurp(err);
+  EXPECT_EQ(check("[sensor]\\nful_well_e = 1\\n"), 1);  // read, and its typo found
+  EXPECT_NE(Slurp(err).find("did you mean 'sensor.full_well_e'"), std::string::npos) << Slurp(err);
+}
+
 TEST(Cli, ConfigTypoNamesKeyAndLine) {
   const std::string dir = TempDir("typo");
   std::ofstream(dir + "/bad.toml") << "[sensor]\nadc_bits = 12\nful_well_e = 100\n";
