@@ -1,5 +1,6 @@
 #include "tests/support/test_support.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -63,10 +64,14 @@ std::unique_ptr<Built> Build(const PipelineConfig& config, int workers) {
   return b;
 }
 
+size_t UnwrittenCount(const std::vector<uint32_t>& out) {
+  return static_cast<size_t>(std::count(out.begin(), out.end(), kUnwritten));
+}
+
 namespace {
 Tap FinalTap(const Built& b, std::vector<uint32_t>* out) {
   const LineFormat f = b.pipeline.plan().output;
-  out->assign(static_cast<size_t>(b.pipeline.width()) * b.pipeline.height() * f.channels, 0xDEADBEEFu);
+  out->assign(static_cast<size_t>(b.pipeline.width()) * b.pipeline.height() * f.channels, kUnwritten);
   Tap t;
   t.stage = -1;
   t.format = TapFormat::kU32;

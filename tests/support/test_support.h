@@ -38,6 +38,12 @@ struct Built {
 // Configures config for `workers` workers and initialises it.
 std::unique_ptr<Built> Build(const PipelineConfig& config, int workers = 1);
 
+// RunFrame's fill of its output before the run: a sample still equal to it
+// was never written (no stage output of the tests reaches this value).
+inline constexpr uint32_t kUnwritten = 0xDEADBEEFu;
+// Samples of `out` still kUnwritten.
+size_t UnwrittenCount(const std::vector<uint32_t>& out);
+
 // Runs one frame with the given strip height on worker 0 and returns the final
 // stage's output as raw uint32 samples (interleaved channels).
 std::vector<uint32_t> RunFrame(const Built& b, const Scene& scene, uint32_t frame, int strip_rows,

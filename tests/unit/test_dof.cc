@@ -451,7 +451,7 @@ TEST(DofDiffusion, BitExactForEveryStripHeightAndThreads) {
     // outputs of a stage that did nothing would prove nothing.
     size_t changed = 0;
     for (size_t i = 0; i < ref.size(); ++i) {
-      ASSERT_NE(ref[i], 0xDEADBEEFu) << "sample " << i << " never written";
+      ASSERT_NE(ref[i], test::kUnwritten) << "sample " << i << " never written";
       changed += ref[i] != s.plane[i % 3][i / 3];
     }
     EXPECT_GT(changed, ref.size() / 2) << "method " << static_cast<int>(m);

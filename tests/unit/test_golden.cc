@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <string>
 
 #include "host_tools/io/exr_scene.h"
 #include "host_tools/scene_input.h"
@@ -62,8 +63,14 @@ test::Scene LoadScene(const std::string& name) {
   return s;
 }
 
+// Only CAMSIM_UPDATE_GOLDEN=1 rewrites the hash files (=0 or empty must not).
+bool UpdateRequested() {
+  const char* v = std::getenv("CAMSIM_UPDATE_GOLDEN");
+  return v != nullptr && std::string(v) == "1";
+}
+
 TEST(Golden, StageOutputsOnBundledScenes) {
-  const bool update = std::getenv("CAMSIM_UPDATE_GOLDEN") != nullptr;
+  const bool update = UpdateRequested();
   std::map<std::string, std::string> expected = ReadHashes(), got;
   for (const char* scene_name : {"aisle_0001.exr", "aisle_0002.exr"}) {
     const test::Scene scene = LoadScene(scene_name);
@@ -166,7 +173,7 @@ TEST(Golden, StageOutputsOnBundledScenes) {
 // DoF stages and the whole demo pipeline with them.
 TEST(Golden, DepthOfFieldOnBundledScene) {
   const char kDofHashFile[] = CAMSIM_SOURCE_DIR "/tests/golden/dof_hashes.txt";
-  const bool update = std::getenv("CAMSIM_UPDATE_GOLDEN") != nullptr;
+  const bool update = UpdateRequested();
   std::map<std::string, std::string> expected, got;
   {
     std::ifstream in(kDofHashFile);

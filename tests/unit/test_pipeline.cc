@@ -81,6 +81,7 @@ TEST(Pipeline, ThreadCountDoesNotChangeOutput) {
   auto one = Build(c, 1);
   ASSERT_TRUE(one->status.ok());
   const std::vector<uint32_t> reference = RunFrame(*one, scene, 0, 80);
+  ASSERT_EQ(test::UnwrittenCount(reference), 0u);
   for (int threads : {2, 3, 4}) {
     auto b = Build(c, threads);
     ASSERT_TRUE(b->status.ok());
