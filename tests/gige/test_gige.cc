@@ -514,6 +514,8 @@ TEST(GigeRegisters, LineStatusFollowsTheStrobe) {
 
 class GigeE2E : public ::testing::Test {
  protected:
+  // Call through ASSERT_NO_FATAL_FAILURE: an ASSERT here leaves only this
+  // function, and a test going on without a camera would crash.
   void StartWith(const DeviceOptions& o) {
     options_ = o;
     device_ = StartDevice(o);
@@ -538,7 +540,7 @@ class GigeE2E : public ::testing::Test {
 };
 
 TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   EXPECT_STREQ(arv_camera_get_vendor_name(c.camera(), nullptr), "camsim");
   EXPECT_STREQ(arv_camera_get_model_name(c.camera(), nullptr), "camsim-gige");
@@ -571,7 +573,7 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
 }
 
 TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   struct Case {
     const char* name;
@@ -608,7 +610,7 @@ TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
 TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
   DeviceOptions o = SmallDevice(32, 24);
   o.overrides.push_back("sensor.cfa=\"Mono\"");
-  StartWith(o);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
   guint n = 0;
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
@@ -645,7 +647,7 @@ TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
   std::ifstream raw(dir + "/aisle_0001.raw", std::ios::binary);
   const std::vector<uint8_t> expected((std::istreambuf_iterator<char>(raw)), std::istreambuf_iterator<char>());
   ASSERT_EQ(expected.size(), 96u * 64u * 2u);
-  StartWith(o);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
   SetInt(c, "SimFrameIndex", 4);
   Settle();
@@ -661,7 +663,7 @@ TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
   // first frame arrives whole only because the device sent its leader ahead
   // (GigeDevice::PrimeReceiver), which Aravis then counts as one duplicate.
   DeviceOptions o = SmallDevice(640, 480);
-  StartWith(o);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
   SetInt(c, "SimFrameIndex", 5);
   Settle();
@@ -676,7 +678,7 @@ TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
 }
 
 TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   Set(c, "TriggerSelector", "FrameStart");
   Set(c, "TriggerMode", "On");
@@ -700,7 +702,7 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   DeviceOptions o = SmallDevice();
   o.trigger = &trigger;
   o.strobe = &strobe;
-  StartWith(o);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
   Set(c, "TriggerMode", "On");
   Set(c, "TriggerSource", "Line0");
@@ -734,7 +736,7 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
 TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   DeviceOptions o = SmallDevice();
   o.trigger = &trigger_;
-  StartWith(o);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
   auto status = [&] { return arv_camera_get_boolean(c.camera(), "LineStatus", nullptr); };
   // Waits up to 2 s for LineStatus to read `want` (the trigger thread takes the edge).
@@ -758,7 +760,7 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   GError* e = nullptr;
   arv_camera_set_region(c.camera(), 8, 4, 32, 24, &e);
@@ -813,7 +815,7 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
 }
 
 TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   ArvDevice* dev = c.device();
   // Aravis's default range-check policy is off, so these reach the device.
@@ -863,7 +865,7 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
 }
 
 TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   SetFloat(c, "AcquisitionFrameRate", 100.0);
   Set(c, "AcquisitionMode", "MultiFrame");
@@ -884,7 +886,7 @@ TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
 }
 
 TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   ASSERT_TRUE(c.OpenStream());
   Start(c);
@@ -912,7 +914,7 @@ TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
 // adjusting and stays on; a feature left Off is held. A -2 EV target on
 // ExposureAuto alone, then +1 EV on GainAuto alone.
 TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   SetInt(c, "SimFrameIndex", 1);
   ASSERT_TRUE(c.OpenStream());
@@ -956,7 +958,7 @@ TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
 }
 
 TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
-  StartWith(SmallDevice());
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   Set(c, "SimStageSelector", "Stage_sensor");
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
