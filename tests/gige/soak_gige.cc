@@ -2,8 +2,7 @@
 // CAMSIM_SOAK_SECONDS (default 120). The device must keep serving (a new
 // client streams after each kill, once the 3 s heartbeat has released
 // control), without growing memory or file descriptors.
-// ctest -C soak -L soak for the long run; gige_soak_short (20 s) runs with
-// every ctest.
+// ctest -C soak -L soak  (not part of the default test run).
 #include <dirent.h>
 #include <gtest/gtest.h>
 #include <signal.h>
