@@ -90,6 +90,8 @@ bool CheckImage(const std::string& path, const void* data, int width, int height
                 ptrdiff_t stride_samples, std::string* error) {
   if (data == nullptr) {
     *error = "cannot write " + Quoted(path) + ": no pixel data";
+  } else if (channels < 1) {
+    *error = "cannot write " + Quoted(path) + ": " + std::to_string(channels) + " channels";
   } else if (width < 1 || height < 1 || width > kMaxWriteDim || height > kMaxWriteDim) {
     *error = "cannot write " + Quoted(path) + ": bad size " + std::to_string(width) + "x" +
              std::to_string(height);
@@ -215,10 +217,6 @@ bool WritePng(const std::string& path, const void* data, int width, int height, 
 
 bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int height, int channels,
                 ptrdiff_t stride_samples, std::string* error) {
-  if (channels < 1) {
-    *error = "cannot write " + Quoted(path) + ": " + std::to_string(channels) + " channels";
-    return false;
-  }
   if (!CheckImage(path, data, width, height, channels, stride_samples, error)) return false;
   return WriteViaFile(
       path,
