@@ -811,14 +811,10 @@ void GigeDevice::StopAuto(const std::string& error) {
 void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
   using namespace reg;
   const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
-  Registers probe = applied_;
-  auto accepted = [&](double t, double g) {
-    probe[kExposureTime] = DoubleBits(t);
-    probe[kGain] = DoubleBits(g);
-    probe[kGainRaw] = static_cast<uint64_t>(std::lround(g * 10));
+  auto accepted = [&](double t, double g) {  // the registers a request would set, planned only
     host::RunConfig rc;
     std::string error;
-    return PlanFor(probe, stage_enabled_, &rc, &error);
+    return PlanFor(AutoRegisters({t, g, AppliedDouble(kSimFNumber)}), stage_enabled_, &rc, &error);
   };
   // Exposure first, at the applied gain: bisection on log2(t) between the
   // applied value (accepted) and the request (refused).
