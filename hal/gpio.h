@@ -82,7 +82,11 @@ class BusOutput : public OutputLine {
   BusOutput(std::string spec, std::string dir) : spec_(std::move(spec)), dir_(std::move(dir)) {}
   ~BusOutput() override;
   // Sends the edge to every input on the bus (no edge when the level is unchanged).
+  // An input whose queue is full (its reader is behind) is waited for up to
+  // kSendTimeoutMs, so a burst of edges is not lost; one that stays full, or
+  // whose process is gone, misses the edge and is not counted.
   bool Set(bool high, std::string* error) override;
+  static constexpr int kSendTimeoutMs = 100;
   std::string Name() const override { return spec_; }
   void SetEdgeIndex(uint32_t index) override { index_ = index; }
   int last_receivers() const { return receivers_; }  // inputs the last edge reached

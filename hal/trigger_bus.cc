@@ -4,6 +4,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -161,7 +162,12 @@ bool BusOutput::Set(bool high, std::string* error) {
   m.sequence = ++sequence_;
   uint8_t msg[16];
   m.Encode(msg);
-  if (fd_ < 0) fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd_ < 0) {
+    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    // An input queues max_dgram_qlen datagrams (10 by default): beyond that a send waits, up to this long.
+    const timeval timeout{0, kSendTimeoutMs * 1000};
+    if (fd_ >= 0) setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
+  }
   DIR* d = opendir(dir_.c_str());
   if (fd_ < 0 || !d) {
     *error = "trigger bus '" + spec_ + "': cannot open directory '" + dir_ + "': " + Reason();
@@ -177,9 +183,11 @@ bool BusOutput::Set(bool high, std::string* error) {
       continue;
     sockaddr_un a;
     if (!MakeAddress(dir_ + "/" + name, &a)) continue;
-    // A socket left by a killed process refuses (ECONNREFUSED): skipped.
-    if (sendto(fd_, msg, sizeof msg, MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&a), sizeof a) == sizeof msg)
-      ++receivers_;
+    // A socket left by a killed process refuses at once (ECONNREFUSED): skipped.
+    ssize_t sent;
+    do sent = sendto(fd_, msg, sizeof msg, 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    while (sent < 0 && errno == EINTR);
+    if (sent == sizeof msg) ++receivers_;
   }
   closedir(d);
   return true;

@@ -355,6 +355,52 @@ TEST(GigeTriggerBus, EveryInputGetsEachEdgeWithItsFrameIndex) {
   EXPECT_EQ(rmdir(dir.c_str()), 0) << "sockets left in " << dir;
 }
 
+// A burst longer than an input's socket queue (max_dgram_qlen, 10 by default)
+// reaches a reader that is briefly behind whole; a reader that never reads
+// costs each later edge kSendTimeoutMs and is not counted.
+TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
+  const std::string dir = testing::TempDir() + "camsim-burst-" + std::to_string(getpid());
+  std::string error;
+  auto in = hal::OpenInputLine("unix:" + dir, "test", &error);
+  ASSERT_NE(in, nullptr) << error;
+  auto out = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(out, nullptr) << error;
+  constexpr int kEdges = 40;
+  std::vector<uint32_t> got;
+  std::thread reader([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // behind while the burst starts
+    std::string e;
+    hal::Edge edge;
+    uint32_t index = 0;
+    while (got.size() < kEdges && in->WaitEdge(2000, &edge, &e) == 1) {
+      in->LastEdgeIndex(&index);
+      got.push_back(index);
+    }
+  });
+  int reached = 0;
+  for (int k = 0; k < kEdges; ++k) {
+    out->SetEdgeIndex(static_cast<uint32_t>(k));
+    EXPECT_TRUE(out->Set(k % 2 == 0, &error)) << error;  // no ASSERT: the reader thread must be joined
+    reached += out->last_receivers();
+  }
+  reader.join();
+  EXPECT_EQ(reached, kEdges);
+  ASSERT_EQ(got.size(), static_cast<size_t>(kEdges)) << "edges lost in the burst";
+  for (int k = 0; k < kEdges; ++k) EXPECT_EQ(got[static_cast<size_t>(k)], static_cast<uint32_t>(k));
+  // Nobody reads `in` now: once its queue is full, an edge waits kSendTimeoutMs and misses it.
+  int missed = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 0; k < 12; ++k) {
+    ASSERT_TRUE(out->Set(k % 2 == 0, &error)) << error;
+    missed += out->last_receivers() == 0;
+  }
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GE(missed, 1) << "a stuck reader's queue never filled";
+  EXPECT_GE(ms, missed * (hal::BusOutput::kSendTimeoutMs - 10)) << "a missed edge did not wait";
+  in.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
+}
+
 // ---------------------------------------------------------------- register logic without network
 
 TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
