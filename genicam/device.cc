@@ -565,6 +565,11 @@ void GigeDevice::Sync() {
   stream_dest_ = dest;
   sync_saw_acquiring_ = acquiring;
   if (!acquiring) was_acquiring_ = false;
+  if (!acquiring || Applied(kTriggerMode) == 0) {
+    // Triggers belong to an acquisition in trigger mode: none left for the next.
+    pending_triggers_.clear();
+    Write(kFakeTriggerSoftware, 0);
+  }
 
   Registers next = applied_;
   std::vector<bool> stages = stage_enabled_;
@@ -642,8 +647,19 @@ void GigeDevice::Sync() {
   if (Read(kTriggerSoftware) != 0) {
     Write(kTriggerSoftware, 0);
     if (acquiring && Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceSoftware)
-      Write(kFakeTriggerSoftware, 1);
+      TakeTrigger(kNextIndex);
   }
+}
+
+void GigeDevice::TakeTrigger(int64_t index) {
+  if (pending_triggers_.size() >= kMaxPendingTriggers) {
+    ++triggers_dropped_;
+    LogOnce("trigger-overrun", "camsim-gige: triggers come faster than frames are made; " +
+                                   std::to_string(kMaxPendingTriggers) + " wait, later ones are dropped");
+    return;
+  }
+  pending_triggers_.push_back(index);
+  Write(reg::kFakeTriggerSoftware, 1);
 }
 
 void GigeDevice::RestartStream() {
@@ -705,11 +721,7 @@ void GigeDevice::TriggerLoop() {
       // A trigger bus pulse names the frame to take: every camera of the rig
       // renders the same frame index, also after a missed pulse.
       uint32_t index = 0;
-      if (trigger_->LastEdgeIndex(&index)) {
-        SetApplied(reg::kSimFrameIndex, index & 0x7fffffff);
-        WriteDerived();
-      }
-      Write(reg::kFakeTriggerSoftware, 1);
+      TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex);
     }
   }
 }
@@ -918,6 +930,16 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   if (!was_acquiring_) {
     was_acquiring_ = true;
     frames_in_acquisition_ = 0;
+  }
+  if (Applied(kTriggerMode) == 1 && !pending_triggers_.empty()) {
+    // This frame answers the oldest trigger; the fake camera is asked for the next one.
+    const int64_t pulse_index = pending_triggers_.front();
+    pending_triggers_.pop_front();
+    if (pulse_index != kNextIndex) {
+      SetApplied(kSimFrameIndex, static_cast<uint64_t>(pulse_index));
+      WriteDerived();
+    }
+    if (!pending_triggers_.empty()) Write(kFakeTriggerSoftware, 1);
   }
   size_t size = 0;
   uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));

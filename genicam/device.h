@@ -20,6 +20,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -42,6 +43,8 @@ typedef struct _ArvBuffer ArvBuffer;
 namespace camsim::genicam {
 
 inline constexpr int kSyncPeriodMs = 2;
+// Triggers taken but not yet made into frames (TakeTrigger); more are dropped.
+inline constexpr size_t kMaxPendingTriggers = 16;
 
 struct DeviceOptions {
   std::string config_path;              // empty: defaults
@@ -91,6 +94,7 @@ class GigeDevice {
   const SensorInfo& sensor() const { return sensor_; }
   uint64_t frames_sent() const { return frames_sent_.load(); }
   uint64_t writes_refused() const { return writes_refused_.load(); }
+  uint64_t triggers_dropped() const { return triggers_dropped_.load(); }
   // Last error of a GPIO line (empty when none).
   std::string line_error() const;
 
@@ -135,6 +139,10 @@ class GigeDevice {
   // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
   void LimitAutoRange(const ExposureSettings& want);
   void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
+  // A trigger taken (under mutex_): queued for the fake camera, with the frame
+  // index a bus pulse carries (kNextIndex: the next SimFrameIndex).
+  void TakeTrigger(int64_t index);
+  static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
   void SyncLoop();
   void TriggerLoop();
@@ -179,7 +187,11 @@ class GigeDevice {
   mutable std::mutex mutex_;
   std::thread sync_thread_, trigger_thread_;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0};
+  std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0}, triggers_dropped_{0};
+  // Triggers not yet made into frames, oldest first (frame index or kNextIndex).
+  // The fake camera has one trigger flag and, before a stream's first frame,
+  // reads it only every 100 ms: the queue gives each trigger its own frame.
+  std::deque<int64_t> pending_triggers_;
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;
   uint64_t stream_dest_ = 0;         // stream destination at the last sync

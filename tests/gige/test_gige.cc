@@ -778,6 +778,65 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   EXPECT_FALSE(c.Grab(3000).empty());
 }
 
+// Pulses that come before the fake camera has looked for a trigger (at a
+// stream's start it looks only every 100 ms) each give their own frame, with
+// the index the pulse carries, in order. Beyond the queue, pulses are dropped
+// and counted, never merged into another pulse's frame.
+TEST_F(GigeE2E, QuickPulsesEachGiveTheirOwnFrame) {
+  const std::string dir = testing::TempDir() + "camsim-quick-" + std::to_string(getpid());
+  DeviceOptions o = SmallDevice();
+  o.trigger_line = "unix:" + dir;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  constexpr int kPulses = 24;
+  ASSERT_TRUE(c.OpenStream(kPulses + 2));
+  Start(c);
+  Settle();
+  std::string error;
+  auto bus = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(bus, nullptr) << error;
+  auto pulse = [&](uint32_t index) {
+    bus->SetEdgeIndex(index);
+    ASSERT_TRUE(bus->Set(true, &error)) << error;
+    ASSERT_TRUE(bus->Set(false, &error)) << error;
+  };
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  // Two pulses 0 ms apart at the stream's start: frames 40 and 41.
+  pulse(40);
+  pulse(41);
+  for (uint32_t index : {40u, 41u}) {
+    const std::vector<uint8_t> f = c.Grab(3000);
+    ASSERT_FALSE(f.empty()) << "no frame for pulse " << index;
+    EXPECT_TRUE(f == Reference(index, code, 0, 0, 64, 48)) << "the frame for pulse " << index << " has another index";
+  }
+  EXPECT_TRUE(c.Grab(300).empty()) << "a frame without a pulse";
+  // A burst longer than the queue at a new stream's start: frames for the
+  // first pulses, in order, and the rest counted as dropped.
+  GError* e = nullptr;
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  Start(c);
+  Settle();
+  for (int k = 0; k < kPulses; ++k) pulse(100 + k);
+  int frames = 0;
+  uint32_t next = 100;  // the lowest index the next frame may have
+  for (std::vector<uint8_t> f = c.Grab(3000); !f.empty(); f = c.Grab(500)) {
+    while (next < 100 + kPulses && !(f == Reference(next, code, 0, 0, 64, 48))) ++next;
+    EXPECT_LT(next, 100u + kPulses) << "frame " << frames << " is none of the pulses' frames, or out of order";
+    ++next;
+    ++frames;
+  }
+  EXPECT_GE(frames, static_cast<int>(genicam::kMaxPendingTriggers)) << "a queued pulse was lost";
+  EXPECT_EQ(frames + static_cast<int>(device_->triggers_dropped()), kPulses);
+  EXPECT_EQ(c.failed_buffers(), 0u);
+  client_.reset();
+  device_.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
+}
+
 // LineStatus on Line0 is the trigger input's level after its last edge.
 TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   DeviceOptions o = SmallDevice();

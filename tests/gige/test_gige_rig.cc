@@ -165,9 +165,8 @@ TEST_F(GigeRig, MasterStrobeDrivesTheBus) {
     ASSERT_TRUE(clients_[i]->ok()) << clients_[i]->last_error;
   }
   Client& m = *clients_[0];
-  // 4 Hz: 250 ms between pulses. A slave still rendering when two pulses
-  // come makes one frame of the later (a real camera ignores overlapping
-  // triggers too); with ASan on two loaded cores, 100 ms was seen to be too short.
+  // 4 Hz: 250 ms between pulses, well above a frame's render time even with
+  // ASan on two loaded cores, so no pulse waits in a slave's trigger queue.
   arv_camera_set_float(m.camera(), "AcquisitionFrameRate", 4.0, nullptr);
   Set(m, "LineSelector", "Line1");
   Set(m, "LineSource", "ExposureActive");
@@ -189,27 +188,18 @@ TEST_F(GigeRig, MasterStrobeDrivesTheBus) {
     EXPECT_TRUE(f == ReferenceFrame(options_[0], static_cast<uint32_t>(index), code, 0, 0, 64, 48))
         << "master: not the core's frame " << index;
   }
-  // Each slave frame is one of the master's, in order. Until it has sent the
-  // first frame of a stream, Aravis's fake camera looks for a trigger only
-  // every 100 ms (arvgvfakecamera.c: not streaming, it sleeps 100 ms per
-  // loop), so pulses less than 100 ms apart at a stream's start can merge
-  // into one trigger; the frame then has the later pulse's index (seen at
-  // 10 Hz: 21). At 4 Hz that should not happen, but the first frame is still
-  // located among the master's indices; none may be missed after it.
+  // Each slave takes every pulse of the master, from its first: frames 20, 21, 22.
+  // (The first pulse of a stream may wait up to 100 ms in the fake camera; a
+  // second pulse in that time is queued, not merged: docs/gige.md.)
   for (int i = 1; i < kCameras; ++i) {
     SCOPED_TRACE(kAddresses[i]);
-    int last = 19;
-    for (int n = 0; n < 3; ++n) {
+    for (int index = 20; index < 23; ++index) {
       const std::vector<uint8_t> f = clients_[i]->Grab(3000);
-      ASSERT_FALSE(f.empty()) << "slave frame " << n;
-      int index = -1;
-      for (int k = last + 1; k < 24 && index < 0; ++k)
-        if (f == ReferenceFrame(options_[i], static_cast<uint32_t>(k), code, 0, 0, 64, 48)) index = k;
-      ASSERT_GE(index, 0) << "slave frame " << n << " is none of the master's frames " << last + 1 << "..23";
-      if (n == 0) EXPECT_LE(index, 21) << "the slave missed more than the first pulse";
-      else EXPECT_EQ(index, last + 1) << "the slave skipped a pulse";
-      last = index;
+      ASSERT_FALSE(f.empty()) << "no slave frame for the master's frame " << index;
+      EXPECT_TRUE(f == ReferenceFrame(options_[i], static_cast<uint32_t>(index), code, 0, 0, 64, 48))
+          << "the slave's frame is not the master's frame " << index;
     }
+    EXPECT_EQ(clients_[i]->failed_buffers(), 0u);
   }
 }
 
