@@ -563,6 +563,11 @@ void GigeDevice::Sync() {
     restart_stream_ = true;
   }
   stream_dest_ = dest;
+  // Geometry is locked once a sync has seen the acquisition running. A write
+  // this sync finds together with a new AcquisitionStart came before it (a
+  // client sets the window, then starts), and the fake camera sizes its
+  // stream from those registers: it is taken.
+  const bool geometry_locked = acquiring && sync_saw_acquiring_;
   sync_saw_acquiring_ = acquiring;
   if (!acquiring) was_acquiring_ = false;
   if (!acquiring || Applied(kTriggerMode) == 0) {
@@ -580,7 +585,7 @@ void GigeDevice::Sync() {
       continue;
     const uint64_t v = ReadFeature(f);
     if (v == applied_.at(f.address)) continue;
-    if (Valid(f, v) && !(acquiring && IsGeometry(f.address))) {
+    if (Valid(f, v) && !(geometry_locked && IsGeometry(f.address))) {
       next[f.address] = v;
       changed.push_back(&f);
     } else {

@@ -6,7 +6,7 @@
 // every frame) compares each writable register with the setting in use,
 // takes valid new values and writes the old value back over invalid ones
 // (out of range, off the increment, not an enum entry, NaN, a geometry change
-// during acquisition). A refused write therefore reads back as the previous
+// once a sync has seen the acquisition running). A refused write therefore reads back as the previous
 // value and never reaches the pipeline. Settings apply from the next frame.
 //
 // Frames: the whole sensor is rendered (FrameRenderer, the code `camsim run`

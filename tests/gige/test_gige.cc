@@ -437,6 +437,31 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
 
 // The configured exposure may be longer than 1 s (the core allows 100 s): the
 // register reports it, and a later write of another pipeline register keeps it.
+// A client sets the window and starts at once: one sync finds both writes.
+// The window is taken; once a sync has seen the acquisition, it is locked.
+TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, 0x0a00, Be32(2));  // a controlling client (bootstrap control channel privilege)
+  WriteReg(*d, reg::kWidth, Be32(32));
+  WriteReg(*d, reg::kHeight, Be32(16));
+  WriteReg(*d, reg::kAcquisition, Be32(1));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  EXPECT_EQ(ReadReg32(*d, reg::kHeight), 16u);
+  EXPECT_EQ(d->writes_refused(), 0u);
+  EXPECT_EQ(d->CheckInvariants(), "");
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 32, 16));
+  WriteReg(*d, reg::kWidth, Be32(16));  // during the acquisition: refused
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  EXPECT_EQ(d->writes_refused(), 1u);
+}
+
 TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
   DeviceOptions o = SmallDevice();
   o.serve = false;
