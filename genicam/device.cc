@@ -43,6 +43,10 @@ constexpr double kTriggerPollHz = 1000.0;
 // far longer than a receiver thread's wake-up.
 constexpr int kPrimeDelayMs = 10;
 constexpr int kGvspLeaderBytes = 8 + 36;  // GVSP header + image data leader
+// RestartStream: rounds, and how long the fake camera's thread may take to
+// answer a read (it answers between frames; a debug build renders slowly).
+constexpr int kRestartRounds = 4;
+constexpr int kRestartAnswerMs = 2000;
 
 uint64_t DoubleBits(double v) {
   uint64_t b;
@@ -85,6 +89,30 @@ bool CheckGvcpAddress(const std::string& address, std::string* error) {
   else
     *error = "cannot serve on " + address + ": GVCP port 3956: " + std::strerror(e);
   return false;
+}
+
+// One GVCP read of the version register from a fresh socket, and its ack.
+// True when the fake camera's thread answered within timeout_ms.
+bool GvcpRoundTrip(const std::string& address, int timeout_ms) {
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return false;
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(kGvcpPort);
+  inet_pton(AF_INET, address.c_str(), &to.sin_addr);
+  // GVCP READREG_CMD: key 0x42, flags 0x01 (ack), command 0x0080, length 4, request id, address 0.
+  const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xca, 0x5e, 0, 0, 0, 0};
+  bool answered = false;
+  if (sendto(fd, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) == sizeof cmd) {
+    pollfd p{fd, POLLIN, 0};
+    uint8_t ack[64];
+    int r;
+    do r = poll(&p, 1, timeout_ms);
+    while (r < 0 && errno == EINTR);
+    answered = r > 0 && recv(fd, ack, sizeof ack, 0) > 0;
+  }
+  close(fd);
+  return answered;
 }
 
 }  // namespace
@@ -669,26 +697,24 @@ void GigeDevice::TakeTrigger(int64_t index) {
 
 void GigeDevice::RestartStream() {
   using namespace reg;
-  // Acquisition 0, then a GVCP read from here so the fake camera's thread
-  // handles a packet while it is 0 (and drops its stream), then back to 1.
-  Write(kAcquisition, 0);
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  if (fd >= 0) {
-    sockaddr_in to{};
-    to.sin_family = AF_INET;
-    to.sin_port = htons(kGvcpPort);
-    inet_pton(AF_INET, address_.c_str(), &to.sin_addr);
-    // GVCP READREG_CMD of the version register: key 0x42, flags 0x01 (ack),
-    // command 0x0080, length 4, request id, address 0.
-    const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xca, 0x5e, 0, 0, 0, 0};
-    sendto(fd, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
-    pollfd p{fd, POLLIN, 0};
-    uint8_t ack[64];
-    if (poll(&p, 1, 200) > 0) recv(fd, ack, sizeof ack, 0);  // handled: the stream is dropped right after
-    close(fd);
+  // The fake camera forgets its stream destination only when it handles a
+  // control packet while Acquisition is 0 (arvgvfakecamera.c, _thread). Its
+  // thread takes one packet per loop and checks Acquisition right after it,
+  // so once a second read is answered, the check after the first has run;
+  // if Acquisition still reads 0, it ran with 0 and the stream is dropped.
+  // A client that wrote AcquisitionStart meanwhile (it reads 1) costs a
+  // round. The thread can be busy rendering: each answer may take a while.
+  for (int round = 0; round < kRestartRounds; ++round) {
+    Write(kAcquisition, 0);
+    if (GvcpRoundTrip(address_, kRestartAnswerMs) && GvcpRoundTrip(address_, kRestartAnswerMs) &&
+        Read(kAcquisition) == 0) {
+      Write(kAcquisition, 1);
+      return;
+    }
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(1));
   if (Read(kAcquisition) == 0) Write(kAcquisition, 1);
+  std::lock_guard<std::mutex> lock(mutex_);
+  LogOnce("restart-stream", "camsim-gige: could not make the fake camera drop a killed client's stream");
 }
 
 void GigeDevice::SyncLoop() {

@@ -1,6 +1,10 @@
 // camsim-gige: the register table and its XML, the wire format, the GPIO HAL,
 // and end-to-end runs of the device on 127.0.0.1 with Aravis's client API.
 #include <gtest/gtest.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -887,6 +891,135 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   EXPECT_TRUE(status());
   trigger_.Set(false, &err);
   EXPECT_TRUE(reads(false)) << "low trigger input";
+}
+
+// GigE Vision bootstrap registers.
+constexpr uint32_t kControlChannelPrivilege = 0x0a00, kHeartbeatTimeout = 0x0938, kStreamPort = 0x0d00,
+                   kStreamDestAddress = 0x0d18;
+
+// A controller that speaks raw GVCP from its own socket, so the test can let
+// it die mid-stream (no heartbeat, no AcquisitionStop) as a killed process would.
+class RawController {
+ public:
+  RawController() {
+    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sink_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(sink_, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    socklen_t n = sizeof a;
+    getsockname(sink_, reinterpret_cast<sockaddr*>(&a), &n);
+    sink_port_ = ntohs(a.sin_port);
+  }
+  ~RawController() {
+    close(fd_);
+    close(sink_);
+  }
+  // WRITEREG_CMD (0x0082) of one register; true when acknowledged.
+  bool Write(uint32_t address, uint32_t value) {
+    uint8_t cmd[16] = {0x42, 0x01, 0x00, 0x82, 0x00, 0x08, uint8_t(++id_ >> 8), uint8_t(id_)};
+    for (int i = 0; i < 4; ++i) {
+      cmd[8 + i] = static_cast<uint8_t>(address >> (24 - 8 * i));
+      cmd[12 + i] = static_cast<uint8_t>(value >> (24 - 8 * i));
+    }
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(3956);
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (sendto(fd_, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) != sizeof cmd) return false;
+    pollfd p{fd_, POLLIN, 0};
+    uint8_t ack[64];
+    return poll(&p, 1, 2000) > 0 && recv(fd_, ack, sizeof ack, 0) >= 12 && ack[3] == 0x83;
+  }
+  // True when a frame's GVSP trailer (packet format 2: the frame was sent
+  // whole; a leader alone may be the device's primer) reaches the stream sink
+  // within timeout_ms.
+  bool FrameArrives(int timeout_ms) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+    uint8_t packet[9000];
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(end - std::chrono::steady_clock::now());
+      pollfd p{sink_, POLLIN, 0};
+      if (left.count() <= 0 || poll(&p, 1, static_cast<int>(left.count())) <= 0) return false;
+      if (recv(sink_, packet, sizeof packet, 0) >= 8 && packet[4] == 2) return true;
+    }
+  }
+  uint16_t sink_port() const { return sink_port_; }
+
+ private:
+  int fd_ = -1, sink_ = -1;
+  uint16_t sink_port_ = 0, id_ = 0;
+};
+
+constexpr int kTestHeartbeatMs = 1500;
+
+// The first controller sets a 64x48 window, its stream and AcquisitionStart
+// at once, streams, and dies (no heartbeat, no AcquisitionStop). Returns when
+// its stream has reached its port.
+void StartAndDie(GigeDevice& d, int stream_wait_ms) {
+  RawController dead;
+  ASSERT_TRUE(dead.Write(kControlChannelPrivilege, 2));  // control
+  // Heartbeat timeout: the test waits less than the default 3 s, and the next
+  // controller still has time to write its own between two slow frames.
+  ASSERT_TRUE(dead.Write(kHeartbeatTimeout, kTestHeartbeatMs));
+  ASSERT_TRUE(dead.Write(reg::kAcquisitionFrameRateEnable, 0));  // frames back to back
+  ASSERT_TRUE(dead.Write(reg::kWidth, 64));
+  ASSERT_TRUE(dead.Write(reg::kHeight, 48));
+  ASSERT_TRUE(dead.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_TRUE(dead.Write(kStreamPort, dead.sink_port()));
+  ASSERT_TRUE(dead.Write(reg::kAcquisition, 1));
+  ASSERT_TRUE(dead.FrameArrives(stream_wait_ms)) << "the first client's stream";
+  EXPECT_EQ(d.writes_refused(), 0u) << "the window written just before AcquisitionStart was refused";
+}
+
+// A client killed mid-stream leaves the acquisition running to its port. An
+// Aravis client that comes after the heartbeat timeout gets control, and its
+// frames (of the window the dead client set) come to it.
+TEST_F(GigeE2E, AClientKilledMidStreamDoesNotKeepTheStream) {
+  device_ = StartDevice(SmallDevice(320, 240));
+  ASSERT_NE(device_, nullptr);
+  for (int round = 0; round < 2; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    ASSERT_NO_FATAL_FAILURE(StartAndDie(*device_, 5000));
+    Sleep(kTestHeartbeatMs + 100);  // past the heartbeat timeout
+    Client c;
+    ASSERT_TRUE(c.ok()) << c.last_error;
+    arv_device_write_register(c.device(), kHeartbeatTimeout, 3000, nullptr);  // the default again
+    ASSERT_TRUE(c.OpenStream());
+    Start(c);  // at once, as a client does
+    for (int i = 0; i < 3; ++i) {
+      const std::vector<uint8_t> f = c.Grab(5000);
+      ASSERT_EQ(f.size(), 64u * 48 * 2) << "frame " << i << " of the next client";
+    }
+    EXPECT_EQ(c.failed_buffers(), 0u);
+  }
+}
+
+// The same, with a controller whose first packet after the timeout is its
+// control request: the fake camera hands control over inside that one packet
+// and keeps streaming to the dead port, so the device must make it drop that
+// stream (GigeDevice::RestartStream). Frames back to back leave the fake
+// camera one packet per frame, and frames here take longer than the device
+// used to wait for its packet to be handled (200 ms).
+TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
+#ifdef NDEBUG
+  const DeviceOptions o = SmallDevice(4096, 3072);  // about 0.4 s a frame on one thread
+#else
+  const DeviceOptions o = SmallDevice(640, 480);  // unoptimised, with sanitizers: as slow
+#endif
+  device_ = StartDevice(o);
+  ASSERT_NE(device_, nullptr);
+  ASSERT_NO_FATAL_FAILURE(StartAndDie(*device_, 20000));
+  Sleep(kTestHeartbeatMs + 100);
+  RawController next;
+  ASSERT_TRUE(next.Write(kControlChannelPrivilege, 2)) << "control after the heartbeat timeout";
+  ASSERT_TRUE(next.Write(kHeartbeatTimeout, 60000));  // this controller sends no heartbeats
+  ASSERT_TRUE(next.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_TRUE(next.Write(kStreamPort, next.sink_port()));
+  ASSERT_TRUE(next.Write(reg::kAcquisition, 1));
+  EXPECT_TRUE(next.FrameArrives(20000)) << "the stream still goes to the dead client";
+  ASSERT_TRUE(next.Write(reg::kAcquisition, 0));
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
