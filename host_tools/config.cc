@@ -107,8 +107,8 @@ const std::vector<Field>& Fields() {
     std::vector<Field> v;
     // [pipeline]
     Field stages = Make("pipeline", "stages", Kind::kStringArray,
-                 "stages in run order; a stage not listed does not run. All, in the default order: dof_gather, dof_rows, "
-                 "dof_columns, motion_blur, distortion, flare, exposure, vignetting, cfa, blooming, "
+                 "stages in run order; a stage not listed does not run. All, in the default order: flare, dof_gather, "
+                 "dof_rows, dof_columns, motion_blur, distortion, exposure, vignetting, cfa, blooming, "
                  "sensor, black_level, white_balance, demosaic, color_matrix, gamma");
     stages.get_text = [](const RunConfig& c) {
       std::string t = "[";

@@ -27,7 +27,9 @@
 // a per-frame pre-pass over the input (ComputeFlare, run by the host before
 // the frame, like the smear pre-pass) lists the bright 16 x 16 tiles with
 // their excess, glare share and excess-weighted centroid, into caller memory
-// passed through FrameInput::flare. The stage then needs no row context.
+// passed through FrameInput::flare. The stage then needs no row context. It
+// must see the image the pre-pass read, so it runs first (Pipeline::Configure
+// refuses a plan with a running stage before it).
 // With no bright pixel the stage copies its input (the planner leaves it out
 // only when flare is off: which frames have bright pixels is not known at
 // configure time).

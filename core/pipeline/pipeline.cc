@@ -266,6 +266,9 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     if (run_[i] == &dof_rows_) rows_run = true;
     if (run_[i] == &dof_columns_ && !rows_run)
       return InvalidArgument("pipeline.stages", "dof_columns needs dof_rows running before it");
+    // Flare's pre-pass finds the bright tiles in the frame input: the stage must see that image.
+    if (run_[i] == &flare_ && i > 0)
+      return InvalidArgument("pipeline.stages", "flare must run first: its bright tiles are found in the frame input");
   }
   plan_.running = run_count_;
   plan_.output = format;

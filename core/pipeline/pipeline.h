@@ -76,8 +76,9 @@ struct PipelineConfig {
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
   // Stages in run order; a stage not listed does not run.
-  StageId order[kStageCount] = {StageId::kDofGather,   StageId::kDofRows,    StageId::kDofColumns,
-                                StageId::kMotionBlur,  StageId::kDistortion, StageId::kFlare,
+  // Flare first: its pre-pass (ComputeFlare) reads the frame input, so no running stage may come before it.
+  StageId order[kStageCount] = {StageId::kFlare,       StageId::kDofGather,  StageId::kDofRows,
+                                StageId::kDofColumns,  StageId::kMotionBlur, StageId::kDistortion,
                                 StageId::kExposure,    StageId::kVignetting, StageId::kCfa,
                                 StageId::kBlooming,    StageId::kSensor,     StageId::kBlackLevel,
                                 StageId::kWhiteBalance, StageId::kDemosaic,  StageId::kColorMatrix,

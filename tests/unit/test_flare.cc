@@ -171,5 +171,32 @@ TEST(Flare, LeftOutWhenOffAndNeedsItsPrePass) {
   EXPECT_EQ(std::string(needs->pipeline.CheckInput(s.View()).field()), "flare.enabled");
 }
 
+// The pre-pass reads the frame input, so a stage that changes the image
+// before flare would leave the two looking at different images.
+TEST(Flare, RunsFirstOrNotAtAll) {
+  FlareConfig on;
+  on.enabled = true;
+  PipelineConfig c;
+  c.geometry = {16, 16, Cfa::kBayerRG, 12};
+  c.flare = on;
+  c.distortion.lens.model = DistortionModel::kBrown;
+  c.distortion.lens.fx = c.distortion.lens.fy = 16;
+  c.distortion.lens.cx = c.distortion.lens.cy = 7.5;
+  c.distortion.lens.k[0] = 0.1;
+  // Distortion keeps radiance, so only the order check refuses flare after it.
+  PipelineConfig late = c;
+  late.order[0] = StageId::kDistortion;
+  late.order[1] = StageId::kFlare;
+  late.order_count = 2;
+  auto refused = test::Build(late);
+  ASSERT_FALSE(refused->status.ok());
+  EXPECT_EQ(std::string(refused->status.field()), "pipeline.stages") << refused->status.message();
+  // The default order runs it first, with the lens stage on too.
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  EXPECT_EQ(b->pipeline.plan().entries[0].id, StageId::kFlare);
+  EXPECT_TRUE(b->pipeline.plan().entries[0].runs);
+}
+
 }  // namespace
 }  // namespace camsim

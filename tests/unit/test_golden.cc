@@ -205,8 +205,12 @@ TEST(Golden, DepthOfFieldOnBundledScene) {
     }
     for (bool whole : {false, true}) {
       PipelineConfig c = full;
-      if (!whole) c.order_count = 3;  // dof_gather, dof_rows, dof_columns
-      ASSERT_EQ(c.order[2], StageId::kDofColumns);
+      if (!whole) {
+        c.order[0] = StageId::kDofGather;
+        c.order[1] = StageId::kDofRows;
+        c.order[2] = StageId::kDofColumns;
+        c.order_count = 3;
+      }
       auto b = test::Build(c);
       ASSERT_TRUE(b->status.ok()) << b->status.message();
       ASSERT_TRUE(b->pipeline.CheckInput(scene.View()).ok());
