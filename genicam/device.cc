@@ -524,7 +524,7 @@ void GigeDevice::WriteDerived() {
 
 void GigeDevice::WriteLineStatus() {
   using namespace reg;
-  Write(kLineStatus, (Applied(kLineSelector) == 0 ? trigger_level_ : strobe_level_) ? 1 : 0);
+  Write(kLineStatus, (Applied(kLineSelector) == 0 ? trigger_level_.load() : strobe_level_) ? 1 : 0);
 }
 
 bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config,
@@ -600,6 +600,7 @@ void GigeDevice::Sync() {
   if (!acquiring) was_acquiring_ = false;
   if (!acquiring || Applied(kTriggerMode) == 0) {
     // Triggers belong to an acquisition in trigger mode: none left for the next.
+    std::lock_guard<std::mutex> t(trigger_mutex_);
     pending_triggers_.clear();
     Write(kFakeTriggerSoftware, 0);
   }
@@ -679,16 +680,25 @@ void GigeDevice::Sync() {
   // TriggerSoftware: one frame when acquiring with TriggerSource Software.
   if (Read(kTriggerSoftware) != 0) {
     Write(kTriggerSoftware, 0);
-    if (acquiring && Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceSoftware)
+    if (acquiring && Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceSoftware) {
+      std::lock_guard<std::mutex> t(trigger_mutex_);
       TakeTrigger(kNextIndex);
+    }
   }
+  {
+    std::lock_guard<std::mutex> t(trigger_mutex_);
+    line0_armed_ = Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceLine0;
+    line0_rising_ = Applied(kTriggerActivation) == 0;
+  }
+  WriteLineStatus();  // the trigger thread changes the input's level without mutex_
 }
 
 void GigeDevice::TakeTrigger(int64_t index) {
   if (pending_triggers_.size() >= kMaxPendingTriggers) {
     ++triggers_dropped_;
-    LogOnce("trigger-overrun", "camsim-gige: triggers come faster than frames are made; " +
-                                   std::to_string(kMaxPendingTriggers) + " wait, later ones are dropped");
+    if (!overrun_logged_.exchange(true))
+      std::fprintf(stderr, "camsim-gige: triggers come faster than frames are made; %zu wait, later ones are dropped\n",
+                   kMaxPendingTriggers);
     return;
   }
   pending_triggers_.push_back(index);
@@ -743,17 +753,18 @@ void GigeDevice::TriggerLoop() {
       return;
     }
     if (r == 0) continue;
-    std::lock_guard<std::mutex> lock(mutex_);
-    trigger_level_ = edge == hal::Edge::kRising;
-    WriteLineStatus();
-    const hal::Edge want = Applied(reg::kTriggerActivation) == 0 ? hal::Edge::kRising : hal::Edge::kFalling;
-    if (edge == want && Read(reg::kAcquisition) != 0 && Applied(reg::kTriggerMode) == 1 &&
-        Applied(reg::kTriggerSource) == kSourceLine0) {
-      // A trigger bus pulse names the frame to take: every camera of the rig
-      // renders the same frame index, also after a missed pulse.
-      uint32_t index = 0;
-      TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex);
+    trigger_level_ = edge == hal::Edge::kRising;  // LineStatus: written by the next sync
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      const hal::Edge want = line0_rising_ ? hal::Edge::kRising : hal::Edge::kFalling;
+      if (edge == want && line0_armed_ && Read(reg::kAcquisition) != 0) {
+        // A trigger bus pulse names the frame to take: every camera of the rig
+        // renders the same frame index, also after a missed pulse.
+        uint32_t index = 0;
+        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex);
+      }
     }
+    ++trigger_edges_;
   }
 }
 
@@ -962,15 +973,19 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     was_acquiring_ = true;
     frames_in_acquisition_ = 0;
   }
-  if (Applied(kTriggerMode) == 1 && !pending_triggers_.empty()) {
+  int64_t pulse_index = kNextIndex;
+  if (Applied(kTriggerMode) == 1) {
     // This frame answers the oldest trigger; the fake camera is asked for the next one.
-    const int64_t pulse_index = pending_triggers_.front();
-    pending_triggers_.pop_front();
-    if (pulse_index != kNextIndex) {
-      SetApplied(kSimFrameIndex, static_cast<uint64_t>(pulse_index));
-      WriteDerived();
+    std::lock_guard<std::mutex> t(trigger_mutex_);
+    if (!pending_triggers_.empty()) {
+      pulse_index = pending_triggers_.front();
+      pending_triggers_.pop_front();
+      if (!pending_triggers_.empty()) Write(kFakeTriggerSoftware, 1);
     }
-    if (!pending_triggers_.empty()) Write(kFakeTriggerSoftware, 1);
+  }
+  if (pulse_index != kNextIndex) {
+    SetApplied(kSimFrameIndex, static_cast<uint64_t>(pulse_index));
+    WriteDerived();
   }
   size_t size = 0;
   uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));

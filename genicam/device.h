@@ -95,6 +95,7 @@ class GigeDevice {
   uint64_t frames_sent() const { return frames_sent_.load(); }
   uint64_t writes_refused() const { return writes_refused_.load(); }
   uint64_t triggers_dropped() const { return triggers_dropped_.load(); }
+  uint64_t trigger_edges() const { return trigger_edges_.load(); }  // edges the trigger line delivered, handled
   // Last error of a GPIO line (empty when none).
   std::string line_error() const;
 
@@ -139,8 +140,8 @@ class GigeDevice {
   // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
   void LimitAutoRange(const ExposureSettings& want);
   void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
-  // A trigger taken (under mutex_): queued for the fake camera, with the frame
-  // index a bus pulse carries (kNextIndex: the next SimFrameIndex).
+  // A trigger taken (under trigger_mutex_): queued for the fake camera, with
+  // the frame index a bus pulse carries (kNextIndex: the next SimFrameIndex).
   void TakeTrigger(int64_t index);
   static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
@@ -180,18 +181,28 @@ class GigeDevice {
   std::string line_error_;
   // LineStatus: the trigger input after its last edge (low before one), the
   // strobe output as last driven.
-  bool trigger_level_ = false, strobe_level_ = false;
+  std::atomic<bool> trigger_level_{false};
+  bool strobe_level_ = false;
 
   ArvGvFakeCamera* gv_ = nullptr;
   ArvFakeCamera* fake_ = nullptr;
   mutable std::mutex mutex_;
   std::thread sync_thread_, trigger_thread_;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0}, triggers_dropped_{0};
-  // Triggers not yet made into frames, oldest first (frame index or kNextIndex).
-  // The fake camera has one trigger flag and, before a stream's first frame,
-  // reads it only every 100 ms: the queue gives each trigger its own frame.
+  std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0}, triggers_dropped_{0}, trigger_edges_{0};
+  // The trigger thread takes edges under its own lock, never waiting for a
+  // frame being rendered (mutex_): the line's queue stays drained.
+  mutable std::mutex trigger_mutex_;
+  // Under trigger_mutex_: triggers not yet made into frames, oldest first
+  // (frame index or kNextIndex). The fake camera has one trigger flag and,
+  // before a stream's first frame, reads it only every 100 ms: the queue
+  // gives each trigger its own frame.
   std::deque<int64_t> pending_triggers_;
+  // Under trigger_mutex_, as of the last sync: TriggerMode On with source
+  // Line0, and the edge that triggers (TriggerActivation).
+  bool line0_armed_ = false;
+  bool line0_rising_ = true;
+  std::atomic<bool> overrun_logged_{false};
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;
   uint64_t stream_dest_ = 0;         // stream destination at the last sync

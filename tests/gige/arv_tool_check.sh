@@ -19,6 +19,19 @@ check() {  # check DESCRIPTION COMMAND...
 }
 tool() { arv-tool-0.8 -a $addr --register-cache=disable "$@"; }
 for _ in $(seq 100); do tool control DeviceSerialNumber >/dev/null 2>&1 && break; sleep 0.05; done
+# Waits until the device has checked the writes sent so far: two completed
+# register syncs after now (a pipeline rebuild inside one can take a while in
+# an unoptimised build), at most 10 s.
+settle() {
+  local start now
+  start=$(tool control SimSyncCount | awk '{print $3}')
+  for _ in $(seq 200); do
+    now=$(tool control SimSyncCount | awk '{print $3}')
+    [ "$now" -ge $((start + 2)) ] && return 0
+    sleep 0.05
+  done
+  echo "settle: SimSyncCount stayed at $now"
+}
 
 check "connects by address; serial" test "$(tool control DeviceSerialNumber)" = "DeviceSerialNumber = TOOL1"
 # The tool prints the XML it read from the device's memory with a newline after it.
@@ -36,14 +49,14 @@ tool values >"$tmp/values.txt" 2>&1
 check "values: every feature reads (no error)" sh -c "! grep -qi error '$tmp/values.txt'"
 check "values: 640x480 BayerRG12" grep -q "'PixelFormat' = 'BayerRG12'" "$tmp/values.txt"
 tool control Width=320 Height=240 PixelFormat=BayerRG8 ExposureTime=2000 Gain=6 >/dev/null
-sleep 0.1  # the device checks writes every 2 ms
+settle
 check "control: writes read back" test "$(tool control Width Height PixelFormat ExposureTime GainRaw | tr '\n' ' ')" = \
   "Width = 320 px min:2 max:640 inc:2 Height = 240 px min:2 max:480 inc:2 PixelFormat = BayerRG8 ExposureTime = 2000 us min:1 max:1e+08 GainRaw = 60 min:0 max:480 "
 check "control: PayloadSize follows (320 x 240 x 1 B)" test "$(tool control PayloadSize)" = "PayloadSize = 76800"
 out=$(arv-tool-0.8 -a $addr --range-check=enable control Width=9999 2>&1)
 check "range check on: the XML's maximum refuses Width=9999" sh -c "echo '$out' | grep -q 'greater than allowed maximum'"
 tool control Width=9999 ExposureTime=-5 >/dev/null
-sleep 0.1
+settle
 check "range check off: the device refuses Width=9999 and ExposureTime=-5" test \
   "$(tool control Width ExposureTime | tr '\n' ' ')" = "Width = 320 px min:2 max:640 inc:2 ExposureTime = 2000 us min:1 max:1e+08 "
 kill -INT $pid

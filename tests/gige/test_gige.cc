@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -371,8 +372,9 @@ TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
   ASSERT_NE(out, nullptr) << error;
   constexpr int kEdges = 40;
   std::vector<uint32_t> got;
+  std::atomic<bool> queue_full{false};
   std::thread reader([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // behind while the burst starts
+    while (!queue_full) std::this_thread::sleep_for(std::chrono::milliseconds(1));  // behind until then
     std::string e;
     hal::Edge edge;
     uint32_t index = 0;
@@ -386,6 +388,7 @@ TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
     out->SetEdgeIndex(static_cast<uint32_t>(k));
     EXPECT_TRUE(out->Set(k % 2 == 0, &error)) << error;  // no ASSERT: the reader thread must be joined
     reached += out->last_receivers();
+    if (k == 9) queue_full = true;  // 10 queued (max_dgram_qlen): the next send waits for the reader
   }
   reader.join();
   EXPECT_EQ(reached, kEdges);
@@ -758,6 +761,7 @@ TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
   Set(c, "TriggerSelector", "FrameStart");
   Set(c, "TriggerMode", "On");
   Set(c, "TriggerSource", "Software");
+  Settle();  // the fake camera must be in trigger mode before the acquisition starts
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   EXPECT_TRUE(c.Grab(300).empty()) << "a frame without a trigger";
@@ -819,6 +823,7 @@ TEST_F(GigeE2E, QuickPulsesEachGiveTheirOwnFrame) {
   Client& c = *client_;
   Set(c, "TriggerMode", "On");
   Set(c, "TriggerSource", "Line0");
+  Settle();  // the fake camera must be in trigger mode before the acquisition starts
   constexpr int kPulses = 24;
   ASSERT_TRUE(c.OpenStream(kPulses + 2));
   Start(c);
@@ -930,7 +935,8 @@ class RawController {
     if (sendto(fd_, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) != sizeof cmd) return false;
     pollfd p{fd_, POLLIN, 0};
     uint8_t ack[64];
-    return poll(&p, 1, 2000) > 0 && recv(fd_, ack, sizeof ack, 0) >= 12 && ack[3] == 0x83;
+    // The fake camera answers between frames: one packet per frame when they come back to back.
+    return poll(&p, 1, 10000) > 0 && recv(fd_, ack, sizeof ack, 0) >= 12 && ack[3] == 0x83;
   }
   // True when a frame's GVSP trailer (packet format 2: the frame was sent
   // whole; a leader alone may be the device's primer) reaches the stream sink

@@ -55,6 +55,22 @@ void Set(Client& c, const char* feature, const char* value) {
   ASSERT_EQ(e, nullptr) << feature << "=" << value << ": " << e->message;
 }
 
+// Waits until the device has checked the writes sent so far: two more
+// register syncs (SimSyncCount), at most 10 s.
+void Settle(Client& c) {
+  const int64_t start = arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr);
+  for (int i = 0; i < 2000; ++i) {
+    if (arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr) >= start + 2) return;
+    Sleep(5);
+  }
+}
+
+// Waits (at most 10 s) until a device's trigger thread has handled `edges` edges.
+bool WaitEdges(const GigeDevice& d, uint64_t edges) {
+  for (int i = 0; i < 2000 && d.trigger_edges() < edges; ++i) Sleep(5);
+  return d.trigger_edges() >= edges;
+}
+
 int Fire(const std::string& bus, int count, int first_index) {
   // Interval: a 64x48 frame renders in a few ms; 150 ms leaves room on a loaded CI machine.
   const std::string cmd = std::string(CAMSIM_TRIGGER_BINARY) + " unix:" + bus + " --count " +
@@ -88,6 +104,7 @@ class GigeRig : public ::testing::Test {
                    options_[i].serial.c_str());
       Set(*clients_[i], "TriggerMode", "On");
       Set(*clients_[i], "TriggerSource", "Line0");
+      Settle(*clients_[i]);  // in trigger mode before any acquisition starts
       ASSERT_TRUE(clients_[i]->OpenStream(8)) << clients_[i]->last_error;
     }
   }
@@ -116,13 +133,13 @@ TEST_F(GigeRig, PulsesKeepEveryCameraOnTheSameFrameIndex) {
   // Cameras 0 and 1 acquire from the start; camera 2, on another frame index
   // of its own (SimFrameIndex 7), starts late and misses the first pulse.
   arv_camera_set_integer(clients_[2]->camera(), "SimFrameIndex", 7, nullptr);
-  Start(0);
+  Start(0);  // acknowledged: the trigger threads read Acquisition themselves
   Start(1);
-  Sleep(100);  // the devices' register sync sees the acquisition and the trigger settings
   constexpr int kFirst = 40, kPulses = 4;
   ASSERT_EQ(Fire(bus, 1, kFirst), 0);
+  // Camera 2 must have handled (and ignored) that pulse's two edges before it starts.
+  ASSERT_TRUE(WaitEdges(*devices_[2], 2)) << "camera 2 did not see the first pulse";
   Start(2);
-  Sleep(100);
   ASSERT_EQ(Fire(bus, kPulses - 1, kFirst + 1), 0);
   for (int i = 0; i < kCameras; ++i) {
     SCOPED_TRACE(kAddresses[i]);
@@ -174,6 +191,7 @@ TEST_F(GigeRig, MasterStrobeDrivesTheBus) {
   for (int i = 1; i < kCameras; ++i) {
     Set(*clients_[i], "TriggerMode", "On");
     Set(*clients_[i], "TriggerSource", "Line0");
+    Settle(*clients_[i]);  // in trigger mode before the acquisition starts
     ASSERT_TRUE(clients_[i]->OpenStream(8));
     Start(i);
   }
