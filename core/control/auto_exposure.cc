@@ -37,6 +37,18 @@ Status AutoExposure::Configure(const AutoExposureConfig& c, const ExposureSettin
     return InvalidArgument("auto_exposure.exposure_time_max_us", "need 1 <= min <= max <= 1e8 us");
   if (!InRange(c.gain_min_db, 0.0, 48.0) || !InRange(c.gain_max_db, c.gain_min_db, 48.0))
     return InvalidArgument("auto_exposure.gain_max_db", "need 0 <= min <= max <= 48 dB");
+  // A frame in the settle band must be able to count as a normal frame, not a
+  // black or saturated one: else every frame that gets there is answered with
+  // a full max_step_ev step, and the controller never settles (Once never ends).
+  const double band_low = c.target * detmath::Exp2(-c.settle_ev), band_high = c.target * detmath::Exp2(c.settle_ev);
+  if (!(band_low < c.saturated_fraction))
+    return InvalidArgument("auto_exposure.target",
+                           "target * 2^-settle_ev must be below saturated_fraction, or frames near the target count "
+                           "as saturated and it never settles");
+  if (!(band_high > c.black_fraction))
+    return InvalidArgument("auto_exposure.target",
+                           "target * 2^settle_ev must be above black_fraction, or frames near the target count as "
+                           "black and it never settles");
   const bool aperture = c.f_number_min > 0 || c.f_number_max > 0;
   if (aperture && (!InRange(c.f_number_min, 0.5, 128.0) || !InRange(c.f_number_max, c.f_number_min, 128.0)))
     return InvalidArgument("auto_exposure.f_number_max", "need 0.5 <= min <= max <= 128 (or both 0: fixed)");

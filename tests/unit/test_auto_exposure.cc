@@ -224,5 +224,28 @@ TEST(AutoExposure, OffChangesNothingAndBadConfigNamesTheKey) {
   EXPECT_EQ(std::string(ae.Configure(bad, initial).field()), "auto_exposure.start_ev");
 }
 
+// A target whose settle band counts as saturated (or black) would make the
+// controller jump a full step every time it got there, forever: refused. A
+// target just inside the limit settles.
+TEST(AutoExposure, ATargetItCannotSettleOnIsRefused) {
+  const ExposureSettings initial{5000.0, 0.0, 2.8};
+  AutoExposure ae;
+  AutoExposureConfig high = Continuous();
+  high.target = 0.6;
+  high.saturated_fraction = 0.55;
+  EXPECT_EQ(std::string(ae.Configure(high, initial).field()), "auto_exposure.target");
+  AutoExposureConfig low = Continuous();
+  low.target = 0.05;
+  low.black_fraction = 0.1;
+  EXPECT_EQ(std::string(ae.Configure(low, initial).field()), "auto_exposure.target");
+  AutoExposureConfig edge = Continuous();
+  edge.mode = AutoExposureMode::kOnce;
+  edge.target = 0.6;
+  edge.saturated_fraction = 0.6 * std::exp2(-edge.settle_ev) + 0.01;
+  ASSERT_TRUE(ae.Configure(edge, initial).ok());
+  RunLoop(ae, Plant{ExposureValue(initial) + 4.0, edge.target}, 40, [](int) { return 1.0; });
+  EXPECT_TRUE(ae.done());
+}
+
 }  // namespace
 }  // namespace camsim
