@@ -1015,6 +1015,37 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
                               origins);
       return false;
     }
+    // The controller may move anywhere in its range, and only configuration
+    // may fail: the stages must take every setting it can reach. Their limits
+    // are monotone in exposure time, gain and f-number, so its corners suffice.
+    const AutoExposureConfig& range = c->auto_exposure;
+    const bool aperture = range.f_number_min > 0 || range.f_number_max > 0;
+    struct End {
+      double value;
+      const char* key;
+    };
+    const End times[2] = {{range.exposure_time_min_us, "auto_exposure.exposure_time_min_us"},
+                          {range.exposure_time_max_us, "auto_exposure.exposure_time_max_us"}};
+    const End gains[2] = {{range.gain_min_db, "auto_exposure.gain_min_db"}, {range.gain_max_db, "auto_exposure.gain_max_db"}};
+    const End stops[2] = {{aperture ? range.f_number_min : p.exposure.f_number, "auto_exposure.f_number_min"},
+                          {aperture ? range.f_number_max : p.exposure.f_number, "auto_exposure.f_number_max"}};
+    for (const End& t : times)
+      for (const End& g : gains)
+        for (const End& f : stops) {
+          PipelineConfig q = p;
+          q.exposure.exposure_time_us = t.value;
+          q.sensor.gain_db = g.value;
+          q.exposure.f_number = f.value;
+          Pipeline corner;
+          const Status cs = corner.Configure(q, workers, !c->vignetting_mask.empty());
+          if (cs.ok()) continue;
+          std::string at = std::string(t.key) + " = " + FormatNumber(t.value) + ", " + g.key + " = " +
+                           FormatNumber(g.value);
+          if (aperture) at += std::string(", ") + f.key + " = " + FormatNumber(f.value);
+          *error = "auto_exposure: the stages refuse a setting in its range (" + at + "): " +
+                   DescribeStatus(cs, origins) + "; narrow the range";
+          return false;
+        }
   }
   return true;
 }

@@ -86,6 +86,26 @@ TEST(Config, ErrorsNameKeyAndLine) {
   EXPECT_EQ(error, "f.toml:2: sensor.full_well_e must be in [1, 1e6] electrons");
 }
 
+// Auto exposure may reach any setting in its range, and a frame may not fail:
+// a range the stages refuse at one end is a configuration error, named.
+TEST(Config, AutoExposureRangeTheStagesRefuseIsAConfigError) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  const std::string toml =
+      "[motion]\nsource = \"vectors\"\nvector_fps = 24\n"
+      "[auto_exposure]\nmode = \"continuous\"\nexposure_time_max_us = 1e6\n";
+  ASSERT_TRUE(ParseConfig(toml, "f.toml", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 64, 48, o, 1, &error));
+  EXPECT_NE(error.find("(auto_exposure.exposure_time_max_us = 1e+06, auto_exposure.gain_min_db = 0.0)"), std::string::npos)
+      << error;
+  EXPECT_NE(error.find("f.toml:3: motion.vector_fps exposure longer than 16 frame intervals"), std::string::npos)
+      << error;
+  // 0.5 s is within 16 intervals of 1/24 s: accepted.
+  ASSERT_TRUE(ApplyOverride("auto_exposure.exposure_time_max_us=5e5", &c, &o, &error)) << error;
+  EXPECT_TRUE(FinishConfig(&c, 64, 48, o, 1, &error)) << error;
+}
+
 // The crop check names the dimension that is too large, with its origin (it
 // used to name sensor.width for either).
 TEST(Config, CropErrorNamesTheDimensionTooLarge) {
