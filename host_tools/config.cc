@@ -390,7 +390,7 @@ const std::vector<Field>& Fields() {
     v.push_back(Number("dof", "diffusion_scale",
                        "diffusion: beta = (scale * CoC)^2; 1/sqrt(32) matches a disc's variance",
                        [](RunConfig& c) -> double& { return c.core.dof.diffusion_scale; }));
-    v.push_back(Integer("dof", "column_window", "diffusion: rows solved each side per column (precision knob, 1 .. 511)",
+    v.push_back(Integer("dof", "column_window", "diffusion: rows solved each side per column (precision knob, 1 .. 496)",
                         [](RunConfig& c) -> int& { return c.core.dof.column_window; }));
     v.push_back(Integer("dof", "max_radius_px", "gather: disc radius cap, pixels (precision knob, 1 .. 255)",
                         [](RunConfig& c) -> int& { return c.core.dof.max_radius_px; }));

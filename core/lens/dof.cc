@@ -343,8 +343,8 @@ Status DofRowStage::Configure(const DofConfig& c, const SensorGeometry& g, doubl
   }
   if (c.method != DofMethod::kOff && c.method != DofMethod::kDiffusion && c.method != DofMethod::kGather)
     return InvalidArgument("dof.method", "must be off, diffusion or gather");
-  if (c.column_window < 1 || c.column_window > (kMaxWindowRows - 1) / 2)
-    return InvalidArgument("dof.column_window", "must be in [1, 511] rows");
+  if (c.column_window < 1 || c.column_window > kMaxColumnWindow)
+    return InvalidArgument("dof.column_window", "must be in [1, 496] rows");
   if (c.method == DofMethod::kDiffusion && !c.structural_only) {
     CAMSIM_TRY(coc_.Configure(c, f_number));
   } else if (structural_) {  // no lens model needed, but the shared limits still apply

@@ -89,6 +89,10 @@ namespace camsim {
 
 enum class DofMethod : uint8_t { kOff, kDiffusion, kGather };
 
+// The column pass solves kBlock (32) output rows with column_window rows on
+// each side in one window of at most kMaxWindowRows: W <= (1024 - 32) / 2.
+inline constexpr int kMaxColumnWindow = (kMaxWindowRows - 32) / 2;
+
 struct DofConfig {
   DofMethod method = DofMethod::kOff;
   double focal_length_mm = 28.0;   // lens focal length (the host copies lens.focal_length_mm)
@@ -97,7 +101,7 @@ struct DofConfig {
   double max_coc_px = 64.0;        // CoC diameter cap, pixels (0.25 .. 1023)
   double min_coc_px = 0.5;         // smaller CoCs are 0: those pixels are not blurred
   double diffusion_scale = 0.17677669529663687;  // s = 1/sqrt(32), see above
-  int column_window = 32;          // diffusion: rows each side solved per column (1 .. 511)
+  int column_window = 32;          // diffusion: rows each side solved per column (1 .. kMaxColumnWindow)
   int max_radius_px = 16;          // gather: disc radius cap (1 .. 255); also its row window
   // Structural blur: blur diameter in pixels = sum_k poly[k] r^k, r the
   // normalised radius (0 at the centre, 1 at the corners). All 0: off.
@@ -251,6 +255,7 @@ class DofColumnStage final : public Stage {
   // rows see more than W rows each side: rms 3.9e-3 -> 1.0e-3 at W = 32,
   // BM_DofDiffusion/32); 0.8 MB more strip state per worker at 1080p.
   static constexpr int kBlock = 32;
+  static_assert(kMaxColumnWindow == (kMaxWindowRows - kBlock) / 2, "kMaxColumnWindow follows kBlock");
   static constexpr int kTile = 64;  // columns solved together
 
  private:
@@ -281,7 +286,7 @@ class DofGatherStage final : public Stage {
   DofConfig config_;
   SensorGeometry geometry_;
   CocModel coc_;
-  uint32_t* weight_ = nullptr;     // [R] = round(2^32 / A(R)), R = 0 .. max_radius
+  uint32_t* weight_ = nullptr;     // [R] = round(2^26 / A(R)), R = 0 .. max_radius
   int16_t* half_width_ = nullptr;  // [q * (R_max + 1) + |dy|] = floor(sqrt((q/4)^2 - dy^2)), -1 outside; q = radius in quarter pixels
 };
 

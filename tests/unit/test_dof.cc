@@ -680,6 +680,20 @@ TEST(DofPipelineTest, MissingDepthIsAnErrorNamingTheKey) {
 
 // fuzz_core found an order with dof_columns but not dof_rows: the column pass
 // then read coefficient tables nobody had built. It is a configuration error.
+// The column pass's window is kBlock + 2 column_window rows: the largest
+// accepted window fits on a tall frame, and the next is refused by its key
+// (it used to pass the key's check and fail in the ring sizing, unnamed).
+TEST(DofPipelineTest, ColumnWindowRangeFitsTheRowWindow) {
+  PipelineConfig p = DofPipeline(32, 1100, DofMethod::kDiffusion);
+  p.dof.column_window = kMaxColumnWindow;
+  auto fits = test::Build(p);
+  EXPECT_TRUE(fits->status.ok()) << fits->status.message();
+  p.dof.column_window = kMaxColumnWindow + 1;
+  auto refused = test::Build(p);
+  ASSERT_FALSE(refused->status.ok());
+  EXPECT_EQ(std::string(refused->status.field()), "dof.column_window") << refused->status.message();
+}
+
 TEST(DofPipelineTest, ColumnsWithoutRowsIsAnErrorNamingTheKey) {
   for (const bool rows_after : {false, true}) {
     PipelineConfig p = DofPipeline(16, 16, DofMethod::kDiffusion);
