@@ -374,13 +374,13 @@ const char* DofRowStage::IdentityReason() const {
 
 void DofRowStage::CountTables(WorkspaceCounter& counter) const {
   if (!structural_) return;
-  counter.Add<uint32_t>(kCurvePoints + 1);
+  counter.Add<uint64_t>(kCurvePoints + 1);
   counter.Add<uint32_t>(static_cast<size_t>(geometry_.width));
 }
 
 Status DofRowStage::Init(Arena& tables) {
   if (!structural_) return Status::Ok();
-  struct_cc2_ = tables.Take<uint32_t>(kCurvePoints + 1);
+  struct_cc2_ = tables.Take<uint64_t>(kCurvePoints + 1);
   dx2_ = tables.Take<uint32_t>(static_cast<size_t>(geometry_.width));
   if (struct_cc2_ == nullptr || dx2_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for structural blur tables");
@@ -395,8 +395,8 @@ Status DofRowStage::Init(Arena& tables) {
     if (d > config_.max_coc_px) d = config_.max_coc_px;
     if (d < config_.min_coc_px) d = 0.0;
     const double sd = d * config_.diffusion_scale * 256.0;  // Q.8 diffusion diameter
-    const double sq = sd * sd;                              // Q.16 squared
-    struct_cc2_[i] = sq >= 4294967295.0 ? 0xFFFFFFFFu : static_cast<uint32_t>(sq + 0.5);
+    const double sq = sd * sd;                              // Q.16 squared, < (1023 * 256)^2 < 2^37: exact
+    struct_cc2_[i] = static_cast<uint64_t>(sq + 0.5);
   }
   struct_cc2_[kCurvePoints] = struct_cc2_[kCurvePoints - 1];
   for (int x = 0; x < geometry_.width; ++x) {

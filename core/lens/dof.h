@@ -161,7 +161,8 @@ inline constexpr int kBetaFracBits = 12;             // b: Q20.12
 inline constexpr uint32_t kMaxBeta = 0xFFFFFFFFu;    // 2^20 - 2^-12
 inline constexpr int kGuardBits = 16;                // u, v, y: Q16.32 in int64
 inline constexpr int kWeightFracBits = 30;           // r, e, w: Q2.30
-// b from two neighbours' squared diffusion CoCs (Q.32, < 2^52): min, to
+// b from two neighbours' squared diffusion CoCs (Q.32, depth part + structural
+// part, each < 2^52): min, to
 // Q.12 (rounded, ties up), capped.
 constexpr uint32_t BetaOf(uint64_t cc2_a, uint64_t cc2_b) {
   const uint64_t m = cc2_a < cc2_b ? cc2_a : cc2_b;
@@ -216,19 +217,19 @@ class DofRowStage final : public Stage {
   void ProcessRow(const RowArgs& args) const override;
 
   const CocModel& coc() const { return coc_; }
+  // Squared diffusion CoC per pixel of row y, Q.32 (depth + structural), after
+  // Init. Columns [x0, x1) of row y into cc2[0 .. x1 - x0). Public for tests.
+  void RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const;
 
  protected:
   friend class DofColumnStage;
-  // Squared diffusion CoC per pixel of row y, Q.32 (depth + structural).
-  // Columns [x0, x1) of row y into cc2[0 .. x1 - x0).
-  void RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_t* cc2) const;
 
   DofConfig config_;
   SensorGeometry geometry_;
   CocModel coc_;
   bool structural_ = false;
   UScale rho_to_index_;          // as vignetting: (dx2 + dy2) -> curve position Q.16
-  uint32_t* struct_cc2_ = nullptr;  // kCurvePoints + 1 squared diffusion diameters, Q.16 (added << 16)
+  uint64_t* struct_cc2_ = nullptr;  // kCurvePoints + 1 squared diffusion diameters, Q.16 (< 2^37; added << 16)
   uint32_t* dx2_ = nullptr;
 };
 

@@ -571,6 +571,36 @@ TEST(DofGather, MatchesDoubleReference) {
   }
 }
 
+// Structural blur's squared diameters follow the double reference up to the
+// CoC cap (s d = 1023 px); they used to saturate a 32-bit table at s d = 256.
+TEST(DofStructural, LargeDiametersAreNotCapped) {
+  const int w = 64, h = 48;
+  DofConfig c;
+  c.method = DofMethod::kOff;
+  c.structural_only = true;
+  c.structural_poly[2] = 600.0;  // 600 px diameter at the corners
+  c.diffusion_scale = 0.5;       // s d = 300 px
+  c.max_coc_px = 1023;
+  const SensorGeometry g{w, h, Cfa::kBayerRG, 12};
+  DofRowStage stage;
+  ASSERT_TRUE(stage.Configure(c, g, 2.8).ok());
+  WorkspaceCounter count;
+  stage.CountTables(count);
+  std::vector<uint8_t> memory(count.bytes());
+  Arena tables(Span<uint8_t>{memory.data(), memory.size()});
+  ASSERT_TRUE(stage.Init(tables).ok());
+  const std::vector<double> ref = ReferenceCc2(c, 2.8, nullptr, w, h, false);  // px^2
+  std::vector<uint64_t> row(w);
+  for (int y : {0, h / 2, h - 1}) {
+    stage.RowCc2(FrameInput{}, y, 0, w, row.data());
+    for (int x = 0; x < w; ++x) {
+      const double got = static_cast<double>(row[static_cast<size_t>(x)]) / 4294967296.0;
+      const double want = ref[static_cast<size_t>(y) * w + x];
+      ASSERT_NEAR(got, want, 1e-3 * want + 1.0) << "x " << x << " y " << y;
+    }
+  }
+}
+
 TEST(DofStructural, SharpCentreSoftCornersWithoutDepth) {
   const int w = 96, h = 64;
   test::Scene s = test::TexturedScene(w, h);  // no depth plane
