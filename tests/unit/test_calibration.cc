@@ -118,11 +118,15 @@ TEST(Calibration, BadFilesSayWhatAndWhere) {
   EXPECT_NE(error.find("n.yaml:9: distortion_coefficients has a value that is not a finite number"),
             std::string::npos) << error;
   std::string model = kRos;
-  model.replace(model.find("rational_polynomial"), 19, "fov");
+  const size_t model_at = model.find("rational_polynomial");
+  ASSERT_NE(model_at, std::string::npos);
+  model.replace(model_at, 19, "fov");
   EXPECT_FALSE(ParseCalibration(model, "m.yaml", false, &c, &error));
   EXPECT_NE(error.find("'fov' is not supported"), std::string::npos) << error;
   std::string count = kRos;
-  count.replace(count.find(", 0.05, 0.0]"), 12, "]");
+  const size_t count_at = count.find(", 0.05, 0.0]");
+  ASSERT_NE(count_at, std::string::npos);
+  count.replace(count_at, 12, "]");
   EXPECT_FALSE(ParseCalibration(count, "c.yaml", false, &c, &error));
   EXPECT_NE(error.find("expected 4, 5, 8, 12 or 14"), std::string::npos) << error;
   EXPECT_FALSE(LoadCalibration("/nonexistent/cal.yml", false, &c, &error));

@@ -83,7 +83,7 @@ TEST(EmvaDataset, RecoversTheSyntheticCamera) {
   for (int i = 1; i <= kLevels; ++i) {
     const double p = 1.3 * p_sat * i / kLevels;
     d += "b " + std::to_string(exposure) + " " + std::to_string(p) + "\n" +
-         WriteSeries(cam, dir, "b" + std::to_string(i), p, 2);
+         WriteSeries(cam, dir, std::string("b") + std::to_string(i), p, 2);
   }
   constexpr int kStack = 16;
   d += "d 1000\n" + WriteSeries(cam, dir, "ds", 0, kStack);
