@@ -1,6 +1,8 @@
 #include "tests/gige/gige_client.h"
 
+#include <chrono>
 #include <cstring>
+#include <thread>
 
 namespace camsim::gigetest {
 
@@ -101,6 +103,14 @@ void Client::CloseStream() {
   if (!stream_) return;
   if (camera_) arv_camera_stop_acquisition(camera_, nullptr);
   g_clear_object(&stream_);
+}
+
+void Settle(Client& c) {
+  const int64_t start = arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr);
+  for (int i = 0; i < 2000; ++i) {
+    if (arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr) >= start + 2) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
 }
 
 }  // namespace camsim::gigetest

@@ -21,6 +21,12 @@ genicam::DeviceOptions SmallDevice(int width = 64, int height = 48);
 std::vector<uint8_t> ReferenceFrame(const genicam::DeviceOptions& o, uint32_t index, uint32_t format, int x, int y,
                                     int w, int h, const std::vector<std::string>& extra_overrides = {});
 
+class Client;
+// Waits until the device has checked the writes sent so far through c: two
+// more register syncs (SimSyncCount; a pipeline rebuild inside one can take
+// tens of ms, more under sanitizers), at most 10 s.
+void Settle(Client& c);
+
 class Client {
  public:
   // Connects to address (no packet socket: see README, loopback pitfalls).

@@ -28,17 +28,11 @@ using genicam::GigeDevice;
 namespace reg = genicam::reg;
 
 void Sleep(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
-// Waits until the device has checked the writes sent so far: two completed
-// register syncs after now (SimSyncCount; a pipeline rebuild inside a sync
-// takes tens of ms, more under sanitizers).
+// Settle (gige_client.h) through the fixture's client.
 Client* g_client = nullptr;
 void Settle() {
   if (!g_client) return Sleep(400);
-  const int64_t start = arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr);
-  for (int i = 0; i < 2000; ++i) {
-    if (arv_camera_get_integer(g_client->camera(), "SimSyncCount", nullptr) >= start + 2) return;
-    Sleep(5);
-  }
+  gigetest::Settle(*g_client);
 }
 
 // Waits until a feature reads `want` (the device's sync runs every 2 ms).

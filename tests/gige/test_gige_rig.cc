@@ -55,16 +55,6 @@ void Set(Client& c, const char* feature, const char* value) {
   ASSERT_EQ(e, nullptr) << feature << "=" << value << ": " << e->message;
 }
 
-// Waits until the device has checked the writes sent so far: two more
-// register syncs (SimSyncCount), at most 10 s.
-void Settle(Client& c) {
-  const int64_t start = arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr);
-  for (int i = 0; i < 2000; ++i) {
-    if (arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr) >= start + 2) return;
-    Sleep(5);
-  }
-}
-
 // Waits (at most 10 s) until a device's trigger thread has handled `edges` edges.
 bool WaitEdges(const GigeDevice& d, uint64_t edges) {
   for (int i = 0; i < 2000 && d.trigger_edges() < edges; ++i) Sleep(5);
