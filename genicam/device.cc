@@ -28,10 +28,7 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain, reg::
 bool IsGeometry(uint32_t a) {
   return a == reg::kWidth || a == reg::kHeight || a == reg::kOffsetX || a == reg::kOffsetY || a == reg::kPixelFormat;
 }
-// GigE Vision bootstrap: control channel privilege (0 = no controlling client).
-constexpr uint32_t kControlChannelPrivilege = 0x0a00;
-// Stream channel 0: destination port (low 16 bits) and address.
-constexpr uint32_t kStreamPort = 0x0d00, kStreamDestAddress = 0x0d18;
+using reg::kControlChannelPrivilege, reg::kStreamPort, reg::kStreamDestAddress;
 constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.

@@ -48,6 +48,10 @@ namespace reg {
 inline constexpr uint32_t kVendorName = 0x48, kModelName = 0x68, kDeviceVersion = 0x88, kManufacturerInfo = 0xa8,
                           kSerialNumber = 0xd8, kUserId = 0xe8;  // GigE Vision bootstrap strings
 inline constexpr uint32_t kPacketSize = 0xd04;                    // bootstrap SCPS0
+// GigE Vision bootstrap: heartbeat timeout (ms), control channel privilege
+// (0 = no controlling client), stream channel 0 port (low 16 bits) and destination address.
+inline constexpr uint32_t kHeartbeatTimeout = 0x0938, kControlChannelPrivilege = 0x0a00, kStreamPort = 0x0d00,
+                          kStreamDestAddress = 0x0d18;
 // Registers Aravis's fake camera reads (arvfakecamera.h).
 inline constexpr uint32_t kWidth = 0x100, kHeight = 0x104, kGainRaw = 0x110, kGainAuto = 0x114,
                           kSensorHeight = 0x118, kSensorWidth = 0x11c, kFakeExposureUs = 0x120,

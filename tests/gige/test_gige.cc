@@ -445,7 +445,7 @@ TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
   o.serve = false;
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  WriteReg(*d, 0x0a00, Be32(2));  // a controlling client (bootstrap control channel privilege)
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));  // a controlling client
   WriteReg(*d, reg::kWidth, Be32(32));
   WriteReg(*d, reg::kHeight, Be32(16));
   WriteReg(*d, reg::kAcquisition, Be32(1));
@@ -892,9 +892,7 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   EXPECT_TRUE(reads(false)) << "low trigger input";
 }
 
-// GigE Vision bootstrap registers.
-constexpr uint32_t kControlChannelPrivilege = 0x0a00, kHeartbeatTimeout = 0x0938, kStreamPort = 0x0d00,
-                   kStreamDestAddress = 0x0d18;
+using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
 
 // A controller that speaks raw GVCP from its own socket, so the test can let
 // it die mid-stream (no heartbeat, no AcquisitionStop) as a killed process would.
