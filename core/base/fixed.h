@@ -201,8 +201,8 @@ constexpr uint32_t ISqrt64(uint64_t x) {
   return static_cast<uint32_t>(r);
 }
 
-// r[i] = ISqrt64(x[i]) for i < n: the same steps in four 64-bit AVX2 lanes
-// where the CPU has them (fixed.cc), one by one elsewhere.
+// r[i] = ISqrt64(x[i]) for i < n: the same steps in eight 64-bit AVX-512 or
+// four AVX2 lanes where the CPU has them (fixed.cc), one by one elsewhere.
 void ISqrt64Lanes(const uint64_t* x, uint32_t* r, int n);
 
 }  // namespace camsim

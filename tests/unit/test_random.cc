@@ -177,7 +177,7 @@ TEST(ISqrt64Test, RandomValuesOfEveryMagnitude) {
   }
 }
 
-// ISqrt64Lanes (four 64-bit AVX2 lanes where the CPU has them) against
+// ISqrt64Lanes (AVX-512 or AVX2 lanes where the CPU has them) against
 // ISqrt64 on the inputs of the tests above: small x, perfect squares and
 // their neighbours, powers of two, both ends of every table cell at every
 // scale, random values, and 0 and 2^64 - 1 between them in the same vector.
@@ -212,17 +212,11 @@ TEST(ISqrt64Test, LanesMatchScalar) {
 }
 
 #ifdef CAMSIM_X86_AVX2
-// avx2::FloorDiv6 (the sensor's Poisson skew term in lanes) is floor(n / 6)
-// for every n below 2^38: exhaustively below 2^24, on both sides of every
-// multiple of 2^33 (where n / 2's high word steps), at the top of the range
-// and at random.
-CAMSIM_AVX2_TARGET void FloorDiv6x4(const uint64_t* n, uint64_t* q) {
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(q),
-                      avx2::FloorDiv6(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(n))));
-}
-
-TEST(Avx2FloorDiv6, IsExactBelow2To38) {
-  if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+// avx2::FloorDiv6 and avx512::FloorDiv6 (the sensor's Poisson skew term in
+// lanes) are floor(n / 6) for every n below 2^38: exhaustively below 2^24, on
+// both sides of every multiple of 2^33 (where n / 2's high word steps), at
+// the top of the range and at random.
+std::vector<uint64_t> FloorDiv6Inputs() {
   constexpr uint64_t kLimit = uint64_t{1} << 38;
   std::vector<uint64_t> n;
   for (uint64_t v = 0; v < (1u << 24); ++v) n.push_back(v);
@@ -236,11 +230,38 @@ TEST(Avx2FloorDiv6, IsExactBelow2To38) {
     s = s * 6364136223846793005ull + 1442695040888963407ull;
     n.push_back((s >> 26) >> (i % 38));
   }
-  while (n.size() % 4 != 0) n.push_back(kLimit - 1);
+  while (n.size() % 8 != 0) n.push_back(kLimit - 1);
+  return n;
+}
+
+CAMSIM_AVX2_TARGET void FloorDiv6x4(const uint64_t* n, uint64_t* q) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(q),
+                      avx2::FloorDiv6(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(n))));
+}
+
+TEST(Avx2FloorDiv6, IsExactBelow2To38) {
+  if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  const std::vector<uint64_t> n = FloorDiv6Inputs();
   uint64_t q[4];
   for (size_t i = 0; i < n.size(); i += 4) {
     FloorDiv6x4(&n[i], q);
     for (int j = 0; j < 4; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
+  }
+}
+#endif
+
+#ifdef CAMSIM_X86_AVX512
+CAMSIM_AVX512_TARGET void FloorDiv6x8(const uint64_t* n, uint64_t* q) {
+  _mm512_storeu_si512(q, avx512::FloorDiv6(_mm512_loadu_si512(n)));
+}
+
+TEST(Avx512FloorDiv6, IsExactBelow2To38) {
+  if (!CpuHasAvx512()) GTEST_SKIP() << "no AVX-512 on this CPU";
+  const std::vector<uint64_t> n = FloorDiv6Inputs();
+  uint64_t q[8];
+  for (size_t i = 0; i < n.size(); i += 8) {
+    FloorDiv6x8(&n[i], q);
+    for (int j = 0; j < 8; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
   }
 }
 #endif
