@@ -138,13 +138,14 @@ class GaussianTable {
     return (z ^ negate) - negate;
   }
 
-  // z[i] = Sample(u[i]) for i < n: the same bits, eight words at a time in
-  // AVX2 lanes where the CPU has them (random.cc), one by one elsewhere.
+  // z[i] = Sample(u[i]) for i < n: the same bits, sixteen (AVX-512) or eight
+  // (AVX2) words at a time where the CPU has them (random.cc), one by one elsewhere.
   void SampleLanes(const uint32_t* u, int32_t* z, int n) const;
 
  private:
   const int32_t* table_ = nullptr;
-  bool avx2_ = false;  // SampleLanes' kernel, chosen at Build
+  bool avx2_ = false;    // SampleLanes' kernels, chosen at Build
+  bool avx512_ = false;
 };
 
 // floor(n / d) for n < 2^57 and 1 <= d <= 64, exactly, without a division

@@ -189,6 +189,7 @@ class SensorStage final : public Stage {
   GaussianTable gauss_;
   PoissonTable poisson_;
   bool avx2_ = false;           // passes 1 and 3 in AVX2 lanes where a row allows (chosen at Init)
+  bool avx512_ = false;         // pass 3 in AVX-512 lanes instead (chosen at Init)
   bool force_portable_ = false;  // tests only
 };
 
