@@ -532,6 +532,212 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
   odd = _mm256_blendv_epi8(odd, hi_o, _mm256_cmpgt_epi64(odd, hi_o));
   return _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
 }
+
+// A pixel's class in ProcessRowLanes: all taps inside the frame and the
+// row window, off the image (output 0), or neither (a border: SetUpTaps).
+constexpr int32_t kPixelBorder = 0, kPixelInterior = 1, kPixelOff = 2;
+
+// One set of lanes of ProcessRowLanes: its slots' arrays from the set's
+// first. FilterSet8 and FilterSet16 filter the set's interior pixels and
+// write them (lanes whose pixels are not interior compute with the first
+// interior lane's taps, so that every load stays inside the row, and are not
+// written), write 0 for the pixels off the image (RGB; site only, they are 0
+// already), and return the mask of lanes done. They return 0, with nothing
+// written, for a set whose interior pixels' first tap rows are more than one
+// apart, or whose tap columns span more than the lanes' loads or reach past
+// the row. A set without interior pixels is done for its pixels off the
+// image. Site only, lane i is the pixel x + 2 i of colour plane; RGB, x + i.
+struct LaneSet {
+  const int32_t *x0s, *rows, *phx, *phy, *cls;
+};
+
+template <int N, bool kSiteOnly>
+CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int width, const int32_t* wt,
+                                       const LaneSet& set, int plane, uint32_t* const* out, int x) {
+  constexpr int L = kSiteOnly ? 3 : 2;
+  uint32_t inside = 0, off = 0;
+  for (int j = 0; j < 8; ++j) {
+    inside |= static_cast<uint32_t>(set.cls[j] == kPixelInterior) << j;
+    off |= static_cast<uint32_t>(set.cls[j] == kPixelOff) << j;
+  }
+  if (inside == 0) {
+    if constexpr (!kSiteOnly)
+      for (int i = 0; i < 8; ++i)
+        if ((off >> i) & 1) out[0][x + i] = out[1][x + i] = out[2][x + i] = 0;
+    return off;
+  }
+  const int first = __builtin_ctz(inside);  // the other lanes take its taps
+  alignas(32) int32_t x0s[8], rws[8];
+  for (int j = 0; j < 8; ++j) {
+    const bool in_j = (inside >> j) & 1;
+    x0s[j] = in_j ? set.x0s[j] : set.x0s[first];
+    rws[j] = in_j ? set.rows[j] : set.rows[first];
+  }
+  int rmin = rws[0], rmax = rmin, xmin = x0s[0], xmx = xmin;
+  for (int j = 1; j < 8; ++j) {
+    rmin = rws[j] < rmin ? rws[j] : rmin;
+    rmax = rws[j] > rmax ? rws[j] : rmax;
+    xmin = x0s[j] < xmin ? x0s[j] : xmin;
+    xmx = x0s[j] > xmx ? x0s[j] : xmx;
+  }
+  if (rmax - rmin > 1 || xmx - xmin + N > 8 * L || xmin + 8 * L > width) return 0;
+  FilterLanes in;
+  in.x0 = _mm256_sub_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(x0s)), _mm256_set1_epi32(xmin));
+  in.lower = _mm256_cmpgt_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(rws)), _mm256_set1_epi32(rmin));
+  LaneWeights<N>(wt, set.phx, in.wx);
+  LaneWeights<N>(wt, set.phy, in.wy);
+  const bool two = rmax > rmin;
+  if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
+    alignas(32) uint32_t v[8];
+    PrefetchBelow(rows, row_count, rmax + N - 1, plane, xmin, 8 * L);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(v), FilterLanesAvx2<N, L>(rows, rmin, two, plane, xmin, in));
+    for (int i = 0; i < 8; ++i)
+      if ((inside >> i) & 1) out[plane][x + 2 * i] = v[i];
+  } else {
+    const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    const __m256i keep = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(static_cast<int>(inside)), bit), bit);
+    const __m256i write = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(static_cast<int>(inside | off)), bit), bit);
+    for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + N - 1, c, xmin, 8 * L);
+    for (int c = 0; c < 3; ++c)
+      _mm256_maskstore_epi32(reinterpret_cast<int*>(out[c] + x), write,
+                             _mm256_and_si256(keep, FilterLanesAvx2<N, L>(rows, rmin, two, c, xmin, in)));
+  }
+  return inside | off;
+}
+
+#ifdef CAMSIM_X86_AVX512
+// FilterLanesAvx2 in sixteen lanes, step for step: L loads of sixteen
+// samples per row, each lane's taps picked by vpermt2d (from the first 32)
+// and vpermd (from the third load), the same 32-bit row sums on the 16-bit
+// halves, the vertical pass in 64-bit even and odd lanes, and the same
+// rounding and ringing clamp. The lanes' first tap rows may spread over S + 1
+// rows (S <= kMaxRowSpread16, against AVX2's one): N + S rows are summed and
+// each lane picks its N (sixteen pixels of one colour span 32 columns, over
+// which a strongly distorted row's source drifts by several rows).
+constexpr int kMaxRowSpread16 = 3;
+struct FilterLanes16 {
+  __m512i x0;                                 // first tap column - xmin
+  __mmask16 row_is[kMaxRowSpread16 + 1];      // [d]: lanes whose first tap row is rmin + d
+  __m512i wx[6], wy[6];
+};
+
+template <int L>
+CAMSIM_AVX512_TARGET inline __m512i PickRun16(const __m512i* v, __m512i idx) {
+  static_assert(L == 2 || L == 3, "32 or 48 samples");
+  const __m512i r = _mm512_permutex2var_epi32(v[0], idx, v[1]);
+  if constexpr (L == 2) return r;
+  return _mm512_mask_permutexvar_epi32(r, _mm512_cmpgt_epi32_mask(idx, _mm512_set1_epi32(31)), idx, v[2]);
+}
+
+// Each lane's value of rows[first + its d], from the row values v[first .. first + S].
+template <int S>
+CAMSIM_AVX512_TARGET inline __m512i PickRow(const __m512i* v, int first, const FilterLanes16& in) {
+  __m512i r = v[first];
+  for (int d = 1; d <= S; ++d) r = _mm512_mask_mov_epi32(r, in.row_is[d], v[first + d]);
+  return r;
+}
+
+template <int N, int L, int S>
+CAMSIM_AVX512_TARGET __m512i FilterLanesAvx512(const RowIn* rows, int rmin, int plane, int xmin,
+                                               const FilterLanes16& in) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  constexpr int kBefore = N / 2 - 1;
+  const __m512i low = _mm512_set1_epi32(0xFFFF), one = _mm512_set1_epi32(1);
+  __m512i sh[N + S], q[N + S], clamp[2][2 + S];  // clamp[tap column][row - kBefore]
+  for (int r = 0; r < N + S; ++r) {
+    const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
+    __m512i v[L];
+    for (int l = 0; l < L; ++l) v[l] = _mm512_loadu_si512(p + 16 * l);
+    __m512i h = _mm512_setzero_si512(), lo = _mm512_setzero_si512(), idx = in.x0;
+    for (int t = 0; t < N; ++t, idx = _mm512_add_epi32(idx, one)) {
+      const __m512i smp = PickRun16<L>(v, idx);
+      h = _mm512_add_epi32(h, _mm512_mullo_epi32(_mm512_srli_epi32(smp, 16), in.wx[t]));
+      lo = _mm512_add_epi32(lo, _mm512_mullo_epi32(_mm512_and_si512(smp, low), in.wx[t]));
+      if (r >= kBefore && r <= kBefore + 1 + S && (t == kBefore || t == kBefore + 1))
+        clamp[t - kBefore][r - kBefore] = smp;
+    }
+    sh[r] = h;
+    q[r] = _mm512_srai_epi32(_mm512_add_epi32(lo, _mm512_set1_epi32(1 << (kF - 1))), kF);
+  }
+  __m512i even = _mm512_setzero_si512(), odd = _mm512_setzero_si512();
+  for (int k = 0; k < N; ++k) {
+    const __m512i hk = PickRow<S>(sh, k, in), qk = PickRow<S>(q, k, in);
+    const __m512i w4 = _mm512_slli_epi32(in.wy[k], 2);
+    even = _mm512_add_epi64(even, _mm512_add_epi64(_mm512_mul_epi32(w4, hk), _mm512_mul_epi32(in.wy[k], qk)));
+    odd = _mm512_add_epi64(
+        odd, _mm512_add_epi64(_mm512_mul_epi32(_mm512_srli_epi64(w4, 32), _mm512_srli_epi64(hk, 32)),
+                              _mm512_mul_epi32(_mm512_srli_epi64(in.wy[k], 32), _mm512_srli_epi64(qk, 32))));
+  }
+  // (acc + 2^13) >> 14: an arithmetic shift here (|acc| < 2^50).
+  const __m512i round = _mm512_set1_epi64(int64_t{1} << (kF - 1));
+  even = _mm512_srai_epi64(_mm512_add_epi64(even, round), kF);
+  odd = _mm512_srai_epi64(_mm512_add_epi64(odd, round), kF);
+  // Ringing clamp to the 2x2 samples around the source.
+  const __m512i s00 = PickRow<S>(clamp[0], 0, in), s01 = PickRow<S>(clamp[1], 0, in);
+  const __m512i s10 = PickRow<S>(clamp[0], 1, in), s11 = PickRow<S>(clamp[1], 1, in);
+  const __m512i lo = _mm512_min_epu32(_mm512_min_epu32(s00, s01), _mm512_min_epu32(s10, s11));
+  const __m512i hi = _mm512_max_epu32(_mm512_max_epu32(s00, s01), _mm512_max_epu32(s10, s11));
+  const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFF);
+  even = _mm512_min_epi64(_mm512_max_epi64(even, _mm512_and_si512(lo, low32)), _mm512_and_si512(hi, low32));
+  odd = _mm512_min_epi64(_mm512_max_epi64(odd, _mm512_srli_epi64(lo, 32)), _mm512_srli_epi64(hi, 32));
+  return _mm512_mask_blend_epi32(0xAAAA, even, _mm512_slli_epi64(odd, 32));
+}
+
+template <int N, int L>
+CAMSIM_AVX512_TARGET inline __m512i FilterLanesAvx512(const RowIn* rows, int rmin, int spread, int plane, int xmin,
+                                                      const FilterLanes16& in) {
+  switch (spread) {
+    case 0: return FilterLanesAvx512<N, L, 0>(rows, rmin, plane, xmin, in);
+    case 1: return FilterLanesAvx512<N, L, 1>(rows, rmin, plane, xmin, in);
+    case 2: return FilterLanesAvx512<N, L, 2>(rows, rmin, plane, xmin, in);
+    default: return FilterLanesAvx512<N, L, 3>(rows, rmin, plane, xmin, in);
+  }
+}
+
+template <int N, bool kSiteOnly>
+CAMSIM_AVX512_TARGET uint32_t FilterSet16(const RowIn* rows, int row_count, int width, const int32_t* wt,
+                                          const LaneSet& set, int plane, uint32_t* const* out, int x) {
+  constexpr int L = kSiteOnly ? 3 : 2;
+  const __m512i cls = _mm512_loadu_si512(set.cls);
+  const __mmask16 inside = _mm512_cmpeq_epi32_mask(cls, _mm512_set1_epi32(kPixelInterior));
+  const __mmask16 off = _mm512_cmpeq_epi32_mask(cls, _mm512_set1_epi32(kPixelOff));
+  if (inside == 0) {
+    if constexpr (!kSiteOnly)
+      for (int c = 0; c < 3; ++c) _mm512_mask_storeu_epi32(out[c] + x, off, _mm512_setzero_si512());
+    return off;
+  }
+  const int first = __builtin_ctz(inside);  // the other lanes take its taps
+  const __m512i rv = _mm512_mask_loadu_epi32(_mm512_set1_epi32(set.rows[first]), inside, set.rows);
+  const __m512i x0v = _mm512_mask_loadu_epi32(_mm512_set1_epi32(set.x0s[first]), inside, set.x0s);
+  const int rmin = _mm512_reduce_min_epi32(rv), rmax = _mm512_reduce_max_epi32(rv);
+  const int xmin = _mm512_reduce_min_epi32(x0v), xmx = _mm512_reduce_max_epi32(x0v);
+  const int spread = rmax - rmin;
+  if (spread > kMaxRowSpread16 || xmx - xmin + N > 16 * L || xmin + 16 * L > width) return 0;
+  FilterLanes16 in;
+  in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
+  for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
+  __m256i w_lo[6], w_hi[6];
+  LaneWeights<N>(wt, set.phx, w_lo);
+  LaneWeights<N>(wt, set.phx + 8, w_hi);
+  for (int t = 0; t < N; ++t) in.wx[t] = _mm512_inserti64x4(_mm512_castsi256_si512(w_lo[t]), w_hi[t], 1);
+  LaneWeights<N>(wt, set.phy, w_lo);
+  LaneWeights<N>(wt, set.phy + 8, w_hi);
+  for (int t = 0; t < N; ++t) in.wy[t] = _mm512_inserti64x4(_mm512_castsi256_si512(w_lo[t]), w_hi[t], 1);
+  if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
+    PrefetchBelow(rows, row_count, rmax + N - 1, plane, xmin, 16 * L);
+    alignas(64) uint32_t v[16];
+    _mm512_store_si512(v, FilterLanesAvx512<N, L>(rows, rmin, spread, plane, xmin, in));
+    for (int i = 0; i < 16; ++i)
+      if ((inside >> i) & 1) out[plane][x + 2 * i] = v[i];
+  } else {
+    for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + N - 1, c, xmin, 16 * L);
+    for (int c = 0; c < 3; ++c)
+      _mm512_mask_storeu_epi32(out[c] + x, inside | off,
+                               _mm512_maskz_mov_epi32(inside, FilterLanesAvx512<N, L>(rows, rmin, spread, c, xmin, in)));
+  }
+  return inside | off;
+}
+#endif
 #endif
 
 }  // namespace
@@ -860,6 +1066,7 @@ Status DistortionStage::Init(Arena& tables) {
     if (sum >= (1 << 15)) small_weights = false;
   }
   avx2_ = CpuHasAvx2() && small_weights;
+  avx512_ = avx2_ && CpuHasAvx512();
   return Status::Ok();
 }
 
@@ -1115,14 +1322,18 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
 #ifdef CAMSIM_X86_AVX2
 // The N-tap fast path with AVX2: per chunk of kChunk pixels the positions
 // and each pixel's class (fill, interior, border) as in ProcessRowFast, then
-// FilterLanesAvx2 on groups of eight interior pixels (RGB: eight neighbours,
-// L = 2 loads per row; CFA site only: the eight pixels of one colour among
-// sixteen, L = 3), and ProcessRowFast's per-pixel code for the rest. Lane
-// slots: RGB slot = pixel; site only, the pixels of each sixteen are stored
-// even ones first, so a group's lanes are consecutive slots.
+// the interior pixels in sets of lanes, and ProcessRowFast's per-pixel code
+// for the rest. A set is sixteen lanes where the CPU has AVX-512
+// (FilterSet16; a set that does not fit it goes as two sets of eight), else
+// eight (FilterLanesAvx2). RGB: neighbouring pixels, L = 2 loads per row;
+// CFA site only: the pixels of one colour among twice as many, L = 3. Lane
+// slots: RGB slot = pixel; site only, each group of 2 x lanes pixels is
+// stored even ones first, so a set's lanes are consecutive slots.
 template <int N, bool kSiteOnly>
 CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const {
-  constexpr int L = kSiteOnly ? 3 : 2, kGroup = kSiteOnly ? 16 : 8, kBefore = N / 2 - 1;
+  constexpr int kBefore = N / 2 - 1;
+  const int lanes = avx512_ ? 16 : 8;
+  const int group = kSiteOnly ? 2 * lanes : lanes;  // a power of two, <= kChunk
   const int width = a.width, y = a.y;
   const RowView row_view = StartRow(a);
   uint32_t* const* out = row_view.out;
@@ -1131,15 +1342,16 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   const FastLimits& l = row_view.lim;
   CAMSIM_DCHECK(N == taps_);
   int32_t sx[kChunk], sy[kChunk];                                          // by pixel
-  int32_t by_pixel[5][kChunk];                                             // x0, row, phases, interior
+  int32_t by_pixel[5][kChunk];                                             // x0, row, phases, class
   int32_t by_slot[5][kChunk];                                              // the same by slot (site only)
-  uint8_t done[kChunk];                                                    // by slot
   int32_t* const x0s = kSiteOnly ? by_slot[0] : by_pixel[0];
   int32_t* const rows_ = kSiteOnly ? by_slot[1] : by_pixel[1];
   int32_t* const phx = kSiteOnly ? by_slot[2] : by_pixel[2];
   int32_t* const phy = kSiteOnly ? by_slot[3] : by_pixel[3];
-  int32_t* const interior = kSiteOnly ? by_slot[4] : by_pixel[4];
-  auto slot_of = [](int f) { return kSiteOnly ? ((f & ~15) | ((f & 1) << 3) | ((f & 15) >> 1)) : f; };
+  int32_t* const cls = kSiteOnly ? by_slot[4] : by_pixel[4];
+  auto slot_of = [group, lanes](int f) {
+    return kSiteOnly ? ((f & ~(group - 1)) | ((f & 1) * lanes) | ((f & (group - 1)) >> 1)) : f;
+  };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
     ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
@@ -1154,14 +1366,15 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
       by_pixel[1][f] = y0 - l.first_row;
       by_pixel[2][f] = qx & l.mask;
       by_pixel[3][f] = qy & l.mask;
-      by_pixel[4][f] = on & (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
+      const int32_t inside = (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
+      by_pixel[4][f] = on ? (inside ? kPixelInterior : kPixelBorder) : kPixelOff;
     }
-    if constexpr (kSiteOnly) {  // slots: the even pixels of each sixteen, then the odd ones
+    if constexpr (kSiteOnly) {  // slots: the even pixels of each group, then the odd ones
       for (int v = 0; v < 5; ++v)
-        for (int g = 0; g < kChunk; g += 16)
-          for (int i = 0; i < 8; ++i) {
+        for (int g = 0; g < kChunk; g += group)
+          for (int i = 0; i < lanes; ++i) {
             by_slot[v][g + i] = by_pixel[v][g + 2 * i];
-            by_slot[v][g + 8 + i] = by_pixel[v][g + 2 * i + 1];
+            by_slot[v][g + lanes + i] = by_pixel[v][g + 2 * i + 1];
           }
       if (n == kChunk) {  // vector stores: GCC makes a 256-byte memset a rep stos
         for (int c = 0; c < 3; ++c)
@@ -1171,48 +1384,37 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
       }
     }
-    for (int k = 0; k < kChunk; ++k) done[k] = 0;
-    for (int g = 0; g + kGroup <= n; g += kGroup)
-      for (int set = 0; set < kGroup; set += 8) {
-        const int k0 = g + set;  // first slot of the eight lanes
-        int ok = 1, rmin = rows_[k0], rmax = rmin, xmin = x0s[k0], xmx = xmin;
-        for (int k = k0; k < k0 + 8; ++k) {
-          ok &= interior[k];
-          rmin = rows_[k] < rmin ? rows_[k] : rmin;
-          rmax = rows_[k] > rmax ? rows_[k] : rmax;
-          xmin = x0s[k] < xmin ? x0s[k] : xmin;
-          xmx = x0s[k] > xmx ? x0s[k] : xmx;
+    uint64_t done = 0;  // by pixel of the chunk
+    const int step = kSiteOnly ? 2 : 1;  // between the pixels of a set's lanes
+    for (int g = 0; g + group <= n; g += group)
+      for (int set = 0; set < group; set += lanes) {
+        const int k = g + set;                                 // the set's first slot
+        const int f = g + (kSiteOnly ? set / lanes : 0);       // and pixel
+        const int plane = kSiteOnly ? CfaColour(cfa, xs + f, y) : 0;
+#ifdef CAMSIM_X86_AVX512
+        if (lanes == 16) {
+          const LaneSet lane_set{x0s + k, rows_ + k, phx + k, phy + k, cls + k};
+          const uint32_t lanes_done =
+              FilterSet16<N, kSiteOnly>(rows, a.row_count, width, wt_, lane_set, plane, out, xs + f);
+          for (int j = 0; j < 16; ++j) done |= uint64_t{(lanes_done >> j) & 1} << (f + step * j);
+          if (lanes_done != 0) continue;
         }
-        if (!ok || rmax - rmin > 1 || xmx - xmin + N > 8 * L || xmin + 8 * L > width) continue;
-        FilterLanes in;
-        const __m256i x0v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x0s + k0));
-        const __m256i rv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(rows_ + k0));
-        in.x0 = _mm256_sub_epi32(x0v, _mm256_set1_epi32(xmin));
-        in.lower = _mm256_cmpgt_epi32(rv, _mm256_set1_epi32(rmin));
-        LaneWeights<N>(wt_, phx + k0, in.wx);
-        LaneWeights<N>(wt_, phy + k0, in.wy);
-        const bool two = rmax > rmin;
-        alignas(32) uint32_t v[8];
-        if constexpr (kSiteOnly) {
-          const int x = xs + g + (set >> 3);  // this set's first pixel
-          const int c = CfaColour(cfa, x, y);
-          PrefetchBelow(rows, a.row_count, rmax + N - 1, c, xmin, 8 * L);
-          _mm256_store_si256(reinterpret_cast<__m256i*>(v), FilterLanesAvx2<N, L>(rows, rmin, two, c, xmin, in));
-          for (int i = 0; i < 8; ++i) out[c][x + 2 * i] = v[i];
-        } else {
-          for (int c = 0; c < 3; ++c) PrefetchBelow(rows, a.row_count, rmax + N - 1, c, xmin, 8 * L);
-          for (int c = 0; c < 3; ++c)
-            _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[c] + xs + g),
-                                FilterLanesAvx2<N, L>(rows, rmin, two, c, xmin, in));
+#endif
+        for (int j0 = 0; j0 < lanes; j0 += 8) {  // sets of eight lanes
+          const LaneSet lane_set{x0s + k + j0, rows_ + k + j0, phx + k + j0, phy + k + j0, cls + k + j0};
+          const int f8 = f + step * j0;  // the first pixel of these eight
+          const uint32_t lanes_done =
+              FilterSet8<N, kSiteOnly>(rows, a.row_count, width, wt_, lane_set, plane, out, xs + f8);
+          for (int j = 0; j < 8; ++j) done |= uint64_t{(lanes_done >> j) & 1} << (f8 + step * j);
         }
-        for (int k = k0; k < k0 + 8; ++k) done[k] = 1;
       }
     // The rest, pixel by pixel as ProcessRowFast.
-    for (int f = 0; f < n; ++f) {
+    static_assert(kChunk == 64, "one bit per pixel");
+    for (uint64_t todo = ~done & (~uint64_t{0} >> (kChunk - n)); todo != 0; todo &= todo - 1) {
+      const int f = __builtin_ctzll(todo);
       const int k = slot_of(f), x = xs + f;
-      if (done[k]) continue;
       const int c0 = kSiteOnly ? CfaColour(cfa, x, y) : 0, c1 = kSiteOnly ? c0 + 1 : 3;
-      if (interior[k]) {
+      if (cls[k] == kPixelInterior) {
         const RowIn* r = rows + rows_[k];
         const int16_t* wx = weights_ + phx[k] * N;
         const int16_t* wy = weights_ + phy[k] * N;

@@ -134,6 +134,7 @@ class DistortionStage final : public Stage {
   bool fast_path_ = false;      // set by Init when the table's ranges fit 32 bits
   bool force_general_ = false;  // tests only
   bool avx2_ = false;           // bilinear fast path: the AVX2 kernel (set by Init)
+  bool avx512_ = false;         // N-tap fast path: sets of sixteen lanes (AVX-512) first (set by Init)
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
