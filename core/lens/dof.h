@@ -187,8 +187,9 @@ inline int64_t MulQ30(int64_t d, uint32_t w) {
   return MulQ30Split(d, w);
 #endif
 }
-// The column pass's per-channel row updates over n columns, in four 64-bit
-// AVX2 lanes where the CPU has them (dof.cc), one by one elsewhere; the same
+// The column pass's per-channel row updates over n columns, in eight
+// (AVX-512) or four (AVX2) 64-bit lanes where the CPU has them (dof.cc), one
+// by one elsewhere; the same
 // integers either way (MulQ30 and OutOf, |u - in 2^16|, |us - y| < 2^49):
 //   PullRow: u[x] += MulQ30((in[x] << kGuardBits) - u[x], w[x])  (a sweep step)
 //   BackRow: y[x] += MulQ30(us[x] - y[x], e[x]), then
