@@ -287,6 +287,32 @@ FastLimits MakeFastLimits(const RowArgs& a, int height, int taps, int phase_bits
   return l;
 }
 
+// A pixel's class in ProcessRowLanes: all taps inside the frame and the
+// row window, off the image (output 0), or neither (a border: SetUpTaps).
+constexpr int32_t kPixelBorder = 0, kPixelInterior = 1, kPixelOff = 2;
+
+// ProcessRowLanes' per-chunk set-up: the source positions (ChunkPositions),
+// then per pixel its first tap column and row (relative to the window), its
+// two phases and its class, branch-free so that the loop vectorises; off the
+// image (or past n) the position is taken as 0, never used.
+CAMSIM_CPU_CLONES
+void ClassifyChunk(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y, int step_bits, const FastLimits l,
+                   int before, int32_t* __restrict sx, int32_t* __restrict sy, int32_t (*__restrict by_pixel)[kChunk]) {
+  ChunkPositions(vdx, vdy, xs, n, y, step_bits, sx, sy);
+  for (int f = 0; f < kChunk; ++f) {
+    const int32_t on = (f < n) & l.On(sx[f], sy[f]);
+    const int32_t px = on ? sx[f] : 0, py = on ? sy[f] : 0;
+    const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
+    const int32_t x0 = (qx >> l.phase_bits) - before, y0 = (qy >> l.phase_bits) - before;
+    by_pixel[0][f] = x0;
+    by_pixel[1][f] = y0 - l.first_row;
+    by_pixel[2][f] = qx & l.mask;
+    by_pixel[3][f] = qy & l.mask;
+    const int32_t inside = (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
+    by_pixel[4][f] = on ? (inside ? kPixelInterior : kPixelBorder) : kPixelOff;
+  }
+}
+
 CAMSIM_CPU_CLONES
 void BilinearSetUpLanes(BilinearSetUp* __restrict u, const FastLimits l) {
   const int wshift = DistortionStage::kWeightFracBits - l.phase_bits;
@@ -532,10 +558,6 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
   odd = _mm256_blendv_epi8(odd, hi_o, _mm256_cmpgt_epi64(odd, hi_o));
   return _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
 }
-
-// A pixel's class in ProcessRowLanes: all taps inside the frame and the
-// row window, off the image (output 0), or neither (a border: SetUpTaps).
-constexpr int32_t kPixelBorder = 0, kPixelInterior = 1, kPixelOff = 2;
 
 // One set of lanes of ProcessRowLanes: its slots' arrays from the set's
 // first. FilterSet8 and FilterSet16 filter the set's interior pixels and
@@ -1354,21 +1376,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
-    // Each pixel's class and taps, branch-free so that the loop vectorises;
-    // off the image (or past n) the position is taken as 0, never used.
-    for (int f = 0; f < kChunk; ++f) {
-      const int32_t on = (f < n) & l.On(sx[f], sy[f]);
-      const int32_t px = on ? sx[f] : 0, py = on ? sy[f] : 0;
-      const int32_t qx = (px + l.qround) >> l.shift, qy = (py + l.qround) >> l.shift;
-      const int32_t x0 = (qx >> l.phase_bits) - kBefore, y0 = (qy >> l.phase_bits) - kBefore;
-      by_pixel[0][f] = x0;
-      by_pixel[1][f] = y0 - l.first_row;
-      by_pixel[2][f] = qx & l.mask;
-      by_pixel[3][f] = qy & l.mask;
-      const int32_t inside = (x0 >= 0) & (x0 <= l.col_hi) & (y0 >= l.row_lo) & (y0 <= l.row_hi);
-      by_pixel[4][f] = on ? (inside ? kPixelInterior : kPixelBorder) : kPixelOff;
-    }
+    ClassifyChunk(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, l, kBefore, sx, sy, by_pixel);
     if constexpr (kSiteOnly) {  // slots: the even pixels of each group, then the odd ones
       for (int v = 0; v < 5; ++v)
         for (int g = 0; g < kChunk; g += group)
