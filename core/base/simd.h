@@ -30,8 +30,11 @@
 #if defined(CAMSIM_X86_AVX2) && !defined(CAMSIM_NO_AVX512)
 #define CAMSIM_X86_AVX512 1
 #define CAMSIM_AVX512_TARGET __attribute__((target("avx2,avx512f,avx512vl,avx512dq,avx512bw,avx512cd")))
+// Clang's resolver picks an arch= clone only from clang 18 (llvm issue 55830).
+#if !defined(__clang__) || __clang_major__ >= 18
 #undef CAMSIM_CPU_CLONES
 #define CAMSIM_CPU_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#endif
 #endif
 
 #include <cstdint>
