@@ -328,9 +328,9 @@ TEST_F(GaussianTest, MatchesExactQuantileOfBucketMidpoint) {
   EXPECT_LE(worst, 2.5e-5);
 }
 
-// SampleLanes (AVX2 on this CPU when it has it) gives Sample's bits: a stride
-// through all words, every segment's ends, both tails, and lengths that are
-// not a multiple of the eight lanes.
+// SampleLanes (AVX-512 or AVX2 on this CPU when it has them) gives Sample's
+// bits: a stride through all words, every segment's ends, both tails, and
+// lengths that are not a multiple of the sixteen or eight lanes.
 TEST_F(GaussianTest, LanesMatchSample) {
   std::vector<uint32_t> u;
   for (uint64_t w = 0; w < (uint64_t{1} << 32); w += 4099) u.push_back(static_cast<uint32_t>(w));
@@ -348,7 +348,7 @@ TEST_F(GaussianTest, LanesMatchSample) {
     u.push_back(0x7FFFFFFFu - w);
     u.push_back(0x80000000u + w);
   }
-  for (int n : {static_cast<int>(u.size()), 7, 9, 1}) {
+  for (int n : {static_cast<int>(u.size()), 7, 9, 1, 17, 31, 33}) {
     std::vector<int32_t> z(static_cast<size_t>(n));
     table_.SampleLanes(u.data(), z.data(), n);
     for (size_t i = 0; i < z.size(); ++i) ASSERT_EQ(z[i], table_.Sample(u[i])) << u[i];

@@ -218,14 +218,16 @@ std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uin
 // well), drawn and tabled fixed patterns with PRNU large enough to clamp the
 // gain at 0, row and column FPN, smear, no shot noise, a gain and read noise
 // that push the output below 0 and above the ADC range, mosaic and 3-channel
-// sensors, widths that leave 1 to 3 pixels after the last group of four, and
-// a listed defect (its row goes the portable way) next to seeded defects.
+// sensors, widths that leave 1 to 3 pixels after the last group of four or
+// end a block on a masked group of four at any of AVX-512's positions (44,
+// 60: 12 and 28 pixels), and a listed defect (its row goes the portable way)
+// next to seeded defects.
 TEST(Sensor, LanesGiveThePortableBytes) {
   const int h = 9;
   std::mt19937 rng(5);
   const DefectPixel listed[] = {{3, 4, DefectKind::kHot, -1.0}};
   for (int variant = 0; variant < 8; ++variant)
-    for (const int w : {37, 70, 67}) {
+    for (const int w : {37, 70, 67, 44, 60}) {
       SensorConfig c;
       c.prnu_percent = 2.0;
       c.dsnu_e = 3.0;
