@@ -6,6 +6,22 @@
 namespace camsim {
 namespace {
 
+// The key of each Philox round under StreamKey(seed, stream), as
+// Philox4x32::Generate bumps it: round r uses key + r (kW0, kW1).
+struct RoundKeys {
+  uint32_t k0[Philox4x32::kRounds], k1[Philox4x32::kRounds];
+};
+RoundKeys MakeRoundKeys(uint64_t seed, uint32_t stream) {
+  uint32_t key[2];
+  StreamKey(seed, stream, key);
+  RoundKeys keys;
+  for (int round = 0; round < Philox4x32::kRounds; ++round) {
+    keys.k0[round] = key[0] + static_cast<uint32_t>(round) * Philox4x32::kW0;
+    keys.k1[round] = key[1] + static_cast<uint32_t>(round) * Philox4x32::kW1;
+  }
+  return keys;
+}
+
 #ifdef CAMSIM_X86_AVX2
 // The high and low 32 bits of m * c for eight unsigned lanes: vpmuludq
 // multiplies the even lanes, so the odd ones are shifted down first.
@@ -30,14 +46,9 @@ CAMSIM_AVX2_TARGET void DrawBitsLanesAvx2(uint64_t seed, uint32_t stream, uint32
     c2[h] = _mm256_set1_epi32(static_cast<int>(frame));
     c3[h] = _mm256_set1_epi32(static_cast<int>(draw));
   }
-  uint32_t key[2];
-  StreamKey(seed, stream, key);
-  uint32_t k0 = key[0], k1 = key[1];
+  const RoundKeys keys = MakeRoundKeys(seed, stream);
   for (int round = 0; round < Philox4x32::kRounds; ++round) {
-    if (round > 0) {
-      k0 += Philox4x32::kW0;
-      k1 += Philox4x32::kW1;
-    }
+    const uint32_t k0 = keys.k0[round], k1 = keys.k1[round];
     const __m256i vk0 = _mm256_set1_epi32(static_cast<int>(k0));
     const __m256i vk1 = _mm256_set1_epi32(static_cast<int>(k1));
     for (int h = 0; h < 2; ++h) {
@@ -120,14 +131,9 @@ CAMSIM_AVX512_TARGET void DrawBitsLanesAvx512(uint64_t seed, uint32_t stream, ui
   __m512i c1 = _mm512_set1_epi32(static_cast<int>(y));
   __m512i c2 = _mm512_set1_epi32(static_cast<int>(frame));
   __m512i c3 = _mm512_set1_epi32(static_cast<int>(draw));
-  uint32_t key[2];
-  StreamKey(seed, stream, key);
-  uint32_t k0 = key[0], k1 = key[1];
+  const RoundKeys keys = MakeRoundKeys(seed, stream);
   for (int round = 0; round < Philox4x32::kRounds; ++round) {
-    if (round > 0) {
-      k0 += Philox4x32::kW0;
-      k1 += Philox4x32::kW1;
-    }
+    const uint32_t k0 = keys.k0[round], k1 = keys.k1[round];
     // The high and low halves of c * m: vpmuludq multiplies the even lanes.
     const __m512i even0 = _mm512_mul_epu32(c0, m0), odd0 = _mm512_mul_epu32(_mm512_srli_epi64(c0, 32), m0);
     const __m512i even1 = _mm512_mul_epu32(c2, m1), odd1 = _mm512_mul_epu32(_mm512_srli_epi64(c2, 32), m1);
@@ -220,14 +226,9 @@ void DrawBitsLanes(uint64_t seed, uint32_t stream, uint32_t frame, uint32_t x0, 
     c2[i] = frame;
     c3[i] = draw;
   }
-  uint32_t key[2];
-  StreamKey(seed, stream, key);
-  uint32_t k0 = key[0], k1 = key[1];
+  const RoundKeys keys = MakeRoundKeys(seed, stream);
   for (int round = 0; round < Philox4x32::kRounds; ++round) {  // Philox4x32::Generate, lane by lane
-    if (round > 0) {
-      k0 += Philox4x32::kW0;
-      k1 += Philox4x32::kW1;
-    }
+    const uint32_t k0 = keys.k0[round], k1 = keys.k1[round];
     // Kept a loop: fully unrolled, GCC no longer vectorises it (~20 % slower).
 #pragma GCC unroll 1
     for (int i = 0; i < kLanes; ++i) {
