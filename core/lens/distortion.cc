@@ -565,9 +565,10 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
 // interior lane's taps, so that every load stays inside the row, and are not
 // written), write 0 for the pixels off the image (RGB; site only, they are 0
 // already), and return the mask of lanes done. They return 0, with nothing
-// written, for a set whose interior pixels' first tap rows are more than one
-// apart, or whose tap columns span more than the lanes' loads or reach past
-// the row. A set without interior pixels is done for its pixels off the
+// written, for a set whose interior pixels' first tap rows spread further
+// than the kernel takes (one row for eight lanes, kMaxRowSpread16 rows for
+// sixteen), or whose tap columns span more than the lanes' loads or reach
+// past the row. A set without interior pixels is done for its pixels off the
 // image. Site only, lane i is the pixel x + 2 i of colour plane; RGB, x + i.
 struct LaneSet {
   const int32_t *x0s, *rows, *phx, *phy, *cls;
@@ -1347,7 +1348,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
 // the interior pixels in sets of lanes, and ProcessRowFast's per-pixel code
 // for the rest. A set is sixteen lanes where the CPU has AVX-512
 // (FilterSet16; a set that does not fit it goes as two sets of eight), else
-// eight (FilterLanesAvx2). RGB: neighbouring pixels, L = 2 loads per row;
+// eight (FilterSet8). RGB: neighbouring pixels, L = 2 loads per row;
 // CFA site only: the pixels of one colour among twice as many, L = 3. Lane
 // slots: RGB slot = pixel; site only, each group of 2 x lanes pixels is
 // stored even ones first, so a set's lanes are consecutive slots.
