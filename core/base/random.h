@@ -78,7 +78,8 @@ inline RandomBits DrawBits(uint64_t seed, uint32_t stream, uint32_t frame, uint3
 // 32x32->64 multiplies become SIMD widening multiplies), and where they do
 // not, the lanes' multiply chains still overlap. ~2x the throughput of
 // DrawBits called pixel by pixel from a loop that does other work. Where the
-// CPU has AVX2, an intrinsics twin takes eight lanes per instruction.
+// CPU has AVX-512 or AVX2, an intrinsics twin takes sixteen or eight lanes
+// per instruction.
 struct RandomLanes {
   static constexpr int kLanes = 16;
   uint32_t v[4][kLanes];

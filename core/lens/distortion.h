@@ -44,8 +44,9 @@
 // scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256
 // px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
 // .cc) that give exactly the general path's bits; tests compare the two.
-// On x86-64 with AVX2 they take eight pixels at a time in lanes, picking
-// samples from contiguous loads with vpermd; elsewhere, and in the debug
+// On x86-64 with AVX2 they take eight pixels at a time in lanes (sixteen
+// with AVX-512 for the N-tap filters), picking samples from contiguous loads
+// with vpermd (vpermt2d); elsewhere, and in the debug
 // preset, the bilinear one stages them and the others go pixel by pixel.
 //
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).

@@ -495,7 +495,8 @@ CAMSIM_AVX512_TARGET void ReadoutAvx512(const ReadoutIn& b, int count, uint32_t*
 // each pixel's draw and readout (G(p) is only used above 12 e-). In a row
 // without seeded or listed defects, passes 1 and 3 take the block's whole
 // groups of four pixels in AVX2 lanes where the CPU has them (sensor_lanes,
-// above; 37 -> 30 ms for a 1080p frame) and the portable loops the rest. Lanes of a
+// above; 37 -> 30 ms for a 1080p frame; pass 3 in AVX-512 lanes where it has
+// those) and the portable loops the rest. Lanes of a
 // last, partial block beyond the row's end are drawn and never used (every
 // word is a pure function of its key, so that changes nothing). Even and odd
 // columns have one CFA colour each (x0 is a multiple of kBlock, so column
