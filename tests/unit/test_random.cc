@@ -234,6 +234,16 @@ std::vector<uint64_t> FloorDiv6Inputs() {
   return n;
 }
 
+// kernel(n, q): q[j] = floor(n[j] / 6) for j < lanes.
+void CheckFloorDiv6(int lanes, void (*kernel)(const uint64_t*, uint64_t*)) {
+  const std::vector<uint64_t> n = FloorDiv6Inputs();
+  uint64_t q[8];
+  for (size_t i = 0; i < n.size(); i += static_cast<size_t>(lanes)) {
+    kernel(&n[i], q);
+    for (int j = 0; j < lanes; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
+  }
+}
+
 CAMSIM_AVX2_TARGET void FloorDiv6x4(const uint64_t* n, uint64_t* q) {
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(q),
                       avx2::FloorDiv6(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(n))));
@@ -241,12 +251,7 @@ CAMSIM_AVX2_TARGET void FloorDiv6x4(const uint64_t* n, uint64_t* q) {
 
 TEST(Avx2FloorDiv6, IsExactBelow2To38) {
   if (!CpuHasAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
-  const std::vector<uint64_t> n = FloorDiv6Inputs();
-  uint64_t q[4];
-  for (size_t i = 0; i < n.size(); i += 4) {
-    FloorDiv6x4(&n[i], q);
-    for (int j = 0; j < 4; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
-  }
+  CheckFloorDiv6(4, FloorDiv6x4);
 }
 #endif
 
@@ -257,12 +262,7 @@ CAMSIM_AVX512_TARGET void FloorDiv6x8(const uint64_t* n, uint64_t* q) {
 
 TEST(Avx512FloorDiv6, IsExactBelow2To38) {
   if (!CpuHasAvx512()) GTEST_SKIP() << "no AVX-512 on this CPU";
-  const std::vector<uint64_t> n = FloorDiv6Inputs();
-  uint64_t q[8];
-  for (size_t i = 0; i < n.size(); i += 8) {
-    FloorDiv6x8(&n[i], q);
-    for (int j = 0; j < 8; ++j) ASSERT_EQ(q[j], n[i + j] / 6) << "n " << n[i + j];
-  }
+  CheckFloorDiv6(8, FloorDiv6x8);
 }
 #endif
 
