@@ -260,9 +260,14 @@ CAMSIM_AVX512_TARGET void PullRowAvx512(int64_t* u, const uint32_t* in, const ui
   }
 }
 
+// OutOf in eight lanes.
+CAMSIM_AVX512_TARGET inline __m256i OutOf8(__m512i y) {
+  const __m512i t = _mm512_srai_epi64(_mm512_add_epi64(y, _mm512_set1_epi64(int64_t{1} << (kG - 1))), kG);
+  const __m512i s = _mm512_min_epi64(_mm512_max_epi64(t, _mm512_setzero_si512()), _mm512_set1_epi64(0xFFFFFFFFll));
+  return _mm512_cvtepi64_epi32(s);
+}
+
 CAMSIM_AVX512_TARGET void BackRowAvx512(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
-  const __m512i half = _mm512_set1_epi64(int64_t{1} << (kG - 1));
-  const __m512i u32_max = _mm512_set1_epi64(0xFFFFFFFFll);
   for (int x = 0; x < n; x += 8) {
     __m512i v = _mm512_loadu_si512(y + x);
     if (e != nullptr) {
@@ -271,9 +276,7 @@ CAMSIM_AVX512_TARGET void BackRowAvx512(int64_t* y, const int64_t* us, const uin
       v = _mm512_add_epi64(v, MulQ30x8(d, ex));
       _mm512_storeu_si512(y + x, v);
     }
-    const __m512i t = _mm512_srai_epi64(_mm512_add_epi64(v, half), kG);  // OutOf
-    const __m512i s = _mm512_min_epi64(_mm512_max_epi64(t, _mm512_setzero_si512()), u32_max);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + x), _mm512_cvtepi64_epi32(s));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + x), OutOf8(v));
   }
 }
 #endif
@@ -379,6 +382,176 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
   }
 }
 
+// SolveLines in lanes. SolveLine's sweeps, run over the whole line instead of
+// segment by segment, give the same bits: where b_i = 0, D_i = 1 makes
+// r_i = e_{i-1} = 1 exactly, and MulQ30(d, 1) = d exactly, so u_i = x_i
+// restarts the forward sweep (as a segment's first sample) and y_{i-1} = u_{i-1}
+// the backward one (as a segment's last); a lone sample comes out as its
+// input. Starting both sweeps from 0 with weight 1 gives u_0 = x_0 and
+// y_{n-1} = u_{n-1}. So the weights alone depend on where the links are:
+// LineWeights computes them per line (scalar, with SweepStep's repeats),
+// stored lane-interleaved (rt[8 i + j] = r_i of line j, et likewise e_i),
+// and one sweep carries the eight lines' three channels in 64-bit lanes
+// (MulQ30x8, OutOf8). The samples go in and out through 8 x 8 transposes.
+namespace {
+#ifdef CAMSIM_X86_AVX512
+// The lane sweep's weights of one line (lane j), and SolveLine's return:
+// a sample is solved when a link on either side is not 0.
+int LineWeights(const uint32_t* beta, int n, int j, uint32_t* rt, uint32_t* et) {
+  constexpr int kL = kLaneLines;
+  SweepStep<true> step;
+  uint32_t r = kOneW;
+  rt[j] = kOneW;
+  int solved = 0;
+  bool linked_left = false;  // beta[i - 1] != 0 (beta[0] is ignored)
+  for (int i = 1; i < n; ++i) {
+    const uint32_t b = beta[i];
+    uint32_t e = kOneW;
+    if (b == 0) {
+      r = kOneW;
+    } else {
+      step.Take(b, r);
+      r = step.next;
+      e = step.e;
+    }
+    rt[kL * i + j] = r;
+    et[kL * (i - 1) + j] = e;
+    solved += (b != 0 || linked_left) ? 1 : 0;  // sample i - 1
+    linked_left = b != 0;
+  }
+  et[kL * (n - 1) + j] = kOneW;
+  return solved + (linked_left ? 1 : 0);  // sample n - 1
+}
+
+// An 8 x 8 block of uint32 transposed: lane j of r[k] becomes lane k of r[j].
+CAMSIM_AVX512_TARGET inline void Transpose8(__m256i* r) {
+  __m256i t[8], s[8];
+  for (int k = 0; k < 8; k += 2) {
+    t[k] = _mm256_unpacklo_epi32(r[k], r[k + 1]);
+    t[k + 1] = _mm256_unpackhi_epi32(r[k], r[k + 1]);
+  }
+  for (int k = 0; k < 8; k += 4) {
+    s[k] = _mm256_unpacklo_epi64(t[k], t[k + 2]);
+    s[k + 1] = _mm256_unpackhi_epi64(t[k], t[k + 2]);
+    s[k + 2] = _mm256_unpacklo_epi64(t[k + 1], t[k + 3]);
+    s[k + 3] = _mm256_unpackhi_epi64(t[k + 1], t[k + 3]);
+  }
+  for (int k = 0; k < 4; ++k) {
+    r[k] = _mm256_permute2x128_si256(s[k], s[k + 4], 0x20);
+    r[k + 4] = _mm256_permute2x128_si256(s[k], s[k + 4], 0x31);
+  }
+}
+
+// Columns [i0, i0 + m) of channel c of the eight lines, transposed: x[k]
+// holds column i0 + k of every line (m < 8: the columns past m are 0).
+CAMSIM_AVX512_TARGET inline void LoadColumns(const LineIo* const* lane, int c, int i0, int m, __m256i* x) {
+  if (m == 8) {
+    for (int j = 0; j < 8; ++j) x[j] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane[j]->in[c] + i0));
+    Transpose8(x);
+    return;
+  }
+  alignas(32) uint32_t t[8][8] = {};
+  for (int k = 0; k < m; ++k)
+    for (int j = 0; j < 8; ++j) t[k][j] = lane[j]->in[c][i0 + k];
+  for (int k = 0; k < 8; ++k) x[k] = _mm256_load_si256(reinterpret_cast<const __m256i*>(t[k]));
+}
+
+// The inverse: column i0 + k of line j from lane j of y[k], for the count
+// real lines (y is overwritten).
+CAMSIM_AVX512_TARGET inline void StoreColumns(const LineIo* lines, int count, int c, int i0, int m, __m256i* y) {
+  if (m == 8) {
+    Transpose8(y);
+    for (int j = 0; j < count; ++j) _mm256_storeu_si256(reinterpret_cast<__m256i*>(lines[j].out[c] + i0), y[j]);
+    return;
+  }
+  alignas(32) uint32_t t[8][8];
+  for (int k = 0; k < 8; ++k) _mm256_store_si256(reinterpret_cast<__m256i*>(t[k]), y[k]);
+  for (int j = 0; j < count; ++j)
+    for (int k = 0; k < m; ++k) lines[j].out[c][i0 + k] = t[k][j];
+}
+
+// The input's 24 row streams (eight lines, three channels) are more than the
+// hardware prefetcher follows: each is prefetched this many columns ahead.
+constexpr int kPrefetchColumns = 128;
+
+// u: 3 n eight-lane int64 (channel-major). Lanes past count repeat the last
+// line and are not stored.
+CAMSIM_AVX512_TARGET void SweepLinesAvx512(const LineIo* lines, int count, int n, const uint32_t* rt,
+                                           const uint32_t* et, int64_t* u) {
+  constexpr int kL = kLaneLines;
+  const LineIo* lane[kL];
+  for (int j = 0; j < kL; ++j) lane[j] = &lines[j < count ? j : count - 1];
+  __m512i v[3] = {_mm512_setzero_si512(), _mm512_setzero_si512(), _mm512_setzero_si512()};
+  for (int i0 = 0; i0 < n; i0 += kL) {  // forward: u_i = u_{i-1} + r_i (x_i - u_{i-1})
+    const int m = n - i0 < kL ? n - i0 : kL;
+    if (i0 % 16 == 0 && i0 + kPrefetchColumns < n)  // a cache line (16 samples) of each stream
+      for (int j = 0; j < kL; ++j)
+        for (int c = 0; c < 3; ++c)
+          _mm_prefetch(reinterpret_cast<const char*>(lane[j]->in[c] + i0 + kPrefetchColumns), _MM_HINT_T0);
+    __m256i x[3][kL];
+    for (int c = 0; c < 3; ++c) LoadColumns(lane, c, i0, m, x[c]);
+    for (int k = 0; k < m; ++k) {
+      const int i = i0 + k;
+      const __m512i r = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(rt + kL * i)));
+      for (int c = 0; c < 3; ++c) {
+        const __m512i d = _mm512_sub_epi64(_mm512_slli_epi64(_mm512_cvtepu32_epi64(x[c][k]), kG), v[c]);
+        v[c] = _mm512_add_epi64(v[c], MulQ30x8(d, r));
+        _mm512_store_si512(u + kL * (static_cast<size_t>(c) * n + i), v[c]);
+      }
+    }
+  }
+  for (int c = 0; c < 3; ++c) v[c] = _mm512_setzero_si512();
+  for (int i0 = (n - 1) / kL * kL; i0 >= 0; i0 -= kL) {  // backward: y_i = y_{i+1} + e_i (u_i - y_{i+1})
+    const int m = n - i0 < kL ? n - i0 : kL;
+    __m256i y[3][kL];
+    for (int k = m - 1; k >= 0; --k) {
+      const int i = i0 + k;
+      const __m512i e = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(et + kL * i)));
+      for (int c = 0; c < 3; ++c) {
+        const __m512i d = _mm512_sub_epi64(_mm512_load_si512(u + kL * (static_cast<size_t>(c) * n + i)), v[c]);
+        v[c] = _mm512_add_epi64(v[c], MulQ30x8(d, e));
+        y[c][k] = OutOf8(v[c]);
+      }
+    }
+    for (int c = 0; c < 3; ++c) StoreColumns(lines, count, c, i0, m, y[c]);
+  }
+}
+
+// Aligned sizes of the lane sweep's arrays for n samples.
+size_t LaneWeightBytes(int n) { return AlignUp(sizeof(uint32_t) * kLaneLines * static_cast<size_t>(n)); }
+size_t LaneStateBytes(int n) { return AlignUp(sizeof(int64_t) * 3 * kLaneLines * static_cast<size_t>(n)); }
+#endif
+}  // namespace
+
+size_t LinesWorkBytes(int n) {
+#ifdef CAMSIM_X86_AVX512
+  if (CpuHasAvx512()) return 2 * LaneWeightBytes(n) + LaneStateBytes(n);
+#endif
+  return LineWorkBytes(n);
+}
+
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int* solved) {
+  CAMSIM_DCHECK(count >= 1 && count <= kLaneLines);
+#ifdef CAMSIM_X86_AVX512
+  if (CpuHasAvx512()) {
+    uint32_t* rt = reinterpret_cast<uint32_t*>(work);
+    uint32_t* et = reinterpret_cast<uint32_t*>(work + LaneWeightBytes(n));
+    int64_t* u = reinterpret_cast<int64_t*>(work + 2 * LaneWeightBytes(n));
+    for (int j = 0; j < kLaneLines; ++j) {
+      const int s = LineWeights(lines[j < count ? j : count - 1].beta, n, j, rt, et);
+      if (j < count) solved[j] = s;
+    }
+    SweepLinesAvx512(lines, count, n, rt, et, u);
+    return;
+  }
+#endif
+  for (int j = 0; j < count; ++j) {
+    for (int c = 0; c < 3; ++c)
+      for (int x = 0; x < n; ++x) lines[j].out[c][x] = lines[j].in[c][x];
+    solved[j] = SolveLine(lines[j].out, 3, lines[j].beta, n, work);
+  }
+}
+
 }  // namespace dof
 
 // ---------------------------------------------------------------- row stage
@@ -475,26 +648,58 @@ void DofRowStage::RowCc2(const FrameInput& input, int y, int x0, int x1, uint64_
   }
 }
 
-size_t DofRowStage::ScratchBytes(int width) const {
-  return AlignUp(sizeof(uint64_t) * static_cast<size_t>(width)) +
-         AlignUp(sizeof(uint32_t) * static_cast<size_t>(width + 1)) + dof::LineWorkBytes(width);
+RowWindow DofRowStage::InputRows(int y, int height) const {
+  const int b0 = y / kBlock * kBlock;
+  return {b0, b0 + kBlock - 1 < height - 1 ? b0 + kBlock - 1 : height - 1};
 }
 
+// Scratch: the squared CoCs of one row, the block's links (kBlock rows of
+// w + 1), the solver's work.
+size_t DofRowStage::ScratchBytes(int width) const {
+  const size_t w = static_cast<size_t>(width);
+  return AlignUp(sizeof(uint64_t) * w) + kBlock * AlignUp(sizeof(uint32_t) * (w + 1)) + dof::LinesWorkBytes(width);
+}
+
+// State: a header (int32: [0] the solved block's first row, -1 for none;
+// [1 + k] solved pixels of its row k), then the solved block (kBlock rows x
+// 3 channels x width, uint32).
+size_t DofRowStage::StateBytes(int width) const {
+  return AlignUp(sizeof(int32_t) * (1 + kBlock)) + AlignUp(sizeof(uint32_t) * 3 * kBlock * static_cast<size_t>(width));
+}
+
+void DofRowStage::BeginStrip(uint8_t* state) const { reinterpret_cast<int32_t*>(state)[0] = -1; }
+
 void DofRowStage::ProcessRow(const RowArgs& a) const {
-  const int w = a.width;
-  uint64_t* cc2 = reinterpret_cast<uint64_t*>(a.scratch);
-  uint32_t* beta = reinterpret_cast<uint32_t*>(a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)));
-  uint8_t* work = a.scratch + AlignUp(sizeof(uint64_t) * static_cast<size_t>(w)) +
-                  AlignUp(sizeof(uint32_t) * static_cast<size_t>(w + 1));
-  RowCc2(*a.input, a.y, 0, w, cc2);
-  beta[0] = 0;
-  beta[w] = 0;
-  for (int x = 1; x < w; ++x) beta[x] = dof::BetaOf(cc2[x - 1], cc2[x]);
-  const RowIn& in = a.rows[0];
+  const size_t w = static_cast<size_t>(a.width);
+  int32_t* header = reinterpret_cast<int32_t*>(a.state);
+  uint32_t* cache = reinterpret_cast<uint32_t*>(a.state + AlignUp(sizeof(int32_t) * (1 + kBlock)));
+  const int b0 = a.first_row;  // InputRows: the block's rows, none reflected
+  CAMSIM_DCHECK(b0 == a.y / kBlock * kBlock && a.row_count >= 1 && a.row_count <= kBlock);
+  if (header[0] != b0) {
+    uint64_t* cc2 = reinterpret_cast<uint64_t*>(a.scratch);
+    uint8_t* links = a.scratch + AlignUp(sizeof(uint64_t) * w);
+    const size_t link_pitch = AlignUp(sizeof(uint32_t) * (w + 1));
+    uint8_t* work = links + kBlock * link_pitch;
+    dof::LineIo lines[kBlock];
+    for (int k = 0; k < a.row_count; ++k) {
+      uint32_t* beta = reinterpret_cast<uint32_t*>(links + static_cast<size_t>(k) * link_pitch);
+      RowCc2(*a.input, b0 + k, 0, a.width, cc2);
+      beta[0] = 0;
+      beta[w] = 0;
+      for (size_t x = 1; x < w; ++x) beta[x] = dof::BetaOf(cc2[x - 1], cc2[x]);
+      for (int c = 0; c < 3; ++c) {
+        lines[k].in[c] = a.rows[k].ch[c];
+        lines[k].out[c] = cache + (static_cast<size_t>(k) * 3 + c) * w;
+      }
+      lines[k].beta = beta;
+    }
+    dof::SolveLines(lines, a.row_count, a.width, work, header + 1);
+    header[0] = b0;
+  }
+  const int k = a.y - b0;
   for (int c = 0; c < 3; ++c)
-    for (int x = 0; x < w; ++x) a.out[c][x] = in.ch[c][x];
-  const int solved = dof::SolveLine(a.out, 3, beta, w, work);
-  if (a.stats != nullptr) a.stats->skipped_px += w - solved;
+    for (size_t x = 0; x < w; ++x) a.out[c][x] = cache[(static_cast<size_t>(k) * 3 + c) * w + x];
+  if (a.stats != nullptr) a.stats->skipped_px += a.width - header[1 + k];
 }
 
 // ---------------------------------------------------------------- column stage

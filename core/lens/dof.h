@@ -20,8 +20,8 @@
 // Diffusion DoF (eq. 12-13, Kass, Lefohn, Owens 2006): per line the system
 //   -b_i y_{i-1} + (1 + b_i + b_{i+1}) y_i - b_{i+1} y_{i+1} = x_i,
 //   b_i = min(s^2 coc_{i-1}^2, s^2 coc_i^2), b = 0 across the frame border,
-// first along rows (DofRowStage, a whole-line solve), then along columns
-// (DofColumnStage). s = diffusion_scale: one row + column step has per-axis
+// first along rows (DofRowStage, a whole-line solve; eight rows at a time in
+// AVX-512 lanes), then along columns (DofColumnStage). s = diffusion_scale: one row + column step has per-axis
 // variance 2 b, a uniform disc of diameter c has c^2 / 16, so the default
 // s = 1/sqrt(32) makes both methods blur alike (the cross-check relies on it).
 // Structural blur adds (s d(r))^2 to every pixel's s^2 coc^2, d(r) a blur
@@ -203,18 +203,43 @@ void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, in
 // Returns the number of samples solved (those with a non-zero link).
 size_t LineWorkBytes(int n);
 int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work);
+
+// Up to kLaneLines lines of 3 channels solved together: line j reads
+// lines[j].in, writes lines[j].out (SolveLine's result for a copy of in) and
+// solved[j] (SolveLine's return), with links lines[j].beta as SolveLine's.
+// With AVX-512, line j is lane j of one sweep in 64-bit lanes (dof.cc: the
+// same integers); elsewhere SolveLine solves them one by one.
+// work: LinesWorkBytes(n), 64-byte aligned.
+inline constexpr int kLaneLines = 8;
+struct LineIo {
+  const uint32_t* in[3];
+  uint32_t* out[3];
+  const uint32_t* beta;  // n + 1 links
+};
+size_t LinesWorkBytes(int n);
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int* solved);
 }  // namespace dof
 
-// Row pass of the diffusion DoF (and structural blur).
+// Row pass of the diffusion DoF (and structural blur). Rows are solved in
+// blocks of kBlock (dof::SolveLines: one lane per row), cached in the strip
+// state; each row's solve depends on that row alone, so the block changes
+// no bit, only how many rows one sweep carries. Memory per worker: the
+// solved block (12 kBlock w bytes: 180 KiB at w = 1920) and, with AVX-512,
+// the sweep's weights and state in the scratch (32 kBlock w bytes: 480 KiB).
 class DofRowStage final : public Stage {
  public:
+  static constexpr int kBlock = dof::kLaneLines;
   Status Configure(const DofConfig& config, const SensorGeometry& geometry, double f_number);
   const char* name() const override { return "dof_rows"; }
   Result<LineFormat> Plan(LineFormat in) const override;
   const char* IdentityReason() const override;
+  // Every row of a block reads the block's rows (clipped at the frame's end).
+  RowWindow InputRows(int y, int height) const override;
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
   size_t ScratchBytes(int width) const override;
+  size_t StateBytes(int width) const override;
+  void BeginStrip(uint8_t* state) const override;
   void ProcessRow(const RowArgs& args) const override;
 
   const CocModel& coc() const { return coc_; }

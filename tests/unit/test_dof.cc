@@ -281,6 +281,54 @@ TEST(DofSolver, RowUpdatesInLanesMatchScalar) {
   }
 }
 
+TEST(DofSolver, LinesTogetherMatchOneByOne) {
+  // SolveLines (eight lines in AVX-512 lanes where the CPU has them) against
+  // SolveLine one line at a time: every line count, lengths around the
+  // transposes' blocks of 8, links with zero runs and lone samples, samples
+  // up to 2^32 - 1, and non-zero ignored end links.
+  std::mt19937 rng(23);
+  for (int n : {1, 2, 7, 8, 9, 16, 333, 1027}) {
+    std::vector<LineCase> cases = LineCases(n);
+    std::vector<double> sparse(static_cast<size_t>(n + 1));  // mostly unlinked: lone samples and short runs
+    for (double& b : sparse) b = rng() % 3 == 0 ? std::pow(10.0, static_cast<double>(rng() % 7) - 1.0) : 0.0;
+    cases.push_back({"sparse", sparse});
+    for (int count = 1; count <= dof::kLaneLines; ++count) {
+      std::vector<std::vector<uint32_t>> in(static_cast<size_t>(count)), out(in.size()), want(in.size());
+      std::vector<std::vector<uint32_t>> beta(in.size());
+      std::vector<dof::LineIo> lines(in.size());
+      std::vector<int> want_solved(in.size()), solved(in.size(), -1);
+      std::vector<uint8_t> work(std::max(dof::LinesWorkBytes(n), dof::LineWorkBytes(n)) + 64);
+      uint8_t* aligned = work.data() + (64 - reinterpret_cast<uintptr_t>(work.data()) % 64) % 64;
+      for (int j = 0; j < count; ++j) {
+        const LineCase& lc = cases[static_cast<size_t>(j + count) % cases.size()];
+        std::vector<uint32_t>& b = beta[static_cast<size_t>(j)];
+        b.resize(static_cast<size_t>(n + 1));
+        for (int i = 0; i <= n; ++i) b[static_cast<size_t>(i)] = BetaRaw(lc.beta[static_cast<size_t>(i)]);
+        b[0] = b[static_cast<size_t>(n)] = 4096;  // ignored
+        in[static_cast<size_t>(j)].resize(3 * static_cast<size_t>(n));
+        for (uint32_t& v : in[static_cast<size_t>(j)]) v = rng() % 4 == 0 ? 0xFFFFFFFFu - rng() % 3 : rng();
+        want[static_cast<size_t>(j)] = in[static_cast<size_t>(j)];
+        uint32_t* w3[3];
+        for (int c = 0; c < 3; ++c) w3[c] = want[static_cast<size_t>(j)].data() + static_cast<size_t>(c) * n;
+        want_solved[static_cast<size_t>(j)] = dof::SolveLine(w3, 3, b.data(), n, aligned);
+        out[static_cast<size_t>(j)].assign(3 * static_cast<size_t>(n), 0xDEADBEEFu);
+        for (int c = 0; c < 3; ++c) {
+          lines[static_cast<size_t>(j)].in[c] = in[static_cast<size_t>(j)].data() + static_cast<size_t>(c) * n;
+          lines[static_cast<size_t>(j)].out[c] = out[static_cast<size_t>(j)].data() + static_cast<size_t>(c) * n;
+        }
+        lines[static_cast<size_t>(j)].beta = b.data();
+      }
+      dof::SolveLines(lines.data(), count, n, aligned, solved.data());
+      for (int j = 0; j < count; ++j) {
+        ASSERT_EQ(solved[static_cast<size_t>(j)], want_solved[static_cast<size_t>(j)]) << "n " << n << " line " << j;
+        for (int i = 0; i < 3 * n; ++i)
+          ASSERT_EQ(out[static_cast<size_t>(j)][static_cast<size_t>(i)], want[static_cast<size_t>(j)][static_cast<size_t>(i)])
+              << "n " << n << " lines " << count << " line " << j << " channel " << i / n << " x " << i % n;
+      }
+    }
+  }
+}
+
 TEST(DofSolver, ConstantLineStaysExactlyConstant) {
   const int n = 333;
   for (const LineCase& lc : LineCases(n)) {
