@@ -19,6 +19,7 @@
 
 #include <bit>
 #include <cmath>
+#include <cstring>
 
 #include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
@@ -317,6 +318,11 @@ void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, in
     if (e != nullptr) y[x] += MulQ30(us[x] - y[x], e[x]);
     out[x] = OutOf(y[x]);
   }
+}
+
+CAMSIM_CPU_CLONES
+void BetaRow(const uint64_t* cc2_a, const uint64_t* cc2_b, int n, uint32_t* beta) {
+  for (int x = 0; x < n; ++x) beta[x] = BetaOf(cc2_a[x], cc2_b[x]);
 }
 
 size_t LineWorkBytes(int n) {
@@ -686,7 +692,7 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
       RowCc2(*a.input, b0 + k, 0, a.width, cc2);
       beta[0] = 0;
       beta[w] = 0;
-      for (size_t x = 1; x < w; ++x) beta[x] = dof::BetaOf(cc2[x - 1], cc2[x]);
+      dof::BetaRow(cc2, cc2 + 1, a.width - 1, beta + 1);
       for (int c = 0; c < 3; ++c) {
         lines[k].in[c] = a.rows[k].ch[c];
         lines[k].out[c] = cache + (static_cast<size_t>(k) * 3 + c) * w;
@@ -697,8 +703,7 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
     header[0] = b0;
   }
   const int k = a.y - b0;
-  for (int c = 0; c < 3; ++c)
-    for (size_t x = 0; x < w; ++x) a.out[c][x] = cache[(static_cast<size_t>(k) * 3 + c) * w + x];
+  for (int c = 0; c < 3; ++c) std::memcpy(a.out[c], cache + (static_cast<size_t>(k) * 3 + c) * w, sizeof(uint32_t) * w);
   if (a.stats != nullptr) a.stats->skipped_px += a.width - header[1 + k];
 }
 
@@ -789,10 +794,8 @@ void DofColumnStage::FillLinks(const RowArgs& a, uint8_t* state, int lo, int hi)
   for (; next <= hi; ++next) {
     rows_->RowCc2(*a.input, next, 0, a.width, st.cc2_next);
     uint32_t* link = st.ring + static_cast<size_t>(next % st.ring_rows) * static_cast<size_t>(a.width);
-    for (int x = 0; x < a.width; ++x) {
-      link[x] = dof::BetaOf(st.cc2_last[x], st.cc2_next[x]);
-      st.cc2_last[x] = st.cc2_next[x];
-    }
+    dof::BetaRow(st.cc2_last, st.cc2_next, a.width, link);
+    std::memcpy(st.cc2_last, st.cc2_next, sizeof(uint64_t) * static_cast<size_t>(a.width));
   }
 }
 
@@ -814,7 +817,7 @@ void DofColumnStage::ProcessRow(const RowArgs& a) const {
   }
   const int k = a.y - block * kBlock;
   for (int c = 0; c < 3; ++c)
-    for (int x = 0; x < a.width; ++x) a.out[c][x] = cache[(static_cast<size_t>(k) * 3 + c) * pitch + x];
+    std::memcpy(a.out[c], cache + (static_cast<size_t>(k) * 3 + c) * pitch, sizeof(uint32_t) * pitch);
   if (a.stats != nullptr) a.stats->skipped_px += a.width - header[1 + k];
 }
 

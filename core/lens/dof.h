@@ -169,6 +169,8 @@ constexpr uint32_t BetaOf(uint64_t cc2_a, uint64_t cc2_b) {
   const uint64_t b = (m + (1u << 19)) >> 20;  // Q.32 -> Q.12
   return b > kMaxBeta ? kMaxBeta : static_cast<uint32_t>(b);
 }
+// beta[x] = BetaOf(cc2_a[x], cc2_b[x]) for x < n (a row's links: cc2_b = cc2_a + 1).
+void BetaRow(const uint64_t* cc2_a, const uint64_t* cc2_b, int n, uint32_t* beta);
 // round(d * w / 2^30) (ties up) for |d| < 2^49, 0 <= w <= 2^30, exact. The
 // portable form splits d into a high part (d >> 24, |.| < 2^25) and 24 low
 // bits so both 64-bit products stay below 2^55, and rounds the sum once;
