@@ -395,40 +395,12 @@ int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, 
 // the backward one (as a segment's last); a lone sample comes out as its
 // input. Starting both sweeps from 0 with weight 1 gives u_0 = x_0 and
 // y_{n-1} = u_{n-1}. So the weights alone depend on where the links are:
-// LineWeights computes them per line (scalar, with SweepStep's repeats),
+// LaneWeightsAvx512 computes them per line (SweepStep's recurrence in lanes),
 // stored lane-interleaved (rt[8 i + j] = r_i of line j, et likewise e_i),
 // and one sweep carries the eight lines' three channels in 64-bit lanes
 // (MulQ30x8, OutOf8). The samples go in and out through 8 x 8 transposes.
 namespace {
 #ifdef CAMSIM_X86_AVX512
-// The lane sweep's weights of one line (lane j), and SolveLine's return:
-// a sample is solved when a link on either side is not 0.
-int LineWeights(const uint32_t* beta, int n, int j, uint32_t* rt, uint32_t* et) {
-  constexpr int kL = kLaneLines;
-  SweepStep<true> step;
-  uint32_t r = kOneW;
-  rt[j] = kOneW;
-  int solved = 0;
-  bool linked_left = false;  // beta[i - 1] != 0 (beta[0] is ignored)
-  for (int i = 1; i < n; ++i) {
-    const uint32_t b = beta[i];
-    uint32_t e = kOneW;
-    if (b == 0) {
-      r = kOneW;
-    } else {
-      step.Take(b, r);
-      r = step.next;
-      e = step.e;
-    }
-    rt[kL * i + j] = r;
-    et[kL * (i - 1) + j] = e;
-    solved += (b != 0 || linked_left) ? 1 : 0;  // sample i - 1
-    linked_left = b != 0;
-  }
-  et[kL * (n - 1) + j] = kOneW;
-  return solved + (linked_left ? 1 : 0);  // sample n - 1
-}
-
 // An 8 x 8 block of uint32 transposed: lane j of r[k] becomes lane k of r[j].
 CAMSIM_AVX512_TARGET inline void Transpose8(__m256i* r) {
   __m256i t[8], s[8];
@@ -448,17 +420,17 @@ CAMSIM_AVX512_TARGET inline void Transpose8(__m256i* r) {
   }
 }
 
-// Columns [i0, i0 + m) of channel c of the eight lines, transposed: x[k]
-// holds column i0 + k of every line (m < 8: the columns past m are 0).
-CAMSIM_AVX512_TARGET inline void LoadColumns(const LineIo* const* lane, int c, int i0, int m, __m256i* x) {
+// Columns [i0, i0 + m) of eight rows, transposed: x[k] holds column i0 + k
+// of every row (m < 8: the columns past m are 0).
+CAMSIM_AVX512_TARGET inline void LoadColumns(const uint32_t* const* row, int i0, int m, __m256i* x) {
   if (m == 8) {
-    for (int j = 0; j < 8; ++j) x[j] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane[j]->in[c] + i0));
+    for (int j = 0; j < 8; ++j) x[j] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row[j] + i0));
     Transpose8(x);
     return;
   }
   alignas(32) uint32_t t[8][8] = {};
   for (int k = 0; k < m; ++k)
-    for (int j = 0; j < 8; ++j) t[k][j] = lane[j]->in[c][i0 + k];
+    for (int j = 0; j < 8; ++j) t[k][j] = row[j][i0 + k];
   for (int k = 0; k < 8; ++k) x[k] = _mm256_load_si256(reinterpret_cast<const __m256i*>(t[k]));
 }
 
@@ -476,6 +448,66 @@ CAMSIM_AVX512_TARGET inline void StoreColumns(const LineIo* lines, int count, in
     for (int k = 0; k < m; ++k) lines[j].out[c][i0 + k] = t[k][j];
 }
 
+// The lane sweep's weights of the eight lines (each line's recurrence, with
+// a SweepStep per lane) into rt and et, and SolveLine's returns: a sample is
+// solved when a link on either side is not 0. Where every linked lane
+// repeats its kept step (most steps: 91 % of the row steps repeat, per
+// line), the kept weights are taken in lanes; lanes that do not repeat
+// compute theirs one by one. Lanes past count repeat the last line.
+CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int n, uint32_t* rt, uint32_t* et,
+                                            int* solved) {
+  constexpr int kL = kLaneLines;
+  const uint32_t* beta[kL];
+  for (int j = 0; j < kL; ++j) beta[j] = lines[j < count ? j : count - 1].beta;
+  const __m256i one = _mm256_set1_epi32(static_cast<int>(kOneW));
+  // Each lane's kept step (SweepStep's b, r, next, e; b = 0: nothing kept).
+  alignas(32) uint32_t kb[kL] = {}, kr[kL] = {}, kn[kL] = {}, ke[kL] = {};
+  __m256i kept_b = _mm256_setzero_si256(), kept_r = kept_b, kept_next = kept_b, kept_e = kept_b;
+  __m256i r = one;  // r_{i-1}
+  __mmask8 linked_left = 0;  // beta[i - 1] != 0 (beta[0] is ignored)
+  __m256i solved_lanes = _mm256_setzero_si256();
+  _mm256_store_si256(reinterpret_cast<__m256i*>(rt), one);
+  for (int i0 = 0; i0 < n; i0 += kL) {
+    const int m = n - i0 < kL ? n - i0 : kL;
+    __m256i b_cols[kL];
+    LoadColumns(beta, i0, m, b_cols);
+    for (int k = i0 == 0 ? 1 : 0; k < m; ++k) {
+      const int i = i0 + k;
+      const __m256i b = b_cols[k];
+      const __mmask8 linked = _mm256_test_epi32_mask(b, b);
+      const __mmask8 repeat = _mm256_mask_cmpeq_epi32_mask(linked, b, kept_b) & _mm256_cmpeq_epi32_mask(r, kept_r);
+      if (repeat != linked) {  // a new step in some lanes: SweepStep computes it
+        alignas(32) uint32_t bj[kL], rj[kL];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(bj), b);
+        _mm256_store_si256(reinterpret_cast<__m256i*>(rj), r);
+        for (int j = 0; j < kL; ++j) {
+          if (((linked & ~repeat) >> j & 1) == 0) continue;
+          SweepStep<true> step;
+          step.Take(bj[j], rj[j]);
+          kb[j] = step.b;
+          kr[j] = step.r;
+          kn[j] = step.next;
+          ke[j] = step.e;
+        }
+        kept_b = _mm256_load_si256(reinterpret_cast<const __m256i*>(kb));
+        kept_r = _mm256_load_si256(reinterpret_cast<const __m256i*>(kr));
+        kept_next = _mm256_load_si256(reinterpret_cast<const __m256i*>(kn));
+        kept_e = _mm256_load_si256(reinterpret_cast<const __m256i*>(ke));
+      }
+      r = _mm256_mask_blend_epi32(linked, one, kept_next);  // b = 0: r = e = 1, the sweep restarts
+      _mm256_store_si256(reinterpret_cast<__m256i*>(rt + kL * i), r);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(et + kL * (i - 1)), _mm256_mask_blend_epi32(linked, one, kept_e));
+      solved_lanes = _mm256_mask_sub_epi32(solved_lanes, linked | linked_left, solved_lanes, _mm256_set1_epi32(-1));
+      linked_left = linked;
+    }
+  }
+  _mm256_store_si256(reinterpret_cast<__m256i*>(et + kL * (n - 1)), one);
+  solved_lanes = _mm256_mask_sub_epi32(solved_lanes, linked_left, solved_lanes, _mm256_set1_epi32(-1));  // sample n - 1
+  alignas(32) int32_t s[kL];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(s), solved_lanes);
+  for (int j = 0; j < count; ++j) solved[j] = s[j];
+}
+
 // The input's 24 row streams (eight lines, three channels) are more than the
 // hardware prefetcher follows: each is prefetched this many columns ahead.
 constexpr int kPrefetchColumns = 128;
@@ -485,17 +517,18 @@ constexpr int kPrefetchColumns = 128;
 CAMSIM_AVX512_TARGET void SweepLinesAvx512(const LineIo* lines, int count, int n, const uint32_t* rt,
                                            const uint32_t* et, int64_t* u) {
   constexpr int kL = kLaneLines;
-  const LineIo* lane[kL];
-  for (int j = 0; j < kL; ++j) lane[j] = &lines[j < count ? j : count - 1];
+  const uint32_t* in[3][kL];
+  for (int j = 0; j < kL; ++j)
+    for (int c = 0; c < 3; ++c) in[c][j] = lines[j < count ? j : count - 1].in[c];
   __m512i v[3] = {_mm512_setzero_si512(), _mm512_setzero_si512(), _mm512_setzero_si512()};
   for (int i0 = 0; i0 < n; i0 += kL) {  // forward: u_i = u_{i-1} + r_i (x_i - u_{i-1})
     const int m = n - i0 < kL ? n - i0 : kL;
     if (i0 % 16 == 0 && i0 + kPrefetchColumns < n)  // a cache line (16 samples) of each stream
       for (int j = 0; j < kL; ++j)
         for (int c = 0; c < 3; ++c)
-          _mm_prefetch(reinterpret_cast<const char*>(lane[j]->in[c] + i0 + kPrefetchColumns), _MM_HINT_T0);
+          _mm_prefetch(reinterpret_cast<const char*>(in[c][j] + i0 + kPrefetchColumns), _MM_HINT_T0);
     __m256i x[3][kL];
-    for (int c = 0; c < 3; ++c) LoadColumns(lane, c, i0, m, x[c]);
+    for (int c = 0; c < 3; ++c) LoadColumns(in[c], i0, m, x[c]);
     for (int k = 0; k < m; ++k) {
       const int i = i0 + k;
       const __m512i r = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(rt + kL * i)));
@@ -543,10 +576,7 @@ void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int* solve
     uint32_t* rt = reinterpret_cast<uint32_t*>(work);
     uint32_t* et = reinterpret_cast<uint32_t*>(work + LaneWeightBytes(n));
     int64_t* u = reinterpret_cast<int64_t*>(work + 2 * LaneWeightBytes(n));
-    for (int j = 0; j < kLaneLines; ++j) {
-      const int s = LineWeights(lines[j < count ? j : count - 1].beta, n, j, rt, et);
-      if (j < count) solved[j] = s;
-    }
+    LaneWeightsAvx512(lines, count, n, rt, et, solved);
     SweepLinesAvx512(lines, count, n, rt, et, u);
     return;
   }
