@@ -869,9 +869,13 @@ inline void StepColumn(const uint32_t* link, uint32_t* r, uint32_t* e, int x, Sw
 }
 
 #ifdef CAMSIM_X86_AVX512
-// Sixteen columns at a time where every linked one repeats the kept step
-// (then its r and e are the kept ones, the others 1), one by one otherwise.
-// Returns the columns done (a multiple of 16).
+// Sixteen columns at a time: the linked columns that repeat the kept step
+// take its r and e, then the first linked column that does not is computed
+// (SweepStep), which becomes the kept step, and so on until every linked
+// column has its weights: one computation per distinct (b, r) of the group
+// (the column-by-column loop computes at least as many). The kept step at
+// the end may differ from that loop's, which changes what the next group
+// computes, never a result. Returns the columns done (a multiple of 16).
 template <bool kWithE>
 CAMSIM_AVX512_TARGET int TileStepAvx512(const uint32_t* link, uint32_t* r, uint32_t* e, int w,
                                         SweepStep<kWithE>* step) {
@@ -879,17 +883,22 @@ CAMSIM_AVX512_TARGET int TileStepAvx512(const uint32_t* link, uint32_t* r, uint3
   int x = 0;
   for (; x + 16 <= w; x += 16) {
     const __m512i b = _mm512_loadu_si512(link + x);
-    const __mmask16 linked = _mm512_test_epi32_mask(b, b);
-    const __mmask16 repeat =
-        _mm512_mask_cmpeq_epi32_mask(linked, b, _mm512_set1_epi32(static_cast<int>(step->b))) &
-        _mm512_cmpeq_epi32_mask(_mm512_loadu_si512(r + x), _mm512_set1_epi32(static_cast<int>(step->r)));
-    if (repeat != linked) {  // (nothing is kept while step->b is 0, so a linked column never repeats it)
-      for (int k = x; k < x + 16; ++k) StepColumn(link, r, e, k, step);
-      continue;
+    const __m512i r_in = _mm512_loadu_si512(r + x);
+    __m512i r_out = one, e_out = one;  // b = 0: r = e = 1, the sweep restarts
+    for (__mmask16 pending = _mm512_test_epi32_mask(b, b);;) {
+      const __mmask16 repeat =
+          _mm512_mask_cmpeq_epi32_mask(pending, b, _mm512_set1_epi32(static_cast<int>(step->b))) &
+          _mm512_cmpeq_epi32_mask(r_in, _mm512_set1_epi32(static_cast<int>(step->r)));
+      r_out = _mm512_mask_mov_epi32(r_out, repeat, _mm512_set1_epi32(static_cast<int>(step->next)));
+      if constexpr (kWithE)
+        e_out = _mm512_mask_mov_epi32(e_out, repeat, _mm512_set1_epi32(static_cast<int>(step->e)));
+      pending &= static_cast<__mmask16>(~repeat);
+      if (pending == 0) break;
+      const int j = std::countr_zero(static_cast<unsigned>(pending));
+      step->Take(link[x + j], r[x + j]);
     }
-    _mm512_storeu_si512(r + x, _mm512_mask_blend_epi32(linked, one, _mm512_set1_epi32(static_cast<int>(step->next))));
-    if constexpr (kWithE)
-      _mm512_storeu_si512(e + x, _mm512_mask_blend_epi32(linked, one, _mm512_set1_epi32(static_cast<int>(step->e))));
+    _mm512_storeu_si512(r + x, r_out);
+    if constexpr (kWithE) _mm512_storeu_si512(e + x, e_out);
   }
   return x;
 }
