@@ -455,7 +455,7 @@ CAMSIM_AVX512_TARGET inline void StoreColumns(const LineIo* lines, int count, in
 // line), the kept weights are taken in lanes; lanes that do not repeat
 // compute theirs one by one. Lanes past count repeat the last line.
 CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int n, uint32_t* rt, uint32_t* et,
-                                            int* solved) {
+                                            int32_t* solved) {
   constexpr int kL = kLaneLines;
   const uint32_t* beta[kL];
   for (int j = 0; j < kL; ++j) beta[j] = lines[j < count ? j : count - 1].beta;
@@ -569,7 +569,7 @@ size_t LinesWorkBytes(int n) {
   return LineWorkBytes(n);
 }
 
-void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int* solved) {
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved) {
   CAMSIM_DCHECK(count >= 1 && count <= kLaneLines);
 #ifdef CAMSIM_X86_AVX512
   if (CpuHasAvx512()) {

@@ -219,7 +219,7 @@ struct LineIo {
   const uint32_t* beta;  // n + 1 links
 };
 size_t LinesWorkBytes(int n);
-void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int* solved);
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved);
 }  // namespace dof
 
 // Row pass of the diffusion DoF (and structural blur). Rows are solved in

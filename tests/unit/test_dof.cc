@@ -296,7 +296,7 @@ TEST(DofSolver, LinesTogetherMatchOneByOne) {
       std::vector<std::vector<uint32_t>> in(static_cast<size_t>(count)), out(in.size()), want(in.size());
       std::vector<std::vector<uint32_t>> beta(in.size());
       std::vector<dof::LineIo> lines(in.size());
-      std::vector<int> want_solved(in.size()), solved(in.size(), -1);
+      std::vector<int32_t> want_solved(in.size()), solved(in.size(), -1);
       std::vector<uint8_t> work(std::max(dof::LinesWorkBytes(n), dof::LineWorkBytes(n)) + 64);
       uint8_t* aligned = work.data() + (64 - reinterpret_cast<uintptr_t>(work.data()) % 64) % 64;
       for (int j = 0; j < count; ++j) {
