@@ -448,12 +448,13 @@ CAMSIM_AVX512_TARGET inline void StoreColumns(const LineIo* lines, int count, in
     for (int k = 0; k < m; ++k) lines[j].out[c][i0 + k] = t[k][j];
 }
 
-// The lane sweep's weights of the eight lines (each line's recurrence, with
-// a SweepStep per lane) into rt and et, and SolveLine's returns: a sample is
-// solved when a link on either side is not 0. Where every linked lane
-// repeats its kept step (most steps: 91 % of the row steps repeat, per
-// line), the kept weights are taken in lanes; lanes that do not repeat
-// compute theirs one by one. Lanes past count repeat the last line.
+// The lane sweep's weights of the eight lines (each line's recurrence, each
+// lane keeping its last computed step as SweepStep does) into rt and et, and
+// SolveLine's returns: a sample is solved when a link on either side is not
+// 0. Where every linked lane repeats its kept step (most steps: 91 % of the
+// row steps repeat, per line), the kept weights are taken in lanes; lanes
+// that do not repeat compute theirs one by one (SweepStep). Lanes past count
+// repeat the last line.
 CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int n, uint32_t* rt, uint32_t* et,
                                             int32_t* solved) {
   constexpr int kL = kLaneLines;
@@ -476,7 +477,7 @@ CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int 
       const __m256i b = b_cols[k];
       const __mmask8 linked = _mm256_test_epi32_mask(b, b);
       const __mmask8 repeat = _mm256_mask_cmpeq_epi32_mask(linked, b, kept_b) & _mm256_cmpeq_epi32_mask(r, kept_r);
-      if (repeat != linked) {  // a new step in some lanes: SweepStep computes it
+      if (repeat != linked) {  // some lanes have a step not kept: SweepStep computes it
         alignas(32) uint32_t bj[kL], rj[kL];
         _mm256_store_si256(reinterpret_cast<__m256i*>(bj), b);
         _mm256_store_si256(reinterpret_cast<__m256i*>(rj), r);
