@@ -583,8 +583,7 @@ void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* s
   }
 #endif
   for (int j = 0; j < count; ++j) {
-    for (int c = 0; c < 3; ++c)
-      for (int x = 0; x < n; ++x) lines[j].out[c][x] = lines[j].in[c][x];
+    for (int c = 0; c < 3; ++c) std::memcpy(lines[j].out[c], lines[j].in[c], sizeof(uint32_t) * static_cast<size_t>(n));
     solved[j] = SolveLine(lines[j].out, 3, lines[j].beta, n, work);
   }
 }
