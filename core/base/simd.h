@@ -26,9 +26,9 @@
 // -DCAMSIM_NO_AVX512 leaves it out (the clang preset, so that CI also runs
 // the AVX2 kernels on a CPU that has AVX-512). With the tier,
 // CAMSIM_CPU_CLONES adds its x86-64-v4 copy, which GCC vectorises up to
-// sixteen 32-bit lanes wide; loops over blocks of eight (the demosaic's)
-// stay eight wide, with AVX-512's masks (the 1080p pipeline without DoF:
-// about 12 % faster).
+// sixteen 32-bit lanes wide (the 1080p pipeline without DoF: about 12 %
+// faster); a loop over blocks of eight columns stays eight wide, so the
+// blocked loops use blocks of sixteen.
 #if defined(CAMSIM_X86_AVX2) && !defined(CAMSIM_NO_AVX512)
 #define CAMSIM_X86_AVX512 1
 #define CAMSIM_AVX512_TARGET __attribute__((target("avx2,avx512f,avx512vl,avx512dq,avx512bw,avx512cd")))

@@ -23,15 +23,18 @@ constexpr int kCentre = 2;  // index of row y in the 5-row window
 // computing them from x at every column (a third of the instructions of the
 // bilinear loop). The last width % kBlock columns take the same pixel
 // function with the mask computed from x: the same bits either way.
-// CAMSIM_CPU_CLONES adds an AVX2 copy (8 columns per vector) of each row
-// function on x86-64; integer code, so both copies give the same bits.
+// CAMSIM_CPU_CLONES adds AVX2 and AVX-512 copies (8 and 16 columns per
+// vector) of each row function on x86-64; integer code, so all copies give
+// the same bits.
 //
 // Samples are Linear Q0.16, at most 65535 (see demosaic.h): every sum below
 // fits its 32-bit type.
 
-// Columns per block: one AVX2 vector of uint32, two SSE2/NEON vectors. Even,
-// so that the green-site parity is the same in every block.
-constexpr int kBlock = 8;
+// Columns per block: one AVX-512 vector of uint32, two AVX2 vectors, four
+// SSE2/NEON vectors. Blocks of 8 kept the AVX-512 copy eight lanes wide
+// (docs/performance.md, "The demosaic in blocks of sixteen"). Even, so that
+// the green-site parity is the same in every block.
+constexpr int kBlock = 16;
 
 // A sample as int32 (exact: it is at most 65535).
 inline int32_t S(uint32_t v) { return static_cast<int32_t>(v); }
