@@ -424,6 +424,50 @@ CAMSIM_AVX512_TARGET inline __m256i PixelWords8(const T (*v)[RandomLanes::kLanes
                                  _mm_unpackhi_epi32(even, odd), 1);
 }
 
+// MeanCharge in eight lanes; count a multiple of 4, so a last group of four
+// is masked. Each value the AVX2 version keeps in the low half of a lane is
+// here the whole 64-bit lane, computed with the arithmetic shift and the
+// 64-bit max and min: they fit int32 (see there), so the low halves are the
+// same.
+CAMSIM_AVX512_TARGET void MeanChargeAvx512(const MeanIn& b, int count, uint32_t* mean_q8, int32_t* offset_q8) {
+  const __m512i qe = _mm512_setr_epi64(b.qe[0], b.qe[1], b.qe[0], b.qe[1], b.qe[0], b.qe[1], b.qe[0], b.qe[1]);
+  const __m512i zero = _mm512_setzero_si512();
+  const __m512i half16 = _mm512_set1_epi64(1 << 15);
+  const __m512i prnu = _mm512_set1_epi64(b.prnu_q16), dsnu = _mm512_set1_epi64(b.dsnu_q8);
+  const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFF);
+  const bool patterns = b.fz != nullptr || b.pattern != nullptr;
+  CAMSIM_DCHECK(count % 4 == 0);
+  for (int i = 0; i < count; i += 8) {
+    const __mmask8 live = count - i >= 8 ? 0xFF : 0x0F;
+    const __m512i in = _mm512_cvtepu32_epi64(_mm256_maskz_loadu_epi32(live, b.in + i));
+    __m512i mu = _mm512_srli_epi64(_mm512_add_epi64(_mm512_mul_epu32(in, qe), half16), 16);
+    __m512i offset = _mm512_set1_epi64(b.row_offset);
+    if (patterns) {
+      __m512i gain, dsnu_q8;  // Q3.16 >= 0 and Q.8 electrons
+      if (b.pattern != nullptr) {
+        const __m512i pair = _mm512_maskz_loadu_epi32(live == 0xFF ? 0xFFFF : 0x00FF, b.pattern + 2 * i);
+        gain = _mm512_and_si512(pair, low32);
+        dsnu_q8 = _mm512_srai_epi64(pair, 32);
+      } else {
+        const __m512i z1 = _mm512_cvtepi32_epi64(PixelWords8(b.fz, 0, i));
+        const __m512i z2 = _mm512_cvtepi32_epi64(PixelWords8(b.fz, 1, i));
+        gain = _mm512_srai_epi64(_mm512_add_epi64(_mm512_mul_epi32(prnu, z1), half16), 16);
+        gain = _mm512_max_epi64(_mm512_add_epi64(gain, _mm512_set1_epi64(65536)), zero);
+        dsnu_q8 = _mm512_srai_epi64(_mm512_add_epi64(_mm512_mul_epi32(dsnu, z2), half16), 16);
+      }
+      mu = _mm512_srli_epi64(_mm512_add_epi64(_mm512_mul_epu32(mu, gain), half16), 16);  // < 2^35
+      offset = _mm512_add_epi64(offset, dsnu_q8);
+    }
+    if (b.column != nullptr)
+      offset = _mm512_add_epi64(offset, _mm512_cvtepi32_epi64(_mm256_maskz_loadu_epi32(live, b.column + i)));
+    __m512i dark = _mm512_set1_epi64(b.dark_q8);
+    if (b.smear != nullptr)
+      dark = _mm512_add_epi64(dark, _mm512_cvtepu32_epi64(_mm256_maskz_loadu_epi32(live, b.smear + i)));
+    _mm512_mask_cvtepi64_storeu_epi32(mean_q8 + i, live, _mm512_min_epu64(_mm512_add_epi64(mu, dark), low32));
+    _mm512_mask_cvtepi64_storeu_epi32(offset_q8 + i, live, offset);
+  }
+}
+
 // Readout in eight lanes; count a multiple of 4, so a last group of four is
 // masked. AVX-512's 64-bit product, arithmetic shift, min and max replace the
 // AVX2 version's constructions of them, with the same results within the
@@ -585,7 +629,14 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
                                      column_offset != nullptr ? column_offset + x0 : nullptr,
                                      smear != nullptr ? smear + x0 : nullptr,
                                      dark_q8_};
-        sensor_lanes::MeanCharge(m, lanes, mean_q8, offset_q8);
+#ifdef CAMSIM_X86_AVX512
+        if (avx512_) {
+          sensor_lanes::MeanChargeAvx512(m, lanes, mean_q8, offset_q8);
+        } else
+#endif
+        {
+          sensor_lanes::MeanCharge(m, lanes, mean_q8, offset_q8);
+        }
       }
 #endif
       for (int lane = lanes / 2; 2 * lane < n; ++lane) {
