@@ -973,8 +973,7 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   auto keep = [&](int row) {  // the forward u of a block row
     if (row < yb) return;
     const size_t o = static_cast<size_t>(row - yb) * n;
-    for (int c = 0; c < 3; ++c)
-      for (int x = 0; x < w; ++x) us[c][o + x] = uf[c][x];
+    for (int c = 0; c < 3; ++c) std::memcpy(us[c] + o, uf[c], sizeof(int64_t) * static_cast<size_t>(w));
   };
 
   // Downward sweep: rows lo .. ye.
@@ -1026,12 +1025,14 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
                    cache + (static_cast<size_t>(i - yb) * 3 + c) * pitch + x0, w);
   }
   // Solved pixels: those with a link to a neighbour inside the window.
+  // At the window's ends, the one neighbour stands in for the missing one
+  // (hi > lo here: a window of one row has no links), so that the loop has
+  // no branch and vectorises.
   for (int i = yb; i <= ye; ++i) {
-    const uint32_t* above = links(i);
-    const uint32_t* below = links(i + 1);
-    const bool has_above = i > lo, has_below = i < hi;
+    const uint32_t* above = i > lo ? links(i) : links(i + 1);
+    const uint32_t* below = i < hi ? links(i + 1) : above;
     int32_t count = 0;
-    for (int x = 0; x < w; ++x) count += (has_above && above[x] != 0) || (has_below && below[x] != 0);
+    for (int x = 0; x < w; ++x) count += (above[x] | below[x]) != 0;
     solved_rows[i - yb] += count;
   }
 }
