@@ -138,11 +138,13 @@ class CocModel {
     return c < diffusion_cap_ ? c : diffusion_cap_;
   }
   // cc2[x] = DiffusionCoc(inverse_depth[x])^2 for x < n (Q.32): the same
-  // integers in four 64-bit AVX2 lanes where the CPU has them (dof.cc).
+  // integers in 64-bit lanes where the CPU has them (dof.cc: four with
+  // AVX2, eight with AVX-512).
   void DiffusionCc2Row(const uint32_t* inverse_depth, int n, uint64_t* cc2) const;
   // The same in double pixels (reference; invalid depth -> 0).
   double CocPixels(double z_metres) const;
   uint32_t focus() const { return focus_; }
+  uint32_t min_diff() const { return min_diff_; }
 
  private:
   DofConfig config_;

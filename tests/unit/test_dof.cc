@@ -361,9 +361,10 @@ TEST(DofSolver, ImpulseSpreadsSymmetricallyAndConservesMass) {
 }
 
 TEST(DofCoc, Cc2RowInLanesMatchesDiffusionCoc) {
-  // DiffusionCc2Row (AVX2 lanes on x86-64) against DiffusionCoc squared, for
-  // lenses from barely any blur to the cap everywhere, at the special depths,
-  // both sides of the focus and of min_coc, and every tail length.
+  // DiffusionCc2Row (AVX2 or AVX-512 lanes on x86-64) against DiffusionCoc
+  // squared, for lenses from barely any blur to the cap everywhere, at the
+  // special depths, both sides of the focus and of min_coc, and every tail
+  // length after groups of eight.
   struct Lens { double f_number, focus_m, max_coc, min_coc, scale; };
   const Lens lenses[] = {{2.0, 3.0, 64.0, 0.5, 0.17677669529663687}, {1.4, 1.0, 1023.0, 0.0, 1.0},
                          {16.0, 100.0, 0.25, 0.25, 0.01}, {0.5, 0.05, 1023.0, 1.0, 0.5}};
@@ -378,11 +379,13 @@ TEST(DofCoc, Cc2RowInLanesMatchesDiffusionCoc) {
     ASSERT_TRUE(m.Configure(c, lens.f_number).ok());
     const uint32_t f = m.focus();
     std::vector<uint32_t> iz = {0u, 1u, kInvalidInverseDepth, kInvalidInverseDepth - 1, kMaxInverseDepth, f};
+    for (const uint32_t d : {m.min_diff() - 1, m.min_diff(), m.min_diff() + 1})  // min_coc's edge, both sides
+      if (d <= f) iz.insert(iz.end(), {f + d, f - d});
     for (uint32_t step = 1; step < (1u << 31); step *= 3)
       for (int sgn : {-1, 1}) iz.push_back(f + static_cast<uint32_t>(sgn) * step);
     while (iz.size() < 4003) iz.push_back(static_cast<uint32_t>(rng()) >> (rng() % 32));
     const int n = static_cast<int>(iz.size());
-    for (int count = n - 3; count <= n; ++count) {
+    for (int count = n - 7; count <= n; ++count) {
       std::vector<uint64_t> cc2(static_cast<size_t>(n), 0xDEADBEEFull);
       m.DiffusionCc2Row(iz.data(), count, cc2.data());
       for (int x = 0; x < n; ++x) {
