@@ -636,8 +636,10 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
 // rounding and ringing clamp. The lanes' first tap rows may spread over S + 1
 // rows (S <= kMaxRowSpread16, against AVX2's one): N + S rows are summed and
 // each lane picks its N (sixteen pixels of one colour span 32 columns, over
-// which a strongly distorted row's source drifts by several rows).
-constexpr int kMaxRowSpread16 = 3;
+// which a strongly distorted row's source drifts by several rows: up to 5
+// near the corners of the bench's lens, BM_SensorPath; with 3, 2 % of its
+// pixels were left to eight lanes or the scalar filter).
+constexpr int kMaxRowSpread16 = 5;
 struct FilterLanes16 {
   __m512i x0;                                 // first tap column - xmin
   __mmask16 row_is[kMaxRowSpread16 + 1];      // [d]: lanes whose first tap row is rmin + d
@@ -713,7 +715,9 @@ CAMSIM_AVX512_TARGET inline __m512i FilterLanesAvx512(const RowIn* rows, int rmi
     case 0: return FilterLanesAvx512<N, L, 0>(rows, rmin, plane, xmin, in);
     case 1: return FilterLanesAvx512<N, L, 1>(rows, rmin, plane, xmin, in);
     case 2: return FilterLanesAvx512<N, L, 2>(rows, rmin, plane, xmin, in);
-    default: return FilterLanesAvx512<N, L, 3>(rows, rmin, plane, xmin, in);
+    case 3: return FilterLanesAvx512<N, L, 3>(rows, rmin, plane, xmin, in);
+    case 4: return FilterLanesAvx512<N, L, 4>(rows, rmin, plane, xmin, in);
+    default: return FilterLanesAvx512<N, L, 5>(rows, rmin, plane, xmin, in);
   }
 }
 
