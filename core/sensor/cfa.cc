@@ -1,5 +1,7 @@
 #include "core/sensor/cfa.h"
 
+#include "core/base/simd.h"
+
 namespace camsim {
 
 Status CfaStage::Configure(const CfaConfig& c, const SensorGeometry& g) {
@@ -26,6 +28,20 @@ Result<LineFormat> CfaStage::Plan(LineFormat in) const {
   return LineFormat{Domain::kPhotons, 1, cfa_ != Cfa::kMono};
 }
 
+namespace {
+
+// Bayer: each row alternates two colours; a bitwise select by column parity.
+// Compiled once per CPU tier (CAMSIM_CPU_CLONES): integer code, the same bits.
+CAMSIM_CPU_CLONES
+void BayerRow(const uint32_t* __restrict even, const uint32_t* __restrict odd, uint32_t* __restrict out, int width) {
+  for (int x = 0; x < width; ++x) {
+    const uint32_t odd_mask = 0u - static_cast<uint32_t>(x & 1);
+    out[x] = (odd[x] & odd_mask) | (even[x] & ~odd_mask);
+  }
+}
+
+}  // namespace
+
 // Both loops are unit-stride and branch-free, with the width in a local (a
 // store through out, uint32_t, could alias a.width, an int, and would make
 // the compiler reload it every sample), so compilers vectorise them.
@@ -48,13 +64,7 @@ void CfaStage::ProcessRow(const RowArgs& a) const {
     }
     return;
   }
-  // Bayer: each row alternates two colours; a bitwise select by column parity.
-  const uint32_t* even = in.ch[CfaColour(cfa_, 0, a.y)];
-  const uint32_t* odd = in.ch[CfaColour(cfa_, 1, a.y)];
-  for (int x = 0; x < width; ++x) {
-    const uint32_t odd_mask = 0u - static_cast<uint32_t>(x & 1);
-    out[x] = (odd[x] & odd_mask) | (even[x] & ~odd_mask);
-  }
+  BayerRow(in.ch[CfaColour(cfa_, 0, a.y)], in.ch[CfaColour(cfa_, 1, a.y)], out, width);
 }
 
 }  // namespace camsim
