@@ -188,7 +188,8 @@ CAMSIM_AVX512_TARGET void DiffusionCc2Avx512(const uint32_t* iz, int n, uint64_t
     const __m512i v = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(iz + x)));
     const __m512i d = _mm512_abs_epi64(_mm512_sub_epi64(v, f));  // |iz - focus|
     const __m512i p = _mm512_mul_epu32(d, mant);
-    const __m512i c = _mm512_add_epi64(_mm512_srl_epi64(p, count), _mm512_and_si512(_mm512_srl_epi64(p, count_round), one));
+    const __m512i c =
+        _mm512_add_epi64(_mm512_srl_epi64(p, count), _mm512_and_si512(_mm512_srl_epi64(p, count_round), one));
     const __mmask8 some = _mm512_cmpneq_epi64_mask(v, invalid_iz) & _mm512_cmpge_epi64_mask(d, lo);
     const __m512i coc = _mm512_maskz_mov_epi64(some, _mm512_min_epu64(c, capv));
     _mm512_storeu_si512(cc2 + x, _mm512_mul_epu32(coc, coc));

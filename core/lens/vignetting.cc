@@ -87,7 +87,8 @@ inline void ApplySitePixel(const uint32_t* __restrict in_a, const uint32_t* __re
 
 // Columns 0 .. n-1 of the pointers; colour A at the columns of parity a_parity.
 template <typename Gain>
-CAMSIM_CPU_CLONES void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
+CAMSIM_CPU_CLONES
+void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
                     uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
                     int a_parity) {
   uint32_t mask[kSiteBlock];
