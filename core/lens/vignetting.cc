@@ -87,10 +87,9 @@ inline void ApplySitePixel(const uint32_t* __restrict in_a, const uint32_t* __re
 
 // Columns 0 .. n-1 of the pointers; colour A at the columns of parity a_parity.
 template <typename Gain>
-CAMSIM_CPU_CLONES
-void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const Gain* __restrict gain,
-                    uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
-                    int a_parity) {
+inline void ApplySiteGainsBlocked(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b,
+                                  const Gain* __restrict gain, uint32_t* __restrict out_a, uint32_t* __restrict out_b,
+                                  uint32_t* __restrict out_c, int n, int a_parity) {
   uint32_t mask[kSiteBlock];
   for (int k = 0; k < kSiteBlock; ++k) mask[k] = 0u - static_cast<uint32_t>(((k ^ a_parity) & 1) == 0);
   int x0 = 0;
@@ -100,6 +99,20 @@ void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict 
   for (int x = x0; x < n; ++x)
     ApplySitePixel(in_a, in_b, gain, x, 0u - static_cast<uint32_t>(((x ^ a_parity) & 1) == 0), out_a, out_b,
                    out_c);
+}
+// The same for curve gains (uint32) and a mask's (uint16), each compiled per
+// CPU tier: plain functions, as clang's target_clones takes no templates.
+CAMSIM_CPU_CLONES
+void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const uint32_t* __restrict gain,
+                    uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
+                    int a_parity) {
+  ApplySiteGainsBlocked(in_a, in_b, gain, out_a, out_b, out_c, n, a_parity);
+}
+CAMSIM_CPU_CLONES
+void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const uint16_t* __restrict gain,
+                    uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
+                    int a_parity) {
+  ApplySiteGainsBlocked(in_a, in_b, gain, out_a, out_b, out_c, n, a_parity);
 }
 
 // The gains of one row applied to columns [x0, x0 + n) of every channel, for
