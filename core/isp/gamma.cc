@@ -1,6 +1,7 @@
 #include "core/isp/gamma.h"
 
 #include "core/base/detmath.h"
+#include "core/base/simd.h"
 
 namespace camsim {
 namespace {
@@ -14,6 +15,37 @@ constexpr double kSrgbSlope = 12.92;
 constexpr double kSrgbScale = 1.055;
 constexpr double kSrgbOffset = 0.055;
 constexpr double kSrgbExponent = 1.0 / 2.4;
+
+// out[x] = table[min(in[x], kMaxCode)] for x < n. The AVX-512 and AVX2 loops
+// gather 32 bits at byte offset 2 * code: the entry in the low half (x86 is
+// little-endian) and its upper neighbour, which the mask drops (the table's
+// spare entry keeps the last read inside it).
+#ifdef CAMSIM_X86_AVX512
+CAMSIM_AVX512_TARGET void LookUpAvx512(const uint16_t* table, const uint32_t* in, uint32_t* out, int n) {
+  const __m512i max_code = _mm512_set1_epi32(kMaxCode);
+  const __m512i low16 = _mm512_set1_epi32(0xFFFF);
+  for (int x = 0; x < n; x += 16) {
+    const __m512i code = _mm512_min_epu32(_mm512_loadu_si512(in + x), max_code);
+    // A mask GCC cannot prove full: see ISqrt64x8 (core/base/fixed.cc).
+    const __mmask16 all = _mm512_cmple_epu32_mask(code, max_code);
+    const __m512i pair = _mm512_mask_i32gather_epi32(_mm512_setzero_si512(), all, code, table, 2);
+    _mm512_storeu_si512(out + x, _mm512_and_si512(pair, low16));
+  }
+}
+#endif
+#ifdef CAMSIM_X86_AVX2
+CAMSIM_AVX2_TARGET void LookUpAvx2(const uint16_t* table, const uint32_t* in, uint32_t* out, int n) {
+  const __m256i max_code = _mm256_set1_epi32(kMaxCode);
+  const __m256i low16 = _mm256_set1_epi32(0xFFFF);
+  for (int x = 0; x < n; x += 8) {
+    const __m256i code = _mm256_min_epu32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(in + x)), max_code);
+    const __m256i all = _mm256_cmpeq_epi32(code, code);
+    const __m256i pair = _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), reinterpret_cast<const int*>(table),
+                                                     code, all, 2);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + x), _mm256_and_si256(pair, low16));
+  }
+}
+#endif
 
 }  // namespace
 
@@ -46,10 +78,11 @@ double GammaStage::Curve(double v) const {
   return v;
 }
 
-void GammaStage::CountTables(WorkspaceCounter& counter) const { counter.Add<uint16_t>(kTableSize); }
+// One spare entry after the table: see LookUpAvx512.
+void GammaStage::CountTables(WorkspaceCounter& counter) const { counter.Add<uint16_t>(kTableSize + 1); }
 
 Status GammaStage::Init(Arena& tables) {
-  table_ = tables.Take<uint16_t>(kTableSize);
+  table_ = tables.Take<uint16_t>(kTableSize + 1);
   if (table_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for the gamma table");
   for (size_t i = 0; i < kTableSize; ++i) {
@@ -57,6 +90,9 @@ Status GammaStage::Init(Arena& tables) {
     t = t < 0.0 ? 0.0 : (t > kFullScale ? kFullScale : t);
     table_[i] = static_cast<uint16_t>(t + 0.5);  // round to nearest, ties up
   }
+  table_[kTableSize] = 0;
+  avx2_ = CpuHasAvx2();
+  avx512_ = CpuHasAvx512();
   return Status::Ok();
 }
 
@@ -69,7 +105,20 @@ void GammaStage::ProcessRow(const RowArgs& a) const {
   for (int c = 0; c < channels; ++c) {
     const uint32_t* in = a.rows[0].ch[c];
     uint32_t* out = a.out[c];
-    for (int x = 0; x < width; ++x) out[x] = table[in[x] < kMaxCode ? in[x] : kMaxCode];
+    int x = 0;
+#ifdef CAMSIM_X86_AVX512
+    if (avx512_) {
+      x = width & ~15;
+      LookUpAvx512(table, in, out, x);
+    } else
+#endif
+#ifdef CAMSIM_X86_AVX2
+    if (avx2_) {
+      x = width & ~7;
+      LookUpAvx2(table, in, out, x);
+    }
+#endif
+    for (; x < width; ++x) out[x] = table[in[x] < kMaxCode ? in[x] : kMaxCode];
   }
 }
 

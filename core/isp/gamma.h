@@ -6,7 +6,7 @@
 //
 // Formats: in  Linear  Q0.16 (1 channel, mosaic or mono, or 3 channels)
 //          out Encoded Q0.16, same channels
-//          table: uint16_t per input code 0..65535, each entry
+//          table: uint16_t per input code 0..65535 (and one spare), each entry
 //          round(65535 * curve(i / 65535)) from the double curve (detmath::Pow),
 //          ties up; inputs above 65535 read the last entry.
 // Error against the exact curve: <= 0.5 LSB (one rounding per entry) plus
@@ -46,6 +46,8 @@ class GammaStage final : public Stage {
  private:
   GammaConfig config_;
   uint16_t* table_ = nullptr;
+  bool avx2_ = false;    // the lookup in gathers (chosen at Init)
+  bool avx512_ = false;
 };
 
 }  // namespace camsim
