@@ -304,6 +304,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
           << ", \"time_saved_ms_per_frame_estimate\": "
           << (TimeSavedMs(s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
       }
+      if (e.note[0] != '\0') j << ", \"moved_because\": " << JsonString(e.note);
       if (e.id == StageId::kSensor) {
         j << ", \"mean_electrons\": {";
         first = true;
@@ -376,6 +377,7 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
                    static_cast<long long>(env.haze_only));
     }
     std::fprintf(stderr, "\n");
+    if (e.note[0] != '\0') std::fprintf(stderr, "  %-14s moved: %s\n", "", e.note);
   }
 }
 

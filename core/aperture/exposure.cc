@@ -31,48 +31,6 @@ void ScaleRow(UScale f, const uint32_t* __restrict src, uint32_t* __restrict dst
   for (int x = 0; x < width; ++x) dst[x] = ScaleInRange(mant, shift, src[x]);
 }
 
-// Site-only row (see exposure.h): colour A's sites are the even columns,
-// colour B's the odd ones; each pixel scales only its site's sample (one
-// multiply instead of three) and writes 0 to the other channels. Blocks of
-// kBlock columns with the even-column mask in a table, as core/isp/demosaic.cc
-// does, so that the loop vectorises; the tail takes the mask from x.
-constexpr int kBlock = 16;  // one AVX-512 vector; even, so that every block starts at an even column
-
-inline void ScaleSitePixel(uint32_t mant, int shift, const uint32_t* __restrict in_a,
-                           const uint32_t* __restrict in_b, int x, uint32_t at_a, uint32_t* __restrict out_a,
-                           uint32_t* __restrict out_b, uint32_t* __restrict out_c) {
-  const uint32_t site = (in_a[x] & at_a) | (in_b[x] & ~at_a);
-  const uint32_t v = ScaleInRange(mant, shift, site);
-  out_a[x] = v & at_a;
-  out_b[x] = v & ~at_a;
-  out_c[x] = 0;
-}
-
-inline uint32_t EvenMask(int x) { return 0u - static_cast<uint32_t>((x & 1) == 0); }
-
-CAMSIM_CPU_CLONES
-void ScaleSiteRow(UScale f, const uint32_t* __restrict in_a, const uint32_t* __restrict in_b,
-                  uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int width) {
-  if (!InRange(f)) {
-    for (int x = 0; x < width; ++x) {
-      const bool at_a = (x & 1) == 0;
-      const uint32_t v = f.Apply(at_a ? in_a[x] : in_b[x]);
-      out_a[x] = at_a ? v : 0;
-      out_b[x] = at_a ? 0 : v;
-      out_c[x] = 0;
-    }
-    return;
-  }
-  const uint32_t mant = f.mant;
-  const int shift = f.shift;
-  uint32_t mask[kBlock];
-  for (int k = 0; k < kBlock; ++k) mask[k] = EvenMask(k);
-  int x0 = 0;
-  for (; x0 + kBlock <= width; x0 += kBlock)
-    for (int k = 0; k < kBlock; ++k) ScaleSitePixel(mant, shift, in_a, in_b, x0 + k, mask[k], out_a, out_b, out_c);
-  for (int x = x0; x < width; ++x) ScaleSitePixel(mant, shift, in_a, in_b, x, EvenMask(x), out_a, out_b, out_c);
-}
-
 }  // namespace
 
 double ExposurePhotonsPerRadiance(const ExposureConfig& c) {
@@ -96,24 +54,17 @@ Status ExposureStage::Configure(const ExposureConfig& c) {
                                         "exposure.photons_per_radiance_ms");
   if (!f.ok()) return f.status();
   factor_ = f.value();
-  site_cfa_ = Cfa::kMono;
   return Status::Ok();
 }
 
 Result<LineFormat> ExposureStage::Plan(LineFormat in) const {
-  if (in.domain != Domain::kRadiance || in.channels != 3)
-    return InvalidArgument("exposure", "needs RGB radiance input");
-  return LineFormat{Domain::kPhotons, 3, false};
+  if (in.domain != Domain::kRadiance) return InvalidArgument("exposure", "needs radiance input");
+  return LineFormat{Domain::kPhotons, in.channels, in.mosaic};
 }
 
 void ExposureStage::ProcessRow(const RowArgs& a) const {
-  if (site_cfa_ != Cfa::kMono) {
-    const Colour even = CfaColour(site_cfa_, 0, a.y), odd = CfaColour(site_cfa_, 1, a.y);
-    const Colour third = static_cast<Colour>(3 - even - odd);  // the colour this row has no site of
-    ScaleSiteRow(factor_, a.rows[0].ch[even], a.rows[0].ch[odd], a.out[even], a.out[odd], a.out[third], a.width);
-    return;
-  }
-  for (int c = 0; c < 3; ++c) ScaleRow(factor_, a.rows[0].ch[c], a.out[c], a.width);
+  const int channels = a.out[1] != nullptr ? 3 : 1;
+  for (int c = 0; c < channels; ++c) ScaleRow(factor_, a.rows[0].ch[c], a.out[c], a.width);
 }
 
 }  // namespace camsim

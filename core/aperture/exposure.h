@@ -8,18 +8,12 @@
 //    not here: it is the sensor's analog gain (SensorConfig::gain_db), because
 //    a real gain amplifies the signal *and* its shot noise.
 //
-// Formats: in  Radiance Q16.16 (3 channels)
-//          out Photons  Q24.8  (3 channels)
+// Formats: in  Radiance Q16.16 (3 channels, or 1 mosaic channel: the
+//              planner runs a Bayer CFA ahead of this stage, see pipeline.h)
+//          out Photons  Q24.8, the same channels
 //          factor c*t/N^2 * 2^-8 as a UScale (32 significant bits);
 //          64-bit product, round to nearest (ties up), saturate at 2^32 - 1
 //          (16.7 M photons).
-//
-// CFA site only: when the pipeline's distortion runs site-only (one colour
-// per pixel, 0 in the two others; core/lens/distortion.h) and only pointwise
-// stages lie between it and a Bayer CFA, the planner calls SetSiteOnly(cfa):
-// each pixel then scales only its site's colour and writes 0 to the two
-// others, a third of the multiplies. For site-only input (zeros off the
-// sites) that is the same output, bit for bit, as scaling all three.
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -45,14 +39,9 @@ class ExposureStage final : public Stage {
   void ProcessRow(const RowArgs& args) const override;
 
   const UScale& factor() const { return factor_; }
-  // The CFA whose sites are kept, or Cfa::kMono (the default, also after
-  // Configure) to scale all three channels.
-  void SetSiteOnly(Cfa cfa) { site_cfa_ = cfa; }
-  Cfa site_only() const { return site_cfa_; }
 
  private:
   UScale factor_;  // radiance Q16.16 -> photons Q24.8
-  Cfa site_cfa_ = Cfa::kMono;
 };
 
 // Double-precision reference: photons for a radiance value.

@@ -65,86 +65,11 @@ void ApplyGains(const uint32_t* __restrict in, const uint16_t* __restrict gain, 
   for (int x = 0; x < n; ++x) out[x] = ApplyGain(in[x], gain[x]);
 }
 
-// Site-only columns (see vignetting.h): at_a(x) all ones where the column
-// holds a site of colour A, else zero (then it is colour B's). Each pixel
-// applies the gain to its site's sample only and writes 0 to the other
-// channels. Blocks of kSiteBlock columns with the masks in a table (every
-// block starts at the same parity), so that the loop vectorises; the tail
-// takes the mask from x. Same bits as ApplyGains on each channel when the
-// input is 0 off the sites. Sixteen columns: one AVX-512 vector.
-constexpr int kSiteBlock = 16;  // even
-
+// The gains of one row applied to columns [x0, x0 + n) of every channel (3,
+// or 1 for a mosaic). Not CAMSIM_CPU_CLONES: ApplyGains has its own.
 template <typename Gain>
-inline void ApplySitePixel(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b,
-                           const Gain* __restrict gain, int x, uint32_t at_a, uint32_t* __restrict out_a,
-                           uint32_t* __restrict out_b, uint32_t* __restrict out_c) {
-  const uint32_t site = (in_a[x] & at_a) | (in_b[x] & ~at_a);
-  const uint32_t v = ApplyGain(site, gain[x]);
-  out_a[x] = v & at_a;
-  out_b[x] = v & ~at_a;
-  out_c[x] = 0;
-}
-
-// Columns 0 .. n-1 of the pointers; colour A at the columns of parity a_parity.
-template <typename Gain>
-inline void ApplySiteGainsBlocked(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b,
-                                  const Gain* __restrict gain, uint32_t* __restrict out_a, uint32_t* __restrict out_b,
-                                  uint32_t* __restrict out_c, int n, int a_parity) {
-  uint32_t mask[kSiteBlock];
-  for (int k = 0; k < kSiteBlock; ++k) mask[k] = 0u - static_cast<uint32_t>(((k ^ a_parity) & 1) == 0);
-  int x0 = 0;
-  for (; x0 + kSiteBlock <= n; x0 += kSiteBlock)
-    for (int k = 0; k < kSiteBlock; ++k)
-      ApplySitePixel(in_a, in_b, gain, x0 + k, mask[k], out_a, out_b, out_c);
-  for (int x = x0; x < n; ++x)
-    ApplySitePixel(in_a, in_b, gain, x, 0u - static_cast<uint32_t>(((x ^ a_parity) & 1) == 0), out_a, out_b,
-                   out_c);
-}
-// The same for curve gains (uint32) and a mask's (uint16), each compiled per
-// CPU tier: plain functions, as clang's target_clones takes no templates.
-CAMSIM_CPU_CLONES
-void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const uint32_t* __restrict gain,
-                    uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
-                    int a_parity) {
-  ApplySiteGainsBlocked(in_a, in_b, gain, out_a, out_b, out_c, n, a_parity);
-}
-CAMSIM_CPU_CLONES
-void ApplySiteGains(const uint32_t* __restrict in_a, const uint32_t* __restrict in_b, const uint16_t* __restrict gain,
-                    uint32_t* __restrict out_a, uint32_t* __restrict out_b, uint32_t* __restrict out_c, int n,
-                    int a_parity) {
-  ApplySiteGainsBlocked(in_a, in_b, gain, out_a, out_b, out_c, n, a_parity);
-}
-
-// The gains of one row applied to columns [x0, x0 + n) of every channel, for
-// 3 channels, 1 (mosaic) or site only. `site`: the row's colours at even and
-// odd columns and the one it has no site of, or null for every channel.
-struct SiteRow {
-  Colour even, odd, third;
-};
-
-template <typename Gain>
-inline void ApplyRow(const RowArgs& a, int channels, const SiteRow* site, const Gain* __restrict gain, int x0,
-                     int n) {
-  if (site != nullptr) {
-    const RowIn& in = a.rows[0];
-    ApplySiteGains(in.ch[site->even] + x0, in.ch[site->odd] + x0, gain, a.out[site->even] + x0,
-                   a.out[site->odd] + x0, a.out[site->third] + x0, n, x0 & 1);
-    return;
-  }
+void ApplyRow(const RowArgs& a, int channels, const Gain* __restrict gain, int x0, int n) {
   for (int c = 0; c < channels; ++c) ApplyGains(a.rows[0].ch[c] + x0, gain, a.out[c] + x0, n);
-}
-
-// The two entry points. Not CAMSIM_CPU_CLONES: with the site-only loops
-// inlined into an AVX2 copy, GCC 12 -O2 left them scalar (callgrind: 81M
-// instructions per 1080p frame in the sensor path's vignetting against 59M
-// for these SSE2 loops). ApplySiteGains' own clones are vectorised.
-// Curve gains for columns [x0, x0 + n).
-void ApplyCurveRow(const RowArgs& a, int channels, const SiteRow* site, const uint32_t* gain, int x0, int n) {
-  ApplyRow(a, channels, site, gain, x0, n);
-}
-// A mask image's row of gains for the whole row.
-void ApplyMaskRow(const RowArgs& a, int channels, const SiteRow* site, const uint16_t* mask) {
-  ApplyRow(a, channels, site, mask, 0, a.width);
 }
 
 // A block's curve gains from column k0 on, gain[k] for column x0 + k
@@ -225,7 +150,6 @@ double VignettingStage::CurveGain(double rho) const { return CurveGainOf(config_
 Status VignettingStage::Configure(const VignettingConfig& c, const SensorGeometry& g, bool has_mask) {
   config_ = c;
   geometry_ = g;
-  site_cfa_ = Cfa::kMono;
   switch (c.mode) {
     case VignettingMode::kOff:
       break;
@@ -297,16 +221,8 @@ void VignettingStage::ProcessRow(const RowArgs& a) const {
   // Channels: 3 (colour) or 1 (mosaic); the gain does not depend on colour.
   int channels = 0;
   while (channels < kMaxChannels && a.out[channels] != nullptr) ++channels;
-  SiteRow site_row;
-  const SiteRow* site = nullptr;
-  if (site_cfa_ != Cfa::kMono && channels == 3) {
-    site_row.even = CfaColour(site_cfa_, 0, a.y);
-    site_row.odd = CfaColour(site_cfa_, 1, a.y);
-    site_row.third = static_cast<Colour>(3 - site_row.even - site_row.odd);
-    site = &site_row;
-  }
   if (config_.mode == VignettingMode::kMask) {
-    ApplyMaskRow(a, channels, site, a.input->vignetting_mask.row(a.y));
+    ApplyRow(a, channels, a.input->vignetting_mask.row(a.y), 0, a.width);
     return;
   }
   // The curve gain depends on x only through dx2, which is symmetric about
@@ -329,8 +245,8 @@ void VignettingStage::ProcessRow(const RowArgs& a) const {
 #endif
     CurveGains(curve_, rho_to_index_, dx2_ + x0, dy2, k0, n, gain, mirrored);
     const int mirror = width - x0 - n;  // columns mirror .. width - 1 - x0
-    ApplyCurveRow(a, channels, site, gain, x0, n);
-    ApplyCurveRow(a, channels, site, mirrored, mirror, n);
+    ApplyRow(a, channels, gain, x0, n);
+    ApplyRow(a, channels, mirrored, mirror, n);
   }
 }
 

@@ -13,7 +13,8 @@
 // with r the radius in pixels and f the focal length in pixels (basic IEEE
 // operations only). A table from config is resampled onto the same points.
 //
-// Formats: in/out Photons Q24.8 (3 channels, or 1 mosaic channel).
+// Formats: in/out Photons Q24.8 (3 channels, or 1 mosaic channel: the
+//                 planner runs a Bayer CFA ahead of this stage, see pipeline.h).
 //          rho index: Q?.16 position in the curve, computed as
 //            (dx2 + dy2) * R >> s with R = (kCurvePoints-1) * 2^16 / denom
 //            as a UScale (exact integer inputs, one rounding);
@@ -21,13 +22,6 @@
 //          product: 32 x 16 bits in 64, rounded, saturated at 2^32 - 1.
 // Mask mode: a caller image of Q2.14 gains, one per pixel (FrameInput).
 //
-// CFA site only: when the pipeline's distortion runs site-only (one colour
-// per pixel, 0 in the two others; core/lens/distortion.h) and only pointwise
-// stages lie between it and a Bayer CFA, the planner calls SetSiteOnly(cfa):
-// each pixel of a 3-channel line then applies the gain to its site's colour
-// only and writes 0 to the two others, a third of the multiplies. For
-// site-only input (zeros off the sites) that is the same output, bit for
-// bit, as applying it to all three.
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -60,10 +54,6 @@ class VignettingStage final : public Stage {
 
   // The curve gain (double) at normalised squared radius rho (for tests/reference).
   double CurveGain(double rho) const;
-  // The CFA whose sites are kept, or Cfa::kMono (the default, also after
-  // Configure) to process every channel.
-  void SetSiteOnly(Cfa cfa) { site_cfa_ = cfa; }
-  Cfa site_only() const { return site_cfa_; }
   // Tests: compute the curve gains by the portable loop even where the CPU
   // has AVX2 lanes for them. Takes effect at the next Init().
   void ForcePortablePathForTest(bool force) { force_portable_ = force; }
@@ -74,7 +64,6 @@ class VignettingStage final : public Stage {
   UScale rho_to_index_;       // (dx2 + dy2) -> curve position Q.16
   uint16_t* curve_ = nullptr; // kCurvePoints + 1 gains, Q2.14 (last repeated)
   uint32_t* dx2_ = nullptr;   // (2x - (W-1))^2 per column
-  Cfa site_cfa_ = Cfa::kMono;
   bool avx2_ = false;             // curve gains in AVX2 lanes (set by Init)
   bool force_portable_ = false;
 };

@@ -198,6 +198,33 @@ const Stage* Pipeline::StageFor(StageId id) const {
   return nullptr;
 }
 
+namespace {
+
+constexpr const char* kCfaMovedNote =
+    "runs ahead of exposure and vignetting, which then process its one colour per pixel (the same bytes)";
+
+// A Bayer CFA keeps one colour per pixel. Exposure and vignetting are
+// pointwise and do the same to every colour, so they commute with it bit for
+// bit: order[] is `in` with each Bayer CFA moved ahead of the exposure and
+// vignetting entries right before it, which then process one plane instead
+// of three. Returns the CFA's new index when it moved, else -1.
+int MoveCfaAhead(const StageId* in, int count, Cfa cfa, StageId* order) {
+  for (int i = 0; i < count; ++i) order[i] = in[i];
+  int moved_to = -1;
+  if (cfa == Cfa::kMono) return moved_to;  // a weighted sum of the colours: rounded differently
+  for (int k = 0; k < count; ++k) {
+    if (order[k] != StageId::kCfa) continue;
+    int j = k;
+    while (j > 0 && (order[j - 1] == StageId::kExposure || order[j - 1] == StageId::kVignetting)) --j;
+    for (int m = k; m > j; --m) order[m] = order[m - 1];
+    order[j] = StageId::kCfa;
+    if (j < k) moved_to = j;
+  }
+  return moved_to;
+}
+
+}  // namespace
+
 Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask) {
   initialised_ = false;
   config_ = config;
@@ -237,14 +264,17 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   LineFormat format = plan_.input;
   bool seen[kStageCount] = {};
   run_count_ = 0;
+  StageId order[kStageCount];
+  const int cfa_moved_to = MoveCfaAhead(config.order, config.order_count, g.cfa, order);
   for (int i = 0; i < config.order_count; ++i) {
-    const StageId id = config.order[i];
+    const StageId id = order[i];
     const int idx = static_cast<int>(id);
     if (idx < 0 || idx >= kStageCount) return InvalidArgument("pipeline.stages", "unknown stage");
     if (seen[idx]) return InvalidArgument("pipeline.stages", "a stage is listed twice");
     seen[idx] = true;
     PlanEntry& e = plan_.entries[plan_.count++];
     e.id = id;
+    if (i == cfa_moved_to) e.note = kCfaMovedNote;
     const Stage* stage = StageFor(id);
     if (const char* reason = stage->IdentityReason()) {
       e.runs = false;
@@ -272,24 +302,11 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   }
   plan_.running = run_count_;
   plan_.output = format;
-  // Distortion followed, through pointwise stages only, by a Bayer CFA
-  // computes only the colour each site keeps (core/lens/distortion.h).
-  // The pointwise stages between them then get site-only lines and process
-  // only the site's colour too (core/aperture/exposure.h, core/lens/vignetting.h).
+  // Distortion right before a Bayer CFA computes only the colour each site
+  // keeps (core/lens/distortion.h).
   distortion_.SetSiteOnly(false);
-  exposure_.SetSiteOnly(Cfa::kMono);
-  vignetting_.SetSiteOnly(Cfa::kMono);
-  for (int i = 0; i < run_count_; ++i) {
-    if (run_[i] != &distortion_) continue;
-    int k = i + 1;
-    while (k < run_count_ && (run_[k] == &exposure_ || run_[k] == &vignetting_)) ++k;
-    const bool site_only = k < run_count_ && run_[k] == &cfa_ && g.cfa != Cfa::kMono;
-    distortion_.SetSiteOnly(site_only);
-    for (int j = i + 1; site_only && j < k; ++j) {
-      if (run_[j] == &exposure_) exposure_.SetSiteOnly(g.cfa);
-      if (run_[j] == &vignetting_) vignetting_.SetSiteOnly(g.cfa);
-    }
-  }
+  for (int i = 0; i + 1 < run_count_; ++i)
+    if (run_[i] == &distortion_ && run_[i + 1] == &cfa_ && g.cfa != Cfa::kMono) distortion_.SetSiteOnly(true);
 
   // The sensor's fixed-pattern table has an entry per pixel of each input channel.
   for (int i = 1; i < run_count_; ++i)

@@ -75,7 +75,10 @@ struct PipelineConfig {
   SensorGeometry geometry;
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
 
-  // Stages in run order; a stage not listed does not run.
+  // Stages in run order; a stage not listed does not run. The planner runs a
+  // Bayer CFA ahead of the exposure and vignetting right before it (they are
+  // pointwise and colour-blind, so the bytes are the same and they process one
+  // plane instead of three); the plan lists the stages as run and notes the move.
   // Flare first: its pre-pass (ComputeFlare) reads the frame input, so no running stage may come before it.
   StageId order[kStageCount] = {StageId::kFlare,       StageId::kDofGather,  StageId::kDofRows,
                                 StageId::kDofColumns,  StageId::kMotionBlur, StageId::kDistortion,
@@ -106,6 +109,7 @@ struct PlanEntry {
   StageId id = StageId::kExposure;
   bool runs = false;
   const char* reason = "";  // why it was left out (empty when it runs)
+  const char* note = "";    // why the planner moved it from its configured place (empty when it did not)
   LineFormat out;           // its output format (when it runs)
 };
 

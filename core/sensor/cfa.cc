@@ -23,9 +23,9 @@ Status CfaStage::Configure(const CfaConfig& c, const SensorGeometry& g) {
 }
 
 Result<LineFormat> CfaStage::Plan(LineFormat in) const {
-  if (in.domain != Domain::kPhotons || in.channels != 3)
-    return InvalidArgument("cfa", "needs RGB photons input");
-  return LineFormat{Domain::kPhotons, 1, cfa_ != Cfa::kMono};
+  if ((in.domain != Domain::kRadiance && in.domain != Domain::kPhotons) || in.channels != 3)
+    return InvalidArgument("cfa", "needs RGB radiance or photons input");
+  return LineFormat{in.domain, 1, cfa_ != Cfa::kMono};
 }
 
 namespace {

@@ -333,7 +333,12 @@ int main(int argc, char** argv) {
           ++failures;
           continue;
         }
-        if (!p->plan().entries[n - 1].runs) continue;  // the same output as the previous cut
+        // A cut whose last stage is left out gives the previous cut's output. (The
+        // plan lists the stages as run: a Bayer CFA moves ahead of exposure and vignetting.)
+        bool last_runs = false;
+        for (int i = 0; i < p->plan().count; ++i)
+          if (p->plan().entries[i].id == c.order[n - 1]) last_runs = p->plan().entries[i].runs;
+        if (!last_runs) continue;
         std::vector<uint8_t> workspace(p->WorkspaceBytes());
         const Status is = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
         if (!is.ok()) {

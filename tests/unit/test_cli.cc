@@ -68,6 +68,10 @@ TEST(Cli, RunWritesRawRgbAndReport) {
   const std::string report = Slurp(out + "/report.json");
   EXPECT_NE(report.find("\"left_out_because\": \"colour matrix is the identity\""), std::string::npos) << report;
   EXPECT_NE(report.find("\"mean_electrons\""), std::string::npos);
+  // The demo camera's Bayer CFA runs ahead of exposure and vignetting, and the report says why.
+  EXPECT_NE(report.find("{\"name\": \"cfa\", \"runs\": true, \"output\": \"radiance Q16.16\", \"channels\": 1"),
+            std::string::npos) << report;
+  EXPECT_NE(report.find("\"moved_because\": \"runs ahead of exposure and vignetting"), std::string::npos) << report;
   EXPECT_NE(report.find("\"workspace_bytes\""), std::string::npos);
   EXPECT_NE(report.find("\"error\": null"), std::string::npos);
 }

@@ -115,7 +115,8 @@ Cuts RunChecked(const Built& b, const Scene& scene, const std::string& what) {
   const uint32_t max_dn = (1u << b.pipeline.config().geometry.adc_bits) - 1;
   for (size_t i = 0; i < cuts.id.size(); ++i) {
     const Domain d = cuts.format[i].domain;
-    const uint32_t max = d == Domain::kDigital ? max_dn : (d == Domain::kPhotons ? 0xFFFFFFFFu : 65535u);
+    const bool q16 = d == Domain::kLinear || d == Domain::kEncoded;  // radiance Q16.16 and photons span 32 bits
+    const uint32_t max = d == Domain::kDigital ? max_dn : (q16 ? 65535u : 0xFFFFFFFFu);
     size_t bad = 0, unwritten = 0;
     for (uint32_t v : cuts.out[i]) {
       bad += v > max;
@@ -421,13 +422,28 @@ TEST(Extremes, EveryCutAsItsOwnPipeline) {
       const Scene s = HostileScene(w, h);
       const Cuts cuts = RunChecked(*b, s, what);
       for (int k = 1; k < c.order_count; ++k) {
-        const int last = IndexOf(cuts, c.order[k - 1]);
+        int last = IndexOf(cuts, c.order[k - 1]);
         if (last < 0) continue;  // left out (demosaic for mono, the identity colour matrix)
         PipelineConfig p = c;
         p.order_count = k;
         auto pb = BuildOk(p, what + " ending at " + StageName(c.order[k - 1]));
         if (!pb->status.ok()) continue;
-        EXPECT_TRUE(test::RunFrame(*pb, s, 5, 3) == cuts.out[static_cast<size_t>(last)])
+        // The planner may have moved a stage (a Bayer CFA ahead of exposure and
+        // vignetting): compare with the tap of the stage this pipeline ends at.
+        const Plan& cut_plan = pb->pipeline.plan();
+        for (int i = 0; i < cut_plan.count; ++i)
+          if (cut_plan.entries[i].runs) last = IndexOf(cuts, cut_plan.entries[i].id);
+        std::vector<uint32_t> alone = test::RunFrame(*pb, s, 5, 3);
+        // Exposure and vignetting run after a Bayer CFA in the whole pipeline
+        // (its tap is a mosaic), on RGB when the pipeline ends before the CFA.
+        if (alone.size() == 3 * cuts.out[static_cast<size_t>(last)].size())
+          for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+              const size_t i = static_cast<size_t>(y) * w + x;
+              alone[i] = alone[3 * i + CfaColour(c.geometry.cfa, x, y)];
+            }
+        alone.resize(cuts.out[static_cast<size_t>(last)].size());
+        EXPECT_TRUE(alone == cuts.out[static_cast<size_t>(last)])
             << what << ": the pipeline ending at " << StageName(c.order[k - 1]) << " differs from its tap";
       }
     }
