@@ -973,6 +973,7 @@ void DistortionStage::MeshDisplacement(double u, double v, double* dx, double* d
 Result<LineFormat> DistortionStage::Plan(LineFormat in) const {
   if ((in.domain != Domain::kRadiance && in.domain != Domain::kPhotons) || in.channels != 3 || in.mosaic)
     return InvalidArgument("distortion", "needs RGB radiance or photons input (place it before the CFA)");
+  if (site_only_) return LineFormat{in.domain, 1, true};
   return in;
 }
 
@@ -1166,7 +1167,8 @@ DistortionStage::RowView DistortionStage::StartRow(const RowArgs& a) const {
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
   return RowView{vdx, vdy, Source{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_},
-                 {a.out[0], a.out[1], a.out[2]},
+                 // Site only: the one mosaic plane, whichever colour a pixel computes.
+                 {a.out[0], site_only_ ? a.out[0] : a.out[1], site_only_ ? a.out[0] : a.out[2]},
                  MakeFastLimits(a, geometry_.height, taps_, phase_bits_)};
 }
 
@@ -1190,7 +1192,6 @@ void DistortionStage::ProcessRowN(const RowArgs& a) const {
     if (site_only) {
       c0 = CfaColour(cfa, x, y);
       c1 = c0 + 1;
-      for (int c = 0; c < 3; ++c) out[c][x] = 0;
     }
     if (vdx[i] == kNoSource || vdx[i + 1] == kNoSource) {
       for (int c = c0; c < c1; ++c) out[c][x] = 0;
@@ -1247,7 +1248,6 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
       if constexpr (kSiteOnly) {
         c0 = CfaColour(cfa, x, y);
         c1 = c0 + 1;
-        for (int c = 0; c < 3; ++c) out[c][x] = 0;
       }
       const int32_t px = sx[f], py = sy[f];
       if (!l.On(px, py)) {
@@ -1327,8 +1327,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       BilinearLanes(&k, kChannels);
     }
     if constexpr (kSiteOnly) {
-      for (int c = 0; c < 3; ++c)
-        for (int f = 0; f < n; ++f) out[c][xs + f] = site[f] == c ? k.v[0][f] : 0;
+      std::memcpy(out[0] + xs, k.v[0], static_cast<size_t>(n) * sizeof(uint32_t));
     } else if (n == kChunk) {  // a constant size: inlined vector moves, not a call or rep movs
       for (int c = 0; c < 3; ++c) std::memcpy(out[c] + xs, k.v[c], sizeof(k.v[c]));
     } else {
@@ -1390,11 +1389,10 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
             by_slot[v][g + lanes + i] = by_pixel[v][g + 2 * i + 1];
           }
       if (n == kChunk) {  // vector stores: GCC makes a 256-byte memset a rep stos
-        for (int c = 0; c < 3; ++c)
-          for (int i = 0; i < kChunk; i += 8)
-            _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[c] + xs + i), _mm256_setzero_si256());
+        for (int i = 0; i < kChunk; i += 8)
+          _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[0] + xs + i), _mm256_setzero_si256());
       } else {
-        for (int c = 0; c < 3; ++c) std::memset(out[c] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
+        std::memset(out[0] + xs, 0, static_cast<size_t>(n) * sizeof(uint32_t));
       }
     }
     uint64_t done = 0;  // by pixel of the chunk

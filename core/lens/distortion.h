@@ -35,10 +35,10 @@
 // (grid_step rows) from the nodes' source rows, widened monotonically
 // (InputRows); the driver keeps that many rows in its ring.
 //
-// CFA site only: when the pipeline runs only pointwise stages between this
-// one and a Bayer CFA, it calls SetSiteOnly: each pixel then computes only the
-// colour its CFA site keeps and writes 0 to the two others (a third of the
-// work; those zeros are visible in a tap of this stage).
+// CFA site only: when a Bayer CFA is the next running stage, the planner
+// calls SetSiteOnly (before Plan) and leaves the CFA out: each pixel then
+// computes only the colour its CFA site keeps, and the stage writes the
+// mosaic itself (1 channel; a third of the work and of the line memory).
 //
 // Speed: when Init proves the table's ranges fit 32 bits (no chromatic
 // scaling, |displacement| <= 8192 px, neighbouring nodes closer than 256

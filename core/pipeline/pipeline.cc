@@ -200,6 +200,8 @@ const Stage* Pipeline::StageFor(StageId id) const {
 
 namespace {
 
+constexpr const char* kCfaInDistortionReason =
+    "distortion before it computes only each Bayer site's colour and writes the mosaic itself";
 constexpr const char* kCfaMovedNote =
     "runs ahead of exposure and vignetting, which then process its one colour per pixel (the same bytes)";
 
@@ -224,6 +226,15 @@ int MoveCfaAhead(const StageId* in, int count, Cfa cfa, StageId* order) {
 }
 
 }  // namespace
+
+// The first stage of order[from, count) that is not left out, or kCount.
+StageId Pipeline::NextRunning(const StageId* order, int from, int count) const {
+  for (int i = from; i < count; ++i) {
+    const Stage* stage = StageFor(order[i]);
+    if (stage != nullptr && stage->IdentityReason() == nullptr) return order[i];
+  }
+  return StageId::kCount;
+}
 
 Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask) {
   initialised_ = false;
@@ -264,6 +275,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   LineFormat format = plan_.input;
   bool seen[kStageCount] = {};
   run_count_ = 0;
+  distortion_.SetSiteOnly(false);
   StageId order[kStageCount];
   const int cfa_moved_to = MoveCfaAhead(config.order, config.order_count, g.cfa, order);
   for (int i = 0; i < config.order_count; ++i) {
@@ -274,13 +286,22 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     seen[idx] = true;
     PlanEntry& e = plan_.entries[plan_.count++];
     e.id = id;
-    if (i == cfa_moved_to) e.note = kCfaMovedNote;
     const Stage* stage = StageFor(id);
     if (const char* reason = stage->IdentityReason()) {
       e.runs = false;
       e.reason = reason;
       continue;
     }
+    // Distortion right before a Bayer CFA computes only the colour each site
+    // keeps and writes the mosaic itself (core/lens/distortion.h).
+    if (id == StageId::kDistortion)
+      distortion_.SetSiteOnly(g.cfa != Cfa::kMono && NextRunning(order, i + 1, config.order_count) == StageId::kCfa);
+    if (id == StageId::kCfa && run_count_ > 0 && run_[run_count_ - 1] == &distortion_ && distortion_.site_only()) {
+      e.runs = false;
+      e.reason = kCfaInDistortionReason;
+      continue;
+    }
+    if (i == cfa_moved_to) e.note = kCfaMovedNote;
     Result<LineFormat> out = stage->Plan(format);
     if (!out.ok()) return out.status();
     e.runs = true;
@@ -302,11 +323,6 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   }
   plan_.running = run_count_;
   plan_.output = format;
-  // Distortion right before a Bayer CFA computes only the colour each site
-  // keeps (core/lens/distortion.h).
-  distortion_.SetSiteOnly(false);
-  for (int i = 0; i + 1 < run_count_; ++i)
-    if (run_[i] == &distortion_ && run_[i + 1] == &cfa_ && g.cfa != Cfa::kMono) distortion_.SetSiteOnly(true);
 
   // The sensor's fixed-pattern table has an entry per pixel of each input channel.
   for (int i = 1; i < run_count_; ++i)

@@ -196,6 +196,7 @@ class Pipeline {
   void Produce(StripState& s, int ring, int row) const;
   Stage* StageFor(StageId id);
   const Stage* StageFor(StageId id) const;
+  StageId NextRunning(const StageId* order, int from, int count) const;
 
   PipelineConfig config_;
   Plan plan_;

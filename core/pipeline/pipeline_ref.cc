@@ -108,13 +108,13 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
     case StageId::kDistortion: {
       const auto& stage = static_cast<const DistortionStage&>(p.running_stage(index));
       const ReferenceDistortion d(c.distortion, g);
-      RefImage out = Like(in, in.planes.size());
+      // Before a Bayer CFA the stage computes only each site's colour, into a mosaic.
+      RefImage out = Like(in, stage.site_only() ? 1 : in.planes.size());
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x)
           for (int k = 0; k < static_cast<int>(in.planes.size()); ++k) {
-            // Before a Bayer CFA the stage computes only the site's colour (0 elsewhere).
             if (stage.site_only() && k != CfaColour(g.cfa, x, y)) continue;
-            out.planes[k][at(x, y)] = d.Sample(in.planes[k].data(), x, y, k);
+            out.planes[stage.site_only() ? 0 : k][at(x, y)] = d.Sample(in.planes[k].data(), x, y, k);
           }
       return out;
     }

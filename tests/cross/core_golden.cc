@@ -319,6 +319,7 @@ int main(int argc, char** argv) {
     for (const Config& cfg : configs) {
       const PipelineConfig full = cfg.make(w, h);
       int leading = 0;  // leading cuts of only left-out stages (the DoF stages when off): not numbered
+      std::string previous_running;
       for (int n = 1; n <= full.order_count; ++n) {
         PipelineConfig c = full;
         c.order_count = n;
@@ -333,12 +334,16 @@ int main(int argc, char** argv) {
           ++failures;
           continue;
         }
-        // A cut whose last stage is left out gives the previous cut's output. (The
-        // plan lists the stages as run: a Bayer CFA moves ahead of exposure and vignetting.)
-        bool last_runs = false;
-        for (int i = 0; i < p->plan().count; ++i)
-          if (p->plan().entries[i].id == c.order[n - 1]) last_runs = p->plan().entries[i].runs;
-        if (!last_runs) continue;
+        // A cut that runs what the previous cut ran gives its output (its last
+        // stage is left out). Compared by the running stages and their formats:
+        // the planner may move a Bayer CFA, or leave it to a site-only distortion.
+        std::string running;
+        for (int i = 0; i < p->plan().count; ++i) {
+          const PlanEntry& e = p->plan().entries[i];
+          if (e.runs) running += std::string(StageName(e.id)) + ":" + std::to_string(e.out.channels) + " ";
+        }
+        if (running == previous_running) continue;
+        previous_running = running;
         std::vector<uint8_t> workspace(p->WorkspaceBytes());
         const Status is = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
         if (!is.ok()) {

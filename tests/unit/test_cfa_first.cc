@@ -60,21 +60,26 @@ const PlanEntry* Find(const Plan& p, StageId id) {
 
 // The planner moves a Bayer CFA ahead of the exposure and vignetting entries
 // right before it, says so in the plan, and leaves a mono CFA (a weighted
-// sum, rounded after the scaling) and every other order alone.
+// sum, rounded after the scaling) and every other order alone. A Bayer CFA
+// right after distortion (moved there or configured so) is left out: the
+// distortion writes the mosaic itself.
 TEST(CfaFirst, PlannerMovesABayerCfaAheadOfPointwiseStages) {
   struct Case {
     Cfa cfa;
     std::vector<StageId> order, want;
+    bool cfa_runs;
   };
   using S = StageId;
   const Case cases[] = {
       {Cfa::kBayerGR, {S::kExposure, S::kVignetting, S::kCfa, S::kSensor},
-       {S::kCfa, S::kExposure, S::kVignetting, S::kSensor}},
+       {S::kCfa, S::kExposure, S::kVignetting, S::kSensor}, true},
       {Cfa::kBayerBG, {S::kDistortion, S::kExposure, S::kCfa, S::kVignetting},
-       {S::kDistortion, S::kCfa, S::kExposure, S::kVignetting}},
+       {S::kDistortion, S::kCfa, S::kExposure, S::kVignetting}, false},
       {Cfa::kMono, {S::kExposure, S::kVignetting, S::kCfa, S::kSensor},
-       {S::kExposure, S::kVignetting, S::kCfa, S::kSensor}},
-      {Cfa::kBayerRG, {S::kExposure, S::kDistortion, S::kCfa}, {S::kExposure, S::kDistortion, S::kCfa}},
+       {S::kExposure, S::kVignetting, S::kCfa, S::kSensor}, true},
+      {Cfa::kMono, {S::kDistortion, S::kCfa}, {S::kDistortion, S::kCfa}, true},
+      {Cfa::kBayerRG, {S::kExposure, S::kDistortion, S::kCfa}, {S::kExposure, S::kDistortion, S::kCfa}, false},
+      {Cfa::kBayerRG, {S::kDistortion, S::kExposure}, {S::kDistortion, S::kExposure}, true},  // no CFA: RGB
   };
   for (const Case& k : cases) {
     PipelineConfig c;
@@ -97,12 +102,22 @@ TEST(CfaFirst, PlannerMovesABayerCfaAheadOfPointwiseStages) {
     ASSERT_EQ(plan.count, c.order_count);
     const bool moved = k.want != k.order;
     for (int i = 0; i < plan.count; ++i) {
-      EXPECT_EQ(plan.entries[i].id, k.want[i]) << CfaName(k.cfa) << " entry " << i;
-      EXPECT_TRUE(plan.entries[i].runs);
-      const bool noted = plan.entries[i].id == StageId::kCfa && moved;
-      EXPECT_EQ(std::strlen(plan.entries[i].note) > 0, noted) << CfaName(k.cfa) << " entry " << i;
+      const PlanEntry& e = plan.entries[i];
+      const bool is_cfa = e.id == StageId::kCfa;
+      EXPECT_EQ(e.id, k.want[i]) << CfaName(k.cfa) << " entry " << i;
+      EXPECT_EQ(e.runs, !is_cfa || k.cfa_runs) << CfaName(k.cfa) << " entry " << i;
+      EXPECT_EQ(std::strlen(e.note) > 0, is_cfa && moved && k.cfa_runs) << CfaName(k.cfa) << " entry " << i;
+      if (is_cfa && !k.cfa_runs) {
+        EXPECT_STREQ(e.reason, "distortion before it computes only each Bayer site's colour and writes the mosaic "
+                               "itself");
+      }
+      // Distortion writes the mosaic when, and only when, it leaves the CFA out.
+      if (e.id == StageId::kDistortion) {
+        EXPECT_EQ(e.out.channels, k.cfa_runs ? 3 : 1) << CfaName(k.cfa);
+        EXPECT_EQ(e.out.mosaic, !k.cfa_runs) << CfaName(k.cfa);
+      }
     }
-    if (!moved) continue;
+    if (!moved || !k.cfa_runs) continue;
     // Formats: the CFA keeps the radiance domain, exposure turns the mosaic into photons.
     const PlanEntry* cfa = Find(plan, StageId::kCfa);
     const PlanEntry* exposure = Find(plan, StageId::kExposure);

@@ -1,6 +1,7 @@
 // Lens distortion and chromatic aberration: the model's inverse, the remap
 // table's error, the fixed-point resampling against the double reference,
 // flat fields, streaming invariance, the CFA site-only path and bad configs.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -523,7 +524,7 @@ namespace camsim {
 namespace {
 
 // The whole-pipeline reference (camsim tradeoff) runs the distortion
-// reference, with the site-only zeros when a Bayer CFA follows.
+// reference, as a mosaic of the sites' colours when a Bayer CFA follows.
 TEST(Distortion, PipelineReferenceRunsTheStage) {
   const int w = 80, h = 60;
   const test::Scene scene = SmoothScene(w, h);
@@ -540,28 +541,35 @@ TEST(Distortion, PipelineReferenceRunsTheStage) {
   ASSERT_TRUE(b->status.ok());
   const FrameInput in = scene.View();
   const ref::RefImage r = ref::RunStageReference(b->pipeline, 0, ref::SceneRadiance(in, w, h), in);
-  ASSERT_EQ(r.planes.size(), 3u);
-  // The stage's own output (its tap), 3 channels.
-  std::vector<uint32_t> out(static_cast<size_t>(w) * h * 3);
+  ASSERT_EQ(r.planes.size(), 1u);
+  // The stage's own output (its tap), the mosaic.
+  std::vector<uint32_t> out(static_cast<size_t>(w) * h);
   Tap tap;
   tap.stage = 0;
   tap.format = TapFormat::kU32;
   tap.data = out.data();
-  tap.stride = w * 3;
+  tap.stride = w;
   b->pipeline.ProcessFrame(in, 0, 16, &tap, 1, nullptr, nullptr);
+  // The reference of the site's colour, from the full-colour reference.
+  c.order_count = 1;
+  auto rgb = test::Build(c);
+  ASSERT_TRUE(rgb->status.ok());
+  const ref::RefImage all = ref::RunStageReference(rgb->pipeline, 0, ref::SceneRadiance(in, w, h), in);
+  ASSERT_EQ(all.planes.size(), 3u);
   double worst = 0.0;
+  int compared = 0;
   for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int k = 0; k < 3; ++k) {
-        const double v = out[(static_cast<size_t>(y) * w + x) * 3 + k] / 65536.0;
-        const double e = r.planes[k][static_cast<size_t>(y) * w + x];
-        if (k != CfaColour(Cfa::kBayerRG, x, y)) {
-          ASSERT_EQ(v, 0.0);
-          ASSERT_EQ(e, 0.0);
-        } else if (v != 0.0 && e != 0.0) {
-          worst = std::max(worst, std::fabs(v - e));
-        }
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      const double v = out[i] / 65536.0;
+      const double e = r.planes[0][i];
+      ASSERT_EQ(e, all.planes[static_cast<size_t>(CfaColour(Cfa::kBayerRG, x, y))][i]) << x << "," << y;
+      if (v != 0.0 && e != 0.0) {
+        worst = std::max(worst, std::fabs(v - e));
+        ++compared;
       }
+    }
+  EXPECT_GT(compared, w * h / 2);
   EXPECT_LT(worst, 0.03);  // radiance units; slope <= 0.18 / px times the table and phase error at this size
 }
 
@@ -695,6 +703,13 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
                                 << " pixel " << first % (size_t{w} * h) << ": " << fast[first] << " vs "
                                 << general[first];
           EXPECT_LT(zeros, fast.size());  // not all fill
+          // Site only, the stage writes the mosaic into the first plane, every
+          // sample of it, and nothing else.
+          const size_t plane = static_cast<size_t>(w) * h;
+          const size_t unwritten_first = static_cast<size_t>(std::count(fast.begin(), fast.begin() + plane, 0xDEADBEEFu));
+          const size_t unwritten_rest = static_cast<size_t>(std::count(fast.begin() + plane, fast.end(), 0xDEADBEEFu));
+          EXPECT_EQ(unwritten_first, 0u);
+          EXPECT_EQ(unwritten_rest, site_only ? 2 * plane : 0u);
         }
   EXPECT_EQ(fast_cases, 54);
 }
