@@ -427,6 +427,30 @@ void BM_SensorLowLight(benchmark::State& state) {
 }
 BENCHMARK(BM_SensorLowLight)->ArgsProduct({{1920}, {1080}, {1, 10, 100, 1000}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The colour matrix stage alone (one thread) on the demo camera's demosaiced
+// frame, with a typical sensor-to-sRGB matrix (the demo's is the identity,
+// so the planner leaves the stage out there).
+void BM_ColorMatrix(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = Demo(w, h);
+  const double m[9] = {1.6, -0.45, -0.15, -0.3, 1.5, -0.2, 0.05, -0.55, 1.5};
+  for (int i = 0; i < 9; ++i) c.color_matrix.m[i] = m[i];
+  Pipeline p;
+  if (!p.Configure(c, 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  int index = -1;
+  for (int i = 0; i < p.plan().running; ++i)
+    if (std::strcmp(p.running_stage(i).name(), "color_matrix") == 0) index = i;
+  if (index < 0) std::abort();
+  bench::StageRunner runner(p, index, Scene(w).View(), 1);
+  uint32_t frame = 0;
+  for (auto _ : state) runner.RunFrame(frame++);
+  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
+                                                   benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_ColorMatrix)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The demo camera with the issue-5 artefacts on: flare (its bright-tile
 // pre-pass included), blooming, CCD smear (its column pre-pass included), row
 // and column FPN and defect pixels. The difference to BM_Pipeline is their cost.

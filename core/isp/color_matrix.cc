@@ -1,5 +1,7 @@
 #include "core/isp/color_matrix.h"
 
+#include "core/base/simd.h"
+
 namespace camsim {
 namespace {
 
@@ -7,6 +9,24 @@ using Coefficient = Q<5, ColorMatrixStage::kFracBits, true>;
 using RowSum = Q<7, ColorMatrixStage::kFracBits, true>;  // 3 * 16 < 2^7; 7 + 24 + sign = 32 bits
 constexpr int32_t kMaxRaw = 16 << ColorMatrixStage::kFracBits;
 constexpr int32_t kOneRaw = 1 << ColorMatrixStage::kFracBits;
+
+// One output channel of a row: Clamp(RoundShift(mr r + mg g + mb b, 24), 0,
+// 65535). Coefficients are at most 2^28 and samples at most 65535 in
+// magnitude (color_matrix.h), so each product is one of two int32 factors
+// (a 32x32->64-bit multiply, which compilers vectorise) and the sum fits
+// int64. Compiled per CPU tier (CAMSIM_CPU_CLONES): integer code, the same
+// bits. A function of its own, with the width a parameter: in ProcessRow a
+// store through out (uint32_t) could alias a.width (an int).
+CAMSIM_CPU_CLONES
+void MatrixRow(int32_t mr, int32_t mg, int32_t mb, const uint32_t* __restrict r, const uint32_t* __restrict g,
+               const uint32_t* __restrict b, uint32_t* __restrict out, int width) {
+  for (int x = 0; x < width; ++x) {
+    const int64_t sum = int64_t{mr} * static_cast<int32_t>(r[x]) + int64_t{mg} * static_cast<int32_t>(g[x]) +
+                        int64_t{mb} * static_cast<int32_t>(b[x]);
+    const int64_t v = RoundShift(sum, ColorMatrixStage::kFracBits);
+    out[x] = static_cast<uint32_t>(v < 0 ? 0 : (v > 65535 ? 65535 : v));
+  }
+}
 
 }  // namespace
 
@@ -53,14 +73,7 @@ void ColorMatrixStage::ProcessRow(const RowArgs& a) const {
   const uint32_t* r = a.rows[0].ch[0];
   const uint32_t* g = a.rows[0].ch[1];
   const uint32_t* b = a.rows[0].ch[2];
-  for (int i = 0; i < 3; ++i) {
-    const int64_t mr = q_[3 * i], mg = q_[3 * i + 1], mb = q_[3 * i + 2];
-    uint32_t* out = a.out[i];
-    for (int x = 0; x < a.width; ++x) {
-      const int64_t sum = mr * r[x] + mg * g[x] + mb * b[x];
-      out[x] = static_cast<uint32_t>(Clamp64(RoundShift(sum, kFracBits), 0, 65535));
-    }
-  }
+  for (int i = 0; i < 3; ++i) MatrixRow(q_[3 * i], q_[3 * i + 1], q_[3 * i + 2], r, g, b, a.out[i], a.width);
 }
 
 }  // namespace camsim

@@ -559,6 +559,29 @@ TEST(IspColorMatrix, MatchesReference) {
   }
 }
 
+// The row loop (vectorised per CPU tier) against the formula in int64 with
+// the stage's own coefficients, sample by sample: every row length up to 40
+// (each tail after the lanes), the extreme coefficients +-16, and samples at
+// 0 and 65535 so that both clamps are reached.
+TEST(IspColorMatrix, RowsAreTheFormulaAtEveryWidth) {
+  ColorMatrixStage stage;
+  ASSERT_TRUE(stage.Configure(Matrix({16, -16, 0.123456, -3.3, 0.0001, 2.7, 0.5, 0.5, -15.999}), Geometry(1, 1)).ok());
+  for (int width = 1; width <= 40; ++width) {
+    Image in = RandomImage(width, 2, 3, kMaxQ16, 100 + width);
+    for (int c = 0; c < 3; ++c)
+      for (size_t i = 0; i < in.planes[c].size(); i += 4) in.planes[c][i] = (i / 4 + c) % 2 ? 65535 : 0;
+    const Image out = RunStage(stage, in, 3);
+    for (int k = 0; k < 3; ++k)
+      for (size_t i = 0; i < in.planes[0].size(); ++i) {
+        int64_t sum = 0;
+        for (int j = 0; j < 3; ++j) sum += int64_t{stage.coefficient(3 * k + j)} * in.planes[j][i];
+        const int64_t v = (sum + (int64_t{1} << 23)) >> 24;
+        ASSERT_EQ(out.planes[k][i], static_cast<uint32_t>(std::clamp<int64_t>(v, 0, 65535)))
+            << "width " << width << " channel " << k << " sample " << i;
+      }
+  }
+}
+
 TEST(IspColorMatrix, Validation) {
   ColorMatrixStage stage;
   const SensorGeometry g = Geometry(4, 4);
