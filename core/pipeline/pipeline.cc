@@ -203,7 +203,8 @@ namespace {
 constexpr const char* kCfaInDistortionReason =
     "distortion before it computes only each Bayer site's colour and writes the mosaic itself";
 constexpr const char* kCfaMovedNote =
-    "runs ahead of exposure and vignetting, which then process its one colour per pixel (the same bytes)";
+    "runs ahead of the exposure and vignetting configured before it, which then process its one colour per pixel "
+    "(the same bytes)";
 
 // A Bayer CFA keeps one colour per pixel. Exposure and vignetting are
 // pointwise and do the same to every colour, so they commute with it bit for

@@ -706,8 +706,9 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
           // Site only, the stage writes the mosaic into the first plane, every
           // sample of it, and nothing else.
           const size_t plane = static_cast<size_t>(w) * h;
-          const size_t unwritten_first = static_cast<size_t>(std::count(fast.begin(), fast.begin() + plane, 0xDEADBEEFu));
-          const size_t unwritten_rest = static_cast<size_t>(std::count(fast.begin() + plane, fast.end(), 0xDEADBEEFu));
+          const auto mosaic_end = fast.begin() + static_cast<ptrdiff_t>(plane);
+          const size_t unwritten_first = static_cast<size_t>(std::count(fast.begin(), mosaic_end, 0xDEADBEEFu));
+          const size_t unwritten_rest = static_cast<size_t>(std::count(mosaic_end, fast.end(), 0xDEADBEEFu));
           EXPECT_EQ(unwritten_first, 0u);
           EXPECT_EQ(unwritten_rest, site_only ? 2 * plane : 0u);
         }
