@@ -1,6 +1,23 @@
 #include "core/sensor/blooming.h"
 
+#include <cstring>
+
+#include "core/base/simd.h"
+
 namespace camsim {
+namespace {
+
+// spill[x] |= 1 where in[x] reaches its column parity's threshold (t0 even,
+// t1 odd). A function of its own with __restrict pointers and the width a
+// parameter: in ProcessRow a store through the uint8_t flags may alias
+// anything (a.width, the row pointers), and the loop stayed scalar, 33 rows
+// a pixel at the default R. Compiled per CPU tier: the same flags.
+CAMSIM_CPU_CLONES
+void MarkOverWell(const uint32_t* __restrict in, uint8_t* __restrict spill, int width, uint32_t t0, uint32_t t1) {
+  for (int x = 0; x < width; ++x) spill[x] |= static_cast<uint8_t>(in[x] >= ((x & 1) ? t1 : t0));
+}
+
+}  // namespace
 
 Status BloomingStage::Configure(const BloomingConfig& c, const SensorConfig& sensor, const SensorGeometry& g) {
   if (c.rows < 1 || c.rows > kMaxBloomingRows) return InvalidArgument("blooming.rows", "must be in [1, 64]");
@@ -40,19 +57,19 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
   const int self = a.y - first;
   const uint64_t w = full_well_q8_;
   uint8_t* spill_any = a.scratch;  // per column: some window pixel is above the well
+  const int width = a.width;
   for (int c = 0; c < channels; ++c) {
     const uint32_t* const center = a.rows[R].ch[c];
     uint32_t* out = a.out[c];
-    for (int x = 0; x < a.width; ++x) spill_any[x] = 0;
+    std::memset(spill_any, 0, static_cast<size_t>(width));
     for (int k = 0; k < n; ++k) {
       const int row = first + k;
-      const uint32_t* in = a.rows[row - a.y + R].ch[c];
       // Thresholds of even and odd columns of this row.
       const uint32_t t0 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 0, row)];
       const uint32_t t1 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 1, row)];
-      for (int x = 0; x < a.width; ++x) spill_any[x] |= static_cast<uint8_t>(in[x] >= ((x & 1) ? t1 : t0));
+      MarkOverWell(a.rows[row - a.y + R].ch[c], spill_any, width, t0, t1);
     }
-    for (int x = 0; x < a.width; ++x) {
+    for (int x = 0; x < width; ++x) {
       if (!spill_any[x]) {
         out[x] = center[x];
         continue;
