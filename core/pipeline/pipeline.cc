@@ -210,7 +210,7 @@ constexpr const char* kCfaMovedNote =
 // pointwise and do the same to every colour, so they commute with it bit for
 // bit: order[] is `in` with each Bayer CFA moved ahead of the exposure and
 // vignetting entries right before it, which then process one plane instead
-// of three. Returns the CFA's new index when it moved, else -1.
+// of three. Returns the index the CFA moved to, or -1 when it did not move.
 int MoveCfaAhead(const StageId* in, int count, Cfa cfa, StageId* order) {
   for (int i = 0; i < count; ++i) order[i] = in[i];
   int moved_to = -1;
