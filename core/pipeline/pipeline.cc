@@ -297,7 +297,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
     // keeps and writes the mosaic itself (core/lens/distortion.h).
     if (id == StageId::kDistortion)
       distortion_.SetSiteOnly(g.cfa != Cfa::kMono && NextRunning(order, i + 1, config.order_count) == StageId::kCfa);
-    if (id == StageId::kCfa && run_count_ > 0 && run_[run_count_ - 1] == &distortion_ && distortion_.site_only()) {
+    if (id == StageId::kCfa && distortion_.site_only()) {  // set above only when the CFA runs next
       e.runs = false;
       e.reason = kCfaInDistortionReason;
       continue;

@@ -108,6 +108,12 @@ std::vector<uint32_t> RunFrameThreads(const Built& b, const Scene& scene, uint32
   return out;
 }
 
+const PlanEntry* Find(const Plan& plan, StageId id) {
+  for (int i = 0; i < plan.count; ++i)
+    if (plan.entries[i].id == id) return &plan.entries[i];
+  return nullptr;
+}
+
 PipelineConfig DemoConfig(int width, int height) {
   host::RunConfig rc;
   host::Origins origins;

@@ -55,6 +55,9 @@ std::vector<uint32_t> RunFrameThreads(const Built& b, const Scene& scene, uint32
 // The demo configuration (configs/camera.toml) for a frame size.
 PipelineConfig DemoConfig(int width, int height);
 
+// The plan's entry for a stage, or null when the configuration does not list it.
+const PlanEntry* Find(const Plan& plan, StageId id);
+
 // A stage's table memory, and its Init from it (CountTables' size).
 struct StageTables {
   std::vector<uint8_t> memory;

@@ -19,6 +19,7 @@
 namespace camsim {
 namespace {
 
+using test::Find;
 using test::InitStage;
 using test::StageTables;
 
@@ -52,11 +53,6 @@ std::vector<std::vector<uint32_t>> RunRows(const Stage& stage, const std::vector
   return out;
 }
 
-const PlanEntry* Find(const Plan& p, StageId id) {
-  for (int i = 0; i < p.count; ++i)
-    if (p.entries[i].id == id) return &p.entries[i];
-  return nullptr;
-}
 
 // The planner moves a Bayer CFA ahead of the exposure and vignetting entries
 // right before it, says so in the plan, and leaves a mono CFA (a weighted

@@ -13,13 +13,8 @@ namespace {
 
 using test::Build;
 using test::DemoConfig;
+using test::Find;
 using test::RunFrame;
-
-const PlanEntry* Find(const Plan& p, StageId id) {
-  for (int i = 0; i < p.count; ++i)
-    if (p.entries[i].id == id) return &p.entries[i];
-  return nullptr;
-}
 
 // Every tap format on every Q0.16 value and beyond (saturation), for 1 and 3
 // channels and widths that leave a vector tail: kU8 is round(v * 255 / 65535)
