@@ -39,6 +39,18 @@
 #endif
 #endif
 
+// CAMSIM_X86_AVX512_IFMA: a few AVX-512 kernels have a second copy that
+// multiplies with AVX-512 IFMA (52-bit multiply-add: Ice Lake, Zen 4 and
+// later; not Skylake-SP), compiled with CAMSIM_AVX512_IFMA_TARGET and called
+// only when CpuHasAvx512Ifma(); the same bits as the copy without.
+// -DCAMSIM_NO_IFMA leaves the copy out (the core-only preset, whose
+// core_golden run in scripts/cross.sh then checks the plain AVX-512 kernels).
+#if defined(CAMSIM_X86_AVX512) && !defined(CAMSIM_NO_IFMA)
+#define CAMSIM_X86_AVX512_IFMA 1
+#define CAMSIM_AVX512_IFMA_TARGET \
+  __attribute__((target("avx2,avx512f,avx512vl,avx512dq,avx512bw,avx512cd,avx512ifma")))
+#endif
+
 #include <cstdint>
 
 #ifdef CAMSIM_X86_AVX2
@@ -70,6 +82,14 @@ inline bool CpuHasAvx512() {
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
          __builtin_cpu_supports("avx512cd");
+#else
+  return false;
+#endif
+}
+
+inline bool CpuHasAvx512Ifma() {
+#ifdef CAMSIM_X86_AVX512_IFMA
+  return CpuHasAvx512() && __builtin_cpu_supports("avx512ifma");
 #else
   return false;
 #endif

@@ -271,85 +271,7 @@ CAMSIM_AVX2_TARGET void BackRowAvx2(int64_t* y, const int64_t* us, const uint32_
 }
 #endif
 
-#ifdef CAMSIM_X86_AVX512
-// MulQ30x4, PullRowAvx2 and BackRowAvx2 in eight lanes: the same integers,
-// with AVX-512's arithmetic shift, min and max for the AVX2 constructions.
-CAMSIM_AVX512_TARGET inline __m512i MulQ30x8(__m512i d, __m512i w) {
-  const __m512i qh = _mm512_mul_epi32(_mm512_srli_epi64(d, 24), w);
-  const __m512i ql = _mm512_mul_epu32(_mm512_and_si512(d, _mm512_set1_epi64(0xFFFFFF)), w);
-  const __m512i low = _mm512_add_epi64(_mm512_slli_epi64(_mm512_and_si512(qh, _mm512_set1_epi64(63)), 24),
-                                       _mm512_add_epi64(ql, _mm512_set1_epi64(int64_t{1} << 29)));
-  return _mm512_add_epi64(_mm512_srai_epi64(qh, 6), _mm512_srli_epi64(low, 30));
-}
-
-CAMSIM_AVX512_TARGET void PullRowAvx512(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
-  for (int x = 0; x < n; x += 8) {
-    const __m512i v = _mm512_loadu_si512(u + x);
-    const __m512i d = _mm512_sub_epi64(_mm512_slli_epi64(_mm512_cvtepu32_epi64(_mm256_loadu_si256(
-                                                             reinterpret_cast<const __m256i*>(in + x))), kG), v);
-    const __m512i wx = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(w + x)));
-    _mm512_storeu_si512(u + x, _mm512_add_epi64(v, MulQ30x8(d, wx)));
-  }
-}
-
-// OutOf in eight lanes.
-CAMSIM_AVX512_TARGET inline __m256i OutOf8(__m512i y) {
-  const __m512i t = _mm512_srai_epi64(_mm512_add_epi64(y, _mm512_set1_epi64(int64_t{1} << (kG - 1))), kG);
-  const __m512i s = _mm512_min_epi64(_mm512_max_epi64(t, _mm512_setzero_si512()), _mm512_set1_epi64(0xFFFFFFFFll));
-  return _mm512_cvtepi64_epi32(s);
-}
-
-CAMSIM_AVX512_TARGET void BackRowAvx512(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
-  for (int x = 0; x < n; x += 8) {
-    __m512i v = _mm512_loadu_si512(y + x);
-    if (e != nullptr) {
-      const __m512i d = _mm512_sub_epi64(_mm512_loadu_si512(us + x), v);
-      const __m512i ex = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(e + x)));
-      v = _mm512_add_epi64(v, MulQ30x8(d, ex));
-      _mm512_storeu_si512(y + x, v);
-    }
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + x), OutOf8(v));
-  }
-}
-#endif
 }  // namespace
-
-void PullRow(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
-  int x = 0;
-#ifdef CAMSIM_X86_AVX512
-  if (CpuHasAvx512()) {
-    x = n & ~7;
-    PullRowAvx512(u, in, w, x);
-  } else
-#endif
-#ifdef CAMSIM_X86_AVX2
-  if (CpuHasAvx2()) {
-    x = n & ~3;
-    PullRowAvx2(u, in, w, x);
-  }
-#endif
-  for (; x < n; ++x) u[x] += MulQ30((int64_t{in[x]} << kG) - u[x], w[x]);
-}
-
-void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
-  int x = 0;
-#ifdef CAMSIM_X86_AVX512
-  if (CpuHasAvx512()) {
-    x = n & ~7;
-    BackRowAvx512(y, us, e, out, x);
-  } else
-#endif
-#ifdef CAMSIM_X86_AVX2
-  if (CpuHasAvx2()) {
-    x = n & ~3;
-    BackRowAvx2(y, us, e, out, x);
-  }
-#endif
-  for (; x < n; ++x) {
-    if (e != nullptr) y[x] += MulQ30(us[x] - y[x], e[x]);
-    out[x] = OutOf(y[x]);
-  }
-}
 
 CAMSIM_CPU_CLONES
 void BetaRow(const uint64_t* cc2_a, const uint64_t* cc2_b, int n, uint32_t* beta) {
@@ -544,48 +466,41 @@ CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int 
 // hardware prefetcher follows: each is prefetched this many columns ahead.
 constexpr int kPrefetchColumns = 128;
 
-// u: 3 n eight-lane int64 (channel-major). Lanes past count repeat the last
-// line and are not stored.
-CAMSIM_AVX512_TARGET void SweepLinesAvx512(const LineIo* lines, int count, int n, const uint32_t* rt,
-                                           const uint32_t* et, int64_t* u) {
-  constexpr int kL = kLaneLines;
-  const uint32_t* in[3][kL];
-  for (int j = 0; j < kL; ++j)
-    for (int c = 0; c < 3; ++c) in[c][j] = lines[j < count ? j : count - 1].in[c];
-  __m512i v[3] = {_mm512_setzero_si512(), _mm512_setzero_si512(), _mm512_setzero_si512()};
-  for (int i0 = 0; i0 < n; i0 += kL) {  // forward: u_i = u_{i-1} + r_i (x_i - u_{i-1})
-    const int m = n - i0 < kL ? n - i0 : kL;
-    if (i0 % 16 == 0 && i0 + kPrefetchColumns < n)  // a cache line (16 samples) of each stream
-      for (int j = 0; j < kL; ++j)
-        for (int c = 0; c < 3; ++c)
-          _mm_prefetch(reinterpret_cast<const char*>(in[c][j] + i0 + kPrefetchColumns), _MM_HINT_T0);
-    __m256i x[3][kL];
-    for (int c = 0; c < 3; ++c) LoadColumns(in[c], i0, m, x[c]);
-    for (int k = 0; k < m; ++k) {
-      const int i = i0 + k;
-      const __m512i r = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(rt + kL * i)));
-      for (int c = 0; c < 3; ++c) {
-        const __m512i d = _mm512_sub_epi64(_mm512_slli_epi64(_mm512_cvtepu32_epi64(x[c][k]), kG), v[c]);
-        v[c] = _mm512_add_epi64(v[c], MulQ30x8(d, r));
-        _mm512_store_si512(u + kL * (static_cast<size_t>(c) * n + i), v[c]);
-      }
-    }
-  }
-  for (int c = 0; c < 3; ++c) v[c] = _mm512_setzero_si512();
-  for (int i0 = (n - 1) / kL * kL; i0 >= 0; i0 -= kL) {  // backward: y_i = y_{i+1} + e_i (u_i - y_{i+1})
-    const int m = n - i0 < kL ? n - i0 : kL;
-    __m256i y[3][kL];
-    for (int k = m - 1; k >= 0; --k) {
-      const int i = i0 + k;
-      const __m512i e = _mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(et + kL * i)));
-      for (int c = 0; c < 3; ++c) {
-        const __m512i d = _mm512_sub_epi64(_mm512_load_si512(u + kL * (static_cast<size_t>(c) * n + i)), v[c]);
-        v[c] = _mm512_add_epi64(v[c], MulQ30x8(d, e));
-        y[c][k] = OutOf8(v[c]);
-      }
-    }
-    for (int c = 0; c < 3; ++c) StoreColumns(lines, count, c, i0, m, y[c]);
-  }
+// The kernels that multiply by a weight (MulQ30x8): PullRow's and BackRow's
+// column-pass steps and the row pass's SweepLines, compiled twice, with
+// AVX-512 IFMA's 52-bit multiplies where the CPU has them (about 5 % of the
+// 1080p DoF pipeline) and without (x86-64-v4, e.g. Skylake-SP); the same
+// integers either way (dof_lanes.inc).
+namespace lanes8 {
+#define CAMSIM_DOF_LANES_TARGET CAMSIM_AVX512_TARGET
+#define CAMSIM_DOF_LANES_IFMA 0
+#include "core/lens/dof_lanes.inc"
+#undef CAMSIM_DOF_LANES_IFMA
+#undef CAMSIM_DOF_LANES_TARGET
+}  // namespace lanes8
+#ifdef CAMSIM_X86_AVX512_IFMA
+namespace lanes8_ifma {
+#define CAMSIM_DOF_LANES_TARGET CAMSIM_AVX512_IFMA_TARGET
+#define CAMSIM_DOF_LANES_IFMA 1
+#include "core/lens/dof_lanes.inc"
+#undef CAMSIM_DOF_LANES_IFMA
+#undef CAMSIM_DOF_LANES_TARGET
+}  // namespace lanes8_ifma
+#endif
+
+// The eight-lane kernels this CPU runs.
+struct Lanes8 {
+  void (*pull_row)(int64_t*, const uint32_t*, const uint32_t*, int);
+  void (*back_row)(int64_t*, const int64_t*, const uint32_t*, uint32_t*, int);
+  void (*sweep_lines)(const LineIo*, int, int, const uint32_t*, const uint32_t*, int64_t*);
+};
+const Lanes8& Lanes8ForCpu() {
+  static constexpr Lanes8 kPlain{lanes8::PullRow, lanes8::BackRow, lanes8::SweepLines};
+#ifdef CAMSIM_X86_AVX512_IFMA
+  static constexpr Lanes8 kIfma{lanes8_ifma::PullRow, lanes8_ifma::BackRow, lanes8_ifma::SweepLines};
+  if (CpuHasAvx512Ifma()) return kIfma;
+#endif
+  return kPlain;
 }
 
 // Aligned sizes of the lane sweep's arrays for n samples.
@@ -593,6 +508,43 @@ size_t LaneWeightBytes(int n) { return AlignUp(sizeof(uint32_t) * kLaneLines * s
 size_t LaneStateBytes(int n) { return AlignUp(sizeof(int64_t) * 3 * kLaneLines * static_cast<size_t>(n)); }
 #endif
 }  // namespace
+
+void PullRow(int64_t* u, const uint32_t* in, const uint32_t* w, int n) {
+  int x = 0;
+#ifdef CAMSIM_X86_AVX512
+  if (CpuHasAvx512()) {
+    x = n & ~7;
+    Lanes8ForCpu().pull_row(u, in, w, x);
+  } else
+#endif
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2()) {
+    x = n & ~3;
+    PullRowAvx2(u, in, w, x);
+  }
+#endif
+  for (; x < n; ++x) u[x] += MulQ30((int64_t{in[x]} << kG) - u[x], w[x]);
+}
+
+void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, int n) {
+  int x = 0;
+#ifdef CAMSIM_X86_AVX512
+  if (CpuHasAvx512()) {
+    x = n & ~7;
+    Lanes8ForCpu().back_row(y, us, e, out, x);
+  } else
+#endif
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2()) {
+    x = n & ~3;
+    BackRowAvx2(y, us, e, out, x);
+  }
+#endif
+  for (; x < n; ++x) {
+    if (e != nullptr) y[x] += MulQ30(us[x] - y[x], e[x]);
+    out[x] = OutOf(y[x]);
+  }
+}
 
 size_t LinesWorkBytes(int n) {
 #ifdef CAMSIM_X86_AVX512
@@ -609,7 +561,7 @@ void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* s
     uint32_t* et = reinterpret_cast<uint32_t*>(work + LaneWeightBytes(n));
     int64_t* u = reinterpret_cast<int64_t*>(work + 2 * LaneWeightBytes(n));
     LaneWeightsAvx512(lines, count, n, rt, et, solved);
-    SweepLinesAvx512(lines, count, n, rt, et, u);
+    Lanes8ForCpu().sweep_lines(lines, count, n, rt, et, u);
     return;
   }
 #endif
