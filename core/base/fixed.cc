@@ -69,8 +69,10 @@ CAMSIM_AVX2_TARGET __m256i ISqrt64x4(__m256i x) {
   const __m256i s16 = _mm256_add_epi64(_mm256_slli_epi64(s, 16), step);
   __m256i r = _mm256_srlv_epi64(s16, _mm256_add_epi64(_mm256_srli_epi64(shift, 1), _mm256_set1_epi64x(16)));
   r = _mm256_sub_epi64(r, _mm256_srli_epi64(r, 32));
-  r = _mm256_add_epi64(r, GreaterU64(_mm256_mul_epu32(r, r), x1));  // one too high
-  r = _mm256_sub_epi64(r, GreaterU64(_mm256_sub_epi64(x1, _mm256_mul_epu32(r, r)), _mm256_add_epi64(r, r)));
+  const __m256i sq = _mm256_mul_epu32(r, r);
+  const __m256i high = GreaterU64(sq, x1);  // one too high (all ones), else maybe one too low
+  const __m256i low = _mm256_andnot_si256(high, GreaterU64(_mm256_sub_epi64(x1, sq), _mm256_add_epi64(r, r)));
+  r = _mm256_sub_epi64(_mm256_add_epi64(r, high), low);
   return _mm256_andnot_si256(is_zero, r);
 }
 
@@ -114,9 +116,11 @@ CAMSIM_AVX512_TARGET __m512i ISqrt64x8(__m512i x) {
   const __m512i s16 = _mm512_add_epi64(_mm512_slli_epi64(s, 16), _mm512_srai_epi64(ey, 31));
   __m512i r = _mm512_srlv_epi64(s16, _mm512_add_epi64(_mm512_srli_epi64(shift, 1), _mm512_set1_epi64(16)));
   r = _mm512_sub_epi64(r, _mm512_srli_epi64(r, 32));
-  r = _mm512_mask_sub_epi64(r, _mm512_cmpgt_epu64_mask(_mm512_mullo_epi64(r, r), x1), r, one);  // one too high
-  r = _mm512_mask_add_epi64(
-      r, _mm512_cmpgt_epu64_mask(_mm512_sub_epi64(x1, _mm512_mullo_epi64(r, r)), _mm512_add_epi64(r, r)), r, one);
+  const __m512i sq = _mm512_mul_epu32(r, r);  // r < 2^32
+  const __mmask8 high = _mm512_cmpgt_epu64_mask(sq, x1);  // one too high, else maybe one too low
+  const __mmask8 low = _mm512_mask_cmpgt_epu64_mask(static_cast<__mmask8>(~high), _mm512_sub_epi64(x1, sq),
+                                                    _mm512_add_epi64(r, r));
+  r = _mm512_mask_add_epi64(_mm512_mask_sub_epi64(r, high, r, one), low, r, one);
   return _mm512_maskz_mov_epi64(nonzero, r);
 }
 

@@ -173,6 +173,7 @@ inline constexpr RsqrtTable kRsqrt = MakeRsqrtTable();
 //      at most 2^32: T < 2^32, so r = 2^32 only from the overshoot, and is
 //      brought back first). Two exact tests then pick floor(sqrt(x)):
 //      r^2 > x means one too high; x - r^2 > 2r, i.e. (r + 1)^2 <= x, one too low.
+//      At most one holds, so one square serves both tests.
 // Every operation is on uint64 (modulo 2^64; the bounds above keep the true
 // values of the signed quantities far inside int64), so no input can overflow.
 // The unit tests (test_random.cc) check every x < 2^22, perfect squares and
@@ -196,8 +197,8 @@ constexpr uint32_t ISqrt64(uint64_t x) {
   const uint64_t s16 = (s << 16) + static_cast<uint64_t>(static_cast<int64_t>(ey) >> 31);  // s', Q.16, > 0
   uint64_t r = s16 >> (16 + k);
   r -= r >> 32;           // 2^32 -> 2^32 - 1 (r <= 2^32), so r * r below cannot wrap
-  r -= r * r > x;         // one too high
-  r += x - r * r > 2 * r; // one too low
+  const uint64_t sq = r * r;
+  r = r - (sq > x) + (sq <= x && x - sq > 2 * r);  // one too high, one too low (at most one holds)
   return static_cast<uint32_t>(r);
 }
 
