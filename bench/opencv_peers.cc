@@ -10,10 +10,13 @@
 //   Noise: camsim's EMVA 1288 sensor stage (Poisson shot noise, dark noise,
 //     DSNU, PRNU, saturation, quantisation; counter-based) vs cv::randn filling
 //     a float image with one Gaussian per pixel (sequential generator): a
-//     lower bound for any noise model, not the same job. The same job is
-//     BM_Peer_CamsimGaussian: one standard normal per pixel, counter-based as
-//     the sensor draws its read noise (a Philox4x32 call per pixel pair,
-//     GaussianTable), into an int32 Q15.16 plane of the same size.
+//     lower bound for any noise model, not the same job. The same job as that
+//     randn is BM_Peer_CamsimGaussian: one standard normal per pixel,
+//     counter-based as the sensor draws its read noise (a Philox4x32 call per
+//     pixel pair, GaussianTable), into an int32 Q15.16 plane of the same size.
+//     The same job as the sensor stage is BM_Peer_OpenCVEmva: the model built
+//     from OpenCV's float operations (its fixed pattern drawn every frame, or
+//     stored as camsim's sensor.fixed_pattern_table stores it).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -29,6 +32,7 @@
 #include "bench/stage_bench.h"
 #include "core/base/random.h"
 #include "core/isp/isp_ref.h"
+#include "core/sensor/emva.h"
 
 namespace camsim {
 namespace {
@@ -145,19 +149,96 @@ void BM_Peer_OpenCVDemosaic(benchmark::State& state) {
 }
 BENCHMARK(BM_Peer_OpenCVDemosaic)->Args({1920, 1080, 16})->Args({1920, 1080, 8})->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The demo camera's sensor stage alone over its captured input (photons at
+// the Bayer sites). Last argument: 1 builds the fixed pattern once
+// (sensor.fixed_pattern_table), 0 draws it every frame (the default).
+struct SensorAlone {
+  Pipeline pipeline;
+  std::vector<uint8_t> workspace;
+  int sensor = -1;  // its running index
+  SensorAlone(int w, int h, bool pattern_table) {
+    PipelineConfig c = Demo(w, h);
+    c.sensor.fixed_pattern_table = pattern_table;
+    if (!pipeline.Configure(c, 1, false).ok()) std::abort();
+    workspace.resize(pipeline.WorkspaceBytes());
+    if (!pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) std::abort();
+    for (int i = 0; i < pipeline.plan().running; ++i)
+      if (std::strcmp(pipeline.running_stage(i).name(), "sensor") == 0) sensor = i;
+    if (sensor < 0) std::abort();
+  }
+  const SensorStage& stage() const { return static_cast<const SensorStage&>(pipeline.running_stage(sensor)); }
+};
+
 void BM_Peer_CamsimNoise(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
-  Bilinear b(w, h);
-  int sensor = -1;
-  for (int i = 0; i < b.pipeline.plan().running; ++i)
-    if (std::strcmp(b.pipeline.running_stage(i).name(), "sensor") == 0) sensor = i;
-  if (sensor < 0) std::abort();
+  SensorAlone s(w, h, state.range(2) != 0);
   const FrameInput in = Scene(w).View();
-  bench::StageRunner runner(b.pipeline, sensor, in, 1);
+  bench::StageRunner runner(s.pipeline, s.sensor, in, 1);
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
 }
-BENCHMARK(BM_Peer_CamsimNoise)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Peer_CamsimNoise)->Args({1920, 1080, 0})->Args({1920, 1080, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same EMVA 1288 model as OpenCV operations on float images, what one
+// would write without camsim, on the same photons and parameters: QE per CFA
+// site; PRNU gain 1 + prnu z1 and DSNU offset dsnu z2 from cv::randn, drawn
+// every frame (last argument 1, as camsim's default) or once (0, as
+// sensor.fixed_pattern_table); shot noise by the normal approximation
+// mu + sqrt(mu) z3 for every mean (OpenCV has no Poisson sampler; camsim draws
+// the exact Poisson below 12 e-), clipped at the full well; read noise
+// sigma_d z4; DN = K v + black level, rounded and saturated by convertTo.
+void BM_Peer_OpenCVEmva(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  const bool pattern_per_frame = state.range(2) != 0;
+  cv::setNumThreads(1);
+  SensorAlone s(w, h, false);
+  const SensorConfig& sc = Demo(w, h).sensor;
+  const FrameInput in = Scene(w).View();
+  const bench::StageRunner runner(s.pipeline, s.sensor, in, 1);
+  if (runner.input_channels() != 1) std::abort();
+  cv::Mat photons(h, w, CV_32FC1), qe(h, w, CV_32FC1);
+  const Cfa cfa = Demo(w, h).geometry.cfa;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      photons.at<float>(y, x) = static_cast<float>(runner.input_frame()[static_cast<size_t>(y) * w + x] / 256.0);
+      qe.at<float>(y, x) = static_cast<float>(sc.quantum_efficiency[CfaColour(cfa, x, y)]);
+    }
+  const double prnu = sc.prnu_percent / 100.0, full_well = sc.full_well_e;
+  cv::Mat gain(h, w, CV_32FC1), dsnu(h, w, CV_32FC1), mu, sigma, z(h, w, CV_32FC1), v, dn;
+  const auto draw_pattern = [&] {
+    cv::randn(gain, 1.0, prnu);  // 1 + prnu z1
+    cv::randn(dsnu, 0.0, sc.dsnu_e);
+  };
+  draw_pattern();
+  for (auto _ : state) {
+    if (pattern_per_frame) draw_pattern();
+    cv::multiply(photons, qe, mu);
+    cv::multiply(mu, gain, mu);
+    cv::add(mu, cv::Scalar(s.stage().dark_electrons()), mu);
+    cv::sqrt(mu, sigma);
+    cv::randn(z, 0.0, 1.0);
+    cv::multiply(sigma, z, sigma);
+    cv::add(mu, sigma, v);
+    cv::min(v, cv::Scalar(full_well), v);
+    cv::randn(z, 0.0, sc.dark_noise_e);
+    cv::add(v, z, v);
+    cv::add(v, dsnu, v);
+    v.convertTo(dn, CV_16U, s.stage().system_gain(), sc.black_level_dn);
+    benchmark::DoNotOptimize(dn.data);
+  }
+  // A check that it is the same job: the frame's mean DN against the model's
+  // mean (ReferenceSensorMeanDn per pixel; the patterns and noises have zero mean).
+  const PipelineConfig c = Demo(w, h);
+  double got = 0.0, want = 0.0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      got += dn.at<uint16_t>(y, x);
+      want += ReferenceSensorMeanDn(sc, c.geometry, c.exposure.exposure_time_us, CfaColour(cfa, x, y),
+                                    photons.at<float>(y, x));
+    }
+  state.counters["mean_dn_minus_model"] = (got - want) / (static_cast<double>(w) * h);
+}
+BENCHMARK(BM_Peer_OpenCVEmva)->Args({1920, 1080, 1})->Args({1920, 1080, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_Peer_OpenCVRandn(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
@@ -221,8 +302,12 @@ const bool kPairs = [] {
                      "bilinear demosaic, 16-bit");
   bench::AddPeerPair("BM_Peer_CamsimDemosaic/1920/1080", "BM_Peer_OpenCVDemosaic/1920/1080/8",
                      "bilinear demosaic, 8-bit");
-  bench::AddPeerPair("BM_Peer_CamsimNoise/1920/1080", "BM_Peer_OpenCVRandn/1920/1080",
+  bench::AddPeerPair("BM_Peer_CamsimNoise/1920/1080/0", "BM_Peer_OpenCVRandn/1920/1080",
                      "sensor noise vs one Gaussian per pixel");
+  bench::AddPeerPair("BM_Peer_CamsimNoise/1920/1080/0", "BM_Peer_OpenCVEmva/1920/1080/1",
+                     "sensor noise vs the model in OpenCV");
+  bench::AddPeerPair("BM_Peer_CamsimNoise/1920/1080/1", "BM_Peer_OpenCVEmva/1920/1080/0",
+                     "the same, fixed pattern stored");
   bench::AddPeerPair("BM_Peer_CamsimGaussian/1920/1080", "BM_Peer_OpenCVRandn/1920/1080",
                      "one Gaussian per pixel, counter-based vs randn");
   return true;
