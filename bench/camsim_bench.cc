@@ -148,7 +148,8 @@ BENCHMARK(BM_Prefix)
 // Cases: 0 camera pan + tilt + forward motion, 10 ms exposure, 15 us rolling
 // shutter (about 8 px of blur, 1+8 samples); 1 the same panning 4x faster
 // (about 30 px, 31 samples); 2 the scene's Vector pass over a 10 ms exposure
-// at 24 fps; 3 rolling shutter only (1 sample per pixel: the bilinear shift).
+// at 24 fps; 3 rolling shutter only (a 10 us exposure: the shift of a few
+// pixels, and 2 samples per pixel, as any motion gives n = 1 + ceil(L) >= 2).
 void BM_MotionBlur(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   const int which = static_cast<int>(state.range(2));
