@@ -42,20 +42,28 @@ using bench::Scene;
 
 constexpr int kBorder = 2;  // pixels left out of the error at each edge
 
-// The demo camera with bilinear demosaic, configured and initialised.
-struct Bilinear {
+// A pipeline configured and initialised, and the running index of one of its stages.
+struct ConfiguredStage {
   Pipeline pipeline;
   std::vector<uint8_t> workspace;
-  int demosaic = -1;  // its running index
-  Bilinear(int w, int h) {
-    PipelineConfig c = Demo(w, h);
-    c.demosaic.method = DemosaicMethod::kBilinear;
+  int index = -1;
+  ConfiguredStage(const PipelineConfig& c, const char* stage) {
     if (!pipeline.Configure(c, 1, false).ok()) std::abort();
     workspace.resize(pipeline.WorkspaceBytes());
     if (!pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) std::abort();
     for (int i = 0; i < pipeline.plan().running; ++i)
-      if (std::strcmp(pipeline.running_stage(i).name(), "demosaic") == 0) demosaic = i;
-    if (demosaic < 0) std::abort();
+      if (std::strcmp(pipeline.running_stage(i).name(), stage) == 0) index = i;
+    if (index < 0) std::abort();
+  }
+};
+
+// The demo camera with bilinear demosaic.
+struct Bilinear : ConfiguredStage {
+  Bilinear(int w, int h) : ConfiguredStage(Config(w, h), "demosaic") {}
+  static PipelineConfig Config(int w, int h) {
+    PipelineConfig c = Demo(w, h);
+    c.demosaic.method = DemosaicMethod::kBilinear;
+    return c;
   }
 };
 
@@ -84,7 +92,7 @@ void MeasureDemosaicErrors(const Bilinear& b, const std::vector<uint32_t>& mosai
   // camsim: the demosaic stage's output through a tap.
   std::vector<uint32_t> ours(static_cast<size_t>(w) * h * 3);
   Tap tap;
-  tap.stage = b.demosaic;
+  tap.stage = b.index;
   tap.format = TapFormat::kU32;
   tap.data = ours.data();
   tap.stride = static_cast<ptrdiff_t>(w) * 3;
@@ -118,7 +126,7 @@ void BM_Peer_CamsimDemosaic(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   Bilinear b(w, h);
   const FrameInput in = Scene(w).View();
-  bench::StageRunner runner(b.pipeline, b.demosaic, in, 1);
+  bench::StageRunner runner(b.pipeline, b.index, in, 1);
   MeasureDemosaicErrors(b, runner.input_frame(), w, h);
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
@@ -131,7 +139,7 @@ void BM_Peer_OpenCVDemosaic(benchmark::State& state) {
   cv::setNumThreads(1);
   Bilinear b(w, h);
   const FrameInput in = Scene(w).View();
-  bench::StageRunner runner(b.pipeline, b.demosaic, in, 1);
+  bench::StageRunner runner(b.pipeline, b.index, in, 1);
   const std::vector<uint32_t>& mosaic = runner.input_frame();
   cv::Mat m(h, w, bits == 8 ? CV_8UC1 : CV_16UC1), rgb;
   for (int y = 0; y < h; ++y)
@@ -149,31 +157,25 @@ void BM_Peer_OpenCVDemosaic(benchmark::State& state) {
 }
 BENCHMARK(BM_Peer_OpenCVDemosaic)->Args({1920, 1080, 16})->Args({1920, 1080, 8})->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The demo camera's sensor stage alone over its captured input (photons at
-// the Bayer sites). Last argument: 1 builds the fixed pattern once
-// (sensor.fixed_pattern_table), 0 draws it every frame (the default).
-struct SensorAlone {
-  Pipeline pipeline;
-  std::vector<uint8_t> workspace;
-  int sensor = -1;  // its running index
-  SensorAlone(int w, int h, bool pattern_table) {
+// The demo camera, for its sensor stage (pattern_table: sensor.fixed_pattern_table).
+struct SensorAlone : ConfiguredStage {
+  SensorAlone(int w, int h, bool pattern_table) : ConfiguredStage(Config(w, h, pattern_table), "sensor") {}
+  static PipelineConfig Config(int w, int h, bool pattern_table) {
     PipelineConfig c = Demo(w, h);
     c.sensor.fixed_pattern_table = pattern_table;
-    if (!pipeline.Configure(c, 1, false).ok()) std::abort();
-    workspace.resize(pipeline.WorkspaceBytes());
-    if (!pipeline.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) std::abort();
-    for (int i = 0; i < pipeline.plan().running; ++i)
-      if (std::strcmp(pipeline.running_stage(i).name(), "sensor") == 0) sensor = i;
-    if (sensor < 0) std::abort();
+    return c;
   }
-  const SensorStage& stage() const { return static_cast<const SensorStage&>(pipeline.running_stage(sensor)); }
+  const SensorStage& stage() const { return static_cast<const SensorStage&>(pipeline.running_stage(index)); }
 };
 
+// The sensor stage alone over its captured input (photons at the Bayer
+// sites). Last argument: 1 builds the fixed pattern once
+// (sensor.fixed_pattern_table), 0 draws it every frame (the default).
 void BM_Peer_CamsimNoise(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   SensorAlone s(w, h, state.range(2) != 0);
   const FrameInput in = Scene(w).View();
-  bench::StageRunner runner(s.pipeline, s.sensor, in, 1);
+  bench::StageRunner runner(s.pipeline, s.index, in, 1);
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
 }
@@ -194,7 +196,7 @@ void BM_Peer_OpenCVEmva(benchmark::State& state) {
   SensorAlone s(w, h, false);
   const SensorConfig& sc = Demo(w, h).sensor;
   const FrameInput in = Scene(w).View();
-  const bench::StageRunner runner(s.pipeline, s.sensor, in, 1);
+  const bench::StageRunner runner(s.pipeline, s.index, in, 1);
   if (runner.input_channels() != 1) std::abort();
   cv::Mat photons(h, w, CV_32FC1), qe(h, w, CV_32FC1);
   const Cfa cfa = Demo(w, h).geometry.cfa;
