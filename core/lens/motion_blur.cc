@@ -69,6 +69,25 @@ RowTerms RowOf(const MotionBlurConfig& c, double t_s, int row) {
 
 double Abs(double v) { return v < 0 ? -v : v; }
 
+// A pixel's samples on the inside path (ProcessRow): sample i sits at
+// (x, y) - RoundShift(step (2i + 1), 16), Q.16, and its bilinear taps start
+// at (row, x0) with fractions fx, fy in Q0.10.
+struct TapPosition {
+  int row, x0;
+  uint32_t fx, fy;
+};
+struct SamplePath {
+  int64_t x, y;            // p + D (1/2 - rho), Q.16
+  int64_t step_x, step_y;  // D / (2n), Q.32
+  TapPosition At(int i) const {
+    const int64_t k = 2 * i + 1;
+    const int64_t qx = x - RoundShift(step_x * k, 16), qy = y - RoundShift(step_y * k, 16);
+    return {static_cast<int>(qy >> 16), static_cast<int>(qx >> 16),
+            static_cast<uint32_t>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits)),
+            static_cast<uint32_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits))};
+  }
+};
+
 #ifdef CAMSIM_X86_AVX2
 // The inside path's samples (ProcessRow) with each channel's 2 x 2 taps in
 // four 64-bit lanes: [p00, p01, p10, p11] (two 64-bit loads) times
@@ -78,26 +97,24 @@ double Abs(double v) { return v < 0 ? -v : v; }
 // the fraction with each lane's sign (vpsignd), in the low halves that
 // vpmuludq multiplies. The same uint64 sums as the scalar loop: integer
 // addition in any order. 130 -> 90 ms for BM_MotionBlur/1920/1080/0.
-CAMSIM_AVX2_TARGET void InsideSumsAvx2(const RowIn* rows, int first_row, int n, int64_t px, int64_t py, int64_t base_x,
-                                       int64_t base_y, int64_t sx32, int64_t sy32, uint64_t sum[3]) {
+CAMSIM_AVX2_TARGET void InsideSumsAvx2(const RowIn* rows, int first_row, int n, const SamplePath& path,
+                                       uint64_t sum[3]) {
   const __m256i one_or_zero_a = _mm256_setr_epi64x(int64_t{kWeightOne}, 0, int64_t{kWeightOne}, 0);
   const __m256i sign_a = _mm256_setr_epi32(-1, 0, 1, 0, -1, 0, 1, 0);
   const __m256i one_or_zero_b = _mm256_setr_epi64x(int64_t{kWeightOne}, int64_t{kWeightOne}, 0, 0);
   const __m256i sign_b = _mm256_setr_epi32(-1, 0, -1, 0, 1, 0, 1, 0);
   __m256i acc[3] = {_mm256_setzero_si256(), _mm256_setzero_si256(), _mm256_setzero_si256()};
   for (int i = 0; i < n; ++i) {
-    const int64_t k = 2 * i + 1;
-    const int64_t qx = px + base_x - RoundShift(sx32 * k, 16), qy = py + base_y - RoundShift(sy32 * k, 16);
-    const int x0 = static_cast<int>(qx >> 16);
-    const int fx = static_cast<int>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
-    const int fy = static_cast<int>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
-    const __m256i a = _mm256_add_epi32(one_or_zero_a, _mm256_sign_epi32(_mm256_set1_epi32(fx), sign_a));
-    const __m256i b = _mm256_add_epi32(one_or_zero_b, _mm256_sign_epi32(_mm256_set1_epi32(fy), sign_b));
+    const TapPosition t = path.At(i);
+    const __m256i a =
+        _mm256_add_epi32(one_or_zero_a, _mm256_sign_epi32(_mm256_set1_epi32(static_cast<int>(t.fx)), sign_a));
+    const __m256i b =
+        _mm256_add_epi32(one_or_zero_b, _mm256_sign_epi32(_mm256_set1_epi32(static_cast<int>(t.fy)), sign_b));
     const __m256i w = _mm256_mul_epu32(a, b);
-    const RowIn* r = &rows[static_cast<int>(qy >> 16) - first_row];  // r[1]: the next row
+    const RowIn* r = &rows[t.row - first_row];  // r[1]: the next row
     for (int c = 0; c < 3; ++c) {
-      const __m128i top = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[0].ch[c] + x0));
-      const __m128i bottom = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[1].ch[c] + x0));
+      const __m128i top = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[0].ch[c] + t.x0));
+      const __m128i bottom = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(r[1].ch[c] + t.x0));
       acc[c] = _mm256_add_epi64(acc[c], _mm256_mul_epu32(_mm256_cvtepu32_epi64(_mm_unpacklo_epi64(top, bottom)), w));
     }
   }
@@ -319,7 +336,9 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   const int max_n = config_.max_samples;
   int64_t still = 0;  // pixels without motion: copied (the gather would give the same)
   const RowIn& own = a.rows[y - first_row];
+#ifdef CAMSIM_X86_AVX2
   const bool avx2 = CpuHasAvx2();  // the inside path's taps in lanes (InsideSumsAvx2)
+#endif
   for (int x = 0; x < w; ++x) {
     const int64_t dx = du[x], dy = dv[x];
     if ((dx | dy) == 0) {
@@ -349,23 +368,22 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
     const int64_t oy_lo = oy_a < oy_b ? oy_a : oy_b, oy_hi = oy_a < oy_b ? oy_b : oy_a;
     const bool inside = ox_lo >= -bound && ox_hi <= bound && oy_lo >= -vbound && oy_hi <= vbound && px + ox_lo >= 0 &&
                         px + ox_hi < max_x && py + oy_lo >= 0 && py + oy_hi < max_y;
+    const SamplePath path{px + base_x, py + base_y, sx32, sy32};
     uint64_t sum[3] = {0, 0, 0};
 #ifdef CAMSIM_X86_AVX2
     if (inside && avx2) {
-      InsideSumsAvx2(a.rows, first_row, n, px, py, base_x, base_y, sx32, sy32, sum);
+      InsideSumsAvx2(a.rows, first_row, n, path, sum);
     } else
 #endif
     if (inside) {
       uint64_t s0 = 0, s1 = 0, s2 = 0;
       for (int i = 0; i < n; ++i) {
-        const int64_t k = 2 * i + 1;
-        const int64_t qx = px + base_x - RoundShift(sx32 * k, 16), qy = py + base_y - RoundShift(sy32 * k, 16);
-        const int x0 = static_cast<int>(qx >> 16);
-        const uint32_t fx = static_cast<uint32_t>(((qx & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
-        const uint32_t fy = static_cast<uint32_t>(((qy & 0xFFFF) + kWeightHalf) >> (16 - kWeightBits));
+        const TapPosition t = path.At(i);
+        const int x0 = t.x0;
+        const uint32_t fx = t.fx, fy = t.fy;
         const uint32_t gx = static_cast<uint32_t>(kWeightOne) - fx, gy = static_cast<uint32_t>(kWeightOne) - fy;
         const uint64_t w00 = gx * gy, w01 = fx * gy, w10 = gx * fy, w11 = fx * fy;  // each <= 2^20
-        const RowIn* r = &a.rows[static_cast<int>(qy >> 16) - first_row];  // r[1]: the next row
+        const RowIn* r = &a.rows[t.row - first_row];  // r[1]: the next row
         s0 += r[0].ch[0][x0] * w00 + r[0].ch[0][x0 + 1] * w01 + r[1].ch[0][x0] * w10 + r[1].ch[0][x0 + 1] * w11;
         s1 += r[0].ch[1][x0] * w00 + r[0].ch[1][x0 + 1] * w01 + r[1].ch[1][x0] * w10 + r[1].ch[1][x0 + 1] * w11;
         s2 += r[0].ch[2][x0] * w00 + r[0].ch[2][x0 + 1] * w01 + r[1].ch[2][x0] * w10 + r[1].ch[2][x0 + 1] * w11;
