@@ -291,6 +291,7 @@ FastLimits MakeFastLimits(const RowArgs& a, int height, int taps, int phase_bits
 // row window, off the image (output 0), or neither (a border: SetUpTaps).
 constexpr int32_t kPixelBorder = 0, kPixelInterior = 1, kPixelOff = 2;
 
+#ifdef CAMSIM_X86_AVX2  // ProcessRowLanes runs only there
 // ProcessRowLanes' per-chunk set-up: the source positions (ChunkPositions),
 // then per pixel its first tap column and row (relative to the window), its
 // two phases and its class, branch-free so that the loop vectorises; off the
@@ -312,6 +313,7 @@ void ClassifyChunk(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y,
     by_pixel[4][f] = on ? (inside ? kPixelInterior : kPixelBorder) : kPixelOff;
   }
 }
+#endif
 
 CAMSIM_CPU_CLONES
 void BilinearSetUpLanes(BilinearSetUp* __restrict u, const FastLimits l) {
