@@ -194,12 +194,13 @@ void BM_Peer_OpenCVEmva(benchmark::State& state) {
   const bool pattern_per_frame = state.range(2) != 0;
   cv::setNumThreads(1);
   SensorAlone s(w, h, false);
-  const SensorConfig& sc = Demo(w, h).sensor;
+  const PipelineConfig config = Demo(w, h);
+  const SensorConfig& sc = config.sensor;
   const FrameInput in = Scene(w).View();
   const bench::StageRunner runner(s.pipeline, s.index, in, 1);
   if (runner.input_channels() != 1) std::abort();
   cv::Mat photons(h, w, CV_32FC1), qe(h, w, CV_32FC1);
-  const Cfa cfa = Demo(w, h).geometry.cfa;
+  const Cfa cfa = config.geometry.cfa;
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       photons.at<float>(y, x) = static_cast<float>(runner.input_frame()[static_cast<size_t>(y) * w + x] / 256.0);
@@ -230,12 +231,11 @@ void BM_Peer_OpenCVEmva(benchmark::State& state) {
   }
   // A check that it is the same job: the frame's mean DN against the model's
   // mean (ReferenceSensorMeanDn per pixel; the patterns and noises have zero mean).
-  const PipelineConfig c = Demo(w, h);
   double got = 0.0, want = 0.0;
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       got += dn.at<uint16_t>(y, x);
-      want += ReferenceSensorMeanDn(sc, c.geometry, c.exposure.exposure_time_us, CfaColour(cfa, x, y),
+      want += ReferenceSensorMeanDn(sc, config.geometry, config.exposure.exposure_time_us, CfaColour(cfa, x, y),
                                     photons.at<float>(y, x));
     }
   state.counters["mean_dn_minus_model"] = (got - want) / (static_cast<double>(w) * h);
