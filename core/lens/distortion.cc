@@ -399,61 +399,149 @@ CAMSIM_AVX2_TARGET inline __m256i BilinearRun8(const RowIn* rows, int r0, bool t
 // k->v for a chunk set up in u: channels 0..2 into v[0..2] (RGB), or with
 // site_only the colour of each pixel's CFA site into v[0] (colours c_even and
 // c_odd alternate along the row; the chunk starts on an even column).
-CAMSIM_AVX2_TARGET
-void BilinearChunkAvx2(const RowIn* rows, int row_count, const BilinearSetUp& u, int width, bool site_only,
-                       int c_even, int c_odd, BilinearChunk* k) {
+// One group of eight pixels from f (a multiple of 8) of BilinearChunkAvx2.
+CAMSIM_AVX2_TARGET inline void BilinearGroup8(const RowIn* rows, int row_count, const BilinearSetUp& u, int width,
+                                              bool site_only, int c_even, int c_odd, int f, BilinearChunk* k) {
   const __m256i odd = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
-  for (int f = 0; f < kChunk; f += 8) {
-    const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
-    const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
-    const __m256i outside = _mm256_cmpeq_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.inside + f)),
-                                               _mm256_setzero_si256());
-    // The group's extremes of x0 and row, both at once: lanes 0-3 reduce
-    // x0, lanes 4-7 row.
-    const __m256i lo = _mm256_permute2x128_si256(x0, row, 0x20), hi = _mm256_permute2x128_si256(x0, row, 0x31);
-    __m256i mn = _mm256_min_epi32(lo, hi), mx = _mm256_max_epi32(lo, hi);
-    mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0x4E));
-    mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0x4E));
-    mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0xB1));
-    mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0xB1));
-    const int xmin = _mm256_cvtsi256_si32(mn), xmax = _mm256_cvtsi256_si32(mx);
-    const int rmin = _mm256_extract_epi32(mn, 4), rmax = _mm256_extract_epi32(mx, 4);
-    if (_mm256_testz_si256(outside, outside) && rmax - rmin <= 1 && xmax - xmin <= 14 && xmin + 15 < width) {
-      const __m256i ia = _mm256_sub_epi32(x0, _mm256_set1_epi32(xmin));
-      const __m256i ib = _mm256_add_epi32(ia, _mm256_set1_epi32(1));
-      const __m256i lower = _mm256_cmpgt_epi32(row, _mm256_set1_epi32(rmin));
-      const __m256i wx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wx + f));
-      const __m256i wy = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wy + f));
-      const bool three = rmax > rmin;
-      if (site_only) {
-        PrefetchBelow(rows, row_count, rmax + 1, c_even, xmin, 16);
-        PrefetchBelow(rows, row_count, rmax + 1, c_odd, xmin, 16);
-        const __m256i ve = BilinearRun8(rows, rmin, three, c_even, xmin, ia, ib, lower, wx, wy);
-        const __m256i vo = BilinearRun8(rows, rmin, three, c_odd, xmin, ia, ib, lower, wx, wy);
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[0] + f), _mm256_blendv_epi8(ve, vo, odd));
-      } else {
-        for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + 1, c, xmin, 16);
-        for (int c = 0; c < 3; ++c)
-          _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[c] + f),
-                              BilinearRun8(rows, rmin, three, c, xmin, ia, ib, lower, wx, wy));
-      }
-      continue;
+  const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
+  const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
+  const __m256i outside = _mm256_cmpeq_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.inside + f)),
+                                             _mm256_setzero_si256());
+  // The group's extremes of x0 and row, both at once: lanes 0-3 reduce
+  // x0, lanes 4-7 row.
+  const __m256i lo = _mm256_permute2x128_si256(x0, row, 0x20), hi = _mm256_permute2x128_si256(x0, row, 0x31);
+  __m256i mn = _mm256_min_epi32(lo, hi), mx = _mm256_max_epi32(lo, hi);
+  mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0x4E));
+  mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0x4E));
+  mn = _mm256_min_epi32(mn, _mm256_shuffle_epi32(mn, 0xB1));
+  mx = _mm256_max_epi32(mx, _mm256_shuffle_epi32(mx, 0xB1));
+  const int xmin = _mm256_cvtsi256_si32(mn), xmax = _mm256_cvtsi256_si32(mx);
+  const int rmin = _mm256_extract_epi32(mn, 4), rmax = _mm256_extract_epi32(mx, 4);
+  if (_mm256_testz_si256(outside, outside) && rmax - rmin <= 1 && xmax - xmin <= 14 && xmin + 15 < width) {
+    const __m256i ia = _mm256_sub_epi32(x0, _mm256_set1_epi32(xmin));
+    const __m256i ib = _mm256_add_epi32(ia, _mm256_set1_epi32(1));
+    const __m256i lower = _mm256_cmpgt_epi32(row, _mm256_set1_epi32(rmin));
+    const __m256i wx = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wx + f));
+    const __m256i wy = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.wy + f));
+    const bool three = rmax > rmin;
+    if (site_only) {
+      PrefetchBelow(rows, row_count, rmax + 1, c_even, xmin, 16);
+      PrefetchBelow(rows, row_count, rmax + 1, c_odd, xmin, 16);
+      const __m256i ve = BilinearRun8(rows, rmin, three, c_even, xmin, ia, ib, lower, wx, wy);
+      const __m256i vo = BilinearRun8(rows, rmin, three, c_odd, xmin, ia, ib, lower, wx, wy);
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[0] + f), _mm256_blendv_epi8(ve, vo, odd));
+    } else {
+      for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + 1, c, xmin, 16);
+      for (int c = 0; c < 3; ++c)
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[c] + f),
+                            BilinearRun8(rows, rmin, three, c, xmin, ia, ib, lower, wx, wy));
     }
-    for (int i = f; i < f + 8; ++i) {
-      const int channels = site_only ? 1 : 3;
-      for (int c = 0; c < channels; ++c) {
-        if (!u.inside[i]) {
-          k->v[c][i] = 0;
-          continue;
-        }
-        const int plane = site_only ? ((i & 1) ? c_odd : c_even) : c;
-        const uint32_t* p0 = rows[u.row[i]].ch[plane] + u.x0[i];
-        const uint32_t* p1 = rows[u.row[i] + 1].ch[plane] + u.x0[i];
-        k->v[c][i] = Lerp32(Lerp32(p0[0], p0[1], u.wx[i]), Lerp32(p1[0], p1[1], u.wx[i]), u.wy[i]);
+    return;
+  }
+  for (int i = f; i < f + 8; ++i) {
+    const int channels = site_only ? 1 : 3;
+    for (int c = 0; c < channels; ++c) {
+      if (!u.inside[i]) {
+        k->v[c][i] = 0;
+        continue;
       }
+      const int plane = site_only ? ((i & 1) ? c_odd : c_even) : c;
+      const uint32_t* p0 = rows[u.row[i]].ch[plane] + u.x0[i];
+      const uint32_t* p1 = rows[u.row[i] + 1].ch[plane] + u.x0[i];
+      k->v[c][i] = Lerp32(Lerp32(p0[0], p0[1], u.wx[i]), Lerp32(p1[0], p1[1], u.wx[i]), u.wy[i]);
     }
   }
 }
+
+CAMSIM_AVX2_TARGET
+void BilinearChunkAvx2(const RowIn* rows, int row_count, const BilinearSetUp& u, int width, bool site_only,
+                       int c_even, int c_odd, BilinearChunk* k) {
+  for (int f = 0; f < kChunk; f += 8) BilinearGroup8(rows, row_count, u, width, site_only, c_even, c_odd, f, k);
+}
+
+#ifdef CAMSIM_X86_AVX512
+// BilinearChunkAvx2 in sixteen lanes: a group of sixteen pixels reads
+// columns min(x0) .. min(x0) + 31 (two loads per row, vpermt2d picks each
+// lane's two taps) from rows rmin .. rmax + 1 of the window, rmax - rmin <=
+// kMaxBilinearSpread16 (sixteen pixels drift over more rows than eight near
+// a strongly distorted frame's corners); each lane takes its two rows' values
+// by mask. The extremes are those of the inside lanes; the others compute
+// with any taps in the run and are written 0 (BilinearGroup8's fill). A group
+// that does not qualify goes as two groups of eight. The same Lerp32 steps,
+// so the same bits.
+constexpr int kMaxBilinearSpread16 = 3;
+
+CAMSIM_AVX512_TARGET inline __m512i Lerp32x16(__m512i a, __m512i b, __m512i w) {
+  constexpr int kF = DistortionStage::kWeightFracBits;
+  const __m512i low = _mm512_set1_epi32(0xFFFF);
+  const __m512i dh = _mm512_sub_epi32(_mm512_srli_epi32(b, 16), _mm512_srli_epi32(a, 16));
+  const __m512i dl = _mm512_sub_epi32(_mm512_and_si512(b, low), _mm512_and_si512(a, low));
+  const __m512i x = _mm512_mullo_epi32(w, dh), y = _mm512_mullo_epi32(w, dl);
+  const __m512i r = _mm512_srai_epi32(_mm512_add_epi32(y, _mm512_set1_epi32(1 << (kF - 1))), kF);
+  return _mm512_add_epi32(_mm512_add_epi32(a, _mm512_slli_epi32(x, 2)), r);
+}
+
+// The bilinear value of sixteen pixels of plane `plane`: row_is[d] holds the
+// lanes whose top tap row is rmin + d (d = 1 .. spread; the rest rmin).
+[[gnu::always_inline]] CAMSIM_AVX512_TARGET inline __m512i BilinearRun16(const RowIn* rows, int rmin, int spread,
+                                                                          const __mmask16* row_is, int plane, int col,
+                                                                          __m512i ia, __m512i ib, __m512i wx,
+                                                                          __m512i wy) {
+  __m512i h[kMaxBilinearSpread16 + 2] = {};  // [0, spread + 1] are set
+  for (int r = 0; r <= spread + 1; ++r) {
+    const uint32_t* p = rows[rmin + r].ch[plane] + col;
+    const __m512i lo = _mm512_loadu_si512(p), hi = _mm512_loadu_si512(p + 16);
+    h[r] = Lerp32x16(_mm512_permutex2var_epi32(lo, ia, hi), _mm512_permutex2var_epi32(lo, ib, hi), wx);
+  }
+  __m512i top = h[0], bottom = h[1];
+  for (int d = 1; d <= spread; ++d) {
+    top = _mm512_mask_mov_epi32(top, row_is[d], h[d]);
+    bottom = _mm512_mask_mov_epi32(bottom, row_is[d], h[d + 1]);
+  }
+  return Lerp32x16(top, bottom, wy);
+}
+
+CAMSIM_AVX512_TARGET
+void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& u, int width, bool site_only,
+                         int c_even, int c_odd, BilinearChunk* k) {
+  constexpr __mmask16 kOdd = 0xAAAA;
+  for (int f = 0; f < kChunk; f += 16) {
+    const __mmask16 inside = _mm512_test_epi32_mask(_mm512_loadu_si512(u.inside + f), _mm512_set1_epi32(1));
+    if (inside == 0) {  // no lane inside: all 0, as BilinearGroup8
+      for (int c = 0; c < (site_only ? 1 : 3); ++c) _mm512_storeu_si512(k->v[c] + f, _mm512_setzero_si512());
+      continue;
+    }
+    const __m512i x0 = _mm512_loadu_si512(u.x0 + f);
+    const __m512i row = _mm512_loadu_si512(u.row + f);
+    const int xmin = _mm512_mask_reduce_min_epi32(inside, x0), xmax = _mm512_mask_reduce_max_epi32(inside, x0);
+    const int rmin = _mm512_mask_reduce_min_epi32(inside, row);
+    const int spread = _mm512_mask_reduce_max_epi32(inside, row) - rmin;
+    if (spread > kMaxBilinearSpread16 || xmax - xmin > 30 || xmin + 31 >= width) {
+      BilinearGroup8(rows, row_count, u, width, site_only, c_even, c_odd, f, k);
+      BilinearGroup8(rows, row_count, u, width, site_only, c_even, c_odd, f + 8, k);
+      continue;
+    }
+    const __m512i ia = _mm512_sub_epi32(x0, _mm512_set1_epi32(xmin));
+    const __m512i ib = _mm512_add_epi32(ia, _mm512_set1_epi32(1));
+    __mmask16 row_is[kMaxBilinearSpread16 + 1];
+    for (int d = 1; d <= spread; ++d) row_is[d] = _mm512_cmpeq_epi32_mask(row, _mm512_set1_epi32(rmin + d));
+    const __m512i wx = _mm512_loadu_si512(u.wx + f), wy = _mm512_loadu_si512(u.wy + f);
+    const int last_tap_row = rmin + spread + 1;
+    if (site_only) {
+      PrefetchBelow(rows, row_count, last_tap_row, c_even, xmin, 32);
+      PrefetchBelow(rows, row_count, last_tap_row, c_odd, xmin, 32);
+      const __m512i ve = BilinearRun16(rows, rmin, spread, row_is, c_even, xmin, ia, ib, wx, wy);
+      const __m512i vo = BilinearRun16(rows, rmin, spread, row_is, c_odd, xmin, ia, ib, wx, wy);
+      _mm512_storeu_si512(k->v[0] + f, _mm512_maskz_mov_epi32(inside, _mm512_mask_mov_epi32(ve, kOdd, vo)));
+    } else {
+      for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, last_tap_row, c, xmin, 32);
+      for (int c = 0; c < 3; ++c)
+        _mm512_storeu_si512(k->v[c] + f, _mm512_maskz_mov_epi32(inside, BilinearRun16(rows, rmin, spread, row_is, c,
+                                                                                      xmin, ia, ib, wx, wy)));
+    }
+  }
+}
+#endif
 
 // Lanes = pixels for the N-tap filters (bicubic, Lanczos-3): eight pixels
 // whose taps are all interior, whose first tap rows take at most two values
@@ -1307,7 +1395,15 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
       for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
 #ifdef CAMSIM_X86_AVX2
     if (avx2_) {
-      BilinearChunkAvx2(rows, a.row_count, u, width, kSiteOnly, kSiteOnly ? site[0] : 0, kSiteOnly ? site[1] : 0, &k);
+      const int c_even = kSiteOnly ? site[0] : 0, c_odd = kSiteOnly ? site[1] : 0;
+#ifdef CAMSIM_X86_AVX512
+      if (avx512_) {
+        BilinearChunkAvx512(rows, a.row_count, u, width, kSiteOnly, c_even, c_odd, &k);
+      } else
+#endif
+      {
+        BilinearChunkAvx2(rows, a.row_count, u, width, kSiteOnly, c_even, c_odd, &k);
+      }
     } else
 #endif
     {
