@@ -353,25 +353,98 @@ CAMSIM_AVX2_TARGET void SampleSmallLanesAvx2(const uint32_t* table, const uint32
     for (int g = 0; g < kGroups; ++g) avx2::StoreLow32x4(s[g].k, count + i + 4 * g);
   }
 }
+
+#ifdef CAMSIM_X86_AVX512
+// The same searches in eight lanes, with AVX-512's masks for the lanes still
+// searching; the same integers step for step. kGroups x 8 = 32 pixels a
+// step, a sensor block's small pixels in one (two groups measured slower).
+// Dark 1080p sensor stage on an Intel Xeon VM: BM_SensorLowLight/100 46.3
+// -> 40.5 ms, /1000 41.1 -> 35.7 ms.
+constexpr int kPixelsPerStepAvx512 = 8 * kGroups;
+struct SmallSearch8 {
+  __m512i lambda, target, p, cdf, k;
+  __mmask8 searching;
+};
+
+CAMSIM_AVX512_TARGET inline __m512i DivideSmall8(__m512i n, uint64_t r) {
+  const __m512i rl = _mm512_set1_epi64(static_cast<int64_t>(r & 0xFFFFFFFFu));
+  const __m512i rh = _mm512_set1_epi64(static_cast<int64_t>(r >> 32));
+  const __m512i nh = _mm512_srli_epi64(n, 32);
+  const __m512i t = _mm512_add_epi64(_mm512_add_epi64(_mm512_mul_epu32(nh, rl), _mm512_mul_epu32(n, rh)),
+                                     _mm512_srli_epi64(_mm512_mul_epu32(n, rl), 32));
+  return _mm512_add_epi64(_mm512_slli_epi64(_mm512_mul_epu32(nh, rh), 1), _mm512_srli_epi64(t, 31));
+}
+
+CAMSIM_AVX512_TARGET inline void StartSmall8(const uint32_t* table, const uint32_t* lambda_q8, const uint32_t* u,
+                                             SmallSearch8* s) {
+  s->lambda = _mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lambda_q8)));
+  const __m512i n = _mm512_srli_epi64(_mm512_mul_epu32(s->lambda, _mm512_set1_epi64(369)), 16);
+  s->target = _mm512_sllv_epi64(_mm512_cvtepu32_epi64(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(u))), n);
+  // A mask GCC cannot prove full: see ISqrt64x8 (fixed.cc).
+  const __mmask8 all = _mm512_cmpge_epi64_mask(s->lambda, _mm512_setzero_si512());
+  s->p = _mm512_cvtepu32_epi64(_mm512_mask_i64gather_epi32(_mm256_setzero_si256(), all, s->lambda, table, 4));
+  s->cdf = s->p;
+  s->k = _mm512_setzero_si512();
+  s->searching = _mm512_cmple_epi64_mask(s->cdf, s->target);
+}
+
+CAMSIM_AVX512_TARGET inline void StepSmall8(uint32_t m, SmallSearch8* s) {
+  const __m512i p_high = _mm512_mul_epu32(_mm512_srli_epi64(s->p, 32), s->lambda);
+  const __m512i product = _mm512_add_epi64(_mm512_mul_epu32(s->p, s->lambda), _mm512_slli_epi64(p_high, 32));
+  const __m512i next = DivideSmall8(_mm512_srli_epi64(_mm512_add_epi64(product, _mm512_set1_epi64(128 * m)), 8),
+                                    random_detail::kReciprocals.v[m - 1]);
+  const __mmask8 step = _mm512_mask_test_epi64_mask(s->searching, next, next);
+  s->p = _mm512_mask_mov_epi64(s->p, step, next);
+  s->k = _mm512_mask_add_epi64(s->k, step, s->k, _mm512_set1_epi64(1));
+  s->cdf = _mm512_mask_add_epi64(s->cdf, step, s->cdf, next);
+  s->searching = _mm512_mask_cmple_epi64_mask(step, s->cdf, s->target);
+}
+
+CAMSIM_AVX512_TARGET void SampleSmallLanesAvx512(const uint32_t* table, const uint32_t* lambda_q8, const uint32_t* u,
+                                                 uint32_t* count, int n) {
+  for (int i = 0; i < n; i += kPixelsPerStepAvx512) {
+    SmallSearch8 s[kGroups];
+    for (int g = 0; g < kGroups; ++g) StartSmall8(table, lambda_q8 + i + 8 * g, u + i + 8 * g, &s[g]);
+    for (uint32_t m = 1; m <= PoissonTable::kMaxSmallCount; ++m) {
+      __mmask8 any = s[0].searching;
+      for (int g = 1; g < kGroups; ++g) any |= s[g].searching;
+      if (any == 0) break;
+      for (int g = 0; g < kGroups; ++g) StepSmall8(m, &s[g]);
+    }
+    for (int g = 0; g < kGroups; ++g)
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(count + i + 8 * g), _mm512_cvtepi64_epi32(s[g].k));
+  }
+}
+#endif
+}  // namespace
+#endif
+
+#ifdef CAMSIM_X86_AVX2
+namespace {
+// A lane kernel that takes kStep pixels a step over any n: the whole steps,
+// then the rest padded with mean 0 (a search that ends at once).
+template <int kStep>
+void SmallInSteps(void (*kernel)(const uint32_t*, const uint32_t*, const uint32_t*, uint32_t*, int),
+                  const uint32_t* table, const uint32_t* lambda_q8, const uint32_t* u, uint32_t* count, int n) {
+  const int i = n - n % kStep;
+  kernel(table, lambda_q8, u, count, i);
+  if (i == n) return;
+  uint32_t lambda_rest[kStep] = {}, u_rest[kStep] = {}, count_rest[kStep];
+  for (int j = i; j < n; ++j) lambda_rest[j - i] = lambda_q8[j], u_rest[j - i] = u[j];
+  kernel(table, lambda_rest, u_rest, count_rest, kStep);
+  for (int j = i; j < n; ++j) count[j] = count_rest[j - i];
+}
 }  // namespace
 #endif
 
 void PoissonTable::SampleSmallLanes(const uint32_t* lambda_q8, const uint32_t* u, uint32_t* count, int n) const {
-  int i = 0;
-#ifdef CAMSIM_X86_AVX2
-  if (avx2_) {
-    i = n - n % kPixelsPerStep;
-    SampleSmallLanesAvx2(table_, lambda_q8, u, count, i);
-    if (i == n) return;
-    // The rest padded with mean 0 (a search that ends at once).
-    uint32_t lambda_rest[kPixelsPerStep] = {}, u_rest[kPixelsPerStep] = {}, count_rest[kPixelsPerStep];
-    for (int j = i; j < n; ++j) lambda_rest[j - i] = lambda_q8[j], u_rest[j - i] = u[j];
-    SampleSmallLanesAvx2(table_, lambda_rest, u_rest, count_rest, kPixelsPerStep);
-    for (int j = i; j < n; ++j) count[j] = count_rest[j - i];
-    return;
-  }
+#ifdef CAMSIM_X86_AVX512
+  if (avx512_) return SmallInSteps<kPixelsPerStepAvx512>(SampleSmallLanesAvx512, table_, lambda_q8, u, count, n);
 #endif
-  for (; i < n; ++i) count[i] = SampleSmall(lambda_q8[i], u[i]);
+#ifdef CAMSIM_X86_AVX2
+  if (avx2_) return SmallInSteps<kPixelsPerStep>(SampleSmallLanesAvx2, table_, lambda_q8, u, count, n);
+#endif
+  for (int i = 0; i < n; ++i) count[i] = SampleSmall(lambda_q8[i], u[i]);
 }
 
 Status PoissonTable::Build(Span<uint32_t> storage) {
@@ -387,6 +460,7 @@ Status PoissonTable::Build(Span<uint32_t> storage) {
   }
   table_ = storage.data;
   avx2_ = CpuHasAvx2();
+  avx512_ = CpuHasAvx512();
   return Status::Ok();
 }
 

@@ -226,7 +226,7 @@ class PoissonTable {
   static void SigmaLanes(const uint32_t* lambda_q8, uint32_t* sigma_q16, int n);
   // count[i] = Sample(lambda_q8[i], u[i], any z) for i < n where every
   // lambda_q8[i] < kSmallQ8 (the exact inverse transform): the same integers,
-  // sixteen at a time in AVX2 lanes where the CPU has them (random.cc).
+  // 32 at a time in AVX-512 or sixteen in AVX2 lanes where the CPU has them (random.cc).
   void SampleSmallLanes(const uint32_t* lambda_q8, const uint32_t* u, uint32_t* count, int n) const;
 
  private:
@@ -259,7 +259,8 @@ class PoissonTable {
   }
 
   const uint32_t* table_ = nullptr;
-  bool avx2_ = false;  // SampleSmallLanes' kernel, chosen at Build
+  bool avx2_ = false;  // SampleSmallLanes' kernels, chosen at Build
+  bool avx512_ = false;
 };
 
 }  // namespace camsim
