@@ -366,6 +366,7 @@ struct SmallSearch8 {
   __mmask8 searching;
 };
 
+// DivideSmall4 in eight lanes.
 CAMSIM_AVX512_TARGET inline __m512i DivideSmall8(__m512i n, uint64_t r) {
   const __m512i rl = _mm512_set1_epi64(static_cast<int64_t>(r & 0xFFFFFFFFu));
   const __m512i rh = _mm512_set1_epi64(static_cast<int64_t>(r >> 32));
