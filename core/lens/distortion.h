@@ -136,6 +136,7 @@ class DistortionStage final : public Stage {
   bool force_general_ = false;  // tests only
   bool avx2_ = false;           // bilinear fast path: the AVX2 kernel (set by Init)
   bool avx512_ = false;         // N-tap fast path: sets of sixteen lanes (AVX-512) first (set by Init)
+  bool vnni_ = false;           // and their row sums with AVX-512 VBMI and VNNI (set by Init)
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
