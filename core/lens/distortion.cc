@@ -911,9 +911,25 @@ CAMSIM_AVX512_TARGET inline __m512i FilterLanes16For(bool vnni, const RowIn* row
   return FilterLanesAvx512<N, L>(rows, rmin, spread, plane, xmin, in);
 }
 
+// Each lane's N weights for its phase, tap by tap, from the tap-major table
+// (stride int32 per tap, a multiple of 32): one vpermt2d per 32 phases.
+template <int N>
+CAMSIM_AVX512_TARGET inline void LaneWeights16(const int32_t* wtap, int stride, const int32_t* phase, __m512i* w) {
+  const __m512i ph = _mm512_loadu_si512(phase);
+  const __m512i block = _mm512_srli_epi32(ph, 5);
+  for (int t = 0; t < N; ++t) {
+    const int32_t* row = wtap + t * stride;
+    w[t] = _mm512_permutex2var_epi32(_mm512_loadu_si512(row), ph, _mm512_loadu_si512(row + 16));
+    for (int b = 1; b < stride / 32; ++b)
+      w[t] = _mm512_mask_mov_epi32(w[t], _mm512_cmpeq_epi32_mask(block, _mm512_set1_epi32(b)),
+                                   _mm512_permutex2var_epi32(_mm512_loadu_si512(row + 32 * b), ph,
+                                                             _mm512_loadu_si512(row + 32 * b + 16)));
+  }
+}
+
 template <int N, bool kSiteOnly>
-CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_count, int width, const int32_t* wt,
-                                          const LaneSet& set, int plane, uint32_t* const* out, int x) {
+CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_count, int width, const int32_t* wtap,
+                                          int tap_stride, const LaneSet& set, int plane, uint32_t* const* out, int x) {
   constexpr int L = kSiteOnly ? 3 : 2;
   const __m512i cls = _mm512_loadu_si512(set.cls);
   const __mmask16 inside = _mm512_cmpeq_epi32_mask(cls, _mm512_set1_epi32(kPixelInterior));
@@ -933,13 +949,8 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_
   FilterLanes16 in;
   in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
   for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
-  __m256i w_lo[6], w_hi[6];
-  LaneWeights<N>(wt, set.phx, w_lo);
-  LaneWeights<N>(wt, set.phx + 8, w_hi);
-  for (int t = 0; t < N; ++t) in.wx[t] = _mm512_inserti64x4(_mm512_castsi256_si512(w_lo[t]), w_hi[t], 1);
-  LaneWeights<N>(wt, set.phy, w_lo);
-  LaneWeights<N>(wt, set.phy + 8, w_hi);
-  for (int t = 0; t < N; ++t) in.wy[t] = _mm512_inserti64x4(_mm512_castsi256_si512(w_lo[t]), w_hi[t], 1);
+  LaneWeights16<N>(wtap, tap_stride, set.phx, in.wx);
+  LaneWeights16<N>(wtap, tap_stride, set.phy, in.wy);
   if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
     PrefetchBelow(rows, row_count, rmax + N - 1, plane, xmin, 16 * L);
     alignas(64) uint32_t v[16];
@@ -1201,6 +1212,7 @@ void DistortionStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   counter.Add<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
   counter.Add<int32_t>(static_cast<size_t>(kLaneTaps) << phase_bits_);  // wt_
+  counter.Add<int32_t>(static_cast<size_t>(taps_) * TapStride());      // wtap_
 }
 
 size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<size_t>(grid_w_) * 2 * sizeof(int32_t); }
@@ -1209,7 +1221,8 @@ Status DistortionStage::Init(Arena& tables) {
   table_ = tables.Take<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
   weights_ = tables.Take<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
   wt_ = tables.Take<int32_t>(static_cast<size_t>(kLaneTaps) << phase_bits_);
-  if (table_ == nullptr || weights_ == nullptr || wt_ == nullptr)
+  wtap_ = tables.Take<int32_t>(static_cast<size_t>(taps_) * TapStride());
+  if (table_ == nullptr || weights_ == nullptr || wt_ == nullptr || wtap_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for the distortion table");
   for (int j = 0; j < grid_h_; ++j)
     for (int i = 0; i < grid_w_; ++i) {
@@ -1270,15 +1283,18 @@ Status DistortionStage::Init(Arena& tables) {
         }
       }
     }
-  // The weights as int32, kLaneTaps per phase (LaneWeights), and the bound
+  // The weights as int32, kLaneTaps per phase (LaneWeights) and tap-major
+  // (LaneWeights16; phases past the last are 0), and the bound
   // FilterLanesAvx2's 32-bit row sums need: sum |w| < 2^15 for every phase.
   CAMSIM_DCHECK(taps_ <= kLaneTaps);
   bool small_weights = true;
+  for (int i = 0; i < taps_ * TapStride(); ++i) wtap_[i] = 0;
   for (int p = 0; p < phases; ++p) {
     int sum = 0;
     for (int t = 0; t < kLaneTaps; ++t) {
       const int w = t < taps_ ? weights_[p * taps_ + t] : 0;
       wt_[p * kLaneTaps + t] = w;
+      if (t < taps_) wtap_[t * TapStride() + p] = w;
       sum += w < 0 ? -w : w;
     }
     if (sum >= (1 << 15)) small_weights = false;
@@ -1605,7 +1621,8 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         if (lanes == 16) {
           const LaneSet lane_set{x0s + k, rows_ + k, phx + k, phy + k, cls + k};
           const uint32_t lanes_done =
-              FilterSet16<N, kSiteOnly>(vnni_, rows, a.row_count, width, wt_, lane_set, plane, out, xs + f);
+              FilterSet16<N, kSiteOnly>(vnni_, rows, a.row_count, width, wtap_, TapStride(), lane_set, plane, out,
+                                        xs + f);
           for (int j = 0; j < 16; ++j) done |= uint64_t{(lanes_done >> j) & 1} << (f + step * j);
           if (lanes_done != 0) continue;
         }

@@ -151,6 +151,8 @@ class DistortionStage final : public Stage {
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
   int32_t* wt_ = nullptr;      // the same as int32, phases x kLaneTaps (AVX2 lanes)
+  int32_t* wtap_ = nullptr;    // the same tap-major, taps x TapStride() (AVX-512 lanes)
+  int TapStride() const { return phase_bits_ < 5 ? 32 : 1 << phase_bits_; }  // whole vpermt2d tables
 };
 
 // Filter kernel value at offset t (pixels) from the source position (double).
