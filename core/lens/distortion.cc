@@ -378,17 +378,29 @@ CAMSIM_AVX2_TARGET inline __m256i Pick16(__m256i lo, __m256i hi, __m256i idx) {
   return _mm256_blendv_epi8(_mm256_permutevar8x32_epi32(lo, idx), _mm256_permutevar8x32_epi32(hi, idx), from_hi);
 }
 
-// The bilinear value of eight pixels of plane `plane` (see above): rows r0,
-// r0 + 1 and, when `three`, r0 + 2 of the window; `lower` selects per lane
-// whether its taps are rows (r0, r0 + 1) or (r0 + 1, r0 + 2).
-CAMSIM_AVX2_TARGET inline __m256i BilinearRun8(const RowIn* rows, int r0, bool three, int plane, int col,
+// The bilinear value of eight pixels, the even lanes of plane `even`, the
+// odd ones of plane `odd` (RGB: the same plane; CFA site only: the sites'
+// colours, each lane's taps picked from its own plane before the one
+// interpolation): rows r0, r0 + 1 and, when `three`, r0 + 2 of the window;
+// `lower` selects per lane whether its taps are rows (r0, r0 + 1) or
+// (r0 + 1, r0 + 2).
+CAMSIM_AVX2_TARGET inline __m256i BilinearRun8(const RowIn* rows, int r0, bool three, int even, int odd, int col,
                                                __m256i ia, __m256i ib, __m256i lower, __m256i wx, __m256i wy) {
+  const __m256i odd_lanes = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
   __m256i h[3];
   for (int r = 0; r < (three ? 3 : 2); ++r) {
-    const uint32_t* p = rows[r0 + r].ch[plane] + col;
+    const uint32_t* p = rows[r0 + r].ch[even] + col;
     const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
     const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8));
-    h[r] = Lerp32x8(Pick16(lo, hi, ia), Pick16(lo, hi, ib), wx);
+    __m256i a = Pick16(lo, hi, ia), b = Pick16(lo, hi, ib);
+    if (odd != even) {
+      const uint32_t* q = rows[r0 + r].ch[odd] + col;
+      const __m256i lo_o = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(q));
+      const __m256i hi_o = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(q + 8));
+      a = _mm256_blendv_epi8(a, Pick16(lo_o, hi_o, ia), odd_lanes);
+      b = _mm256_blendv_epi8(b, Pick16(lo_o, hi_o, ib), odd_lanes);
+    }
+    h[r] = Lerp32x8(a, b, wx);
   }
   if (!three) return Lerp32x8(h[0], h[1], wy);
   const __m256i top = _mm256_blendv_epi8(h[0], h[1], lower);
@@ -402,7 +414,6 @@ CAMSIM_AVX2_TARGET inline __m256i BilinearRun8(const RowIn* rows, int r0, bool t
 // One group of eight pixels from f (a multiple of 8) of BilinearChunkAvx2.
 CAMSIM_AVX2_TARGET inline void BilinearGroup8(const RowIn* rows, int row_count, const BilinearSetUp& u, int width,
                                               bool site_only, int c_even, int c_odd, int f, BilinearChunk* k) {
-  const __m256i odd = _mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1);
   const __m256i x0 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.x0 + f));
   const __m256i row = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.row + f));
   const __m256i outside = _mm256_cmpeq_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(u.inside + f)),
@@ -427,14 +438,13 @@ CAMSIM_AVX2_TARGET inline void BilinearGroup8(const RowIn* rows, int row_count, 
     if (site_only) {
       PrefetchBelow(rows, row_count, rmax + 1, c_even, xmin, 16);
       PrefetchBelow(rows, row_count, rmax + 1, c_odd, xmin, 16);
-      const __m256i ve = BilinearRun8(rows, rmin, three, c_even, xmin, ia, ib, lower, wx, wy);
-      const __m256i vo = BilinearRun8(rows, rmin, three, c_odd, xmin, ia, ib, lower, wx, wy);
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[0] + f), _mm256_blendv_epi8(ve, vo, odd));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[0] + f),
+                          BilinearRun8(rows, rmin, three, c_even, c_odd, xmin, ia, ib, lower, wx, wy));
     } else {
       for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + 1, c, xmin, 16);
       for (int c = 0; c < 3; ++c)
         _mm256_storeu_si256(reinterpret_cast<__m256i*>(k->v[c] + f),
-                            BilinearRun8(rows, rmin, three, c, xmin, ia, ib, lower, wx, wy));
+                            BilinearRun8(rows, rmin, three, c, c, xmin, ia, ib, lower, wx, wy));
     }
     return;
   }
@@ -481,17 +491,26 @@ CAMSIM_AVX512_TARGET inline __m512i Lerp32x16(__m512i a, __m512i b, __m512i w) {
   return _mm512_add_epi32(_mm512_add_epi32(a, _mm512_slli_epi32(x, 2)), r);
 }
 
-// The bilinear value of sixteen pixels of plane `plane`: row_is[d] holds the
-// lanes whose top tap row is rmin + d (d = 1 .. spread; the rest rmin).
+// The bilinear value of sixteen pixels, the even lanes of plane `even`, the
+// odd ones of plane `odd` (as BilinearRun8): row_is[d] holds the lanes whose
+// top tap row is rmin + d (d = 1 .. spread; the rest rmin).
 [[gnu::always_inline]] CAMSIM_AVX512_TARGET inline __m512i BilinearRun16(const RowIn* rows, int rmin, int spread,
-                                                                          const __mmask16* row_is, int plane, int col,
-                                                                          __m512i ia, __m512i ib, __m512i wx,
+                                                                          const __mmask16* row_is, int even, int odd,
+                                                                          int col, __m512i ia, __m512i ib, __m512i wx,
                                                                           __m512i wy) {
+  constexpr __mmask16 kOdd = 0xAAAA;
   __m512i h[kMaxBilinearSpread16 + 2] = {};  // [0, spread + 1] are set
   for (int r = 0; r <= spread + 1; ++r) {
-    const uint32_t* p = rows[rmin + r].ch[plane] + col;
+    const uint32_t* p = rows[rmin + r].ch[even] + col;
     const __m512i lo = _mm512_loadu_si512(p), hi = _mm512_loadu_si512(p + 16);
-    h[r] = Lerp32x16(_mm512_permutex2var_epi32(lo, ia, hi), _mm512_permutex2var_epi32(lo, ib, hi), wx);
+    __m512i a = _mm512_permutex2var_epi32(lo, ia, hi), b = _mm512_permutex2var_epi32(lo, ib, hi);
+    if (odd != even) {
+      const uint32_t* q = rows[rmin + r].ch[odd] + col;
+      const __m512i lo_o = _mm512_loadu_si512(q), hi_o = _mm512_loadu_si512(q + 16);
+      a = _mm512_mask_mov_epi32(a, kOdd, _mm512_permutex2var_epi32(lo_o, ia, hi_o));
+      b = _mm512_mask_mov_epi32(b, kOdd, _mm512_permutex2var_epi32(lo_o, ib, hi_o));
+    }
+    h[r] = Lerp32x16(a, b, wx);
   }
   __m512i top = h[0], bottom = h[1];
   for (int d = 1; d <= spread; ++d) {
@@ -504,7 +523,6 @@ CAMSIM_AVX512_TARGET inline __m512i Lerp32x16(__m512i a, __m512i b, __m512i w) {
 CAMSIM_AVX512_TARGET
 void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& u, int width, bool site_only,
                          int c_even, int c_odd, BilinearChunk* k) {
-  constexpr __mmask16 kOdd = 0xAAAA;
   for (int f = 0; f < kChunk; f += 16) {
     const __mmask16 inside = _mm512_test_epi32_mask(_mm512_loadu_si512(u.inside + f), _mm512_set1_epi32(1));
     if (inside == 0) {  // no lane inside: all 0, as BilinearGroup8
@@ -530,14 +548,13 @@ void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& 
     if (site_only) {
       PrefetchBelow(rows, row_count, last_tap_row, c_even, xmin, 32);
       PrefetchBelow(rows, row_count, last_tap_row, c_odd, xmin, 32);
-      const __m512i ve = BilinearRun16(rows, rmin, spread, row_is, c_even, xmin, ia, ib, wx, wy);
-      const __m512i vo = BilinearRun16(rows, rmin, spread, row_is, c_odd, xmin, ia, ib, wx, wy);
-      _mm512_storeu_si512(k->v[0] + f, _mm512_maskz_mov_epi32(inside, _mm512_mask_mov_epi32(ve, kOdd, vo)));
+      _mm512_storeu_si512(k->v[0] + f, _mm512_maskz_mov_epi32(inside, BilinearRun16(rows, rmin, spread, row_is, c_even,
+                                                                                    c_odd, xmin, ia, ib, wx, wy)));
     } else {
       for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, last_tap_row, c, xmin, 32);
       for (int c = 0; c < 3; ++c)
         _mm512_storeu_si512(k->v[c] + f, _mm512_maskz_mov_epi32(inside, BilinearRun16(rows, rmin, spread, row_is, c,
-                                                                                      xmin, ia, ib, wx, wy)));
+                                                                                      c, xmin, ia, ib, wx, wy)));
     }
   }
 }
