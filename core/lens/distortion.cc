@@ -674,8 +674,9 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
 // already), and return the mask of lanes done. They return 0, with nothing
 // written, for a set whose interior pixels' first tap rows spread further
 // than the kernel takes (one row for eight lanes, kMaxRowSpread16 rows for
-// sixteen), or whose tap columns span more than the lanes' loads or reach
-// past the row. A set without interior pixels is done for its pixels off the
+// sixteen), or whose tap columns span more than the lanes' loads (L x lanes
+// samples from the set's first tap column; at the row's end, from the
+// column that makes them end with it). A set without interior pixels is done for its pixels off the
 // image. Site only, lane i is the pixel x + 2 i of colour plane; RGB, x + i.
 struct LaneSet {
   const int32_t *x0s, *rows, *phx, *phy, *cls;
@@ -710,7 +711,8 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
     xmin = x0s[j] < xmin ? x0s[j] : xmin;
     xmx = x0s[j] > xmx ? x0s[j] : xmx;
   }
-  if (rmax - rmin > 1 || xmx - xmin + N > 8 * L || xmin + 8 * L > width) return 0;
+  if (xmin + 8 * L > width) xmin = width - 8 * L;  // the loads end with the row
+  if (rmax - rmin > 1 || xmin < 0 || xmx - xmin + N > 8 * L) return 0;
   FilterLanes in;
   in.x0 = _mm256_sub_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(x0s)), _mm256_set1_epi32(xmin));
   in.lower = _mm256_cmpgt_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(rws)), _mm256_set1_epi32(rmin));
@@ -960,9 +962,11 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_
   const __m512i rv = _mm512_mask_loadu_epi32(_mm512_set1_epi32(set.rows[first]), inside, set.rows);
   const __m512i x0v = _mm512_mask_loadu_epi32(_mm512_set1_epi32(set.x0s[first]), inside, set.x0s);
   const int rmin = _mm512_reduce_min_epi32(rv), rmax = _mm512_reduce_max_epi32(rv);
-  const int xmin = _mm512_reduce_min_epi32(x0v), xmx = _mm512_reduce_max_epi32(x0v);
+  int xmin = _mm512_reduce_min_epi32(x0v);
+  const int xmx = _mm512_reduce_max_epi32(x0v);
+  if (xmin + 16 * L > width) xmin = width - 16 * L;  // the loads end with the row
   const int spread = rmax - rmin;
-  if (spread > kMaxRowSpread16 || xmx - xmin + N > 16 * L || xmin + 16 * L > width) return 0;
+  if (spread > kMaxRowSpread16 || xmin < 0 || xmx - xmin + N > 16 * L) return 0;
   FilterLanes16 in;
   in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
   for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
