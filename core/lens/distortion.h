@@ -45,8 +45,9 @@
 // px), ProcessRow takes 32-bit fast paths (bilinear in lanes, see the
 // .cc) that give exactly the general path's bits; tests compare the two.
 // On x86-64 with AVX2 they take eight pixels at a time in lanes (sixteen
-// with AVX-512 for the N-tap filters), picking samples from contiguous loads
-// with vpermd (vpermt2d); elsewhere, and in the debug
+// with AVX-512), picking samples from contiguous loads with vpermd
+// (vpermt2d; for the N-tap row sums with VBMI and VNNI, pairs of 16-bit
+// halves by vpermt2b, summed by vpdpwssd); elsewhere, and in the debug
 // preset, the bilinear one stages them and the others go pixel by pixel.
 //
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
