@@ -1591,6 +1591,20 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
 // CFA site only: the pixels of one colour among twice as many, L = 3. Lane
 // slots: RGB slot = pixel; site only, each group of 2 x lanes pixels is
 // stored even ones first, so a set's lanes are consecutive slots.
+// A set's mask of lanes done as pixels of the chunk from its first: lane j
+// is pixel step j (site only: every other bit, as a Morton spread).
+template <bool kSiteOnly>
+inline uint64_t LanePixels(uint32_t lanes) {
+  uint64_t m = lanes & 0xFFFF;
+  if constexpr (kSiteOnly) {
+    m = (m | m << 8) & 0x00FF00FF;
+    m = (m | m << 4) & 0x0F0F0F0F;
+    m = (m | m << 2) & 0x33333333;
+    m = (m | m << 1) & 0x55555555;
+  }
+  return m;
+}
+
 template <int N, bool kSiteOnly>
 CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const {
   constexpr int kBefore = N / 2 - 1;
@@ -1644,7 +1658,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
           const uint32_t lanes_done =
               FilterSet16<N, kSiteOnly>(vnni_, rows, a.row_count, width, wtap_, TapStride(), lane_set, plane, out,
                                         xs + f);
-          for (int j = 0; j < 16; ++j) done |= uint64_t{(lanes_done >> j) & 1} << (f + step * j);
+          done |= LanePixels<kSiteOnly>(lanes_done) << f;
           if (lanes_done != 0) continue;
         }
 #endif
@@ -1653,7 +1667,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
           const int f8 = f + step * j0;  // the first pixel of these eight
           const uint32_t lanes_done =
               FilterSet8<N, kSiteOnly>(rows, a.row_count, width, wt_, lane_set, plane, out, xs + f8);
-          for (int j = 0; j < 8; ++j) done |= uint64_t{(lanes_done >> j) & 1} << (f8 + step * j);
+          done |= LanePixels<kSiteOnly>(lanes_done) << f8;
         }
       }
     // The rest, pixel by pixel as ProcessRowFast.
