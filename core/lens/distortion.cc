@@ -931,18 +931,32 @@ CAMSIM_AVX512_TARGET inline __m512i FilterLanes16For(bool vnni, const RowIn* row
 }
 
 // Each lane's N weights for its phase, tap by tap, from the tap-major table
-// (stride int32 per tap, a multiple of 32): one vpermt2d per 32 phases.
-template <int N>
-CAMSIM_AVX512_TARGET inline void LaneWeights16(const int32_t* wtap, int stride, const int32_t* phase, __m512i* w) {
+// (kBlocks x 32 int32 per tap): one vpermt2d per 32 phases.
+template <int N, int kBlocks>
+CAMSIM_AVX512_TARGET inline void LaneWeights16(const int32_t* wtap, const int32_t* phase, __m512i* w) {
   const __m512i ph = _mm512_loadu_si512(phase);
-  const __m512i block = _mm512_srli_epi32(ph, 5);
+  __mmask16 in_block[kBlocks];
+  for (int b = 1; b < kBlocks; ++b)
+    in_block[b] = _mm512_cmpeq_epi32_mask(_mm512_srli_epi32(ph, 5), _mm512_set1_epi32(b));
   for (int t = 0; t < N; ++t) {
-    const int32_t* row = wtap + t * stride;
+    const int32_t* row = wtap + t * 32 * kBlocks;
     w[t] = _mm512_permutex2var_epi32(_mm512_loadu_si512(row), ph, _mm512_loadu_si512(row + 16));
-    for (int b = 1; b < stride / 32; ++b)
-      w[t] = _mm512_mask_mov_epi32(w[t], _mm512_cmpeq_epi32_mask(block, _mm512_set1_epi32(b)),
+    for (int b = 1; b < kBlocks; ++b)
+      w[t] = _mm512_mask_mov_epi32(w[t], in_block[b],
                                    _mm512_permutex2var_epi32(_mm512_loadu_si512(row + 32 * b), ph,
                                                              _mm512_loadu_si512(row + 32 * b + 16)));
+  }
+}
+
+// LaneWeights16 for a table of tap_stride (32, 64, 128 or 256) int32 per tap.
+template <int N>
+CAMSIM_AVX512_TARGET inline void LaneWeights16(const int32_t* wtap, int tap_stride, const int32_t* phase,
+                                               __m512i* w) {
+  switch (tap_stride) {
+    case 32: return LaneWeights16<N, 1>(wtap, phase, w);
+    case 64: return LaneWeights16<N, 2>(wtap, phase, w);
+    case 128: return LaneWeights16<N, 4>(wtap, phase, w);
+    default: return LaneWeights16<N, 8>(wtap, phase, w);
   }
 }
 
