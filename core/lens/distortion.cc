@@ -289,17 +289,65 @@ FastLimits MakeFastLimits(const RowArgs& a, int height, int taps, int phase_bits
 
 // A pixel's class in ProcessRowLanes: all taps inside the frame and the
 // row window, off the image (output 0), or neither (a border: SetUpTaps).
+#ifdef CAMSIM_X86_AVX512
+// ChunkPositions in sixteen lanes, the same integers: each pixel's two nodes
+// picked by vpermt2d from the nodes the chunk reads (at most 17, those of
+// the cells that start before n, as ChunkPositions reads them).
+CAMSIM_AVX512_TARGET void ChunkPositionsAvx512(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y,
+                                               int step_bits, int32_t* sx, int32_t* sy) {
+  const int i0 = xs >> step_bits;
+  const int count = ((n - 1) >> step_bits) + 2;  // n >= 1
+  const __mmask16 m0 = count >= 16 ? 0xFFFF : static_cast<__mmask16>((1u << count) - 1);
+  const __mmask16 m1 = count > 16 ? static_cast<__mmask16>((1u << (count - 16)) - 1) : 0;
+  const __m512i nx0 = _mm512_maskz_loadu_epi32(m0, vdx + i0), nx1 = _mm512_maskz_loadu_epi32(m1, vdx + i0 + 16);
+  const __m512i ny0 = _mm512_maskz_loadu_epi32(m0, vdy + i0), ny1 = _mm512_maskz_loadu_epi32(m1, vdy + i0 + 16);
+  const __m128i shift = _mm_cvtsi32_si128(step_bits);
+  const __m512i fraction = _mm512_set1_epi32((1 << step_bits) - 1), half = _mm512_set1_epi32((1 << step_bits) >> 1);
+  const __m512i none = _mm512_set1_epi32(kNoSource), one = _mm512_set1_epi32(1);
+  const __m512i y16 = _mm512_set1_epi32(y * 65536);
+  for (int p = 0; p < kChunk; p += 16) {
+    const __m512i f = _mm512_add_epi32(_mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15),
+                                       _mm512_set1_epi32(p));
+    const __m512i cell = _mm512_srl_epi32(f, shift), fr = _mm512_and_si512(f, fraction);
+    const __m512i ax = _mm512_permutex2var_epi32(nx0, cell, nx1);
+    const __m512i bx = _mm512_permutex2var_epi32(nx0, _mm512_add_epi32(cell, one), nx1);
+    const __m512i ay = _mm512_permutex2var_epi32(ny0, cell, ny1);
+    const __m512i by = _mm512_permutex2var_epi32(ny0, _mm512_add_epi32(cell, one), ny1);
+    const __mmask16 fill = _mm512_cmpeq_epi32_mask(ax, none) | _mm512_cmpeq_epi32_mask(bx, none) |
+                           _mm512_cmpge_epi32_mask(_mm512_sub_epi32(f, fr), _mm512_set1_epi32(n));
+    const __m512i dx = _mm512_sub_epi32(bx, ax), dy = _mm512_sub_epi32(by, ay);
+    const __m512i ex = _mm512_sra_epi32(_mm512_add_epi32(_mm512_mullo_epi32(dx, fr), half), shift);
+    const __m512i ey = _mm512_sra_epi32(_mm512_add_epi32(_mm512_mullo_epi32(dy, fr), half), shift);
+    const __m512i column16 = _mm512_slli_epi32(_mm512_add_epi32(f, _mm512_set1_epi32(xs)), 16);
+    const __m512i px = _mm512_add_epi32(_mm512_add_epi32(ax, column16), ex);
+    const __m512i py = _mm512_add_epi32(_mm512_add_epi32(ay, y16), ey);
+    _mm512_storeu_si512(sx + p, _mm512_mask_mov_epi32(px, fill, _mm512_set1_epi32(kChunkOff)));
+    _mm512_storeu_si512(sy + p, _mm512_mask_mov_epi32(py, fill, _mm512_set1_epi32(kChunkOff)));
+  }
+}
+#endif
+
+// ChunkPositions, in AVX-512 lanes where the CPU has them (avx512).
+inline void ChunkPositionsFor(bool avx512, const int32_t* vdx, const int32_t* vdy, int xs, int n, int y,
+                              int step_bits, int32_t* sx, int32_t* sy) {
+#ifdef CAMSIM_X86_AVX512
+  if (avx512) return ChunkPositionsAvx512(vdx, vdy, xs, n, y, step_bits, sx, sy);
+#else
+  (void)avx512;
+#endif
+  ChunkPositions(vdx, vdy, xs, n, y, step_bits, sx, sy);
+}
+
 constexpr int32_t kPixelBorder = 0, kPixelInterior = 1, kPixelOff = 2;
 
 #ifdef CAMSIM_X86_AVX2  // ProcessRowLanes runs only there
-// ProcessRowLanes' per-chunk set-up: the source positions (ChunkPositions),
-// then per pixel its first tap column and row (relative to the window), its
-// two phases and its class, branch-free so that the loop vectorises; off the
-// image (or past n) the position is taken as 0, never used.
+// ProcessRowLanes' per-chunk set-up: from the source positions
+// (ChunkPositions), per pixel its first tap column and row (relative to the
+// window), its two phases and its class, branch-free so that the loop
+// vectorises; off the image (or past n) the position is taken as 0, never used.
 CAMSIM_CPU_CLONES
-void ClassifyChunk(const int32_t* vdx, const int32_t* vdy, int xs, int n, int y, int step_bits, const FastLimits l,
-                   int before, int32_t* __restrict sx, int32_t* __restrict sy, int32_t (*__restrict by_pixel)[kChunk]) {
-  ChunkPositions(vdx, vdy, xs, n, y, step_bits, sx, sy);
+void ClassifyChunk(int n, const FastLimits l, int before, const int32_t* __restrict sx, const int32_t* __restrict sy,
+                   int32_t (*__restrict by_pixel)[kChunk]) {
   for (int f = 0; f < kChunk; ++f) {
     const int32_t on = (f < n) & l.On(sx[f], sy[f]);
     const int32_t px = on ? sx[f] : 0, py = on ? sy[f] : 0;
@@ -995,8 +1043,9 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_
   } else {
     for (int c = 0; c < 3; ++c) PrefetchBelow(rows, row_count, rmax + N - 1, c, xmin, 16 * L);
     for (int c = 0; c < 3; ++c)
-      _mm512_mask_storeu_epi32(out[c] + x, inside | off,
-                               _mm512_maskz_mov_epi32(inside, FilterLanes16For<N, L>(vnni, rows, rmin, spread, c, xmin, in)));
+      _mm512_mask_storeu_epi32(
+          out[c] + x, inside | off,
+          _mm512_maskz_mov_epi32(inside, FilterLanes16For<N, L>(vnni, rows, rmin, spread, c, xmin, in)));
   }
   return inside | off;
 }
@@ -1541,7 +1590,7 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
   uint8_t site[kChunk];  // site only: the colour computed
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    ChunkPositions(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, u.sx, u.sy);
+    ChunkPositionsFor(avx512_, row_view.vdx, row_view.vdy, xs, n, y, step_bits_, u.sx, u.sy);
     BilinearSetUpLanes(&u, l);
     if constexpr (kSiteOnly)
       for (int f = 0; f < kChunk; ++f) site[f] = static_cast<uint8_t>(CfaColour(cfa, xs + f, y));
@@ -1644,7 +1693,8 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
   };
   for (int xs = 0; xs < width; xs += kChunk) {
     const int n = width - xs < kChunk ? width - xs : kChunk;
-    ClassifyChunk(row_view.vdx, row_view.vdy, xs, n, y, step_bits_, l, kBefore, sx, sy, by_pixel);
+    ChunkPositionsFor(avx512_, row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
+    ClassifyChunk(n, l, kBefore, sx, sy, by_pixel);
     if constexpr (kSiteOnly) {  // slots: the even pixels of each group, then the odd ones
       for (int v = 0; v < 5; ++v)
         for (int g = 0; g < kChunk; g += group)

@@ -646,7 +646,8 @@ std::vector<uint32_t> RunStageDirect(const DistortionStage& s, const std::vector
 // random samples with runs of the extremes 0 and 2^32 - 1, every filter,
 // full colour and CFA site only, grid steps 4..64, a width that is no
 // multiple of the 64-pixel chunk, a barrel lens whose corners sample off the
-// image (fill) and a displacement mesh.
+// image (fill), displacement meshes and two fisheyes (one too strong for the
+// fast paths' ranges).
 TEST(Distortion, FastPathEqualsGeneralPath) {
   const int w = 203, h = 61;
   std::vector<uint32_t> planes(static_cast<size_t>(w) * h * 3);
@@ -661,13 +662,14 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
   for (size_t i = 0; i < mesh.size(); ++i) mesh[i] = static_cast<float>(static_cast<int>(i % 7) - 3) * 1.37f;
   for (size_t i = 0; i < mesh.size(); ++i) steep[i] = 2.0f * mesh[i];
   int fast_cases = 0;
-  for (int lens = 0; lens < 4; ++lens)
+  for (int lens = 0; lens < 5; ++lens)
     for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
       for (int step : {4, 8, 64})
         for (bool site_only : {false, true}) {
           DistortionConfig d;
           d.lens = lens == 0 ? TypicalBrown(w, h) : lens == 1 ? FisheyeLens(w, h) : LensModel();
           if (lens == 1) d.lens.fx = d.lens.fy = 0.3 * w;  // a strong fisheye: black corners
+          if (lens == 4) d.lens = FisheyeLens(w, h);         // a milder one: the fast paths
           if (lens == 2) d.mesh = DisplacementMesh{mesh.data(), 5, 4, 50.0};
           // Twice as steep: sixteen site-only lanes' first tap rows spread
           // over up to nine rows (AVX-512 takes up to six, the rest go by eight or alone).
@@ -714,7 +716,7 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
           EXPECT_EQ(unwritten_first, 0u);
           EXPECT_EQ(unwritten_rest, site_only ? 2 * plane : 0u);
         }
-  EXPECT_EQ(fast_cases, 54);
+  EXPECT_EQ(fast_cases, 72);
 }
 
 }  // namespace
