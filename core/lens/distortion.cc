@@ -1654,6 +1654,21 @@ void DistortionStage::ProcessRowBilinear(const RowArgs& a) const {
 // CFA site only: the pixels of one colour among twice as many, L = 3. Lane
 // slots: RGB slot = pixel; site only, each group of 2 x lanes pixels is
 // stored even ones first, so a set's lanes are consecutive slots.
+#ifdef CAMSIM_X86_AVX512
+// ProcessRowLanes' site-only slots for sets of sixteen lanes: of each group
+// of 32 pixels, the even ones, then the odd ones (two vpermt2d per 32).
+CAMSIM_AVX512_TARGET void SlotsOf32(const int32_t (*by_pixel)[kChunk], int32_t (*by_slot)[kChunk]) {
+  const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+  const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+  for (int v = 0; v < 5; ++v)
+    for (int g = 0; g < kChunk; g += 32) {
+      const __m512i lo = _mm512_loadu_si512(by_pixel[v] + g), hi = _mm512_loadu_si512(by_pixel[v] + g + 16);
+      _mm512_storeu_si512(by_slot[v] + g, _mm512_permutex2var_epi32(lo, even, hi));
+      _mm512_storeu_si512(by_slot[v] + g + 16, _mm512_permutex2var_epi32(lo, odd, hi));
+    }
+}
+#endif
+
 // A set's mask of lanes done as pixels of the chunk from its first: lane j
 // is pixel step j (site only: every other bit, as a Morton spread).
 template <bool kSiteOnly>
@@ -1696,12 +1711,19 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
     ChunkPositionsFor(avx512_, row_view.vdx, row_view.vdy, xs, n, y, step_bits_, sx, sy);
     ClassifyChunk(n, l, kBefore, sx, sy, by_pixel);
     if constexpr (kSiteOnly) {  // slots: the even pixels of each group, then the odd ones
-      for (int v = 0; v < 5; ++v)
-        for (int g = 0; g < kChunk; g += group)
-          for (int i = 0; i < lanes; ++i) {
-            by_slot[v][g + i] = by_pixel[v][g + 2 * i];
-            by_slot[v][g + lanes + i] = by_pixel[v][g + 2 * i + 1];
-          }
+#ifdef CAMSIM_X86_AVX512
+      if (lanes == 16) {
+        SlotsOf32(by_pixel, by_slot);
+      } else
+#endif
+      {
+        for (int v = 0; v < 5; ++v)
+          for (int g = 0; g < kChunk; g += group)
+            for (int i = 0; i < lanes; ++i) {
+              by_slot[v][g + i] = by_pixel[v][g + 2 * i];
+              by_slot[v][g + lanes + i] = by_pixel[v][g + 2 * i + 1];
+            }
+      }
       if (n == kChunk) {  // vector stores: GCC makes a 256-byte memset a rep stos
         for (int i = 0; i < kChunk; i += 8)
           _mm256_storeu_si256(reinterpret_cast<__m256i*>(out[0] + xs + i), _mm256_setzero_si256());
