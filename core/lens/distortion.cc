@@ -724,8 +724,9 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
 // than the kernel takes (one row for eight lanes, kMaxRowSpread16 rows for
 // sixteen), or whose tap columns span more than the lanes' loads (L x lanes
 // samples from the set's first tap column; at the row's end, from the
-// column that makes them end with it). A set without interior pixels is done for its pixels off the
-// image. Site only, lane i is the pixel x + 2 i of colour plane; RGB, x + i.
+// column that makes them end with it). A set without interior pixels is
+// done for its pixels off the image. Site only, lane i is the pixel x + 2 i
+// of colour plane; RGB, x + i.
 struct LaneSet {
   const int32_t *x0s, *rows, *phx, *phy, *cls;
 };
