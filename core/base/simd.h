@@ -51,16 +51,6 @@
   __attribute__((target("avx2,avx512f,avx512vl,avx512dq,avx512bw,avx512cd,avx512ifma")))
 #endif
 
-// CAMSIM_X86_AVX512_VNNI: likewise a copy that picks bytes with AVX-512 VBMI
-// (vpermt2b) and sums 16-bit products with AVX-512 VNNI (vpdpwssd): Ice
-// Lake, Zen 4 and later. Called only when CpuHasAvx512Vnni(); the same bits as
-// the copy without. -DCAMSIM_NO_IFMA leaves it out too (the same preset).
-#if defined(CAMSIM_X86_AVX512) && !defined(CAMSIM_NO_IFMA)
-#define CAMSIM_X86_AVX512_VNNI 1
-#define CAMSIM_AVX512_VNNI_TARGET \
-  __attribute__((target("avx2,avx512f,avx512vl,avx512dq,avx512bw,avx512cd,avx512vbmi,avx512vnni")))
-#endif
-
 #include <cstdint>
 
 #ifdef CAMSIM_X86_AVX2
@@ -100,14 +90,6 @@ inline bool CpuHasAvx512() {
 inline bool CpuHasAvx512Ifma() {
 #ifdef CAMSIM_X86_AVX512_IFMA
   return CpuHasAvx512() && __builtin_cpu_supports("avx512ifma");
-#else
-  return false;
-#endif
-}
-
-inline bool CpuHasAvx512Vnni() {
-#ifdef CAMSIM_X86_AVX512_VNNI
-  return CpuHasAvx512() && __builtin_cpu_supports("avx512vbmi") && __builtin_cpu_supports("avx512vnni");
 #else
   return false;
 #endif

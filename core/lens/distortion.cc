@@ -615,7 +615,8 @@ void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& 
 // The sums are FilterInterior's, exactly, in 32-bit lanes: with the samples
 // split into 16-bit halves, s = sum w p = 2^16 SH + SL, where SH = sum w hi
 // and SL = sum w lo are exact in int32 (Init checks sum |w| < 2^15 for every
-// phase), so the rounded row sum is h = 4 SH + q, q = (SL + 2^13) >> 14;
+// phase; vpmaddwd sums them two taps at a time, FilterLanesAvx2), so the
+// rounded row sum is h = 4 SH + q, q = (SL + 2^13) >> 14;
 // the vertical sum 4 sum wy SH + sum wy q is taken in int64 lanes (even and
 // odd pixels apart), rounded, clamped to the 2x2 samples and packed back.
 struct FilterLanes {
@@ -662,18 +663,33 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
   const __m256i low = _mm256_set1_epi32(0xFFFF), one = _mm256_set1_epi32(1);
+  const __m256i flip = _mm256_set1_epi32(0x80008000);
+  // The row sums by vpmaddwd, two taps at a time: per pair, the weights (w 2k
+  // in the low word, w 2k+1 in the high) against the taps' low halves, then
+  // their high halves, as words offset by -2^15 (xor 0x8000; the sums start
+  // at 2^15 times the lane's weight sum to make up for it). The products and
+  // sums are the 32-bit ones of the halves, modulo 2^32, so the same.
+  __m256i wp[N / 2];
+  for (int k = 0; k < N / 2; ++k)
+    wp[k] = _mm256_or_si256(_mm256_and_si256(in.wx[2 * k], low), _mm256_slli_epi32(in.wx[2 * k + 1], 16));
+  __m256i wsum = in.wx[0];
+  for (int t = 1; t < N; ++t) wsum = _mm256_add_epi32(wsum, in.wx[t]);
+  const __m256i start = _mm256_slli_epi32(wsum, 15);
   __m256i sh[N + 1], q[N + 1], clamp[3][2];
   const int row_count = two ? N + 1 : N;
   for (int r = 0; r < row_count; ++r) {
     const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
-    __m256i v[L];
-    for (int l = 0; l < L; ++l) v[l] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8 * l));
-    __m256i h = _mm256_setzero_si256(), lo = _mm256_setzero_si256(), idx = in.x0;
-    for (int t = 0; t < N; ++t, idx = _mm256_add_epi32(idx, one)) {
-      const __m256i smp = PickRun<L>(v, idx);
-      h = _mm256_add_epi32(h, _mm256_mullo_epi32(_mm256_srli_epi32(smp, 16), in.wx[t]));
-      lo = _mm256_add_epi32(lo, _mm256_mullo_epi32(_mm256_and_si256(smp, low), in.wx[t]));
-      if (r >= kBefore && r <= kBefore + 2 && (t == kBefore || t == kBefore + 1)) clamp[r - kBefore][t - kBefore] = smp;
+    __m256i x[L];  // the samples, xor 0x80008000
+    for (int l = 0; l < L; ++l)
+      x[l] = _mm256_xor_si256(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8 * l)), flip);
+    __m256i h = start, lo = start, idx = in.x0;
+    for (int t = 0; t < N; t += 2, idx = _mm256_add_epi32(idx, _mm256_add_epi32(one, one))) {
+      const __m256i a = PickRun<L>(x, idx), b = PickRun<L>(x, _mm256_add_epi32(idx, one));
+      lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_blend_epi16(a, _mm256_slli_epi32(b, 16), 0xAA), wp[t / 2]));
+      h = _mm256_add_epi32(h, _mm256_madd_epi16(_mm256_blend_epi16(_mm256_srli_epi32(a, 16), b, 0xAA), wp[t / 2]));
+      for (int u = t; u < t + 2; ++u)
+        if (r >= kBefore && r <= kBefore + 2 && (u == kBefore || u == kBefore + 1))
+          clamp[r - kBefore][u - kBefore] = _mm256_xor_si256(u == t ? a : b, flip);
     }
     sh[r] = h;
     q[r] = _mm256_srai_epi32(_mm256_add_epi32(lo, _mm256_set1_epi32(1 << (kF - 1))), kF);
@@ -790,7 +806,7 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
 // FilterLanesAvx2 in sixteen lanes, step for step: L loads of sixteen
 // samples per row, each lane's taps picked by vpermt2d (from the first 32)
 // and vpermd (from the third load), the same 32-bit row sums on the 16-bit
-// halves, the vertical pass in 64-bit even and odd lanes, and the same
+// halves (vpmaddwd), the vertical pass in 64-bit even and odd lanes, and the same
 // rounding and ringing clamp. The lanes' first tap rows may spread over S + 1
 // rows (S <= kMaxRowSpread16, against AVX2's one): N + S rows are summed and
 // each lane picks its N (sixteen pixels of one colour span 32 columns, over
@@ -857,19 +873,30 @@ CAMSIM_AVX512_TARGET __m512i FilterLanesAvx512(const RowIn* rows, int rmin, int 
                                                const FilterLanes16& in) {
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
+  constexpr __mmask32 kHighWords = 0xAAAAAAAA;
   const __m512i low = _mm512_set1_epi32(0xFFFF), one = _mm512_set1_epi32(1);
+  const __m512i flip = _mm512_set1_epi32(0x80008000);
+  __m512i wp[N / 2];  // as FilterLanesAvx2's
+  for (int k = 0; k < N / 2; ++k)
+    wp[k] = _mm512_or_si512(_mm512_and_si512(in.wx[2 * k], low), _mm512_slli_epi32(in.wx[2 * k + 1], 16));
+  __m512i wsum = in.wx[0];
+  for (int t = 1; t < N; ++t) wsum = _mm512_add_epi32(wsum, in.wx[t]);
+  const __m512i start = _mm512_slli_epi32(wsum, 15);
   __m512i sh[N + S], q[N + S], clamp[2][2 + S];  // clamp[tap column][row - kBefore]
   for (int r = 0; r < N + S; ++r) {
     const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
-    __m512i v[L];
-    for (int l = 0; l < L; ++l) v[l] = _mm512_loadu_si512(p + 16 * l);
-    __m512i h = _mm512_setzero_si512(), lo = _mm512_setzero_si512(), idx = in.x0;
-    for (int t = 0; t < N; ++t, idx = _mm512_add_epi32(idx, one)) {
-      const __m512i smp = PickRun16<L>(v, idx);
-      h = _mm512_add_epi32(h, _mm512_mullo_epi32(_mm512_srli_epi32(smp, 16), in.wx[t]));
-      lo = _mm512_add_epi32(lo, _mm512_mullo_epi32(_mm512_and_si512(smp, low), in.wx[t]));
-      if (r >= kBefore && r <= kBefore + 1 + S && (t == kBefore || t == kBefore + 1))
-        clamp[t - kBefore][r - kBefore] = smp;
+    __m512i x[L];  // the samples, xor 0x80008000
+    for (int l = 0; l < L; ++l) x[l] = _mm512_xor_si512(_mm512_loadu_si512(p + 16 * l), flip);
+    __m512i h = start, lo = start, idx = in.x0;
+    for (int t = 0; t < N; t += 2, idx = _mm512_add_epi32(idx, _mm512_add_epi32(one, one))) {
+      const __m512i a = PickRun16<L>(x, idx), b = PickRun16<L>(x, _mm512_add_epi32(idx, one));
+      lo = _mm512_add_epi32(
+          lo, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, a, _mm512_slli_epi32(b, 16)), wp[t / 2]));
+      h = _mm512_add_epi32(
+          h, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, _mm512_srli_epi32(a, 16), b), wp[t / 2]));
+      for (int u = t; u < t + 2; ++u)
+        if (r >= kBefore && r <= kBefore + 1 + S && (u == kBefore || u == kBefore + 1))
+          clamp[u - kBefore][r - kBefore] = _mm512_xor_si512(u == t ? a : b, flip);
     }
     sh[r] = h;
     q[r] = _mm512_srai_epi32(_mm512_add_epi32(lo, _mm512_set1_epi32(1 << (kF - 1))), kF);
@@ -888,95 +915,6 @@ CAMSIM_AVX512_TARGET inline __m512i FilterLanesAvx512(const RowIn* rows, int rmi
     case 4: return FilterLanesAvx512<N, L, 4>(rows, rmin, plane, xmin, in);
     default: return FilterLanesAvx512<N, L, 5>(rows, rmin, plane, xmin, in);
   }
-}
-
-#ifdef CAMSIM_X86_AVX512_VNNI
-// FilterLanesAvx512's row sums with AVX-512 VBMI and VNNI, the same
-// integers: one vpermt2b picks a pair of taps' low halves for every lane
-// (two 16-bit words in each 32-bit lane), another their high halves, and
-// vpdpwssd multiplies both words by the pair's weights and adds them to the
-// row sum. vpdpwssd's words are signed: the samples' halves go in offset by
-// -2^15 (xor 0x8000), and the sums start at 2^15 times the lane's weight sum
-// to make up for it; sums wrap modulo 2^32 as vpmulld's do, so they end
-// equal. Per pair of taps: 2 or 4 byte permutes and 2 vpdpwssd, against 2 to
-// 4 dword permutes, 4 vpmulld (two uops each) and 6 other operations.
-template <int N, int L, int S>
-CAMSIM_AVX512_VNNI_TARGET __m512i FilterLanesVnni(const RowIn* rows, int rmin, int plane, int xmin,
-                                                  const FilterLanes16& in) {
-  constexpr int kF = DistortionStage::kWeightFracBits;
-  constexpr int kBefore = N / 2 - 1;
-  constexpr int kPairs = N / 2;
-  const __m512i low = _mm512_set1_epi32(0xFFFF), flip = _mm512_set1_epi32(0x80008000);
-  // Per pair k: the weights (w 2k in the low word, w 2k+1 in the high), the
-  // byte indices of the taps' low halves and high halves in the run of L x 16
-  // samples, and (L = 3) the bytes that come from the third load (index >= 128).
-  __m512i wp[kPairs], lo_idx[kPairs], hi_idx[kPairs];
-  __mmask64 third[kPairs];
-  const __m512i first_byte = _mm512_slli_epi32(in.x0, 2);
-  __m512i wsum = in.wx[0];
-  for (int t = 1; t < N; ++t) wsum = _mm512_add_epi32(wsum, in.wx[t]);
-  for (int k = 0; k < kPairs; ++k) {
-    wp[k] = _mm512_or_si512(_mm512_and_si512(in.wx[2 * k], low), _mm512_slli_epi32(in.wx[2 * k + 1], 16));
-    const __m512i b = _mm512_mullo_epi32(_mm512_add_epi32(first_byte, _mm512_set1_epi32(8 * k)),
-                                         _mm512_set1_epi32(0x01010101));
-    lo_idx[k] = _mm512_add_epi32(b, _mm512_set1_epi32(0x05040100));  // bytes 0, 1 of tap 2k; 0, 1 of 2k + 1
-    hi_idx[k] = _mm512_add_epi32(b, _mm512_set1_epi32(0x07060302));  // bytes 2, 3 of each
-    third[k] = _mm512_movepi8_mask(lo_idx[k]);                     // the same samples' bytes in hi_idx
-  }
-  const __m512i start = _mm512_slli_epi32(wsum, 15);
-  __m512i sh[N + S], q[N + S], clamp[2][2 + S];  // clamp[tap column][row - kBefore]
-  for (int r = 0; r < N + S; ++r) {
-    const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
-    __m512i v[L], x[L];
-    for (int l = 0; l < L; ++l) {
-      v[l] = _mm512_loadu_si512(p + 16 * l);
-      x[l] = _mm512_xor_si512(v[l], flip);
-    }
-    __m512i h = start, lo = start;
-    for (int k = 0; k < kPairs; ++k) {
-      __m512i lo_s = _mm512_permutex2var_epi8(x[0], lo_idx[k], x[1]);
-      __m512i hi_s = _mm512_permutex2var_epi8(x[0], hi_idx[k], x[1]);
-      if constexpr (L == 3) {
-        lo_s = _mm512_mask_permutexvar_epi8(lo_s, third[k], lo_idx[k], x[2]);
-        hi_s = _mm512_mask_permutexvar_epi8(hi_s, third[k], hi_idx[k], x[2]);
-      }
-      lo = _mm512_dpwssd_epi32(lo, lo_s, wp[k]);
-      h = _mm512_dpwssd_epi32(h, hi_s, wp[k]);
-    }
-    if (r >= kBefore && r <= kBefore + 1 + S)
-      for (int t = kBefore; t <= kBefore + 1; ++t)
-        clamp[t - kBefore][r - kBefore] = PickRun16<L>(v, _mm512_add_epi32(in.x0, _mm512_set1_epi32(t)));
-    sh[r] = h;
-    q[r] = _mm512_srai_epi32(_mm512_add_epi32(lo, _mm512_set1_epi32(1 << (kF - 1))), kF);
-  }
-  return FinishLanes16<N, S>(sh, q, clamp, in);
-}
-
-template <int N, int L>
-CAMSIM_AVX512_VNNI_TARGET __attribute__((noinline)) __m512i FilterLanesVnni(const RowIn* rows, int rmin, int spread,
-                                                                            int plane, int xmin,
-                                                                            const FilterLanes16& in) {
-  switch (spread) {
-    case 0: return FilterLanesVnni<N, L, 0>(rows, rmin, plane, xmin, in);
-    case 1: return FilterLanesVnni<N, L, 1>(rows, rmin, plane, xmin, in);
-    case 2: return FilterLanesVnni<N, L, 2>(rows, rmin, plane, xmin, in);
-    case 3: return FilterLanesVnni<N, L, 3>(rows, rmin, plane, xmin, in);
-    case 4: return FilterLanesVnni<N, L, 4>(rows, rmin, plane, xmin, in);
-    default: return FilterLanesVnni<N, L, 5>(rows, rmin, plane, xmin, in);
-  }
-}
-#endif
-
-// FilterLanesVnni where the CPU has it (vnni), else FilterLanesAvx512.
-template <int N, int L>
-CAMSIM_AVX512_TARGET inline __m512i FilterLanes16For(bool vnni, const RowIn* rows, int rmin, int spread, int plane,
-                                                     int xmin, const FilterLanes16& in) {
-#ifdef CAMSIM_X86_AVX512_VNNI
-  if (vnni) return FilterLanesVnni<N, L>(rows, rmin, spread, plane, xmin, in);
-#else
-  (void)vnni;
-#endif
-  return FilterLanesAvx512<N, L>(rows, rmin, spread, plane, xmin, in);
 }
 
 // Each lane's N weights for its phase, tap by tap, from the tap-major table
@@ -1010,7 +948,7 @@ CAMSIM_AVX512_TARGET inline void LaneWeights16(const int32_t* wtap, int tap_stri
 }
 
 template <int N, bool kSiteOnly>
-CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_count, int width, const int32_t* wtap,
+CAMSIM_AVX512_TARGET uint32_t FilterSet16(const RowIn* rows, int row_count, int width, const int32_t* wtap,
                                           int tap_stride, const LaneSet& set, int plane, uint32_t* const* out, int x) {
   constexpr int L = kSiteOnly ? 3 : 2;
   const __m512i cls = _mm512_loadu_si512(set.cls);
@@ -1038,7 +976,7 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_
   if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
     PrefetchBelow(rows, row_count, rmax + N - 1, plane, xmin, 16 * L);
     alignas(64) uint32_t v[16];
-    _mm512_store_si512(v, FilterLanes16For<N, L>(vnni, rows, rmin, spread, plane, xmin, in));
+    _mm512_store_si512(v, FilterLanesAvx512<N, L>(rows, rmin, spread, plane, xmin, in));
     for (int i = 0; i < 16; ++i)
       if ((inside >> i) & 1) out[plane][x + 2 * i] = v[i];
   } else {
@@ -1046,7 +984,7 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(bool vnni, const RowIn* rows, int row_
     for (int c = 0; c < 3; ++c)
       _mm512_mask_storeu_epi32(
           out[c] + x, inside | off,
-          _mm512_maskz_mov_epi32(inside, FilterLanes16For<N, L>(vnni, rows, rmin, spread, c, xmin, in)));
+          _mm512_maskz_mov_epi32(inside, FilterLanesAvx512<N, L>(rows, rmin, spread, c, xmin, in)));
   }
   return inside | off;
 }
@@ -1386,7 +1324,6 @@ Status DistortionStage::Init(Arena& tables) {
   }
   avx2_ = CpuHasAvx2() && small_weights;
   avx512_ = avx2_ && CpuHasAvx512();
-  vnni_ = avx512_ && CpuHasAvx512Vnni();
   return Status::Ok();
 }
 
@@ -1743,7 +1680,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         if (lanes == 16) {
           const LaneSet lane_set{x0s + k, rows_ + k, phx + k, phy + k, cls + k};
           const uint32_t lanes_done =
-              FilterSet16<N, kSiteOnly>(vnni_, rows, a.row_count, width, wtap_, TapStride(), lane_set, plane, out,
+              FilterSet16<N, kSiteOnly>(rows, a.row_count, width, wtap_, TapStride(), lane_set, plane, out,
                                         xs + f);
           done |= LanePixels<kSiteOnly>(lanes_done) << f;
           if (lanes_done != 0) continue;

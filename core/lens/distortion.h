@@ -46,9 +46,9 @@
 // .cc) that give exactly the general path's bits; tests compare the two.
 // On x86-64 with AVX2 they take eight pixels at a time in lanes (sixteen
 // with AVX-512), picking samples from contiguous loads with vpermd
-// (vpermt2d; for the N-tap row sums with VBMI and VNNI, pairs of 16-bit
-// halves by vpermt2b, summed by vpdpwssd); elsewhere, and in the debug
-// preset, the bilinear one stages them and the others go pixel by pixel.
+// (vpermt2d), the N-tap row sums two taps at a time by vpmaddwd; elsewhere,
+// and in the debug preset, the bilinear one stages them and the others go
+// pixel by pixel.
 //
 // Formats: in/out 3 channels, Radiance Q16.16 or Photons Q24.8 (unchanged).
 #pragma once
@@ -137,7 +137,6 @@ class DistortionStage final : public Stage {
   bool force_general_ = false;  // tests only
   bool avx2_ = false;           // bilinear fast path: the AVX2 kernel (set by Init)
   bool avx512_ = false;         // N-tap fast path: sets of sixteen lanes (AVX-512) first (set by Init)
-  bool vnni_ = false;           // and their row sums with AVX-512 VBMI and VNNI (set by Init)
   int taps_ = 6;
   int phase_bits_ = 6;
   int step_bits_ = 4;
