@@ -622,7 +622,9 @@ void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& 
 struct FilterLanes {
   __m256i x0;     // first tap column - xmin
   __m256i lower;  // all ones where the first tap row is rmin + 1
-  __m256i wx[6], wy[6];
+  __m256i wp[3];  // horizontal weights by pairs of taps: w 2k in the low word, w 2k+1 in the high
+  __m256i start;  // the row sums' start: 2^15 times the sum of the horizontal weights
+  __m256i wy[6];
 };
 
 // Each lane's N weights for its phase, tap by tap: the eight lanes' rows of
@@ -662,19 +664,13 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
                                            const FilterLanes& in) {
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
-  const __m256i low = _mm256_set1_epi32(0xFFFF), one = _mm256_set1_epi32(1);
+  const __m256i one = _mm256_set1_epi32(1);
   const __m256i flip = _mm256_set1_epi32(0x80008000);
-  // The row sums by vpmaddwd, two taps at a time: per pair, the weights (w 2k
-  // in the low word, w 2k+1 in the high) against the taps' low halves, then
-  // their high halves, as words offset by -2^15 (xor 0x8000; the sums start
-  // at 2^15 times the lane's weight sum to make up for it). The products and
-  // sums are the 32-bit ones of the halves, modulo 2^32, so the same.
-  __m256i wp[N / 2];
-  for (int k = 0; k < N / 2; ++k)
-    wp[k] = _mm256_or_si256(_mm256_and_si256(in.wx[2 * k], low), _mm256_slli_epi32(in.wx[2 * k + 1], 16));
-  __m256i wsum = in.wx[0];
-  for (int t = 1; t < N; ++t) wsum = _mm256_add_epi32(wsum, in.wx[t]);
-  const __m256i start = _mm256_slli_epi32(wsum, 15);
+  // The row sums by vpmaddwd, two taps at a time: per pair, its weights
+  // (in.wp) against the taps' low halves, then their high halves, as words
+  // offset by -2^15 (xor 0x8000; the sums start at in.start to make up for
+  // it). The products and sums are the 32-bit ones of the halves, modulo
+  // 2^32, so the same.
   __m256i sh[N + 1], q[N + 1], clamp[3][2];
   const int row_count = two ? N + 1 : N;
   for (int r = 0; r < row_count; ++r) {
@@ -682,11 +678,12 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
     __m256i x[L];  // the samples, xor 0x80008000
     for (int l = 0; l < L; ++l)
       x[l] = _mm256_xor_si256(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + 8 * l)), flip);
-    __m256i h = start, lo = start, idx = in.x0;
+    __m256i h = in.start, lo = in.start, idx = in.x0;
     for (int t = 0; t < N; t += 2, idx = _mm256_add_epi32(idx, _mm256_add_epi32(one, one))) {
       const __m256i a = PickRun<L>(x, idx), b = PickRun<L>(x, _mm256_add_epi32(idx, one));
-      lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_blend_epi16(a, _mm256_slli_epi32(b, 16), 0xAA), wp[t / 2]));
-      h = _mm256_add_epi32(h, _mm256_madd_epi16(_mm256_blend_epi16(_mm256_srli_epi32(a, 16), b, 0xAA), wp[t / 2]));
+      const __m256i wp = in.wp[t / 2];
+      lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_blend_epi16(a, _mm256_slli_epi32(b, 16), 0xAA), wp));
+      h = _mm256_add_epi32(h, _mm256_madd_epi16(_mm256_blend_epi16(_mm256_srli_epi32(a, 16), b, 0xAA), wp));
       for (int u = t; u < t + 2; ++u)
         if (r >= kBefore && r <= kBefore + 2 && (u == kBefore || u == kBefore + 1))
           clamp[r - kBefore][u - kBefore] = _mm256_xor_si256(u == t ? a : b, flip);
@@ -781,7 +778,15 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
   FilterLanes in;
   in.x0 = _mm256_sub_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(x0s)), _mm256_set1_epi32(xmin));
   in.lower = _mm256_cmpgt_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(rws)), _mm256_set1_epi32(rmin));
-  LaneWeights<N>(wt, set.phx, in.wx);
+  __m256i wx[6];
+  LaneWeights<N>(wt, set.phx, wx);
+  const __m256i low = _mm256_set1_epi32(0xFFFF);
+  in.start = _mm256_setzero_si256();
+  for (int k = 0; k < N / 2; ++k) {
+    in.wp[k] = _mm256_or_si256(_mm256_and_si256(wx[2 * k], low), _mm256_slli_epi32(wx[2 * k + 1], 16));
+    in.start = _mm256_add_epi32(in.start, _mm256_add_epi32(wx[2 * k], wx[2 * k + 1]));
+  }
+  in.start = _mm256_slli_epi32(in.start, 15);
   LaneWeights<N>(wt, set.phy, in.wy);
   const bool two = rmax > rmin;
   if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
@@ -817,7 +822,7 @@ constexpr int kMaxRowSpread16 = 5;
 struct FilterLanes16 {
   __m512i x0;                                 // first tap column - xmin
   __mmask16 row_is[kMaxRowSpread16 + 1];      // [d]: lanes whose first tap row is rmin + d
-  __m512i wx[6], wy[6];
+  __m512i wp[3], start, wy[6];                // as FilterLanes'
 };
 
 template <int L>
@@ -874,26 +879,19 @@ CAMSIM_AVX512_TARGET __m512i FilterLanesAvx512(const RowIn* rows, int rmin, int 
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int kBefore = N / 2 - 1;
   constexpr __mmask32 kHighWords = 0xAAAAAAAA;
-  const __m512i low = _mm512_set1_epi32(0xFFFF), one = _mm512_set1_epi32(1);
-  const __m512i flip = _mm512_set1_epi32(0x80008000);
-  __m512i wp[N / 2];  // as FilterLanesAvx2's
-  for (int k = 0; k < N / 2; ++k)
-    wp[k] = _mm512_or_si512(_mm512_and_si512(in.wx[2 * k], low), _mm512_slli_epi32(in.wx[2 * k + 1], 16));
-  __m512i wsum = in.wx[0];
-  for (int t = 1; t < N; ++t) wsum = _mm512_add_epi32(wsum, in.wx[t]);
-  const __m512i start = _mm512_slli_epi32(wsum, 15);
+  const __m512i one = _mm512_set1_epi32(1), flip = _mm512_set1_epi32(0x80008000);
   __m512i sh[N + S], q[N + S], clamp[2][2 + S];  // clamp[tap column][row - kBefore]
   for (int r = 0; r < N + S; ++r) {
     const uint32_t* p = rows[rmin + r].ch[plane] + xmin;
     __m512i x[L];  // the samples, xor 0x80008000
     for (int l = 0; l < L; ++l) x[l] = _mm512_xor_si512(_mm512_loadu_si512(p + 16 * l), flip);
-    __m512i h = start, lo = start, idx = in.x0;
+    __m512i h = in.start, lo = in.start, idx = in.x0;
     for (int t = 0; t < N; t += 2, idx = _mm512_add_epi32(idx, _mm512_add_epi32(one, one))) {
       const __m512i a = PickRun16<L>(x, idx), b = PickRun16<L>(x, _mm512_add_epi32(idx, one));
       lo = _mm512_add_epi32(
-          lo, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, a, _mm512_slli_epi32(b, 16)), wp[t / 2]));
+          lo, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, a, _mm512_slli_epi32(b, 16)), in.wp[t / 2]));
       h = _mm512_add_epi32(
-          h, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, _mm512_srli_epi32(a, 16), b), wp[t / 2]));
+          h, _mm512_madd_epi16(_mm512_mask_blend_epi16(kHighWords, _mm512_srli_epi32(a, 16), b), in.wp[t / 2]));
       for (int u = t; u < t + 2; ++u)
         if (r >= kBefore && r <= kBefore + 1 + S && (u == kBefore || u == kBefore + 1))
           clamp[u - kBefore][r - kBefore] = _mm512_xor_si512(u == t ? a : b, flip);
@@ -971,7 +969,15 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(const RowIn* rows, int row_count, int 
   FilterLanes16 in;
   in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
   for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
-  LaneWeights16<N>(wtap, tap_stride, set.phx, in.wx);
+  __m512i wx[6];
+  LaneWeights16<N>(wtap, tap_stride, set.phx, wx);
+  const __m512i low = _mm512_set1_epi32(0xFFFF);
+  in.start = _mm512_setzero_si512();
+  for (int k = 0; k < N / 2; ++k) {
+    in.wp[k] = _mm512_or_si512(_mm512_and_si512(wx[2 * k], low), _mm512_slli_epi32(wx[2 * k + 1], 16));
+    in.start = _mm512_add_epi32(in.start, _mm512_add_epi32(wx[2 * k], wx[2 * k + 1]));
+  }
+  in.start = _mm512_slli_epi32(in.start, 15);
   LaneWeights16<N>(wtap, tap_stride, set.phy, in.wy);
   if constexpr (kSiteOnly) {  // off lanes: ProcessRowLanes has zeroed the chunk
     PrefetchBelow(rows, row_count, rmax + N - 1, plane, xmin, 16 * L);
