@@ -253,7 +253,7 @@ void GigeDevice::WriteFeature(const Feature& f, uint64_t v) {
 double GigeDevice::AppliedDouble(uint32_t address) const { return BitsDouble(applied_.at(address)); }
 void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
   applied_[address] = value;
-  for (const Feature& f : table_)
+  for (const Feature& f : registers_)
     if (f.address == address && f.alias_of.empty() && f.kind != Kind::kString && f.kind != Kind::kSwissKnife) {
       WriteFeature(f, value);
       return;
@@ -295,7 +295,6 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     return false;
   }
   for (int i = 0; i < base_config_.core.order_count; ++i) configured_stages_.push_back(base_config_.core.order[i]);
-  stage_enabled_.assign(configured_stages_.size(), true);
 
   sensor_.width = p.width();
   sensor_.height = p.height();
@@ -316,6 +315,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     }
   }
   table_ = RegisterTable(sensor_);
+  registers_ = FeatureRegisters(table_);
   raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
   rgb_.assign(static_cast<size_t>(sensor_.width) * sensor_.height * 3, 0);
 
@@ -415,15 +415,11 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimFNumber, DoubleBits(c.exposure.f_number)},
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
-      {kSimStageEnable, 1},
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
   };
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const auto& iv : initial) {
-    applied_[static_cast<uint32_t>(iv[0])] = iv[1];
-    for (const Feature& f : table_)
-      if (f.address == iv[0] && f.alias_of.empty()) WriteFeature(f, iv[1]);
-  }
+  for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
+  for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SimStageEnable(i), 1);
   seed_register_at_start_ = applied_[kSimSeed];
   Write(kAcquisition, 0);
   Write(kTriggerSoftware, 0);
@@ -480,7 +476,7 @@ bool GigeDevice::RenderNow(std::vector<uint8_t>* frame) {
 
 std::string GigeDevice::CheckInvariants() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const Feature& f : table_) {
+  for (const Feature& f : registers_) {
     if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
         f.kind == Kind::kSwissKnife)
       continue;
@@ -515,8 +511,6 @@ void GigeDevice::WriteDerived() {
   Write(kLineMode, Applied(kLineSelector) == 0 ? 0 : 1);
   WriteLineStatus();
   Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
-  Write(kSimStageEnable, stage_enabled_.empty() ? 0 : (stage_enabled_[Applied(kSimStageSelector)] ? 1 : 0));
-  applied_[kSimStageEnable] = Read(kSimStageEnable);
 }
 
 void GigeDevice::WriteLineStatus() {
@@ -524,8 +518,7 @@ void GigeDevice::WriteLineStatus() {
   Write(kLineStatus, (Applied(kLineSelector) == 0 ? trigger_level_.load() : strobe_level_) ? 1 : 0);
 }
 
-bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config,
-                         std::string* error) const {
+bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const {
   using namespace reg;
   host::RunConfig& rc = *config;
   rc = base_config_;
@@ -536,7 +529,7 @@ bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, ho
   if (r.at(kSimSeed) != seed_register_at_start_) rc.core.seed = r.at(kSimSeed);
   rc.core.order_count = 0;
   for (size_t i = 0; i < configured_stages_.size(); ++i)
-    if (stages[i]) rc.core.order[rc.core.order_count++] = configured_stages_[i];
+    if (r.at(SimStageEnable(i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
   // Plan first (cheap, no tables): the running renderer stays as it is on failure.
   host::RunConfig finished = rc;
   if (!host::FinishConfig(&finished, scenes_[0].width, scenes_[0].height, origins_, 1, error)) return false;
@@ -558,9 +551,9 @@ bool GigeDevice::PlanFor(const Registers& r, const std::vector<bool>& stages, ho
   return true;
 }
 
-bool GigeDevice::Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error) {
+bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
   host::RunConfig rc;
-  if (!PlanFor(r, stages, &rc, error)) return false;
+  if (!PlanFor(r, &rc, error)) return false;
   if (!renderer_->Configure(rc, origins_, scenes_[0].width, scenes_[0].height, nullptr, error)) return false;
   current_scene_ = -1;  // the input is prepared again for the new pipeline
   return true;
@@ -603,9 +596,8 @@ void GigeDevice::Sync() {
   }
 
   Registers next = applied_;
-  std::vector<bool> stages = stage_enabled_;
   std::vector<const Feature*> changed;
-  for (const Feature& f : table_) {
+  for (const Feature& f : registers_) {
     if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
         f.kind == Kind::kSwissKnife)
       continue;
@@ -629,7 +621,7 @@ void GigeDevice::Sync() {
     };
     auto refuse = [&](uint32_t a) {
       next[a] = applied_.at(a);
-      for (const Feature& f : table_)
+      for (const Feature& f : registers_)
         if (f.address == a && f.alias_of.empty()) WriteFeature(f, applied_.at(a));
       ++writes_refused_;
     };
@@ -649,12 +641,13 @@ void GigeDevice::Sync() {
       next[kGain] = DoubleBits(static_cast<double>(next[kGainRaw]) / 10.0);
       WriteDouble(kGain, BitsDouble(next[kGain]));
     }
-    if (was_changed(kSimStageEnable)) stages[next[kSimStageSelector]] = next[kSimStageEnable] != 0;
-    bool pipeline = was_changed(kSimStageEnable) || was_changed(kPixelFormat) || was_changed(kGainRaw);
+    bool pipeline = was_changed(kPixelFormat) || was_changed(kGainRaw);
     for (uint32_t a : kPipelineRegisters) pipeline = pipeline || was_changed(a);
+    for (size_t i = 0; i < configured_stages_.size(); ++i)
+      pipeline = pipeline || was_changed(SimStageEnable(i));
     std::string error;
     const auto t_rc = std::chrono::steady_clock::now();
-    const bool rc_ok = !pipeline || Reconfigure(next, stages, &error);
+    const bool rc_ok = !pipeline || Reconfigure(next, &error);
     if (std::getenv("CAMSIM_GIGE_DEBUG"))
       std::fprintf(stderr, "camsim-gige: reconfigured in %.1f ms\n",
                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_rc).count());
@@ -667,10 +660,8 @@ void GigeDevice::Sync() {
         WriteDouble(kGain, AppliedDouble(kGain));
       }
       next = applied_;
-      stages = stage_enabled_;
     }
     applied_ = next;
-    stage_enabled_ = stages;
     WriteDerived();
   }
   Write(kSimSyncCount, Read(kSimSyncCount) + 1);
@@ -799,7 +790,7 @@ void GigeDevice::AutoAdjust(double frac) {
   ExposureSettings s = auto_exposure_.Update(frac);
   Registers next = AutoRegisters(s);
   std::string error;
-  if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) {
+  if (next != applied_ && !Reconfigure(next, &error)) {
     // The pipeline refuses the request (CCD smear and motion blur need a
     // minimum exposure, for example): the controller's range ends where the
     // pipeline's does, and it starts afresh from the applied settings.
@@ -814,7 +805,7 @@ void GigeDevice::AutoAdjust(double frac) {
     ev_measured = auto_exposure_.ev();
     s = auto_exposure_.Update(frac);
     next = AutoRegisters(s);
-    if (next != applied_ && !Reconfigure(next, stage_enabled_, &error)) return StopAuto(error);
+    if (next != applied_ && !Reconfigure(next, &error)) return StopAuto(error);
   }
   // Once ends when the controller settles, or when a frame taken at the end
   // of its range still asks to go further (the target is out of reach).
@@ -865,7 +856,7 @@ void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
   auto accepted = [&](double t, double g) {  // the registers a request would set, planned only
     host::RunConfig rc;
     std::string error;
-    return PlanFor(AutoRegisters({t, g, AppliedDouble(kSimFNumber)}), stage_enabled_, &rc, &error);
+    return PlanFor(AutoRegisters({t, g, AppliedDouble(kSimFNumber)}), &rc, &error);
   };
   // Exposure first, at the applied gain: bisection on log2(t) between the
   // applied value (accepted) and the request (refused).

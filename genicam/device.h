@@ -124,10 +124,10 @@ class GigeDevice {
   uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
   void SetApplied(uint32_t address, uint64_t value);  // register and applied value
   void Sync();                                            // under mutex_
-  // The run configuration for registers r and stage switches, checked by
-  // planning a pipeline (cheap: no tables); the renderer is not touched.
-  bool PlanFor(const Registers& r, const std::vector<bool>& stages, host::RunConfig* config, std::string* error) const;
-  bool Reconfigure(const Registers& r, const std::vector<bool>& stages, std::string* error);  // under mutex_
+  // The run configuration for registers r (SimStageEnable's included),
+  // checked by planning a pipeline (cheap: no tables); the renderer is not touched.
+  bool PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const;
+  bool Reconfigure(const Registers& r, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void WriteLineStatus();  // the selected line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
@@ -150,6 +150,7 @@ class GigeDevice {
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
 
   std::vector<Feature> table_;
+  std::vector<Feature> registers_;  // FeatureRegisters(table_): what Sync reads and checks
   SensorInfo sensor_;
   std::string xml_path_;
   bool own_xml_ = false;
@@ -160,7 +161,6 @@ class GigeDevice {
   std::vector<StageId> configured_stages_;
   std::unique_ptr<host::FrameRenderer> renderer_;
   Registers applied_;
-  std::vector<bool> stage_enabled_;
   uint64_t seed_register_at_start_ = 0;
   std::vector<uint16_t> raw_;   // full-sensor taps
   std::vector<uint8_t> rgb_;

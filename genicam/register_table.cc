@@ -234,6 +234,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   if (stages.empty()) stages.push_back({"Stage_none", 0});
   t.push_back(Enum("SimStageSelector", sim, kSimStageSelector, true, stages, "Configured stage SimStageEnable acts on."));
   t.push_back(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."));
+  t.back().selected_by = "SimStageSelector";
+  t.back().selections = static_cast<int>(stages.size());
   t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
                   "Register syncs completed: two more than when a write was sent means the write was checked "
                   "and applied (or refused)."));
@@ -241,6 +243,25 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Flt("SimAutoTarget", sim, kSimAutoTarget, 0.01, 0.9,
                   "Mean raw level (fraction of full scale) the Auto features aim for.", ""));
   return t;
+}
+
+std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
+  std::vector<Feature> out;
+  for (const Feature& f : table) {
+    if (f.selected_by.empty()) {
+      out.push_back(f);
+      continue;
+    }
+    for (int i = 0; i < f.selections; ++i) {
+      Feature r = f;
+      r.name = f.name + "[" + std::to_string(i) + "]";
+      r.address = f.address + 4 * static_cast<uint32_t>(i);
+      r.selected_by.clear();
+      r.selections = 1;
+      out.push_back(r);
+    }
+  }
+  return out;
 }
 
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name) {
@@ -342,7 +363,9 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     if (!f.alias_of.empty()) continue;  // the register node is the original's
     const bool is_float = f.kind == Kind::kFloat;
     x << "  <" << (is_float ? "FloatReg" : "IntReg") << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
-      << "    <Address>" << Hex(f.address) << "</Address>\n    <Length>" << f.length << "</Length>\n"
+      << "    <Address>" << Hex(f.address) << "</Address>\n";
+    if (!f.selected_by.empty()) x << "    <pIndex Offset=\"4\">" << f.selected_by << "Reg</pIndex>\n";
+    x << "    <Length>" << f.length << "</Length>\n"
       << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>Device</pPort>\n"
       << "    <Cachable>NoCache</Cachable>\n";
     if (!is_float) x << "    <Sign>Unsigned</Sign>\n";

@@ -10,6 +10,7 @@
 // are 8-byte IEEE doubles.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -41,6 +42,11 @@ struct Feature {
   std::string alias_of;              // another feature sharing this register (same checks)
   std::string formula;               // kSwissKnife: formula over the variables
   std::vector<std::pair<std::string, std::string>> variables;  // kSwissKnife: (variable, feature)
+  // A selected feature has one register per value of its selector, at
+  // address + 4 * value (GenICam pIndex): a write never depends on the
+  // selector the device last saw, so Selector-then-value writes cannot race.
+  std::string selected_by;
+  int selections = 1;
 };
 
 // Register addresses (named once, used by the table, the device and the tests).
@@ -66,9 +72,11 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kTriggerSoftware = 0x8040, kGain = 0x8048, kBlackLevel = 0x8050, kLineSelector = 0x8060,
                           kLineMode = 0x8064, kLineSource = 0x8068, kLineStatus = 0x806c, kSimSceneFrame = 0x8080,
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
-                          kSimStageSelector = 0x8094, kSimStageEnable = 0x8098,
-                          kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4, kSimAutoTarget = 0x80a8,
-                          kSimSyncCount = 0x80b0;
+                          kSimStageSelector = 0x8094, kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4,
+                          kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0;
+// SimStageEnable: one register per configured stage (kStageCount at most).
+inline constexpr uint32_t kSimStageEnable = 0x8100;
+inline constexpr uint32_t SimStageEnable(size_t stage) { return kSimStageEnable + 4 * static_cast<uint32_t>(stage); }
 }  // namespace reg
 
 // Enumeration values of camsim's own enum registers.
@@ -101,6 +109,9 @@ struct SensorInfo {
 std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);
+// The table with each selected feature spread into one entry per register
+// (named Feature[i], at address + 4 * i): what the device reads and checks.
+std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table);
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);
 
 struct DeviceStrings {
