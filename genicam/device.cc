@@ -406,7 +406,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kGainAuto, kAutoOff},
       {kBlackLevel, DoubleBits(c.sensor.black_level_dn)},
       {kLineSelector, 0},
-      {kLineSource, kLineSourceOff},
+      {SelectedAddress(kLineSource, 0), kLineSourceOff},
+      {SelectedAddress(kLineSource, 1), kLineSourceOff},
       {kPacketSize, 1400},  // the fake camera's default (fits a 1500-byte MTU)
       {kTLParamsLocked, 0},
       {kSimSceneCount, static_cast<uint64_t>(sensor_.scene_count)},
@@ -419,8 +420,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   };
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
-  for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SimStageEnable(i), 1);
+  for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SelectedAddress(kSimStageEnable, i), 1);
   seed_register_at_start_ = applied_[kSimSeed];
+  Write(SelectedAddress(kLineMode, 0), 0);  // Line0: Input (the trigger)
+  Write(SelectedAddress(kLineMode, 1), 1);  // Line1: Output (the strobe)
   Write(kAcquisition, 0);
   Write(kTriggerSoftware, 0);
   WriteDerived();
@@ -508,14 +511,14 @@ void GigeDevice::WriteDerived() {
   Write(kFakeTriggerMode, Applied(kTriggerMode));
   Write(kFakeTriggerSource, 1);  // the fake camera's "Software": camsim forwards both sources to it
   Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
-  Write(kLineMode, Applied(kLineSelector) == 0 ? 0 : 1);
   WriteLineStatus();
   Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
 }
 
 void GigeDevice::WriteLineStatus() {
   using namespace reg;
-  Write(kLineStatus, (Applied(kLineSelector) == 0 ? trigger_level_.load() : strobe_level_) ? 1 : 0);
+  Write(SelectedAddress(kLineStatus, 0), trigger_level_ ? 1 : 0);
+  Write(SelectedAddress(kLineStatus, 1), strobe_level_ ? 1 : 0);
 }
 
 bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const {
@@ -529,7 +532,7 @@ bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::strin
   if (r.at(kSimSeed) != seed_register_at_start_) rc.core.seed = r.at(kSimSeed);
   rc.core.order_count = 0;
   for (size_t i = 0; i < configured_stages_.size(); ++i)
-    if (r.at(SimStageEnable(i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
+    if (r.at(SelectedAddress(kSimStageEnable, i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
   // Plan first (cheap, no tables): the running renderer stays as it is on failure.
   host::RunConfig finished = rc;
   if (!host::FinishConfig(&finished, scenes_[0].width, scenes_[0].height, origins_, 1, error)) return false;
@@ -633,6 +636,8 @@ void GigeDevice::Sync() {
       if (was_changed(axes[a].second)) refuse(axes[a].second);
       if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
     }
+    // Line0 is an input: nothing drives it.
+    if (next[SelectedAddress(kLineSource, 0)] != kLineSourceOff) refuse(SelectedAddress(kLineSource, 0));
     // Gain and GainRaw are one setting in two units.
     if (was_changed(kGain)) {
       next[kGainRaw] = static_cast<uint64_t>(std::lround(BitsDouble(next[kGain]) * 10));
@@ -644,7 +649,7 @@ void GigeDevice::Sync() {
     bool pipeline = was_changed(kPixelFormat) || was_changed(kGainRaw);
     for (uint32_t a : kPipelineRegisters) pipeline = pipeline || was_changed(a);
     for (size_t i = 0; i < configured_stages_.size(); ++i)
-      pipeline = pipeline || was_changed(SimStageEnable(i));
+      pipeline = pipeline || was_changed(SelectedAddress(kSimStageEnable, i));
     std::string error;
     const auto t_rc = std::chrono::steady_clock::now();
     const bool rc_ok = !pipeline || Reconfigure(next, &error);
@@ -1009,7 +1014,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     taps[n].stride = static_cast<ptrdiff_t>(sensor_.width) * 3;
     ++n;
   }
-  const bool strobe = strobe_ && Applied(kLineSource) == kLineSourceExposureActive;
+  const bool strobe = strobe_ && Applied(SelectedAddress(kLineSource, 1)) == kLineSourceExposureActive;
   std::string line_error;
   if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   auto set_strobe = [&](bool high) {

@@ -129,7 +129,7 @@ class GigeDevice {
   bool PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const;
   bool Reconfigure(const Registers& r, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
-  void WriteLineStatus();  // the selected line's level
+  void WriteLineStatus();  // each line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_

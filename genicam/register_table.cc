@@ -206,9 +206,13 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Line0: trigger input; Line1: strobe output."));
   t.push_back(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}}, "Direction of the selected line."));
   t.push_back(Enum("LineSource", io, kLineSource, true, {{"Off", kLineSourceOff}, {"ExposureActive", kLineSourceExposureActive}},
-                   "What drives the strobe output (Line1)."));
+                   "What drives the selected line: the strobe output (Line1) only; the input (Line0) stays Off."));
   t.push_back(Bool("LineStatus", io, kLineStatus, false,
                    "Level of the selected line: Line0 after its last edge (low before one), Line1 as last driven."));
+  for (size_t i = t.size() - 3; i < t.size(); ++i) {
+    t[i].selected_by = "LineSelector";
+    t[i].selections = 2;
+  }
 
   const char* tl = "TransportLayerControl";
   // Computed by the client from the registers it has just written: never stale.

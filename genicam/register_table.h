@@ -70,13 +70,18 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kExposureTime = 0x8020, kExposureAuto = 0x8028, kTriggerSelector = 0x8030,
                           kTriggerMode = 0x8034, kTriggerSource = 0x8038, kTriggerActivation = 0x803c,
                           kTriggerSoftware = 0x8040, kGain = 0x8048, kBlackLevel = 0x8050, kLineSelector = 0x8060,
-                          kLineMode = 0x8064, kLineSource = 0x8068, kLineStatus = 0x806c, kSimSceneFrame = 0x8080,
+                          kSimSceneFrame = 0x8080,
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
                           kSimStageSelector = 0x8094, kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4,
                           kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0;
-// SimStageEnable: one register per configured stage (kStageCount at most).
-inline constexpr uint32_t kSimStageEnable = 0x8100;
-inline constexpr uint32_t SimStageEnable(size_t stage) { return kSimStageEnable + 4 * static_cast<uint32_t>(stage); }
+// Selected features (Feature::selected_by): the register of selector value
+// v is at SelectedAddress(base, v). LineMode, LineSource and LineStatus: one
+// per line (LineSelector: 2); SimStageEnable: one per configured stage
+// (SimStageSelector: kStageCount at most).
+inline constexpr uint32_t kLineMode = 0x8064, kLineSource = 0x806c, kLineStatus = 0x8074, kSimStageEnable = 0x8100;
+inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value) {
+  return base + 4 * static_cast<uint32_t>(value);
+}
 }  // namespace reg
 
 // Enumeration values of camsim's own enum registers.

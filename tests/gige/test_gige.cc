@@ -574,18 +574,17 @@ TEST(GigeRegisters, LineStatusFollowsTheStrobe) {
     o.strobe = stuck ? static_cast<hal::OutputLine*>(&stuck_line) : &memory;
     auto d = StartDevice(o);
     ASSERT_NE(d, nullptr);
-    WriteReg(*d, reg::kLineSelector, Be32(1));
-    WriteReg(*d, reg::kLineSource, Be32(genicam::kLineSourceExposureActive));
+    const uint32_t line0_status = genicam::reg::SelectedAddress(reg::kLineStatus, 0);
+    const uint32_t line1_status = genicam::reg::SelectedAddress(reg::kLineStatus, 1);
+    WriteReg(*d, genicam::reg::SelectedAddress(reg::kLineSource, 1), Be32(genicam::kLineSourceExposureActive));
     d->SyncNow();
-    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), 0u) << "before a frame";
+    EXPECT_EQ(ReadReg32(*d, line1_status), 0u) << "before a frame";
     std::vector<uint8_t> frame;
     ASSERT_TRUE(d->RenderNow(&frame));
-    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), stuck ? 1u : 0u);
+    EXPECT_EQ(ReadReg32(*d, line1_status), stuck ? 1u : 0u);
     EXPECT_EQ(d->line_error(), stuck ? "stuck high" : "");
     EXPECT_EQ(memory.edges(), stuck ? 0 : 2);
-    WriteReg(*d, reg::kLineSelector, Be32(0));  // Line0: no trigger line, low
-    d->SyncNow();
-    EXPECT_EQ(ReadReg32(*d, reg::kLineStatus), 0u);
+    EXPECT_EQ(ReadReg32(*d, line0_status), 0u) << "Line0: no trigger line, low";
   }
 }
 
@@ -889,11 +888,9 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   std::string err;
   trigger_.Set(true, &err);
   EXPECT_TRUE(reads(true)) << "high trigger input";
-  Set(c, "LineSelector", "Line1");  // the strobe: not driven
-  Settle();
+  Set(c, "LineSelector", "Line1");  // the strobe, not driven: at once, without waiting for a sync
   EXPECT_FALSE(status());
   Set(c, "LineSelector", "Line0");
-  Settle();
   EXPECT_TRUE(status());
   trigger_.Set(false, &err);
   EXPECT_TRUE(reads(false)) << "low trigger input";
@@ -1252,11 +1249,12 @@ TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
   EXPECT_FALSE(f == Reference(1, code, 0, 0, 64, 48));
 }
 
-// SimStageEnable has one register per stage (pIndex on SimStageSelector),
-// so a value written right after the selector lands on that stage, and
-// moving the selector on at once neither loses it nor moves it to the next
-// stage. (With one register that the device's sync rewrote when the
-// selector moved, both happened; CI caught the first.)
+// Selected features have one register per selector value (GenICam pIndex):
+// a value written right after the selector lands on that line or stage,
+// moving the selector on at once neither loses it nor moves it elsewhere,
+// and reads follow the selector at once. (With one register that the
+// device's 2 ms sync rewrote when the selector moved, writes were lost or
+// moved; CI caught it once.)
 TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
@@ -1269,6 +1267,17 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
     EXPECT_EQ(arv_gc_register_get_address(ARV_GC_REGISTER(reg_node), nullptr), reg::kSimStageEnable + 4 * index)
         << stages[i];
   }
+  // LineMode at once; LineSource on the input refused, the output's kept.
+  Set(c, "LineSelector", "Line1");
+  Set(c, "LineSource", "ExposureActive");
+  Set(c, "LineSelector", "Line0");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Input");
+  Set(c, "LineSource", "ExposureActive");
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineSource", nullptr), "Off") << "Line0 is an input";
+  Set(c, "LineSelector", "Line1");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Output");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineSource", nullptr), "ExposureActive");
   for (int round = 0; round < 20; ++round) {
     const bool on = round % 2 == 1;
     Set(c, "SimStageSelector", "Stage_vignetting");
