@@ -39,7 +39,9 @@
 #include <limits>
 #include <vector>
 
+#include "core/lens/flare.h"
 #include "core/pipeline/pipeline.h"
+#include "core/sensor/smear.h"
 
 namespace camsim::fuzz {
 
@@ -317,7 +319,7 @@ inline uint32_t DomainMax(Domain d, int adc_bits) {
 // alternating between workers 0 and 1, with every tap prefilled differently.
 // Aborts if the outputs differ, a sample is out of its domain's range, or a
 // step that must succeed for a valid configuration fails.
-inline bool RunChecked(const PipelineConfig& config, const FrameInput& input, bool has_mask, int rows_a,
+inline bool RunChecked(const PipelineConfig& config, const FrameInput& plain, bool has_mask, int rows_a,
                        int rows_b) {
   Pipeline p;
   if (!p.Configure(config, 2, has_mask).ok()) return false;
@@ -326,6 +328,24 @@ inline bool RunChecked(const PipelineConfig& config, const FrameInput& input, bo
   std::vector<uint8_t> workspace(p.WorkspaceBytes(), 0xA5);
   const Status init = p.Init(Span<uint8_t>{workspace.data(), workspace.size()});
   FUZZ_CHECK(init.ok(), "Init failed after Configure succeeded: %s", init.message());
+  // The per-frame pre-passes the host runs (host_tools/render.cc), where the
+  // configuration asks for them.
+  FrameInput input = plain;
+  const PipelineConfig& finished = p.config();
+  std::vector<FlareSource> flare_sources;
+  FlareFrame flare;
+  if (finished.flare.enabled) {
+    flare_sources.resize(static_cast<size_t>(FlareMaxSources(finished.geometry)));
+    ComputeFlare(finished.flare, finished.geometry, plain,
+                 Span<FlareSource>{flare_sources.data(), flare_sources.size()}, &flare);
+    input.flare = &flare;
+  }
+  std::vector<uint32_t> smear;
+  if (SmearEnabled(finished)) {
+    smear.resize(static_cast<size_t>(SmearEntries(finished)));
+    ComputeSmear(finished, plain, Span<uint32_t>{smear.data(), smear.size()});
+    input.smear_e = smear.data();
+  }
   const Status in = p.CheckInput(input);
   FUZZ_CHECK(in.ok(), "CheckInput refused a well-formed frame: %s", in.message());
 
