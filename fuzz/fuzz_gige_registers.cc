@@ -9,8 +9,8 @@
 // The device runs without network (DeviceOptions::serve = false) on a 16 x 12
 // demo camera. After every sync its invariants must hold (CheckInvariants:
 // registers hold their values in use, values in use are valid, the window is
-// on the sensor, Gain and GainRaw agree) and a rendered frame has the size the
-// registers announce.
+// on the sensor, Gain and GainRaw agree, Line0 has no source) and a rendered
+// frame has the size the registers announce.
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -53,7 +53,7 @@ void Check(camsim::genicam::GigeDevice* d) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   camsim::genicam::GigeDevice* d = Device();
   std::vector<uint32_t> addresses;
-  for (const auto& f : d->table())
+  for (const auto& f : camsim::genicam::FeatureRegisters(d->table()))  // each line's and stage's own
     if (f.writable && f.alias_of.empty() && f.kind != camsim::genicam::Kind::kSwissKnife) addresses.push_back(f.address);
   size_t i = 0;
   while (i + 2 <= size) {

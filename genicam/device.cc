@@ -493,6 +493,7 @@ std::string GigeDevice::CheckInvariants() const {
     return "the window is off the sensor";
   if (applied_.at(kGainRaw) != static_cast<uint64_t>(std::lround(AppliedDouble(kGain) * 10)))
     return "Gain and GainRaw disagree";
+  if (applied_.at(SelectedAddress(kLineSource, 0)) != kLineSourceOff) return "Line0, an input, has a source";
   return "";
 }
 

@@ -102,7 +102,8 @@ class GigeDevice {
   // Register access as a client's write would do it, one sync, one frame
   // rendered into *frame (as the fake camera fills a buffer), and the device's
   // invariants (empty when they hold: every writable register holds its value
-  // in use, every value in use is valid, the window is on the sensor).
+  // in use, every value in use is valid, the window is on the sensor, Gain
+  // and GainRaw agree, Line0 has no source).
   bool WriteMemory(uint32_t address, const void* data, uint32_t size);
   bool ReadMemory(uint32_t address, void* data, uint32_t size) const;  // as a client's read
   void SyncNow();
