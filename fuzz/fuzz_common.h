@@ -39,9 +39,7 @@
 #include <limits>
 #include <vector>
 
-#include "core/lens/flare.h"
 #include "core/pipeline/pipeline.h"
-#include "core/sensor/smear.h"
 
 namespace camsim::fuzz {
 
@@ -328,24 +326,12 @@ inline bool RunChecked(const PipelineConfig& config, const FrameInput& plain, bo
   std::vector<uint8_t> workspace(p.WorkspaceBytes(), 0xA5);
   const Status init = p.Init(Span<uint8_t>{workspace.data(), workspace.size()});
   FUZZ_CHECK(init.ok(), "Init failed after Configure succeeded: %s", init.message());
-  // The per-frame pre-passes the host runs (host_tools/render.cc), where the
-  // configuration asks for them.
-  FrameInput input = plain;
-  const PipelineConfig& finished = p.config();
-  std::vector<FlareSource> flare_sources;
+  // The per-frame pre-passes (flare, smear) the configuration asks for, as the host runs them.
+  std::vector<FlareSource> flare_sources(static_cast<size_t>(p.PrepassFlareSources()));
   FlareFrame flare;
-  if (finished.flare.enabled) {
-    flare_sources.resize(static_cast<size_t>(FlareMaxSources(finished.geometry)));
-    ComputeFlare(finished.flare, finished.geometry, plain,
-                 Span<FlareSource>{flare_sources.data(), flare_sources.size()}, &flare);
-    input.flare = &flare;
-  }
-  std::vector<uint32_t> smear;
-  if (SmearEnabled(finished)) {
-    smear.resize(static_cast<size_t>(SmearEntries(finished)));
-    ComputeSmear(finished, plain, Span<uint32_t>{smear.data(), smear.size()});
-    input.smear_e = smear.data();
-  }
+  std::vector<uint32_t> smear(static_cast<size_t>(p.PrepassSmearEntries()));
+  const FrameInput input = p.RunPrepasses(plain, Span<FlareSource>{flare_sources.data(), flare_sources.size()},
+                                          &flare, Span<uint32_t>{smear.data(), smear.size()});
   const Status in = p.CheckInput(input);
   FUZZ_CHECK(in.ok(), "CheckInput refused a well-formed frame: %s", in.message());
 

@@ -2,7 +2,6 @@
 
 #include <atomic>
 
-#include "core/sensor/smear.h"
 #include "hal/clock.h"
 #include "host_tools/io/image_read.h"
 
@@ -48,30 +47,16 @@ bool FrameRenderer::Configure(const RunConfig& config, const Origins& origins, i
   // settings (smear depends on the exposure time, flare on its threshold).
   has_scene_ = has_scene_ && input_.width == pipeline_->width() && input_.height == pipeline_->height();
   if (has_scene_) RunPrepasses();
+  else view_ = FrameInput();
   if (finished) *finished = rc;
   return true;
 }
 
 void FrameRenderer::RunPrepasses() {
-  const PipelineConfig& c = pipeline_->config();
-  const FrameInput plain = input_.View();
-  flare_sources_.clear();
-  if (c.flare.enabled) {
-    flare_sources_.resize(static_cast<size_t>(FlareMaxSources(c.geometry)));
-    ComputeFlare(c.flare, c.geometry, plain, Span<FlareSource>{flare_sources_.data(), flare_sources_.size()}, &flare_);
-  }
-  smear_.clear();
-  if (SmearEnabled(c)) {
-    smear_.resize(static_cast<size_t>(SmearEntries(c)));
-    ComputeSmear(c, plain, Span<uint32_t>{smear_.data(), smear_.size()});
-  }
-}
-
-FrameInput FrameRenderer::View() const {
-  FrameInput view = input_.View();
-  if (!flare_sources_.empty()) view.flare = &flare_;
-  if (!smear_.empty()) view.smear_e = smear_.data();
-  return view;
+  flare_sources_.resize(static_cast<size_t>(pipeline_->PrepassFlareSources()));
+  smear_.resize(static_cast<size_t>(pipeline_->PrepassSmearEntries()));
+  view_ = pipeline_->RunPrepasses(input_.View(), Span<FlareSource>{flare_sources_.data(), flare_sources_.size()},
+                                  &flare_, Span<uint32_t>{smear_.data(), smear_.size()});
 }
 
 bool FrameRenderer::SetScene(const io::SceneFrame& scene, std::string* error) {

@@ -50,7 +50,7 @@ class FrameRenderer {
   const Pipeline& pipeline() const { return *pipeline_; }
   const CoreInput& input() const { return input_; }
   // The frame as the core sees it: the scene's planes and the pre-passes' results.
-  FrameInput View() const;
+  FrameInput View() const { return view_; }
   int threads() const { return threads_; }
   // Rows per strip of the configured pipeline (StripRows).
   int strip_rows() const;
@@ -66,9 +66,10 @@ class FrameRenderer {
 
   CoreInput input_;
   bool has_scene_ = false;
-  std::vector<FlareSource> flare_sources_;  // ComputeFlare's bright tiles
-  FlareFrame flare_;
-  std::vector<uint32_t> smear_;             // ComputeSmear's column sums
+  std::vector<FlareSource> flare_sources_;  // the pre-passes' storage (Pipeline::RunPrepasses):
+  FlareFrame flare_;                        // flare's bright tiles and haze,
+  std::vector<uint32_t> smear_;             // smear's column sums
+  FrameInput view_;                         // input_ with them attached (View)
   SceneFit fit_ = SceneFit::kCrop;
   hal::ThreadPool pool_;
   Clock clock_;

@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "core/base/simd.h"
+#include "core/sensor/smear.h"
 
 namespace camsim {
 namespace {
@@ -421,6 +422,26 @@ Status Pipeline::Init(Span<uint8_t> workspace) {
   if (workers_base_ == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for line rings");
   initialised_ = true;
   return Status::Ok();
+}
+
+int Pipeline::PrepassFlareSources() const { return config_.flare.enabled ? FlareMaxSources(config_.geometry) : 0; }
+
+int Pipeline::PrepassSmearEntries() const { return SmearEnabled(config_) ? SmearEntries(config_) : 0; }
+
+FrameInput Pipeline::RunPrepasses(const FrameInput& input, Span<FlareSource> flare_sources, FlareFrame* flare,
+                                  Span<uint32_t> smear) const {
+  FrameInput out = input;
+  if (config_.flare.enabled) {
+    CAMSIM_DCHECK(flare_sources.size >= static_cast<size_t>(PrepassFlareSources()) && flare != nullptr);
+    ComputeFlare(config_.flare, config_.geometry, input, flare_sources, flare);
+    out.flare = flare;
+  }
+  if (SmearEnabled(config_)) {
+    CAMSIM_DCHECK(smear.size >= static_cast<size_t>(PrepassSmearEntries()));
+    ComputeSmear(config_, input, smear);
+    out.smear_e = smear.data;
+  }
+  return out;
 }
 
 Status Pipeline::CheckInput(const FrameInput& input) const {

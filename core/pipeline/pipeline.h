@@ -165,6 +165,17 @@ class Pipeline {
   // planes). Call before ProcessStrip: processing itself cannot fail.
   Status CheckInput(const FrameInput& input) const;
 
+  // The per-frame pre-passes CheckInput asks for, each when it is on: the
+  // flare's bright tiles and haze (ComputeFlare) and the smear's column
+  // charges (ComputeSmear). The caller's storage holds PrepassFlareSources()
+  // FlareSource and PrepassSmearEntries() uint32 entries (0 when off, then
+  // empty spans do). Returns `input` with them attached; the storage and
+  // *flare must outlive its use. Call after Init.
+  int PrepassFlareSources() const;
+  int PrepassSmearEntries() const;
+  FrameInput RunPrepasses(const FrameInput& input, Span<FlareSource> flare_sources, FlareFrame* flare,
+                          Span<uint32_t> smear) const;
+
   // Produces output rows [y0, y1) of frame `frame` with worker `worker`
   // (0 <= worker < workers). Cannot fail. Different workers may run at once on
   // disjoint strips. Taps receive rows [y0, y1) of their stage's output.

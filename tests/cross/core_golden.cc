@@ -52,7 +52,6 @@
 #include "core/base/detmath.h"
 #include "core/base/random.h"
 #include "core/pipeline/pipeline.h"
-#include "core/sensor/smear.h"
 #include "tests/cross/cases.h"
 
 namespace {
@@ -216,22 +215,12 @@ std::vector<uint32_t> Run(const Pipeline& p, const Scene& scene, uint32_t frame,
   tap.format = TapFormat::kU32;
   tap.data = out.data();
   tap.stride = static_cast<ptrdiff_t>(p.width()) * channels;
-  FrameInput in = scene.View();
   // The per-frame pre-passes of flare and smear, when on (as the host runs them).
-  const PipelineConfig& c = p.config();
-  std::vector<FlareSource> sources;
+  std::vector<FlareSource> sources(static_cast<size_t>(p.PrepassFlareSources()));
   FlareFrame flare;
-  if (c.flare.enabled) {
-    sources.resize(static_cast<size_t>(FlareMaxSources(c.geometry)));
-    ComputeFlare(c.flare, c.geometry, in, Span<FlareSource>{sources.data(), sources.size()}, &flare);
-    in.flare = &flare;
-  }
-  std::vector<uint32_t> smear;
-  if (SmearEnabled(c)) {
-    smear.resize(static_cast<size_t>(SmearEntries(c)));
-    ComputeSmear(c, in, Span<uint32_t>{smear.data(), smear.size()});
-    in.smear_e = smear.data();
-  }
+  std::vector<uint32_t> smear(static_cast<size_t>(p.PrepassSmearEntries()));
+  const FrameInput in = p.RunPrepasses(scene.View(), Span<FlareSource>{sources.data(), sources.size()}, &flare,
+                                       Span<uint32_t>{smear.data(), smear.size()});
   int k = 0;
   for (int y = 0; y < p.height(); y += strip_rows, ++k)
     p.ProcessStrip(in, frame, y, y + strip_rows, alternate ? k % kWorkers : 0, &tap, 1, nullptr, nullptr);

@@ -191,5 +191,35 @@ TEST(Smear, MissingPrePassIsAnInputError) {
   EXPECT_EQ(std::string(st.field()), "sensor.smear_row_transfer_us");
 }
 
+// Pipeline::RunPrepasses runs what CheckInput asks for, and only that.
+TEST(Smear, RunPrepassesAttachesWhatTheConfigurationNeeds) {
+  const test::Scene s = test::TexturedScene(16, 12);
+  for (bool smear_on : {false, true}) {
+    SCOPED_TRACE(smear_on ? "smear on" : "smear off");
+    PipelineConfig c = SmearPath(16, 12, Cfa::kBayerRG, true);
+    if (!smear_on) c.sensor.smear_row_transfer_us = 0.0;
+    auto b = test::Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    const Pipeline& p = b->pipeline;
+    EXPECT_EQ(p.PrepassFlareSources(), 0) << "flare is off";
+    ASSERT_EQ(p.PrepassSmearEntries(), smear_on ? SmearEntries(c) : 0);
+    std::vector<uint32_t> smear(static_cast<size_t>(p.PrepassSmearEntries()), 0xA5A5A5A5u);
+    FlareFrame flare;
+    const FrameInput in =
+        p.RunPrepasses(s.View(), Span<FlareSource>{}, &flare, Span<uint32_t>{smear.data(), smear.size()});
+    EXPECT_EQ(in.flare, nullptr);
+    EXPECT_EQ(in.radiance[1].data, s.View().radiance[1].data);
+    EXPECT_TRUE(p.CheckInput(in).ok());
+    if (!smear_on) {
+      EXPECT_EQ(in.smear_e, nullptr);
+      continue;
+    }
+    ASSERT_EQ(in.smear_e, smear.data());
+    std::vector<uint32_t> direct(smear.size());
+    ComputeSmear(c, s.View(), Span<uint32_t>{direct.data(), direct.size()});
+    EXPECT_EQ(smear, direct);
+  }
+}
+
 }  // namespace
 }  // namespace camsim
