@@ -22,8 +22,8 @@
 //   vignetting mask, the inverse depth plane (any uint32, the invalid marker
 //   included) and the motion vectors (any int32) are derived from the radiance.
 //   The enum bytes of the later stages (dof method, structural-only, motion
-//   source, distortion model, resampling filter, blooming on) follow the
-//   numbers, before the samples.
+//   source, distortion model, resampling filter, blooming on, flare on)
+//   follow the numbers, before the samples.
 //
 // A number byte b: 0 keeps the default; 1..8 are specials {NaN, +inf, -inf, 0,
 // -0, -1, lo, hi}; 9..15 lie just outside or far outside [lo, hi]; 16..254 map
@@ -139,6 +139,10 @@ inline const std::vector<NumberParam>& Params() {
       CAMSIM_FUZZ_PARAM("lens_k2", -2.0, 2.0, false, c.distortion.lens.k[1]),
       CAMSIM_FUZZ_PARAM("lens_p1", -0.1, 0.1, false, c.distortion.lens.p1),
       CAMSIM_FUZZ_PARAM("chromatic_r", 0.9, 1.1, false, c.distortion.chromatic_scale[0]),
+      CAMSIM_FUZZ_PARAM("smear_row_transfer_us", 0.0, 1000.0, false, c.sensor.smear_row_transfer_us),
+      CAMSIM_FUZZ_PARAM("smear_leak", 0.0, 1.0, false, c.sensor.smear_leak),
+      CAMSIM_FUZZ_PARAM("flare_threshold", 0.01, 60000.0, true, c.flare.threshold),
+      CAMSIM_FUZZ_PARAM("flare_haze", 0.0, 1.0, false, c.flare.haze),
   };
   return params;
 }
@@ -237,6 +241,7 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   c.distortion.lens.fy = c.distortion.lens.fx;
   c.distortion.filter = static_cast<ResampleFilter>(r.Byte() % 3);
   c.blooming.enabled = r.Byte() & 1;
+  c.flare.enabled = r.Byte() & 1;
   // Table entries not named in Params() repeat the decoded ones.
   for (int i = 3; i < VignettingConfig::kMaxTable - 1; ++i) c.vignetting.table[i] = c.vignetting.table[i % 3];
 
@@ -295,6 +300,7 @@ inline std::vector<uint8_t> EncodeCoreCase(const PipelineConfig& config, bool ha
   b.push_back(static_cast<uint8_t>(c.distortion.lens.model));
   b.push_back(static_cast<uint8_t>(c.distortion.filter));
   b.push_back(c.blooming.enabled ? 1 : 0);
+  b.push_back(c.flare.enabled ? 1 : 0);
   for (uint32_t s : samples)
     for (int i = 0; i < 4; ++i) b.push_back(static_cast<uint8_t>(s >> (8 * i)));
   return b;

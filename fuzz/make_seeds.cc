@@ -162,6 +162,11 @@ void ConfigSeeds(const fs::path& dir) {
             "[sensor]\nwidth = 5\nheight = 3\ncfa = \"BayerBG\"\nfull_well_e = 1000000.0\n"
             "system_gain_dn_per_e = 1000.0\ndark_current_e_per_s = 1e6\ntemperature_c = 150.0\n"
             "[exposure]\nexposure_time_us = 1e8\nf_number = 0.5\nphotons_per_radiance_ms = 1e9\n");
+  WriteText(dir / "smear_flare.toml",
+            "# CCD smear and lens flare: both need the host's per-frame pre-passes, which\n"
+            "# RunChecked runs (the fuzzer once reached smear from default.toml and the\n"
+            "# harness, not the core, refused the frame).\n"
+            "[sensor]\nsmear_row_transfer_us = 5.0\nsmear_leak = 0.5\n\n[flare]\nenabled = true\nthreshold = 0.5\n");
 }
 
 void CoreSeeds(const fs::path& dir) {
@@ -219,6 +224,12 @@ void CoreSeeds(const fs::path& dir) {
   c.order[5] = StageId::kGamma;
   c.order_count = 6;
   write("reordered_9x1.bin", c, false, ramp);
+  c = demo(12, 10);  // flare and smear: RunChecked runs their pre-passes
+  c.flare.enabled = true;
+  c.flare.threshold = 0.5;
+  c.sensor.smear_row_transfer_us = 20.0;
+  c.sensor.smear_leak = 0.5;
+  write("flare_smear_12x10.bin", c, false, ramp);
 }
 
 }  // namespace
