@@ -647,26 +647,65 @@ void GigeDevice::Sync() {
       next[kGain] = DoubleBits(static_cast<double>(next[kGainRaw]) / 10.0);
       WriteDouble(kGain, BitsDouble(next[kGain]));
     }
-    bool pipeline = was_changed(kPixelFormat) || was_changed(kGainRaw);
-    for (uint32_t a : kPipelineRegisters) pipeline = pipeline || was_changed(a);
-    for (size_t i = 0; i < configured_stages_.size(); ++i)
-      pipeline = pipeline || was_changed(SelectedAddress(kSimStageEnable, i));
+    auto is_pipeline = [&](uint32_t a) {
+      if (a == kPixelFormat || a == kGainRaw) return true;
+      for (uint32_t p : kPipelineRegisters)
+        if (a == p) return true;
+      return a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, configured_stages_.size());
+    };
+    bool pipeline = false;
+    for (const Feature* f : changed) pipeline = pipeline || is_pipeline(f->address);
     std::string error;
     const auto t_rc = std::chrono::steady_clock::now();
-    const bool rc_ok = !pipeline || Reconfigure(next, &error);
+    if (pipeline && !Reconfigure(next, &error)) {
+      // The pipeline refuses the combination. The writes are a client's
+      // separate requests that only met in this sync, so each pipeline write
+      // is tried on its own, in table order, on top of those kept before it;
+      // the pipeline's refusals go back, every other write stays.
+      Registers kept = next;
+      for (const Feature* f : changed)
+        if (is_pipeline(f->address)) kept[f->address] = applied_.at(f->address);
+      kept[kGain] = applied_.at(kGain);  // Gain follows GainRaw
+      bool kept_any = false;
+      for (const Feature* f : changed) {
+        if (!is_pipeline(f->address)) continue;
+        Registers trial = kept;
+        trial[f->address] = next[f->address];
+        if (f->address == kGain || f->address == kGainRaw) {  // one setting in two units
+          trial[kGain] = next[kGain];
+          trial[kGainRaw] = next[kGainRaw];
+        }
+        host::RunConfig unused;
+        std::string why;
+        if (PlanFor(trial, &unused, &why)) {
+          kept = trial;
+          kept_any = true;
+          continue;
+        }
+        std::fprintf(stderr, "camsim-gige: refused %s: %s\n", f->name.c_str(), why.c_str());
+        WriteFeature(*f, applied_.at(f->address));
+        ++writes_refused_;
+      }
+      if (kept[kGainRaw] != next[kGainRaw]) {  // both units back
+        Write(kGainRaw, static_cast<uint32_t>(kept[kGainRaw]));
+        WriteDouble(kGain, BitsDouble(kept[kGain]));
+      }
+      // Planned above; this builds the tables (the renderer kept the old ones).
+      if (kept_any && !Reconfigure(kept, &error)) {  // not expected: back to the pipeline in use
+        std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
+        for (const Feature* f : changed)
+          if (is_pipeline(f->address) && kept[f->address] != applied_.at(f->address)) refuse(f->address);
+        Write(kGainRaw, static_cast<uint32_t>(applied_.at(kGainRaw)));
+        WriteDouble(kGain, AppliedDouble(kGain));
+        for (const Feature* f : changed)
+          if (is_pipeline(f->address)) kept[f->address] = applied_.at(f->address);
+        kept[kGain] = applied_.at(kGain);
+      }
+      next = kept;
+    }
     if (std::getenv("CAMSIM_GIGE_DEBUG"))
       std::fprintf(stderr, "camsim-gige: reconfigured in %.1f ms\n",
                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_rc).count());
-    if (!rc_ok) {
-      // The pipeline refuses the combination: back to the settings in use.
-      std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
-      for (const Feature* f : changed) refuse(f->address);
-      if (was_changed(kGain) || was_changed(kGainRaw)) {  // both units back
-        Write(kGainRaw, static_cast<uint32_t>(applied_.at(kGainRaw)));
-        WriteDouble(kGain, AppliedDouble(kGain));
-      }
-      next = applied_;
-    }
     applied_ = next;
     WriteDerived();
   }

@@ -443,6 +443,38 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
                                   {"exposure.exposure_time_us=2000.0"}));
 }
 
+// Writes that meet in one sync are still separate requests: the pipeline
+// refusing one of them (switching off the sensor, which raw formats need)
+// does not take the others with it, pipeline settings or not.
+TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const genicam::Feature* selector = genicam::FindFeature(d->table(), "SimStageSelector");
+  ASSERT_NE(selector, nullptr);
+  int64_t sensor = -1;
+  for (const genicam::EnumEntry& e : selector->entries)
+    if (e.name == "Stage_sensor") sensor = e.value;
+  ASSERT_GE(sensor, 0);
+  WriteReg(*d, reg::kExposureTime, Be64(2000.0));
+  WriteReg(*d, genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(sensor)), Be32(0));
+  WriteReg(*d, reg::kGainRaw, Be32(60));
+  WriteReg(*d, reg::kAcquisitionMode, Be32(genicam::kSingleFrame));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(ReadReg32(*d, genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(sensor))), 1u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 60u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0);
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48,
+                                  {"exposure.exposure_time_us=2000.0", "sensor.gain_db=6.0"}));
+}
+
 // The configured exposure may be longer than 1 s (the core allows 100 s): the
 // register reports it, and a later write of another pipeline register keeps it.
 // A client sets the window and starts at once: one sync finds both writes.
