@@ -254,6 +254,28 @@ BENCHMARK(BM_SensorPath)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// Configure + Init of a pipeline (its tables built): what a change of a
+// pipeline setting costs the emulated camera (GigeDevice::Reconfigure, e.g.
+// every ExposureTime write or auto-exposure step). 0: the sensor path, 1: the
+// demo pipeline with the typical lens (distortion on).
+void BM_Configure(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = SensorPath(w, h);
+  if (state.range(2) == 1) {
+    c = Demo(w, h);
+    c.distortion.lens = test::TypicalLens(w, h);
+  }
+  std::vector<uint8_t> ws;
+  for (auto _ : state) {
+    Pipeline p;
+    if (!p.Configure(c, 1, false).ok()) std::abort();
+    ws.resize(p.WorkspaceBytes());
+    if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+    benchmark::DoNotOptimize(ws.data());
+  }
+}
+BENCHMARK(BM_Configure)->Args({1920, 1080, 0})->Args({1920, 1080, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Each running stage of the sensor path alone (StageRunner, one thread), so
 // the rows of SensorPathStage/1920/1080/i add up to about SensorPath.
 void BM_SensorPathStage(benchmark::State& state) {

@@ -92,7 +92,8 @@ TEST(LensModel, InverseReproducesTheDistortedPoint) {
         LensDistort(m, x, y, &rx, &ry);
         worst = std::fmax(worst, std::hypot((rx - xd) * m.fx, (ry - yd) * m.fy));
       }
-    EXPECT_LT(worst, 1e-6) << "pixels, model " << static_cast<int>(m.model);
+    // The 2-D polish's tolerance (1e-12 normalised) leaves about 5e-10 px.
+    EXPECT_LT(worst, 1e-8) << "pixels, model " << static_cast<int>(m.model);
   }
 }
 
