@@ -662,10 +662,13 @@ void GigeDevice::Sync() {
       // separate requests that only met in this sync, so each pipeline write
       // is tried on its own, in table order, on top of those kept before it;
       // the pipeline's refusals go back, every other write stays.
+      auto pipeline_as_applied = [&](Registers* r) {
+        for (const Feature* f : changed)
+          if (is_pipeline(f->address)) (*r)[f->address] = applied_.at(f->address);
+        (*r)[kGain] = applied_.at(kGain);  // Gain follows GainRaw
+      };
       Registers kept = next;
-      for (const Feature* f : changed)
-        if (is_pipeline(f->address)) kept[f->address] = applied_.at(f->address);
-      kept[kGain] = applied_.at(kGain);  // Gain follows GainRaw
+      pipeline_as_applied(&kept);
       bool kept_any = false;
       for (const Feature* f : changed) {
         if (!is_pipeline(f->address)) continue;
@@ -697,9 +700,7 @@ void GigeDevice::Sync() {
           if (is_pipeline(f->address) && kept[f->address] != applied_.at(f->address)) refuse(f->address);
         Write(kGainRaw, static_cast<uint32_t>(applied_.at(kGainRaw)));
         WriteDouble(kGain, AppliedDouble(kGain));
-        for (const Feature* f : changed)
-          if (is_pipeline(f->address)) kept[f->address] = applied_.at(f->address);
-        kept[kGain] = applied_.at(kGain);
+        pipeline_as_applied(&kept);
       }
       next = kept;
     }
