@@ -58,6 +58,13 @@ Feature Str(const char* name, const char* cat, uint32_t addr, uint32_t length, b
   return f;
 }
 
+// A feature with one register per value of `selector` (Feature::selected_by).
+Feature Selected(Feature f, const char* selector, int selections) {
+  f.selected_by = selector;
+  f.selections = selections;
+  return f;
+}
+
 Feature Alias(const Feature& of, const char* name, const char* desc) {
   Feature f = of;
   f.name = name;
@@ -204,15 +211,19 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const char* io = "DigitalIOControl";
   t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
                    "Line0: trigger input; Line1: strobe output."));
-  t.push_back(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}}, "Direction of the selected line."));
-  t.push_back(Enum("LineSource", io, kLineSource, true, {{"Off", kLineSourceOff}, {"ExposureActive", kLineSourceExposureActive}},
-                   "What drives the selected line: the strobe output (Line1) only; the input (Line0) stays Off."));
-  t.push_back(Bool("LineStatus", io, kLineStatus, false,
-                   "Level of the selected line: Line0 after its last edge (low before one), Line1 as last driven."));
-  for (size_t i = t.size() - 3; i < t.size(); ++i) {
-    t[i].selected_by = "LineSelector";
-    t[i].selections = 2;
-  }
+  constexpr int kLines = 2;
+  t.push_back(Selected(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}},
+                            "Direction of the selected line."),
+                       "LineSelector", kLines));
+  t.push_back(Selected(Enum("LineSource", io, kLineSource, true,
+                            {{"Off", kLineSourceOff}, {"ExposureActive", kLineSourceExposureActive}},
+                            "What drives the selected line: the strobe output (Line1) only; the input (Line0) "
+                            "stays Off."),
+                       "LineSelector", kLines));
+  t.push_back(Selected(Bool("LineStatus", io, kLineStatus, false,
+                            "Level of the selected line: Line0 after its last edge (low before one), Line1 as "
+                            "last driven."),
+                       "LineSelector", kLines));
 
   const char* tl = "TransportLayerControl";
   // Computed by the client from the registers it has just written: never stale.
@@ -237,9 +248,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
     stages.push_back({"Stage_" + s.stage_names[i], static_cast<int64_t>(i)});
   if (stages.empty()) stages.push_back({"Stage_none", 0});
   t.push_back(Enum("SimStageSelector", sim, kSimStageSelector, true, stages, "Configured stage SimStageEnable acts on."));
-  t.push_back(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."));
-  t.back().selected_by = "SimStageSelector";
-  t.back().selections = static_cast<int>(stages.size());
+  t.push_back(Selected(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."),
+                       "SimStageSelector", static_cast<int>(stages.size())));
   t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
                   "Register syncs completed: two more than when a write was sent means the write was checked "
                   "and applied (or refused)."));
