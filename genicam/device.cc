@@ -545,11 +545,21 @@ bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::strin
   }
   const LineFormat out = probe.plan().output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
-  bool has_sensor = false;
-  for (int i = 0; i < probe.plan().count; ++i)
-    has_sensor = has_sensor || (probe.plan().entries[i].runs && probe.plan().entries[i].id == StageId::kSensor);
+  bool has_sensor = false, mosaic = false;
+  for (int i = 0; i < probe.plan().count; ++i) {
+    const PlanEntry& e = probe.plan().entries[i];
+    if (!e.runs || e.id != StageId::kSensor) continue;
+    has_sensor = true;
+    mosaic = e.out.channels == 1;
+  }
   if (r.at(kPixelFormat) == kRGB8 ? !rgb : !has_sensor) {
     *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
+    return false;
+  }
+  // The raw tap (raw_) holds one sample per pixel: switching the cfa stage
+  // off would give the sensor three channels per pixel.
+  if (has_sensor && !mosaic) {
+    *error = "the sensor must give one sample per pixel (the raw formats): the cfa stage stays on";
     return false;
   }
   return true;
