@@ -475,6 +475,47 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
                                   {"exposure.exposure_time_us=2000.0", "sensor.gain_db=6.0"}));
 }
 
+// The write combination the register fuzzer found (its seed cfa_off_crash):
+// the cfa and demosaic stages off, a smaller window, one sync. Without the
+// cfa the sensor gives three samples per pixel (the planner then leaves the
+// demosaic out, so that alone did not refuse it) and the raw tap (one sample
+// per pixel) overflowed. The cfa write is refused, the others are taken.
+TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const genicam::Feature* selector = genicam::FindFeature(d->table(), "SimStageSelector");
+  ASSERT_NE(selector, nullptr);
+  int64_t cfa = -1, demosaic = -1;
+  std::string without_demosaic;  // pipeline.stages: the configured stages but the demosaic
+  for (const genicam::EnumEntry& e : selector->entries) {
+    if (e.name == "Stage_cfa") cfa = e.value;
+    if (e.name == "Stage_demosaic") demosaic = e.value;
+    if (e.name != "Stage_demosaic")
+      without_demosaic += (without_demosaic.empty() ? "\"" : ",\"") + e.name.substr(6) + "\"";
+  }
+  ASSERT_GE(cfa, 0);
+  ASSERT_GE(demosaic, 0);
+  const uint32_t cfa_enable = genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(cfa));
+  const uint32_t demosaic_enable = genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(demosaic));
+  WriteReg(*d, cfa_enable, Be32(0));
+  WriteReg(*d, demosaic_enable, Be32(0));
+  WriteReg(*d, reg::kHeight, Be32(6));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(ReadReg32(*d, cfa_enable), 1u);
+  EXPECT_EQ(ReadReg32(*d, demosaic_enable), 0u);
+  EXPECT_EQ(ReadReg32(*d, reg::kHeight), 6u);
+  std::vector<uint8_t> frame;
+  for (uint32_t index = 0; index < 2; ++index) {  // the overflow came with the frame after the switch
+    ASSERT_TRUE(d->RenderNow(&frame));
+    EXPECT_EQ(frame, ReferenceFrame(o, index, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 6,
+                                    {"pipeline.stages=[" + without_demosaic + "]"}));
+  }
+}
+
 // The configured exposure may be longer than 1 s (the core allows 100 s): the
 // register reports it, and a later write of another pipeline register keeps it.
 // A client sets the window and starts at once: one sync finds both writes.
