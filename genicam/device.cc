@@ -61,6 +61,17 @@ std::string Fmt(double v) {
   return b;
 }
 
+// The sensor's entry in a plan, or nullptr when it does not run.
+const PlanEntry* RunningSensor(const Plan& plan) {
+  for (int i = 0; i < plan.count; ++i)
+    if (plan.entries[i].runs && plan.entries[i].id == StageId::kSensor) return &plan.entries[i];
+  return nullptr;
+}
+// The raw tap (raw_) and the raw formats hold one sample per pixel, which
+// the sensor gives only after the cfa stage.
+constexpr const char* kSensorNeedsCfa =
+    "the sensor must give one sample per pixel (the raw formats): the cfa stage stays on";
+
 // Aravis's fake camera starts even when it cannot bind its GVCP port (it
 // then answers nobody), so the address is tried first: one camera per
 // address, and only addresses an interface has.
@@ -290,8 +301,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
     return false;
   const Pipeline& p = renderer_->pipeline();
-  if (renderer_->SensorIndex() < 0) {
-    *error = "[pipeline] stages: camsim-gige needs the sensor stage";
+  const PlanEntry* sensor = RunningSensor(p.plan());
+  if (sensor == nullptr || sensor->out.channels != 1) {
+    *error = "[pipeline] stages: " +
+             std::string(sensor == nullptr ? "camsim-gige needs the sensor stage" : kSensorNeedsCfa);
     return false;
   }
   for (int i = 0; i < base_config_.core.order_count; ++i) configured_stages_.push_back(base_config_.core.order[i]);
@@ -545,21 +558,13 @@ bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::strin
   }
   const LineFormat out = probe.plan().output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
-  bool has_sensor = false, mosaic = false;
-  for (int i = 0; i < probe.plan().count; ++i) {
-    const PlanEntry& e = probe.plan().entries[i];
-    if (!e.runs || e.id != StageId::kSensor) continue;
-    has_sensor = true;
-    mosaic = e.out.channels == 1;
-  }
-  if (r.at(kPixelFormat) == kRGB8 ? !rgb : !has_sensor) {
+  const PlanEntry* sensor = RunningSensor(probe.plan());
+  if (r.at(kPixelFormat) == kRGB8 ? !rgb : sensor == nullptr) {
     *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
     return false;
   }
-  // The raw tap (raw_) holds one sample per pixel: switching the cfa stage
-  // off would give the sensor three channels per pixel.
-  if (has_sensor && !mosaic) {
-    *error = "the sensor must give one sample per pixel (the raw formats): the cfa stage stays on";
+  if (sensor != nullptr && sensor->out.channels != 1) {
+    *error = kSensorNeedsCfa;
     return false;
   }
   return true;

@@ -516,6 +516,21 @@ TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
   }
 }
 
+// The same at start-up: a configuration whose stages leave the cfa out is
+// refused with a message naming it (it used to start and overflow the raw
+// tap with the first frame).
+TEST(GigeRegisters, ADeviceWhoseStagesLeaveTheCfaOutDoesNotStart) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  o.overrides.push_back("pipeline.stages=[\"exposure\",\"sensor\"]");
+  std::string error;
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("[pipeline] stages"), std::string::npos) << error;
+  EXPECT_NE(error.find("cfa stage"), std::string::npos) << error;
+  o.overrides.back() = "pipeline.stages=[\"exposure\",\"cfa\",\"sensor\"]";
+  EXPECT_NE(GigeDevice::Start(o, &error), nullptr) << error;
+}
+
 // The configured exposure may be longer than 1 s (the core allows 100 s): the
 // register reports it, and a later write of another pipeline register keeps it.
 // A client sets the window and starts at once: one sync finds both writes.
