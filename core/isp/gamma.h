@@ -8,7 +8,8 @@
 //          out Encoded Q0.16, same channels
 //          table: uint16_t per input code 0..65535 (and one spare), each entry
 //          round(65535 * curve(i / 65535)) from the double curve (detmath::Pow),
-//          ties up; inputs above 65535 read the last entry.
+//          ties up; inputs above 65535 read the last entry. (Init reaches the
+//          same entries mostly through detmath::PowFast: see gamma.cc.)
 // Error against the exact curve: <= 0.5 LSB (one rounding per entry) plus
 // detmath::Pow's error.
 #pragma once
@@ -44,6 +45,8 @@ class GammaStage final : public Stage {
   const uint16_t* table() const { return table_; }  // after Init
 
  private:
+  double CurveWith(double v, double (*pow)(double, double)) const;  // Curve with another Pow
+
   GammaConfig config_;
   uint16_t* table_ = nullptr;
   bool avx2_ = false;    // the lookup in gathers (chosen at Init)

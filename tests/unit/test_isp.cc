@@ -653,6 +653,24 @@ TEST(IspGamma, MatchesReferenceOnEveryCode) {
   }
 }
 
+// Every entry is the header's definition, round(65535 Curve(i / 65535)) with
+// Curve's Pow, ties up, clamped, although Init takes PowFast where it cannot
+// change the integer: sRGB, the gamma range's ends and gammas in between.
+TEST(IspGamma, TableIsTheRoundedCurveAtEveryCode) {
+  const GammaConfig configs[] = {{GammaCurve::kSrgb, 2.2},  {GammaCurve::kPower, 0.1},  {GammaCurve::kPower, 0.45},
+                                 {GammaCurve::kPower, 1.0}, {GammaCurve::kPower, 1.8},  {GammaCurve::kPower, 2.2},
+                                 {GammaCurve::kPower, 2.4}, {GammaCurve::kPower, 3.7}, {GammaCurve::kPower, 10.0}};
+  for (const GammaConfig& config : configs) {
+    StageTables tables;
+    const GammaStage stage = MakeGamma(config, tables);
+    for (size_t i = 0; i < GammaStage::kTableSize; ++i) {
+      double t = stage.Curve(static_cast<double>(i) / 65535.0) * 65535.0;
+      t = std::clamp(t, 0.0, 65535.0);
+      ASSERT_EQ(stage.table()[i], static_cast<uint16_t>(t + 0.5)) << "gamma " << config.gamma << " code " << i;
+    }
+  }
+}
+
 // The gathered lookup (sixteen or eight samples a time) against the table read
 // one sample at a time, at every row length up to 40 (every tail after the
 // lanes), with the last codes and codes above full scale in every lane.
