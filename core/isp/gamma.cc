@@ -102,7 +102,7 @@ Status GammaStage::Init(Arena& tables) {
   for (size_t i = 0; i < kTableSize; ++i) {
     const double v = static_cast<double>(i) / kFullScale;
     double t = scaled(v, detmath::PowFast);
-    const double up = t + 0.5;  // in [0.5, 65535.5]: exact
+    const double up = t + 0.5;  // in [0.5, 65535.5], as the rounding below sees it
     const double frac = up - static_cast<double>(static_cast<uint32_t>(up));
     if (frac < kTieMargin || frac > 1.0 - kTieMargin) t = scaled(v, detmath::Pow);
     table_[i] = static_cast<uint16_t>(t + 0.5);  // round to nearest, ties up
