@@ -53,6 +53,16 @@ std::unique_ptr<GigeDevice> StartDevice(const DeviceOptions& o) {
   return d;
 }
 
+// The SimStageEnable register of a configured stage (its selector entry,
+// e.g. "Stage_sensor"), or 0 when the device has no such stage.
+uint32_t StageEnableAddress(const GigeDevice& d, const std::string& entry) {
+  const genicam::Feature* selector = genicam::FindFeature(d.table(), "SimStageSelector");
+  if (selector != nullptr)
+    for (const genicam::EnumEntry& e : selector->entries)
+      if (e.name == entry) return genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(e.value));
+  return 0;
+}
+
 void Set(Client& c, const char* feature, const char* value) {
   GError* e = nullptr;
   arv_camera_set_string(c.camera(), feature, value, &e);
@@ -451,20 +461,16 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
   o.serve = false;
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  const genicam::Feature* selector = genicam::FindFeature(d->table(), "SimStageSelector");
-  ASSERT_NE(selector, nullptr);
-  int64_t sensor = -1;
-  for (const genicam::EnumEntry& e : selector->entries)
-    if (e.name == "Stage_sensor") sensor = e.value;
-  ASSERT_GE(sensor, 0);
+  const uint32_t sensor_enable = StageEnableAddress(*d, "Stage_sensor");
+  ASSERT_NE(sensor_enable, 0u);
   WriteReg(*d, reg::kExposureTime, Be64(2000.0));
-  WriteReg(*d, genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(sensor)), Be32(0));
+  WriteReg(*d, sensor_enable, Be32(0));
   WriteReg(*d, reg::kGainRaw, Be32(60));
   WriteReg(*d, reg::kAcquisitionMode, Be32(genicam::kSingleFrame));
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
   EXPECT_EQ(d->writes_refused(), 1u);
-  EXPECT_EQ(ReadReg32(*d, genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(sensor))), 1u);
+  EXPECT_EQ(ReadReg32(*d, sensor_enable), 1u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
   EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 60u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0);
@@ -485,20 +491,13 @@ TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
   o.serve = false;
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  const genicam::Feature* selector = genicam::FindFeature(d->table(), "SimStageSelector");
-  ASSERT_NE(selector, nullptr);
-  int64_t cfa = -1, demosaic = -1;
+  const uint32_t cfa_enable = StageEnableAddress(*d, "Stage_cfa");
+  const uint32_t demosaic_enable = StageEnableAddress(*d, "Stage_demosaic");
+  ASSERT_NE(cfa_enable, 0u);
+  ASSERT_NE(demosaic_enable, 0u);
   std::string without_demosaic;  // pipeline.stages: the configured stages but the demosaic
-  for (const genicam::EnumEntry& e : selector->entries) {
-    if (e.name == "Stage_cfa") cfa = e.value;
-    if (e.name == "Stage_demosaic") demosaic = e.value;
-    if (e.name != "Stage_demosaic")
-      without_demosaic += (without_demosaic.empty() ? "\"" : ",\"") + e.name.substr(6) + "\"";
-  }
-  ASSERT_GE(cfa, 0);
-  ASSERT_GE(demosaic, 0);
-  const uint32_t cfa_enable = genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(cfa));
-  const uint32_t demosaic_enable = genicam::reg::SelectedAddress(reg::kSimStageEnable, static_cast<size_t>(demosaic));
+  for (const std::string& stage : d->sensor().stage_names)
+    if (stage != "demosaic") without_demosaic += (without_demosaic.empty() ? "\"" : ",\"") + stage + "\"";
   WriteReg(*d, cfa_enable, Be32(0));
   WriteReg(*d, demosaic_enable, Be32(0));
   WriteReg(*d, reg::kHeight, Be32(6));
