@@ -535,10 +535,9 @@ void GigeDevice::WriteLineStatus() {
   Write(SelectedAddress(kLineStatus, 1), strobe_level_ ? 1 : 0);
 }
 
-bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const {
+bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const {
   using namespace reg;
-  host::RunConfig& rc = *config;
-  rc = base_config_;
+  host::RunConfig rc = base_config_;
   rc.core.exposure.exposure_time_us = BitsDouble(r.at(kExposureTime));
   rc.core.exposure.f_number = BitsDouble(r.at(kSimFNumber));
   rc.core.sensor.gain_db = BitsDouble(r.at(kGain));
@@ -547,18 +546,13 @@ bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::strin
   rc.core.order_count = 0;
   for (size_t i = 0; i < configured_stages_.size(); ++i)
     if (r.at(SelectedAddress(kSimStageEnable, i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
-  // Plan first (cheap, no tables): the running renderer stays as it is on failure.
-  host::RunConfig finished = rc;
-  if (!host::FinishConfig(&finished, scenes_[0].width, scenes_[0].height, origins_, 1, error)) return false;
-  Pipeline probe;
-  const Status ps = probe.Configure(finished.core, 1, !finished.vignetting_mask.empty());
-  if (!ps.ok()) {
-    *error = host::DescribeStatus(ps, origins_);
-    return false;
-  }
-  const LineFormat out = probe.plan().output;
+  // Plan only (no tables): the running renderer stays as it is on failure,
+  // and Reconfigure installs this plan.
+  if (!renderer_->PlanPipeline(rc, origins_, scenes_[0].width, scenes_[0].height, planned, error)) return false;
+  const Plan& plan = planned->pipeline->plan();
+  const LineFormat out = plan.output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
-  const PlanEntry* sensor = RunningSensor(probe.plan());
+  const PlanEntry* sensor = RunningSensor(plan);
   if (r.at(kPixelFormat) == kRGB8 ? !rgb : sensor == nullptr) {
     *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
     return false;
@@ -571,9 +565,9 @@ bool GigeDevice::PlanFor(const Registers& r, host::RunConfig* config, std::strin
 }
 
 bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
-  host::RunConfig rc;
-  if (!PlanFor(r, &rc, error)) return false;
-  if (!renderer_->Configure(rc, origins_, scenes_[0].width, scenes_[0].height, nullptr, error)) return false;
+  host::PlannedPipeline planned;
+  if (!PlanFor(r, &planned, error)) return false;
+  if (!renderer_->Install(std::move(planned), origins_, error)) return false;
   current_scene_ = -1;  // the input is prepared again for the new pipeline
   return true;
 }
@@ -693,7 +687,7 @@ void GigeDevice::Sync() {
           trial[kGain] = next[kGain];
           trial[kGainRaw] = next[kGainRaw];
         }
-        host::RunConfig unused;
+        host::PlannedPipeline unused;
         std::string why;
         if (PlanFor(trial, &unused, &why)) {
           kept = trial;
@@ -915,9 +909,9 @@ void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
   using namespace reg;
   const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
   auto accepted = [&](double t, double g) {  // the registers a request would set, planned only
-    host::RunConfig rc;
+    host::PlannedPipeline unused;
     std::string error;
-    return PlanFor(AutoRegisters({t, g, AppliedDouble(kSimFNumber)}), &rc, &error);
+    return PlanFor(AutoRegisters({t, g, AppliedDouble(kSimFNumber)}), &unused, &error);
   };
   // Exposure first, at the applied gain: bisection on log2(t) between the
   // applied value (accepted) and the request (refused).

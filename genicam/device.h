@@ -125,9 +125,10 @@ class GigeDevice {
   uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
   void SetApplied(uint32_t address, uint64_t value);  // register and applied value
   void Sync();                                            // under mutex_
-  // The run configuration for registers r (SimStageEnable's included),
-  // checked by planning a pipeline (cheap: no tables); the renderer is not touched.
-  bool PlanFor(const Registers& r, host::RunConfig* config, std::string* error) const;
+  // The pipeline for registers r (SimStageEnable's included), configured
+  // and checked but without tables; the renderer in use is not touched.
+  // Reconfigure installs it.
+  bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
   bool Reconfigure(const Registers& r, std::string* error);  // under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void WriteLineStatus();  // each line's level

@@ -20,14 +20,29 @@ FrameRenderer::FrameRenderer(int threads, int strip_rows)
 
 bool FrameRenderer::Configure(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
                               RunConfig* finished, std::string* error) {
-  RunConfig rc = config;
+  PlannedPipeline planned;
+  if (!PlanPipeline(config, origins, scene_width, scene_height, &planned, error)) return false;
+  if (finished) *finished = planned.finished;
+  return Install(std::move(planned), origins, error);
+}
+
+bool FrameRenderer::PlanPipeline(const RunConfig& config, const Origins& origins, int scene_width,
+                                 int scene_height, PlannedPipeline* planned, std::string* error) const {
+  planned->finished = config;
+  RunConfig& rc = planned->finished;
   if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error)) return false;
-  std::unique_ptr<Pipeline> p(new Pipeline);
-  const Status s = p->Configure(rc.core, threads_, !rc.vignetting_mask.empty());
+  planned->pipeline.reset(new Pipeline);
+  const Status s = planned->pipeline->Configure(rc.core, threads_, !rc.vignetting_mask.empty());
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
   }
+  return true;
+}
+
+bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std::string* error) {
+  std::unique_ptr<Pipeline>& p = planned.pipeline;
+  const RunConfig& rc = planned.finished;
   std::vector<uint8_t> workspace(p->WorkspaceBytes(), 0);
   const Status si = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
   if (!si.ok()) {
@@ -48,7 +63,6 @@ bool FrameRenderer::Configure(const RunConfig& config, const Origins& origins, i
   has_scene_ = has_scene_ && input_.width == pipeline_->width() && input_.height == pipeline_->height();
   if (has_scene_) RunPrepasses();
   else view_ = FrameInput();
-  if (finished) *finished = rc;
   return true;
 }
 

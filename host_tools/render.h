@@ -28,6 +28,14 @@ namespace camsim::host {
 // strip height.
 int StripRows(int requested, int height, int threads);
 
+// A pipeline configured for a renderer but not yet initialised (no tables
+// built): FrameRenderer::PlanPipeline's result, for callers that look at the
+// plan before they install it.
+struct PlannedPipeline {
+  RunConfig finished;                  // the configuration, finished for the scene
+  std::unique_ptr<Pipeline> pipeline;  // configured with the renderer's threads
+};
+
 class FrameRenderer {
  public:
   // strip_rows 0: the default of StripRows for the configured frame height.
@@ -38,6 +46,11 @@ class FrameRenderer {
   // *finished (optional) receives the finished configuration.
   bool Configure(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
                  RunConfig* finished, std::string* error);
+  // Configure in two steps: PlanPipeline finishes and configures (the
+  // renderer is unchanged), Install initialises the plan and puts it in use.
+  bool PlanPipeline(const RunConfig& config, const Origins& origins, int scene_width, int scene_height,
+                    PlannedPipeline* planned, std::string* error) const;
+  bool Install(PlannedPipeline planned, const Origins& origins, std::string* error);
 
   // Fits a scene to the sensor, runs the pre-passes and checks the frame
   // against the configuration.
