@@ -2,17 +2,24 @@
 // Aravis client over loopback, and how many frames were lost on the way.
 //   camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]
 //                   [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]
+//                   [--reconfigures N]
 // --prime 0 turns off the device's first-frame leader (GigeDevice::PrimeReceiver)
 // to show the first frame lost to the default socket buffer.
+// --reconfigures N first times N ExposureTime writes, each synced at once
+// (GigeDevice::SyncNow: the pipeline planned, checked and rebuilt), and
+// prints the median time per write.
 // The device runs in this process (its render threads + Aravis's GVCP/GVSP
 // thread) with the demo configuration (every stage on) and a free-running
 // frame rate (AcquisitionFrameRateEnable off: as fast as frames are made).
 #include <arv.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #include "genicam/device.h"
 
@@ -20,7 +27,7 @@ int main(int argc, char** argv) {
   camsim::genicam::DeviceOptions o;
   o.config_path = std::string(CAMSIM_SOURCE_DIR) + "/configs/camera.toml";
   o.pattern = "gradient";
-  int width = 1920, height = 1080, frames = 100, packet = 9000;
+  int width = 1920, height = 1080, frames = 100, packet = 9000, reconfigures = 0;
   std::string format = "BayerRG8";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
@@ -32,6 +39,7 @@ int main(int argc, char** argv) {
     else if (a == "--packet-size") packet = std::atoi(v.c_str());
     else if (a == "--config") o.config_path = v;
     else if (a == "--prime") o.prime_first_frame = v != "0";
+    else if (a == "--reconfigures") reconfigures = std::atoi(v.c_str());
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       return 1;
@@ -43,6 +51,23 @@ int main(int argc, char** argv) {
   if (!device) {
     std::fprintf(stderr, "camsim_gige_fps: %s\n", error.c_str());
     return 1;
+  }
+  if (reconfigures > 0) {
+    std::vector<double> ms;
+    for (int i = 0; i < reconfigures; ++i) {
+      const double us = i % 2 ? 10000.0 : 5000.0;  // alternating, so every write changes the value
+      uint64_t bits;
+      std::memcpy(&bits, &us, 8);
+      uint8_t be[8];
+      for (int k = 0; k < 8; ++k) be[k] = static_cast<uint8_t>(bits >> (56 - 8 * k));  // as a client sends it
+      const auto t = std::chrono::steady_clock::now();
+      device->WriteMemory(camsim::genicam::reg::kExposureTime, be, 8);
+      device->SyncNow();
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count());
+    }
+    std::sort(ms.begin(), ms.end());
+    std::printf("%dx%d, %d thread(s): %.1f ms per ExposureTime write (median of %d, the pipeline rebuilt each time)\n",
+                width, height, o.threads, ms[ms.size() / 2], reconfigures);
   }
   GError* e = nullptr;
   ArvCamera* cam = arv_camera_new(o.address.c_str(), &e);
