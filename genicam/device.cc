@@ -566,7 +566,10 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
 
 bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
   host::PlannedPipeline planned;
-  if (!PlanFor(r, &planned, error)) return false;
+  return PlanFor(r, &planned, error) && Install(std::move(planned), error);
+}
+
+bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
   if (!renderer_->Install(std::move(planned), origins_, error)) return false;
   current_scene_ = -1;  // the input is prepared again for the new pipeline
   return true;
@@ -678,7 +681,7 @@ void GigeDevice::Sync() {
       };
       Registers kept = next;
       pipeline_as_applied(&kept);
-      bool kept_any = false;
+      host::PlannedPipeline kept_plan;  // the plan of `kept` once a write is kept
       for (const Feature* f : changed) {
         if (!is_pipeline(f->address)) continue;
         Registers trial = kept;
@@ -687,11 +690,11 @@ void GigeDevice::Sync() {
           trial[kGain] = next[kGain];
           trial[kGainRaw] = next[kGainRaw];
         }
-        host::PlannedPipeline unused;
+        host::PlannedPipeline plan;
         std::string why;
-        if (PlanFor(trial, &unused, &why)) {
+        if (PlanFor(trial, &plan, &why)) {
           kept = trial;
-          kept_any = true;
+          kept_plan = std::move(plan);
           continue;
         }
         std::fprintf(stderr, "camsim-gige: refused %s: %s\n", f->name.c_str(), why.c_str());
@@ -702,8 +705,9 @@ void GigeDevice::Sync() {
         Write(kGainRaw, static_cast<uint32_t>(kept[kGainRaw]));
         WriteDouble(kGain, BitsDouble(kept[kGain]));
       }
-      // Planned above; this builds the tables (the renderer kept the old ones).
-      if (kept_any && !Reconfigure(kept, &error)) {  // not expected: back to the pipeline in use
+      // Planned above; installing builds the tables (the renderer kept the old
+      // ones). A failure is not expected: then back to the pipeline in use.
+      if (kept_plan.pipeline != nullptr && !Install(std::move(kept_plan), &error)) {
         std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
         for (const Feature* f : changed)
           if (is_pipeline(f->address) && kept[f->address] != applied_.at(f->address)) refuse(f->address);

@@ -129,7 +129,8 @@ class GigeDevice {
   // and checked but without tables; the renderer in use is not touched.
   // Reconfigure installs it.
   bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
-  bool Reconfigure(const Registers& r, std::string* error);  // under mutex_
+  bool Reconfigure(const Registers& r, std::string* error);  // PlanFor, then Install; under mutex_
+  bool Install(host::PlannedPipeline planned, std::string* error);  // puts a plan in use; under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void WriteLineStatus();  // each line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);

@@ -482,10 +482,11 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
 }
 
 // The write combination the register fuzzer found (its seed cfa_off_crash):
-// the cfa and demosaic stages off, a smaller window, one sync. Without the
-// cfa the sensor gives three samples per pixel (the planner then leaves the
-// demosaic out, so that alone did not refuse it) and the raw tap (one sample
-// per pixel) overflowed. The cfa write is refused, the others are taken.
+// the cfa and demosaic stages off, a smaller window, one sync. The cfa alone
+// was refused (the demosaic needs a mosaic); with the demosaic off as well,
+// nothing refused it, the sensor gave three samples per pixel and the raw
+// tap (one sample per pixel) overflowed. Now the cfa write is refused and
+// the others are taken.
 TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
   DeviceOptions o = SmallDevice();
   o.serve = false;
