@@ -159,12 +159,15 @@ CAMSIM_AVX512_TARGET void DrawBitsLanesAvx512(uint64_t seed, uint32_t stream, ui
 }
 
 // GaussianAvx2 for sixteen words: the segment from AVX-512's count of
-// leading zeros, then each half of eight lanes gathers its (start, end)
-// pairs and interpolates in 64-bit lanes.
+// leading zeros, then the even and the odd lanes each gather their (start,
+// end) pairs and interpolate in 64-bit lanes, as in GaussianAvx2. The lanes'
+// dwords are moved by shuffles (port 5) rather than 64-bit shifts, which
+// share port 0 with the multiplies.
 CAMSIM_AVX512_TARGET __m512i GaussianAvx512(const int32_t* table, __m512i u) {
   constexpr int kIndexBits = GaussianTable::kIndexBits;
   constexpr int kInterpBits = GaussianTable::kInterpBits;
   static_assert(kInterpBits + GaussianTable::kEntryFracBits - 16 == 32, "the rounding is to the high half");
+  constexpr __mmask16 kEven = 0x5555;
   const __m512i upper = _mm512_srai_epi32(u, 31);
   const __m512i v = _mm512_and_si512(_mm512_xor_si512(u, upper), _mm512_set1_epi32(0x7FFFFFFF));
   const __m512i segment = _mm512_lzcnt_epi32(_mm512_or_si512(_mm512_slli_epi32(v, 1), _mm512_set1_epi32(1)));
@@ -175,19 +178,22 @@ CAMSIM_AVX512_TARGET __m512i GaussianAvx512(const int32_t* table, __m512i u) {
   const __m512i frac = _mm512_and_si512(w, _mm512_set1_epi32((1 << kInterpBits) - 1));
   const __m512i half = _mm512_set1_epi64(int64_t{1} << 31);
   const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFF);
-  __m256i z[2];
-  for (int h = 0; h < 2; ++h) {
-    const __m256i index = h == 0 ? _mm512_castsi512_si256(interval) : _mm512_extracti64x4_epi64(interval, 1);
+  __m512i rounded[2];  // even, odd lanes: the result in the high dword of each 64-bit lane
+  for (int odd = 0; odd < 2; ++odd) {
+    // The lanes' intervals and fractions in the low dwords (vpmuludq and
+    // vpmuldq read only those), the intervals zero-extended as gather indices.
+    const __m512i index = odd == 0 ? _mm512_and_si512(interval, low32)
+                                   : _mm512_maskz_shuffle_epi32(kEven, interval, _MM_PERM_DDBB);
+    const __m512i f = odd == 0 ? frac : _mm512_shuffle_epi32(frac, _MM_PERM_DDBB);
     // A mask GCC cannot prove full: see ISqrt64x8 (fixed.cc).
-    const __mmask8 all = _mm256_cmpge_epi32_mask(index, _mm256_setzero_si256());
-    const __m512i pair = _mm512_mask_i32gather_epi64(_mm512_setzero_si512(), all, index, table, 8);
-    const __m512i f = _mm512_cvtepu32_epi64(h == 0 ? _mm512_castsi512_si256(frac) : _mm512_extracti64x4_epi64(frac, 1));
+    const __mmask8 all = _mm512_cmpge_epi64_mask(index, _mm512_setzero_si512());
+    const __m512i pair = _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), all, index, table, 8);
     const __m512i start = _mm512_and_si512(pair, low32);  // >= 0
-    const __m512i mag = _mm512_add_epi64(_mm512_slli_epi64(start, kInterpBits),
-                                         _mm512_mul_epi32(_mm512_sub_epi64(_mm512_srli_epi64(pair, 32), start), f));
-    z[h] = _mm512_cvtepi64_epi32(_mm512_srli_epi64(_mm512_add_epi64(mag, half), 32));
+    const __m512i span = _mm512_sub_epi32(_mm512_shuffle_epi32(pair, _MM_PERM_DDBB), pair);  // low dword: end - start
+    const __m512i mag = _mm512_add_epi64(_mm512_slli_epi64(start, kInterpBits), _mm512_mul_epi32(span, f));
+    rounded[odd] = _mm512_add_epi64(mag, half);
   }
-  const __m512i zz = _mm512_inserti64x4(_mm512_castsi256_si512(z[0]), z[1], 1);
+  const __m512i zz = _mm512_mask_shuffle_epi32(rounded[1], kEven, rounded[0], _MM_PERM_DDBB);
   const __m512i negate = _mm512_xor_si512(upper, _mm512_set1_epi32(-1));
   return _mm512_sub_epi32(_mm512_xor_si512(zz, negate), negate);
 }
