@@ -1,5 +1,6 @@
 #include "host_tools/calibration.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -70,10 +71,11 @@ bool ParseData(const std::string& block, std::vector<double>* v, std::string* wh
 }
 
 // A scalar "key: value" at top level (image_width, distortion_model ...).
-bool FindScalar(const std::string& text, const std::string& key, std::string* value) {
+bool FindScalar(const std::string& text, const std::string& key, std::string* value, int* line_out = nullptr) {
   std::string block;
   int line = 0;
   if (!FindBlock(text, key, &block, &line)) return false;
+  if (line_out != nullptr) *line_out = line;
   *value = Trim(block.substr(0, block.find('\n')));
   return true;
 }
@@ -152,10 +154,24 @@ bool ParseCalibration(const std::string& text, const std::string& source, bool f
     m.k[5] = get[7];
   }
   std::string w, h;
-  if (FindScalar(text, "image_width", &w) && FindScalar(text, "image_height", &h)) {
-    out->width = std::atoi(w.c_str());
-    out->height = std::atoi(h.c_str());
-    if (out->width <= 0 || out->height <= 0) return fail(0, "image_width and image_height must be positive");
+  int w_line = 0, h_line = 0;
+  const bool has_w = FindScalar(text, "image_width", &w, &w_line), has_h = FindScalar(text, "image_height", &h, &h_line);
+  if (has_w != has_h)
+    return fail(has_w ? w_line : h_line,
+                has_w ? "image_width is given without image_height" : "image_height is given without image_width");
+  if (has_w) {
+    // Whole numbers of pixels, nothing after them (no silent wrap or "32px").
+    constexpr long kMaxSide = 1 << 16;
+    const auto side = [](const std::string& v, int* px) {
+      char* end = nullptr;
+      errno = 0;
+      const long n = std::strtol(v.c_str(), &end, 10);
+      if (errno != 0 || end == v.c_str() || *end != '\0' || n <= 0 || n > kMaxSide) return false;
+      *px = static_cast<int>(n);
+      return true;
+    };
+    if (!side(w, &out->width)) return fail(w_line, "image_width '" + w + "' must be a whole number of pixels, 1 to 65536");
+    if (!side(h, &out->height)) return fail(h_line, "image_height '" + h + "' must be a whole number of pixels, 1 to 65536");
   }
   return true;
 }

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -129,6 +131,20 @@ TEST(Calibration, BadFilesSayWhatAndWhere) {
   count.replace(count_at, 12, "]");
   EXPECT_FALSE(ParseCalibration(count, "c.yaml", false, &c, &error));
   EXPECT_NE(error.find("expected 4, 5, 8, 12 or 14"), std::string::npos) << error;
+  // The image size: whole pixels, both or neither (atoi read 4294967328 as 32, "32px" as 32).
+  const std::string body = std::string(kRos).substr(std::string(kRos).find("camera_name"));
+  for (const auto& [size, expected] :
+       {std::pair{"image_width: 4294967328\nimage_height: 960\n", "z.yaml:1: image_width '4294967328' must be"},
+        std::pair{"image_width: 32px\nimage_height: 960\n", "z.yaml:1: image_width '32px' must be a whole number"},
+        std::pair{"image_width: 1280\nimage_height: -960\n", "z.yaml:2: image_height '-960' must be"},
+        std::pair{"image_width: 1280\n", "z.yaml:1: image_width is given without image_height"},
+        std::pair{"image_height: 960\n", "z.yaml:1: image_height is given without image_width"}}) {
+    EXPECT_FALSE(ParseCalibration(size + body, "z.yaml", false, &c, &error)) << size;
+    EXPECT_NE(error.find(expected), std::string::npos) << error;
+  }
+  ASSERT_TRUE(ParseCalibration("image_width: 1280\nimage_height: 960\n" + body, "z.yaml", false, &c, &error)) << error;
+  EXPECT_EQ(c.width, 1280);
+  EXPECT_EQ(c.height, 960);
   EXPECT_FALSE(LoadCalibration("/nonexistent/cal.yml", false, &c, &error));
   EXPECT_EQ(error, "/nonexistent/cal.yml: cannot read the calibration file: No such file or directory");
 }
