@@ -245,7 +245,10 @@ bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std:
   if (dark_stack != nullptr && bright_stack != nullptr) {
     FrameStack ds, bs;
     if (!StackOf(reader, *dark_stack, &ds, error) || !StackOf(reader, *bright_stack, &bs, error)) return false;
-    NonUniformity(ds, bs, r.fit.system_gain, &r.dsnu_e, &r.prnu_percent);
+    if (!NonUniformity(ds, bs, r.fit.system_gain, &r.dsnu_e, &r.prnu_percent, error)) {
+      *error = path + ": " + *error;
+      return false;
+    }
     r.has_nonuniformity = true;
     r.stack_photons = bright_stack->photons;
   }

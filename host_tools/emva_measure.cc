@@ -259,7 +259,7 @@ bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOpti
   const AverageStats half_avg = MeasureAverage(bench, p50, L, frame);
   const FrameStack dark_stack{dark_avg.mean[kG], dark_avg.spatial_var[kG], dark.var[kG], L};
   const FrameStack half_stack{half_avg.mean[kG], half_avg.spatial_var[kG], half.var[kG], L};
-  NonUniformity(dark_stack, half_stack, K, &r.measured.dsnu_e, &r.measured.prnu_percent);
+  if (!NonUniformity(dark_stack, half_stack, K, &r.measured.dsnu_e, &r.measured.prnu_percent, error)) return false;
   *report = r;
   return true;
 }
@@ -273,6 +273,11 @@ bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var
   size_t sat = 0;  // EMVA 1288: saturation at the maximum of the temporal variance
   for (size_t i = 1; i < levels.size(); ++i)
     if (levels[i].var > levels[sat].var) sat = i;
+  if (!(levels[sat].var > dark_var)) {
+    *error = "emva: the temporal variance never rises above the dark variance: no photon transfer to fit "
+             "(a noiseless sensor, or a bright series without light)";
+    return false;
+  }
   const double sat_signal = levels[sat].mean - levels[sat].dark_mean;
   TransferFit f;
   f.saturation_photons = levels[sat].photons;
@@ -296,18 +301,29 @@ bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var
     return false;
   }
   f.responsivity = SlopeThroughOrigin(p, x);
+  if (!(f.responsivity > 0)) {
+    *error = "emva: the signal does not grow with the photon count (responsivity <= 0): check the photon values";
+    return false;
+  }
   f.dark_noise_e = std::sqrt(std::max(0.0, dark_var - kQuantisationVariance)) / f.system_gain;
   f.saturation_e = sat_signal / f.system_gain;
   *fit = f;
   return true;
 }
 
-void NonUniformity(const FrameStack& dark, const FrameStack& bright, double K, double* dsnu_e, double* prnu_percent) {
+bool NonUniformity(const FrameStack& dark, const FrameStack& bright, double K, double* dsnu_e, double* prnu_percent,
+                   std::string* error) {
+  if (!(bright.mean > dark.mean)) {
+    *error = "emva: the bright stack's mean (" + std::to_string(bright.mean) + " DN) is not above the dark stack's (" +
+             std::to_string(dark.mean) + " DN): no signal to measure the PRNU against";
+    return false;
+  }
   // The averaged image keeps 1/L of the temporal variance: take it out.
   const double s2_dark = dark.spatial_var - dark.temporal_var / dark.frames;
   const double s2_bright = bright.spatial_var - bright.temporal_var / bright.frames;
   *dsnu_e = std::sqrt(std::max(0.0, s2_dark)) / K;
   *prnu_percent = 100.0 * std::sqrt(std::max(0.0, s2_bright - s2_dark)) / (bright.mean - dark.mean);
+  return true;
 }
 
 std::string FormatEmvaReport(const std::string& title, const EmvaReport& r) {

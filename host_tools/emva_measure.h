@@ -96,9 +96,10 @@ struct TransferFit {
 // than 5 levels below 70 % of saturation.
 bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var, TransferFit* fit,
                        std::string* error);
-// Step 6: DSNU (e-) and PRNU (%) from a dark and a bright stack.
-void NonUniformity(const FrameStack& dark, const FrameStack& bright, double system_gain, double* dsnu_e,
-                   double* prnu_percent);
+// Step 6: DSNU (e-) and PRNU (%) from a dark and a bright stack. Fails
+// (naming why) when the bright stack is not brighter than the dark one.
+bool NonUniformity(const FrameStack& dark, const FrameStack& bright, double system_gain, double* dsnu_e,
+                   double* prnu_percent, std::string* error);
 
 // The measured-versus-configured table as text.
 std::string FormatEmvaReport(const std::string& title, const EmvaReport& report);

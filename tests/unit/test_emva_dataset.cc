@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "host_tools/emva_dataset.h"
+#include "host_tools/emva_measure.h"
 #include "host_tools/io/image_write.h"
 
 namespace camsim::host {
@@ -154,6 +155,45 @@ TEST(EmvaDataset, DirectoryAndReadErrorAreRefused) {
   EXPECT_EQ(error, dir + ": cannot read the EMVA 1288 descriptor: is a directory, not a file");
   EXPECT_FALSE(MeasureEmvaDataset("/proc/self/mem", &r, &error));  // reading offset 0 fails (EIO)
   EXPECT_EQ(error.rfind("/proc/self/mem: cannot read the EMVA 1288 descriptor: read failed: ", 0), 0u) << error;
+}
+
+// Data without a photon transfer is refused with the reason, not measured as
+// NaN or 0: a noiseless series, a series whose signal does not grow with
+// the photons, stacks without light between them.
+TEST(EmvaDataset, DegenerateDataIsRefusedWithTheReason) {
+  std::vector<TransferLevel> flat, dark;
+  for (int i = 0; i < 8; ++i) {
+    TransferLevel l;
+    l.photons = 100.0 * (i + 1);
+    l.mean = 64.0 + 10.0 * i;  // a noiseless sensor: the signal grows, the variance does not
+    l.dark_mean = 64.0;
+    flat.push_back(l);
+    l.mean = 64.0;  // no signal at all, only read noise
+    l.var = l.dark_var = 4.0;
+    dark.push_back(l);
+  }
+  TransferFit fit;
+  std::string error;
+  EXPECT_FALSE(FitPhotonTransfer(flat, 0.0, &fit, &error));
+  EXPECT_NE(error.find("the temporal variance never rises above the dark variance"), std::string::npos) << error;
+  EXPECT_FALSE(FitPhotonTransfer(dark, 4.0, &fit, &error));
+  EXPECT_NE(error.find("the temporal variance never rises above the dark variance"), std::string::npos) << error;
+  std::vector<TransferLevel> no_photons = dark;  // the variance grows, the photon column is 0
+  for (size_t i = 0; i < no_photons.size(); ++i) {
+    no_photons[i].photons = 0.0;
+    no_photons[i].mean = 64.0 + 10.0 * static_cast<double>(i);
+    no_photons[i].var = 4.0 + 4.0 * static_cast<double>(i);
+  }
+  no_photons.back().var = 1000.0;  // saturation: the variance peaks at the last level
+  EXPECT_FALSE(FitPhotonTransfer(no_photons, 4.0, &fit, &error));
+  EXPECT_NE(error.find("the signal does not grow with the photon count"), std::string::npos) << error;
+  const FrameStack bright{100.0, 9.0, 4.0, 16}, same{100.0, 5.0, 4.0, 16};
+  double dsnu = 0.0, prnu = 0.0;
+  EXPECT_FALSE(NonUniformity(same, bright, 0.4, &dsnu, &prnu, &error));
+  EXPECT_NE(error.find("is not above the dark stack's"), std::string::npos) << error;
+  const FrameStack darker{64.0, 5.0, 4.0, 16};
+  ASSERT_TRUE(NonUniformity(darker, bright, 0.4, &dsnu, &prnu, &error)) << error;
+  EXPECT_TRUE(std::isfinite(prnu) && prnu > 0.0);
 }
 
 }  // namespace
