@@ -63,7 +63,9 @@ bool LoadDefectsFile(const std::string& path, int width, int height, int adc_bit
   std::vector<Entry> entries;
   std::string line;
   int number = 0;
-  const long max_dn = (1L << adc_bits) - 1;
+  // The core refuses adc_bits outside 8..16 after this file is read; until
+  // then an out-of-range value must not reach the shift (undefined beyond 62).
+  const long max_dn = adc_bits >= 1 && adc_bits <= 30 ? (1L << adc_bits) - 1 : (1L << 30) - 1;
   while (std::getline(file, line)) {
     ++number;
     const size_t hash = line.find('#');

@@ -172,6 +172,19 @@ TEST(DefectsFile, ErrorsNameFileLineColumnAndProblem) {
   EXPECT_NE(error.find("/nonexistent/defects.csv"), std::string::npos);
 }
 
+// The reader runs before the core checks adc_bits (8 to 16): a value out of
+// that range must not reach its shift (undefined behaviour, caught by the
+// sanitizer build); the core's range error follows (Cli.ConfigCheckOfAdcBitsWithADefectsFile).
+TEST(DefectsFile, AnAdcBitsOutOfRangeIsNotShiftedBy) {
+  const std::string path = WriteFile("adc.csv", "1,1,stuck,70000\n2,2,stuck\n");
+  for (int bits : {-1, 0, 64, 100}) {
+    std::vector<DefectPixel> list;
+    std::string error;
+    EXPECT_TRUE(host::LoadDefectsFile(path, kW, kH, bits, &list, &error)) << bits << ": " << error;
+    EXPECT_EQ(list.size(), 2u) << bits;
+  }
+}
+
 // A directory opens on Linux and reads as no lines, and a read error ended the
 // list early: both used to load as a list with no defects.
 TEST(DefectsFile, DirectoryAndReadErrorAreRefused) {
