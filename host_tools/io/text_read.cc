@@ -6,10 +6,11 @@
 
 #include <cerrno>
 #include <cstring>
+#include <string>
 
 namespace camsim::io {
 
-bool ReadTextFile(const std::string& path, std::string* text, std::string* error) {
+bool ReadTextFile(const std::string& path, std::string* text, std::string* error, size_t max_bytes) {
   const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     *error = std::strerror(errno);
@@ -25,6 +26,12 @@ bool ReadTextFile(const std::string& path, std::string* text, std::string* error
   while (ok) {
     const ssize_t n = read(fd, buf, sizeof buf);
     if (n > 0) {
+      if (bytes.size() + static_cast<size_t>(n) > max_bytes) {
+        *error = max_bytes >= (size_t{1} << 20) ? "larger than " + std::to_string(max_bytes >> 20) + " MiB"
+                                                : "larger than " + std::to_string(max_bytes) + " bytes";
+        ok = false;
+        break;
+      }
       bytes.append(buf, static_cast<size_t>(n));
     } else if (n == 0) {
       break;

@@ -28,6 +28,7 @@
 #include "host_tools/io/image_read.h"
 #include "host_tools/io/image_write.h"
 #include "host_tools/io/sequence.h"
+#include "host_tools/io/text_read.h"
 
 namespace camsim::io {
 namespace {
@@ -631,6 +632,22 @@ TEST_F(IoTest, ExpandErrors) {
   EXPECT_NE(error.find("no .exr"), std::string::npos) << error;
   EXPECT_FALSE(ExpandInputs({}, &files, &error));
   EXPECT_EQ(files, std::vector<std::string>{"keep"});
+}
+
+// A text file is read whole up to a bound: /dev/zero (or a huge file given by
+// mistake) is an error, not memory exhausted.
+TEST(ReadTextFile, StopsAtItsBound) {
+  std::string text = "kept", error;
+  EXPECT_FALSE(ReadTextFile("/dev/zero", &text, &error, 100000));
+  EXPECT_EQ(error, "larger than 100000 bytes");
+  EXPECT_EQ(text, "kept");
+  const std::string path = testing::TempDir() + "camsim_text_bound_" + std::to_string(getpid());
+  std::ofstream(path) << std::string(4096, 'x');
+  EXPECT_FALSE(ReadTextFile(path, &text, &error, 4095));
+  ASSERT_TRUE(ReadTextFile(path, &text, &error, 4096)) << error;
+  EXPECT_EQ(text.size(), 4096u);
+  EXPECT_GE(kMaxTextBytes, size_t{300} << 20);  // a 4096 x 4096 mesh as text
+  std::remove(path.c_str());
 }
 
 }  // namespace
