@@ -6,7 +6,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <new>
 #include <string>
+#include <system_error>
 #include <vector>
 #include <algorithm>
 #include <cmath>
@@ -138,10 +141,17 @@ int Config(int argc, char** argv) {
     camsim::host::Origins origins;
     std::string error;
     // Without an input, the size check uses the configured size or a VGA stand-in.
-    if (!camsim::host::LoadConfigFile(argv[3], &rc, &origins, &error) ||
-        !camsim::host::FinishConfig(&rc, rc.width ? rc.width : 640, rc.height ? rc.height : 480, origins, 1,
-                                    &error)) {
+    if (!camsim::host::LoadConfigFile(argv[3], &rc, &origins, &error)) {
       std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      return 1;
+    }
+    const bool stand_in = rc.width == 0 || rc.height == 0;
+    if (!camsim::host::FinishConfig(&rc, rc.width ? rc.width : 640, rc.height ? rc.height : 480, origins, 1, &error)) {
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      if (stand_in)
+        std::fprintf(stderr,
+                     "camsim: (the file sets no sensor.width and sensor.height, so this check used a 640x480 "
+                     "stand-in; `camsim run` takes the size of its input)\n");
       return 1;
     }
     std::printf("%s: ok\n", argv[3]);
@@ -254,6 +264,11 @@ int Preview(int argc, char** argv) {
     std::fputs(kUsage, stderr);
     return 1;
   }
+  std::error_code same_error;  // equivalent() is false, with an error, when the output does not exist
+  if (std::filesystem::equivalent(input, output, same_error)) {
+    std::fprintf(stderr, "camsim: preview --out '%s' would overwrite the input '%s'\n", output.c_str(), input.c_str());
+    return 1;
+  }
   camsim::io::SceneFrame scene;
   std::string error;
   if (!camsim::io::LoadSceneExr(input, "", &scene, &error)) {
@@ -275,9 +290,7 @@ int Preview(int argc, char** argv) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int Main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "run") == 0) return Run(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "config") == 0) return Config(argc, argv);
   if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
@@ -286,4 +299,17 @@ int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "emva") == 0) return Emva(argc, argv);
   std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
   return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;
+}
+
+}  // namespace
+
+// Host tools may allocate; running out of memory (a huge --set sensor.width,
+// say) is reported, not an abort. Outputs already written stay.
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fputs("camsim: out of memory (the frame or a file is larger than this machine can hold)\n", stderr);
+    return 2;
+  }
 }

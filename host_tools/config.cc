@@ -725,6 +725,17 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
 
 }  // namespace
 
+std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfig& c) {
+  const std::pair<const char*, const std::string*> keys[] = {
+      {"sensor.defects_file", &c.defects_file},     {"distortion.calibration", &c.calibration},
+      {"distortion.mesh", &c.mesh},                 {"vignetting.mask", &c.vignetting_mask},
+      {"flare.environment_map", &c.environment_map}, {"auto_exposure.metering_image", &c.metering_image}};
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const auto& [key, path] : keys)
+    if (!path->empty()) files.emplace_back(key, *path);
+  return files;
+}
+
 std::vector<std::string> ConfigKeys() {
   std::vector<std::string> keys;
   for (const Field& f : Fields()) keys.push_back(std::string(f.section) + "." + f.key);
@@ -872,11 +883,26 @@ std::string ConfigToToml(const RunConfig& c, bool annotated) {
 std::string DefaultConfigToml() { return ConfigToToml(RunConfig{}, true); }
 
 std::string DescribeStatus(const Status& s, const Origins& origins) {
-  std::string field = s.field();
+  const std::string field = s.field();
+  const auto origin = [&origins](const std::string& key) {
+    const auto it = origins.find(key);
+    return it != origins.end() ? it->second : std::string();
+  };
   std::string where;
-  auto it = origins.find(field);
-  if (it != origins.end()) where = it->second + ": ";
-  else if (!field.empty()) where = "(default value): ";
+  if (field.empty()) {
+    // A message of its own.
+  } else if (!origin(field).empty()) {
+    where = origin(field) + ": ";
+  } else if (field.find('.') == std::string::npos) {
+    // A stage's name: the planner refused where the stage list put it.
+    const std::string stages = origin("pipeline.stages");
+    where = (stages.empty() ? "the default stage order" : stages) + ": pipeline.stages: ";
+  } else if (field.compare(0, 11, "distortion.") == 0 && !origin("distortion.calibration").empty()) {
+    // The calibration file sets the lens (keys set beside it are refused).
+    where = origin("distortion.calibration") + ": distortion.calibration gives ";
+  } else {
+    where = "(not set: the default, or derived from the input's size): ";
+  }
   return where + (field.empty() ? "" : field + " ") + s.message();
 }
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/control/auto_exposure.h"
@@ -70,6 +71,10 @@ std::string ConfigToToml(const RunConfig& config, bool annotated);
 
 // Names every key the parser accepts ("section.key").
 std::vector<std::string> ConfigKeys();
+
+// The files a configuration reads besides its scene, as (key, path) for each
+// path key that is set: what no output of a run may overwrite.
+std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfig& config);
 
 // Fills in derived values (focal length in pixels, sizes) once the input size
 // is known, then runs the core's validation; errors name the key and its origin.

@@ -50,7 +50,8 @@ bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std
     return false;
   }
   if (!rc.vignetting_mask.empty()) {
-    if (mask_.data.empty() && !io::ReadMaskImage(rc.vignetting_mask, &mask_, error)) return false;
+    if (mask_.data.empty() && !ReadWeightImage("vignetting.mask", rc.vignetting_mask, kMaxMaskGain, &mask_, error))
+      return false;
     PrepareMask(mask_, p->width(), p->height(), &input_);
   } else {
     input_.mask.clear();

@@ -85,7 +85,7 @@ bool ClaimOutputs(const std::vector<std::string>& paths, const std::string& who,
     const std::string key = Resolved(p, false);
     const auto in = inputs.find(key);
     if (in != inputs.end()) {
-      *error = who + " would write '" + p + "', overwriting the input '" + in->second + "'";
+      *error = who + " would write '" + p + "', overwriting the input " + in->second;
       return false;
     }
     const auto [at, fresh] = claimed->emplace(key, who);
@@ -168,7 +168,7 @@ bool MeteringWeights(const io::FloatPlane& map, int width, int height, std::vect
   double total = 0;
   for (size_t i = 0; i < out->size(); ++i) {
     const float v = fitted.data[i];
-    const double c = v > 0 ? (v < 1 ? v : 1.0) : 0.0;  // NaN -> 0
+    const double c = v > 0 ? (v < 1 ? v : 1.0) : 0.0;
     (*out)[i] = static_cast<uint16_t>(c * 65535.0 + 0.5);
     total += c;
   }
@@ -438,6 +438,7 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
+  if (!o.stages.empty()) origins["pipeline.stages"] = "--stages";
   if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0) {
     std::fprintf(stderr, "camsim: --threads must be 1..64 and --strip-rows >= 1\n");
     return 1;
@@ -447,11 +448,15 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
-  // Inputs by resolved path, and the paths outputs claim: no output may
+  // Every file the run reads (scenes, depth, the configuration and the files
+  // it names) by resolved path, and the paths outputs claim: no output may
   // overwrite an input or another output of this run.
   std::map<std::string, std::string> inputs, claimed;
-  for (const std::string& in : files) inputs.emplace(Resolved(in, true), in);
-  if (!o.depth_path.empty()) inputs.emplace(Resolved(o.depth_path, true), o.depth_path);
+  for (const std::string& in : files) inputs.emplace(Resolved(in, true), "'" + in + "'");
+  if (!o.depth_path.empty()) inputs.emplace(Resolved(o.depth_path, true), "'" + o.depth_path + "' (--depth)");
+  if (!o.config_path.empty()) inputs.emplace(Resolved(o.config_path, true), "'" + o.config_path + "' (--config)");
+  for (const auto& [key, path] : ConfigInputFiles(rc))
+    inputs.emplace(Resolved(path, true), "'" + path + "' (" + key + ")");
   if (!o.report_path.empty() && !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
@@ -516,7 +521,8 @@ int RunCommand(const RunOptions& o) {
         }
         if (rc.metering == Metering::kImage) {
           io::FloatPlane wmap;
-          if (!io::ReadMaskImage(rc.metering_image, &wmap, &error)) {
+          // Weights above 1 count as 1 (MeteringWeights); NaN and negatives are refused.
+          if (!ReadWeightImage("auto_exposure.metering_image", rc.metering_image, HUGE_VAL, &wmap, &error)) {
             exit_code = 1;
             break;
           }

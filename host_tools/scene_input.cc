@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "host_tools/io/image_read.h"
 
 namespace camsim::host {
 
@@ -106,6 +111,26 @@ void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit f
       }
     }
   }
+}
+
+bool ReadWeightImage(const std::string& key, const std::string& path, double max, io::FloatPlane* out,
+                     std::string* error) {
+  io::FloatPlane plane;
+  if (!io::ReadMaskImage(path, &plane, error)) {
+    *error = key + ": " + *error;
+    return false;
+  }
+  for (size_t i = 0; i < plane.data.size(); ++i) {
+    const double v = plane.data[i];
+    if (v >= 0.0 && v <= max) continue;  // false for NaN
+    char what[160];
+    std::snprintf(what, sizeof what, "pixel (%zu, %zu) is %g; values must be numbers in [0, %g]",
+                  i % static_cast<size_t>(plane.width), i / static_cast<size_t>(plane.width), v, max);
+    *error = key + ": " + path + ": " + what;
+    return false;
+  }
+  *out = std::move(plane);
+  return true;
 }
 
 void PrepareMask(const io::FloatPlane& mask, int width, int height, CoreInput* out) {

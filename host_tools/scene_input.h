@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/pipeline/pipeline.h"
@@ -40,5 +41,13 @@ io::FloatPlane FitPlane(const io::FloatPlane& in, int width, int height, SceneFi
 
 void PrepareInput(const io::SceneFrame& scene, int width, int height, SceneFit fit, CoreInput* out);
 void PrepareMask(const io::FloatPlane& mask, int width, int height, CoreInput* out);
+
+// The largest gain a vignetting mask can hold (the core's Q2.14 mask: 65535 / 2^14).
+inline constexpr double kMaxMaskGain = 65535.0 / 16384.0;
+// Reads a per-pixel image for `key` (vignetting.mask, auto_exposure.metering_image)
+// and checks that every value is a number in [0, max]; errors name the key,
+// the file and the first bad pixel.
+bool ReadWeightImage(const std::string& key, const std::string& path, double max, io::FloatPlane* out,
+                     std::string* error);
 
 }  // namespace camsim::host

@@ -5,12 +5,15 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
+#include "host_tools/io/image_write.h"
 #include "host_tools/render.h"
 
 namespace {
@@ -375,6 +378,118 @@ TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
   const Result nan = Camsim("run --set exposure.f_number=nan --input " + kScene + " --out " + dir);
   EXPECT_EQ(nan.code, 1);
   EXPECT_NE(nan.err.find("exposure.f_number"), std::string::npos) << nan.err;
+}
+
+// Every file a run reads is an input no output may replace: the --config
+// file and the files the configuration names, not only the scenes.
+TEST(Cli, RunRefusesToOverwriteTheConfigOrAFileItNames) {
+  const std::string dir = TempDir("clobber_config");
+  std::ofstream(dir + "/cam.toml") << "[sensor]\nadc_bits = 12\n";
+  std::ofstream(dir + "/defects.txt") << "1,1,hot\n";
+  const std::string config = Slurp(dir + "/cam.toml"), defects = Slurp(dir + "/defects.txt");
+  const Result report = Camsim("run --input " + kScene + " --out " + dir + "/out --config " + dir + "/cam.toml" +
+                               " --report " + dir + "/cam.toml --quiet");
+  EXPECT_EQ(report.code, 1);
+  EXPECT_NE(report.err.find("--report would write '" + dir + "/cam.toml', overwriting the input '" + dir +
+                            "/cam.toml' (--config)"),
+            std::string::npos)
+      << report.err;
+  EXPECT_EQ(Slurp(dir + "/cam.toml"), config);
+  const Result listed = Camsim("run --input " + kScene + " --out " + dir + "/out --set sensor.defects_file=" + dir +
+                               "/defects.txt --report " + dir + "/defects.txt --quiet");
+  EXPECT_EQ(listed.code, 1);
+  EXPECT_NE(listed.err.find("overwriting the input '" + dir + "/defects.txt' (sensor.defects_file)"), std::string::npos)
+      << listed.err;
+  EXPECT_EQ(Slurp(dir + "/defects.txt"), defects);
+  // A frame's output named like the vignetting mask: <stem>.png in --out.
+  std::system(("cp '" + kScene + "' '" + dir + "/scene.exr'").c_str());
+  ASSERT_EQ(Camsim("preview --input " + kScene + " --out " + dir + "/scene.png").code, 0);
+  const std::string mask = Slurp(dir + "/scene.png");
+  const Result frame = Camsim("run --input " + dir + "/scene.exr --out " + dir + " --set vignetting.mode=mask" +
+                              " --set vignetting.mask=" + dir + "/scene.png --quiet");
+  EXPECT_EQ(frame.code, 1);
+  EXPECT_NE(frame.err.find("overwriting the input '" + dir + "/scene.png' (vignetting.mask)"), std::string::npos)
+      << frame.err;
+  EXPECT_EQ(Slurp(dir + "/scene.png"), mask);
+}
+
+TEST(Cli, PreviewRefusesToOverwriteItsInput) {
+  const std::string dir = TempDir("preview_self");
+  std::system(("cp '" + kScene + "' '" + dir + "/s.exr' && ln -s s.exr '" + dir + "/link.exr'").c_str());
+  const std::string scene = Slurp(dir + "/s.exr");
+  for (const std::string& out : {dir + "/s.exr", dir + "/./s.exr", dir + "/link.exr"}) {
+    const Result r = Camsim("preview --input " + dir + "/s.exr --out " + out);
+    EXPECT_EQ(r.code, 1) << out;
+    EXPECT_NE(r.err.find("would overwrite the input"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(Slurp(dir + "/s.exr"), scene);
+}
+
+// A vignetting mask or metering image with values the core cannot hold is
+// refused, naming the key, the file and the pixel (they used to be clamped
+// or read as 0 without a word).
+TEST(Cli, MaskAndMeteringImageValuesAreChecked) {
+  const std::string dir = TempDir("mask_values");
+  std::vector<float> values(4 * 3, 1.0f);
+  const auto write = [&](const std::string& name, int at, float v) {
+    std::vector<float> m = values;
+    m[static_cast<size_t>(at)] = v;
+    std::string error;
+    ASSERT_TRUE(camsim::io::WriteExrFloat(dir + "/" + name, 4, 3, {{"Y", m.data(), 4}}, &error)) << error;
+  };
+  write("nan.exr", 6, std::nanf(""));
+  write("huge.exr", 5, 1e30f);
+  write("negative.exr", 0, -0.5f);
+  const std::string mask = "run --input " + kScene + " --out " + dir + "/out --quiet --set vignetting.mode=mask";
+  const Result nan = Camsim(mask + " --set vignetting.mask=" + dir + "/nan.exr");
+  EXPECT_EQ(nan.code, 1);
+  EXPECT_NE(nan.err.find("vignetting.mask: " + dir + "/nan.exr: pixel (2, 1) is nan; values must be numbers in "
+                         "[0, 3.99994]"),
+            std::string::npos)
+      << nan.err;
+  const Result huge = Camsim(mask + " --set vignetting.mask=" + dir + "/huge.exr");
+  EXPECT_EQ(huge.code, 1);
+  EXPECT_NE(huge.err.find("pixel (1, 1) is 1e+30"), std::string::npos) << huge.err;
+  const Result missing = Camsim(mask + " --set vignetting.mask=" + dir + "/none.png");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("vignetting.mask: cannot open '" + dir + "/none.png'"), std::string::npos) << missing.err;
+  const Result metering = Camsim("run --input " + kScene + " --out " + dir + "/out --quiet --set auto_exposure.mode=continuous" +
+                                 " --set auto_exposure.metering=image --set auto_exposure.metering_image=" + dir +
+                                 "/negative.exr");
+  EXPECT_EQ(metering.code, 1);
+  EXPECT_NE(metering.err.find("auto_exposure.metering_image: " + dir + "/negative.exr: pixel (0, 0) is -0.5"),
+            std::string::npos)
+      << metering.err;
+  EXPECT_FALSE(Exists(dir + "/out/aisle_0001.raw.pgm"));
+}
+
+// Planner refusals name the stage list (they used to say "(default value)").
+TEST(Cli, AStageOrderErrorNamesPipelineStages) {
+  const std::string dir = TempDir("stage_order");
+  const Result flag = Camsim("run --input " + kScene + " --out " + dir + " --stages sensor --quiet");
+  EXPECT_EQ(flag.code, 1);
+  EXPECT_NE(flag.err.find("camsim: --stages: pipeline.stages: sensor needs"), std::string::npos) << flag.err;
+  std::ofstream(dir + "/order.toml") << "[pipeline]\nstages = [\"sensor\", \"exposure\"]\n";
+  const Result file = Camsim("run --input " + kScene + " --out " + dir + " --config " + dir + "/order.toml --quiet");
+  EXPECT_EQ(file.code, 1);
+  EXPECT_NE(file.err.find("order.toml:2: pipeline.stages: sensor needs"), std::string::npos) << file.err;
+}
+
+// An out-of-range adc_bits with a defects file: the range error, not
+// undefined behaviour in the defects reader (which used to shift by it).
+TEST(Cli, ConfigCheckOfAdcBitsWithADefectsFile) {
+  const std::string dir = TempDir("adc_defects");
+  std::ofstream(dir + "/d.txt") << "1,1,stuck\n";
+  std::ofstream(dir + "/cam.toml") << "[sensor]\nwidth = 64\nheight = 48\nadc_bits = 100\ndefects_file = \"" + dir +
+                                          "/d.txt\"\n";
+  const Result r = Camsim("config --check " + dir + "/cam.toml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("cam.toml:4: sensor.adc_bits must be 8 to 16"), std::string::npos) << r.err;
+  // Without a sensor size the check runs at a stand-in size, and says so.
+  std::ofstream(dir + "/nosize.toml") << "[sensor]\nadc_bits = 100\n";
+  const Result stand_in = Camsim("config --check " + dir + "/nosize.toml");
+  EXPECT_EQ(stand_in.code, 1);
+  EXPECT_NE(stand_in.err.find("used a 640x480 stand-in"), std::string::npos) << stand_in.err;
 }
 
 // `camsim emva` and `camsim tradeoff` name the file and line of an
