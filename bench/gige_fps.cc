@@ -2,15 +2,16 @@
 // Aravis client over loopback, and how many frames were lost on the way.
 //   camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]
 //                   [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]
-//                   [--reconfigures N]
+//                   [--reconfigures N] [--rate FPS]
 // --prime 0 turns off the device's first-frame leader (GigeDevice::PrimeReceiver)
 // to show the first frame lost to the default socket buffer.
 // --reconfigures N first times N ExposureTime writes, each synced at once
 // (GigeDevice::SyncNow: the pipeline planned, checked and rebuilt), and
 // prints the median time per write.
+// --rate FPS sets AcquisitionFrameRate (default: AcquisitionFrameRateEnable
+// off, frames as fast as they are made).
 // The device runs in this process (its render threads + Aravis's GVCP/GVSP
-// thread) with the demo configuration (every stage on) and a free-running
-// frame rate (AcquisitionFrameRateEnable off: as fast as frames are made).
+// thread) with the demo configuration (every stage on).
 #include <arv.h>
 
 #include <algorithm>
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
   o.config_path = std::string(CAMSIM_SOURCE_DIR) + "/configs/camera.toml";
   o.pattern = "gradient";
   int width = 1920, height = 1080, frames = 100, packet = 9000, reconfigures = 0;
+  double rate = 0.0;
   std::string format = "BayerRG8";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
@@ -40,6 +42,7 @@ int main(int argc, char** argv) {
     else if (a == "--config") o.config_path = v;
     else if (a == "--prime") o.prime_first_frame = v != "0";
     else if (a == "--reconfigures") reconfigures = std::atoi(v.c_str());
+    else if (a == "--rate") rate = std::atof(v.c_str());
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       return 1;
@@ -78,7 +81,8 @@ int main(int argc, char** argv) {
   arv_camera_gv_set_stream_options(cam, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
   arv_camera_set_register_cache_policy(cam, ARV_REGISTER_CACHE_POLICY_DISABLE);
   arv_camera_set_pixel_format_from_string(cam, format.c_str(), &e);
-  if (!e) arv_camera_set_boolean(cam, "AcquisitionFrameRateEnable", false, &e);
+  if (!e) arv_camera_set_boolean(cam, "AcquisitionFrameRateEnable", rate > 0, &e);
+  if (!e && rate > 0) arv_camera_set_float(cam, "AcquisitionFrameRate", rate, &e);
   if (!e) arv_camera_gv_set_packet_size(cam, packet, &e);
   if (e) {
     std::fprintf(stderr, "camsim_gige_fps: %s\n", e->message);

@@ -8,6 +8,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -518,10 +519,9 @@ std::string GigeDevice::line_error() const {
 void GigeDevice::WriteDerived() {
   using namespace reg;
   // The fake camera's own registers follow camsim's.
-  const bool rate_on = Applied(kAcquisitionFrameRateEnable) != 0;
-  // Frame rate off: a 1 us period, so frames go out as fast as they are rendered.
-  const double period_us = rate_on ? std::max(1.0, std::round(1e6 / AppliedDouble(kAcquisitionFrameRate))) : 1.0;
-  Write(kFakeFramePeriodUs, static_cast<uint32_t>(period_us));
+  // A 1 us period: the fake camera asks for frames as fast as they are
+  // rendered, and Fill waits for AcquisitionFrameRate's slots itself.
+  Write(kFakeFramePeriodUs, 1);
   Write(kFakeTriggerMode, Applied(kTriggerMode));
   Write(kFakeTriggerSource, 1);  // the fake camera's "Software": camsim forwards both sources to it
   Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
@@ -952,7 +952,38 @@ std::array<uint64_t, 6> GigeDevice::AutoKey() const {
           applied_.at(kExposureTime), applied_.at(kGain),     applied_.at(kSimFNumber)};
 }
 
+void GigeDevice::WaitForFrameSlot() {
+  using namespace reg;
+  using Clock = std::chrono::steady_clock;
+  // In slices of at most 10 ms, so that a new rate (or a stop, or trigger
+  // mode) applies to a frame that is already waiting.
+  constexpr auto kSlice = std::chrono::milliseconds(10);
+  for (;;) {
+    Clock::time_point start;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const Clock::time_point ready = Clock::now();
+      // The first frame of an acquisition goes at once (FillLocked sets was_acquiring_).
+      if (!was_acquiring_ || Applied(kTriggerMode) != 0 || Applied(kAcquisitionFrameRateEnable) == 0 ||
+          Read(kAcquisition) == 0) {
+        frame_slot_ = ready;
+        return;
+      }
+      const auto period = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(1.0 / AppliedDouble(kAcquisitionFrameRate)));
+      const FrameSlot next = NextFrameSlot(frame_slot_, ready, period);
+      if (next.start <= ready) {
+        frame_slot_ = next.slot;
+        return;
+      }
+      start = next.start;
+    }
+    std::this_thread::sleep_for(std::min<Clock::duration>(start - Clock::now(), kSlice));
+  }
+}
+
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
+  WaitForFrameSlot();
   uint64_t dest = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);

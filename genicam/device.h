@@ -19,6 +19,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <map>
@@ -41,6 +42,27 @@ typedef struct _ArvFakeCamera ArvFakeCamera;
 typedef struct _ArvBuffer ArvBuffer;
 
 namespace camsim::genicam {
+
+// Free run at AcquisitionFrameRate: the slot of the next frame given the
+// previous frame's slot and the time the device is ready for it. On time or
+// early: the previous slot plus one period (wait until then: no drift). Late
+// by less than a period: start now, keeping that cadence (the next frame
+// catches up). Later still: start now, and the cadence starts again there.
+// So a render slower than the period gives frames as fast as it renders
+// (Aravis's fake camera instead waits for the next whole multiple of the
+// period on the clock, which halved 25 fps to 8.6 for an 80 ms render).
+struct FrameSlot {
+  std::chrono::steady_clock::time_point slot;   // this frame's slot
+  std::chrono::steady_clock::time_point start;  // when it may start (>= ready)
+};
+inline FrameSlot NextFrameSlot(std::chrono::steady_clock::time_point previous,
+                               std::chrono::steady_clock::time_point ready,
+                               std::chrono::steady_clock::duration period) {
+  const auto due = previous + period;
+  if (ready <= due) return {due, due};
+  if (ready < due + period) return {due, ready};
+  return {ready, ready};
+}
 
 inline constexpr int kSyncPeriodMs = 2;
 // Triggers taken but not yet made into frames (TakeTrigger); more are dropped.
@@ -134,6 +156,7 @@ class GigeDevice {
   void WriteDerived();  // registers that follow from the applied values
   void WriteLineStatus();  // each line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
+  void WaitForFrameSlot();  // free run at AcquisitionFrameRate (NextFrameSlot), outside mutex_
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
@@ -208,6 +231,7 @@ class GigeDevice {
   std::atomic<bool> overrun_logged_{false};
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;
+  std::chrono::steady_clock::time_point frame_slot_{};  // the last frame's slot (NextFrameSlot)
   uint64_t stream_dest_ = 0;         // stream destination at the last sync
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
   bool restart_stream_ = false;

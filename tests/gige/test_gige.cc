@@ -421,6 +421,33 @@ TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
 
 // ---------------------------------------------------------------- register logic without network
 
+// Free run at AcquisitionFrameRate: a frame ready early waits for its slot,
+// one period after the last (no drift); a late one starts at once, keeping
+// the cadence when less than a period late and restarting it otherwise.
+TEST(GigeFramePacing, SlotsKeepTheCadenceAndNeverWaitForALaterOne) {
+  using std::chrono::milliseconds;
+  const std::chrono::steady_clock::time_point t0{};
+  const auto period = milliseconds(40);
+  // Early (a fast render): wait for previous + period.
+  genicam::FrameSlot s = genicam::NextFrameSlot(t0, t0 + milliseconds(5), period);
+  EXPECT_EQ(s.start, t0 + milliseconds(40));
+  EXPECT_EQ(s.slot, t0 + milliseconds(40));
+  // Exactly on time.
+  s = genicam::NextFrameSlot(t0, t0 + milliseconds(40), period);
+  EXPECT_EQ(s.start, t0 + milliseconds(40));
+  // 30 ms late: at once, and the slot stays on the cadence (the next is due at 80 ms).
+  s = genicam::NextFrameSlot(t0, t0 + milliseconds(70), period);
+  EXPECT_EQ(s.start, t0 + milliseconds(70));
+  EXPECT_EQ(s.slot, t0 + milliseconds(40));
+  // A render of 80 ms against a 40 ms period: frames every 80 ms, not at the
+  // next multiple of 40 ms after it (120 ms, what the fake camera's clock did).
+  s = genicam::NextFrameSlot(t0, t0 + milliseconds(80), period);
+  EXPECT_EQ(s.start, t0 + milliseconds(80));
+  EXPECT_EQ(s.slot, t0 + milliseconds(80));
+  s = genicam::NextFrameSlot(s.slot, s.slot + milliseconds(80), period);
+  EXPECT_EQ(s.start, t0 + milliseconds(160));
+}
+
 TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
   DeviceOptions o = SmallDevice();
   o.serve = false;
