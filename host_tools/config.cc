@@ -701,7 +701,13 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
     const toml::table* t = section_node.as_table();
     bool known_section = false;
     for (const Field& f : Fields()) known_section |= section == f.section;
-    if (t == nullptr || !known_section) {
+    if (known_section && t == nullptr) {
+      // [[sensor]] (an array of tables) or sensor = 1 at the top level.
+      *error = Where(section_node, source) + ": '" + section + "' must be a table: write [" + section + "] " +
+               (section_node.is_array() ? "(one pair of brackets, not [[" + section + "]])" : "and its keys below it");
+      return false;
+    }
+    if (!known_section) {
       *error = Where(section_node, source) + ": unknown section '" + section + "'" + SuggestSection(section);
       return false;
     }

@@ -365,6 +365,17 @@ TEST(Cli, ConfigTypoNamesKeyAndLine) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("bad.toml:3"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("did you mean 'sensor.full_well_e'"), std::string::npos) << r.err;
+  // A known section that is not a table (it used to be "unknown section 'sensor' (did you mean 'sensor'?)").
+  camsim::host::RunConfig rc;
+  camsim::host::Origins origins;
+  std::string error;
+  EXPECT_FALSE(camsim::host::ParseConfig("[[sensor]]\nadc_bits = 12\n", "a.toml", &rc, &origins, &error));
+  EXPECT_NE(error.find("'sensor' must be a table: write [sensor] (one pair of brackets, not [[sensor]])"),
+            std::string::npos)
+      << error;
+  EXPECT_FALSE(camsim::host::ParseConfig("sensor = 1\n", "b.toml", &rc, &origins, &error));
+  EXPECT_NE(error.find("b.toml:1: 'sensor' must be a table: write [sensor] and its keys below it"), std::string::npos)
+      << error;
 }
 
 TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
