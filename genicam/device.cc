@@ -597,12 +597,16 @@ void GigeDevice::Sync() {
     restart_stream_ = true;
   }
   stream_dest_ = dest;
-  // Geometry is locked once a sync has seen the acquisition running. A write
-  // this sync finds together with a new AcquisitionStart came before it (a
-  // client sets the window, then starts), and the fake camera sizes its
-  // stream from those registers: it is taken.
-  const bool geometry_locked = acquiring && sync_saw_acquiring_;
+  // Geometry is locked once a sync has seen the acquisition running, or
+  // TLParamsLocked set (SFNC: a GenTL consumer sets it before
+  // AcquisitionStart and clears it after AcquisitionStop). A write this sync
+  // finds together with a new AcquisitionStart or TLParamsLocked came before
+  // it (a client sets the window, then locks and starts), and the fake camera
+  // sizes its stream from those registers: it is taken.
+  const bool tl_locked = Read(kTLParamsLocked) == 1;
+  const bool geometry_locked = (acquiring && sync_saw_acquiring_) || (tl_locked && sync_saw_tl_locked_);
   sync_saw_acquiring_ = acquiring;
+  sync_saw_tl_locked_ = tl_locked;
   if (!acquiring) was_acquiring_ = false;
   if (!acquiring || Applied(kTriggerMode) == 0) {
     // Triggers belong to an acquisition in trigger mode: none left for the next.
@@ -969,8 +973,7 @@ void GigeDevice::WaitForFrameSlot() {
         frame_slot_ = ready;
         return;
       }
-      const auto period = std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(1.0 / AppliedDouble(kAcquisitionFrameRate)));
+      const Clock::duration period = FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime));
       const FrameSlot next = NextFrameSlot(frame_slot_, ready, period);
       if (next.start <= ready) {
         frame_slot_ = next.slot;

@@ -17,6 +17,7 @@
 // the noise, as `camsim run --first-frame i` does for its first input.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -51,6 +52,14 @@ namespace camsim::genicam {
 // So a render slower than the period gives frames as fast as it renders
 // (Aravis's fake camera instead waits for the next whole multiple of the
 // period on the clock, which halved 25 fps to 8.6 for an 80 ms render).
+// The free-run frame period: 1 / AcquisitionFrameRate, or the exposure
+// time when that is longer (a frame cannot start before the last exposure
+// ends, as on a camera without overlapped exposure).
+inline std::chrono::steady_clock::duration FramePeriod(double rate_hz, double exposure_us) {
+  const double seconds = std::max(1.0 / rate_hz, exposure_us * 1e-6);
+  return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+}
+
 struct FrameSlot {
   std::chrono::steady_clock::time_point slot;   // this frame's slot
   std::chrono::steady_clock::time_point start;  // when it may start (>= ready)
@@ -234,6 +243,7 @@ class GigeDevice {
   std::chrono::steady_clock::time_point frame_slot_{};  // the last frame's slot (NextFrameSlot)
   uint64_t stream_dest_ = 0;         // stream destination at the last sync
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
+  bool sync_saw_tl_locked_ = false;  // TLParamsLocked = 1 at the last sync
   bool restart_stream_ = false;
   std::string address_;
   bool prime_first_frame_ = true;

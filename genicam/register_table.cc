@@ -162,12 +162,23 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("SensorHeight", ifc, kSensorHeight, false, s.height, s.height, 1, "Simulated sensor height.", "px"));
   t.push_back(Int("WidthMax", ifc, kWidthMax, false, s.width, s.width, 1, "Largest Width.", "px"));
   t.push_back(Int("HeightMax", ifc, kHeightMax, false, s.height, s.height, 1, "Largest Height.", "px"));
-  t.push_back(Int("Width", ifc, kWidth, true, step, s.width, step,
-                  "Width of the image window (OffsetX + Width <= SensorWidth).", "px"));
-  t.push_back(Int("Height", ifc, kHeight, true, step, s.height, step,
-                  "Height of the image window (OffsetY + Height <= SensorHeight).", "px"));
-  t.push_back(Int("OffsetX", ifc, kOffsetX, true, 0, s.width - step, step, "Left edge of the image window.", "px"));
-  t.push_back(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"));
+  // SFNC: each window feature's maximum leaves room for the other on its
+  // axis, so a client orders its writes by the limits it reads.
+  const auto window = [&t](Feature f, const char* formula, const char* max_name, const char* other) {
+    f.max_formula = formula;
+    f.variables = {{"M", max_name}, {"O", other}};
+    t.push_back(f);
+  };
+  window(Int("Width", ifc, kWidth, true, step, s.width, step,
+             "Width of the image window (OffsetX + Width <= SensorWidth).", "px"),
+         "M-O", "WidthMax", "OffsetX");
+  window(Int("Height", ifc, kHeight, true, step, s.height, step,
+             "Height of the image window (OffsetY + Height <= SensorHeight).", "px"),
+         "M-O", "HeightMax", "OffsetY");
+  window(Int("OffsetX", ifc, kOffsetX, true, 0, s.width - step, step, "Left edge of the image window.", "px"),
+         "M-O", "WidthMax", "Width");
+  window(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"),
+         "M-O", "HeightMax", "Height");
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
@@ -338,10 +349,18 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         x << "  <Integer Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
           << "    <Description>" << Xml(f.description) << "</Description>\n"
           << "    <pValue>" << regname << "</pValue>\n"
-          << "    <Min>" << static_cast<int64_t>(f.min) << "</Min>\n    <Max>" << static_cast<int64_t>(f.max)
-          << "</Max>\n    <Inc>" << static_cast<int64_t>(f.inc) << "</Inc>\n";
+          << "    <Min>" << static_cast<int64_t>(f.min) << "</Min>\n";
+        if (f.max_formula.empty()) x << "    <Max>" << static_cast<int64_t>(f.max) << "</Max>\n";
+        else x << "    <pMax>" << f.name << "MaxNow</pMax>\n";
+        x << "    <Inc>" << static_cast<int64_t>(f.inc) << "</Inc>\n";
         if (!f.unit.empty()) x << "    <Unit>" << f.unit << "</Unit>\n";
         x << "  </Integer>\n";
+        if (!f.max_formula.empty()) {
+          x << "  <IntSwissKnife Name=\"" << f.name << "MaxNow\" NameSpace=\"Custom\">\n";
+          for (const auto& v : f.variables)
+            x << "    <pVariable Name=\"" << v.first << "\">" << v.second << "Reg</pVariable>\n";
+          x << "    <Formula>" << Xml(f.max_formula) << "</Formula>\n  </IntSwissKnife>\n";
+        }
         break;
       case Kind::kFloat:
         x << "  <Float Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"

@@ -41,7 +41,10 @@ struct Feature {
   int64_t command_value = 1;         // Command
   std::string alias_of;              // another feature sharing this register (same checks)
   std::string formula;               // kSwissKnife: formula over the variables
-  std::vector<std::pair<std::string, std::string>> variables;  // kSwissKnife: (variable, feature)
+  std::vector<std::pair<std::string, std::string>> variables;  // (variable, feature) of formula or max_formula
+  // kInteger: a maximum that follows other registers (GenICam pMax, an
+  // IntSwissKnife over `variables`); `max` stays the largest it can be.
+  std::string max_formula;
   // A selected feature has one register per value of its selector, at
   // address + 4 * value (GenICam pIndex): a write never depends on the
   // selector the device last saw, so Selector-then-value writes cannot race.
