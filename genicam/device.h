@@ -44,14 +44,6 @@ typedef struct _ArvBuffer ArvBuffer;
 
 namespace camsim::genicam {
 
-// Free run at AcquisitionFrameRate: the slot of the next frame given the
-// previous frame's slot and the time the device is ready for it. On time or
-// early: the previous slot plus one period (wait until then: no drift). Late
-// by less than a period: start now, keeping that cadence (the next frame
-// catches up). Later still: start now, and the cadence starts again there.
-// So a render slower than the period gives frames as fast as it renders
-// (Aravis's fake camera instead waits for the next whole multiple of the
-// period on the clock, which halved 25 fps to 8.6 for an 80 ms render).
 // The free-run frame period: 1 / AcquisitionFrameRate, or the exposure
 // time when that is longer (a frame cannot start before the last exposure
 // ends, as on a camera without overlapped exposure).
@@ -60,6 +52,14 @@ inline std::chrono::steady_clock::duration FramePeriod(double rate_hz, double ex
   return std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
 }
 
+// Free run at AcquisitionFrameRate: the slot of the next frame given the
+// previous frame's slot and the time the device is ready for it. On time or
+// early: the previous slot plus one period (wait until then: no drift). Late
+// by less than a period: start now, keeping that cadence (the next frame
+// catches up). Later still: start now, and the cadence starts again there.
+// So a render slower than the period gives frames as fast as it renders
+// (Aravis's fake camera instead waits for the next whole multiple of the
+// period on the clock: 8.6 fps at 25 fps for an 80 ms render, not 12).
 struct FrameSlot {
   std::chrono::steady_clock::time_point slot;   // this frame's slot
   std::chrono::steady_clock::time_point start;  // when it may start (>= ready)

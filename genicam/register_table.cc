@@ -164,21 +164,21 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("HeightMax", ifc, kHeightMax, false, s.height, s.height, 1, "Largest Height.", "px"));
   // SFNC: each window feature's maximum leaves room for the other on its
   // axis, so a client orders its writes by the limits it reads.
-  const auto window = [&t](Feature f, const char* formula, const char* max_name, const char* other) {
-    f.max_formula = formula;
+  const auto window = [&t](Feature f, const char* max_name, const char* other) {
+    f.max_formula = "M-O";
     f.variables = {{"M", max_name}, {"O", other}};
     t.push_back(f);
   };
   window(Int("Width", ifc, kWidth, true, step, s.width, step,
              "Width of the image window (OffsetX + Width <= SensorWidth).", "px"),
-         "M-O", "WidthMax", "OffsetX");
+         "WidthMax", "OffsetX");
   window(Int("Height", ifc, kHeight, true, step, s.height, step,
              "Height of the image window (OffsetY + Height <= SensorHeight).", "px"),
-         "M-O", "HeightMax", "OffsetY");
+         "HeightMax", "OffsetY");
   window(Int("OffsetX", ifc, kOffsetX, true, 0, s.width - step, step, "Left edge of the image window.", "px"),
-         "M-O", "WidthMax", "Width");
+         "WidthMax", "Width");
   window(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"),
-         "M-O", "HeightMax", "Height");
+         "HeightMax", "Height");
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
