@@ -28,15 +28,15 @@ constexpr double kNewtonTolerance = 1e-12;
 
 double BrownFactor(const LensModel& m, double r2, double* dfdr2) {
   const double a = 1.0 + r2 * (m.k[0] + r2 * (m.k[1] + r2 * m.k[2]));
+  const double da = m.k[0] + r2 * (2.0 * m.k[1] + r2 * 3.0 * m.k[2]);
   if (m.k[3] == 0.0 && m.k[4] == 0.0 && m.k[5] == 0.0) {
     // No denominator (plumb_bob): b = 1 and db = 0 exactly below, so its
     // quotients are a and da (up to the sign of a zero), without the two
     // divisions that were a third of a lens's configuration time.
-    if (dfdr2 != nullptr) *dfdr2 = m.k[0] + r2 * (2.0 * m.k[1] + r2 * 3.0 * m.k[2]);
+    if (dfdr2 != nullptr) *dfdr2 = da;
     return a;
   }
   const double b = 1.0 + r2 * (m.k[3] + r2 * (m.k[4] + r2 * m.k[5]));
-  const double da = m.k[0] + r2 * (2.0 * m.k[1] + r2 * 3.0 * m.k[2]);
   const double db = m.k[3] + r2 * (2.0 * m.k[4] + r2 * 3.0 * m.k[5]);
   if (dfdr2 != nullptr) *dfdr2 = (da * b - a * db) / (b * b);
   return a / b;
