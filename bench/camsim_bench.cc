@@ -256,25 +256,48 @@ BENCHMARK(BM_SensorPath)
 
 // Configure + Init of a pipeline (its tables built): what a change of a
 // pipeline setting costs the emulated camera (GigeDevice::Reconfigure, e.g.
-// every ExposureTime write or auto-exposure step). 0: the sensor path, 1: the
-// demo pipeline with the typical lens (distortion on).
-void BM_Configure(benchmark::State& state) {
-  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+// every ExposureTime write or auto-exposure step). Arg 2 = 0: the sensor path,
+// 1: the demo pipeline with the typical lens (distortion on), 2: the same with
+// flare (glare radius 32). Arg 3 = 1: a reconfiguration from a pipeline
+// initialised before with another exposure time (Pipeline::Configure's
+// `previous`: unchanged tables are copied), as the camera does.
+PipelineConfig ConfigureCase(int w, int h, int which) {
   PipelineConfig c = SensorPath(w, h);
-  if (state.range(2) == 1) {
+  if (which >= 1) {
     c = Demo(w, h);
     c.distortion.lens = test::TypicalLens(w, h);
+  }
+  if (which == 2) {
+    c.flare.enabled = true;
+    c.flare.glare_radius = 32;
+  }
+  return c;
+}
+void BM_Configure(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c = ConfigureCase(w, h, static_cast<int>(state.range(2)));
+  const bool reconfigure = state.range(3) != 0;
+  Pipeline previous;
+  std::vector<uint8_t> previous_ws;
+  if (reconfigure) {
+    if (!previous.Configure(c, 1, false).ok()) std::abort();
+    previous_ws.resize(previous.WorkspaceBytes());
+    if (!previous.Init(Span<uint8_t>{previous_ws.data(), previous_ws.size()}).ok()) std::abort();
+    c.exposure.exposure_time_us *= 2;
   }
   std::vector<uint8_t> ws;
   for (auto _ : state) {
     Pipeline p;
-    if (!p.Configure(c, 1, false).ok()) std::abort();
+    if (!p.Configure(c, 1, false, reconfigure ? &previous : nullptr).ok()) std::abort();
     ws.resize(p.WorkspaceBytes());
-    if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+    if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}, reconfigure ? &previous : nullptr).ok()) std::abort();
     benchmark::DoNotOptimize(ws.data());
   }
 }
-BENCHMARK(BM_Configure)->Args({1920, 1080, 0})->Args({1920, 1080, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Configure)
+    ->ArgsProduct({{1920}, {1080}, {0, 1, 2}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Each running stage of the sensor path alone (StageRunner, one thread), so
 // the rows of SensorPathStage/1920/1080/i add up to about SensorPath.

@@ -1,5 +1,7 @@
 #include "core/base/random.h"
 
+#include <cstring>
+
 #include "core/base/detmath.h"
 #include "core/base/simd.h"
 
@@ -286,6 +288,15 @@ Status GaussianTable::Build(Span<int32_t> storage) {
   return Status::Ok();
 }
 
+Status GaussianTable::CopyFrom(const GaussianTable& built, Span<int32_t> storage) {
+  if (storage.data == nullptr || storage.size < kEntries || !built.built())
+    return Status(StatusCode::kResourceExhausted, "gaussian table needs kEntries int32 and a built table", "storage");
+  std::memcpy(storage.data, built.table_, kEntries * sizeof(int32_t));
+  *this = built;
+  table_ = storage.data;
+  return Status::Ok();
+}
+
 void PoissonTable::SigmaLanes(const uint32_t* lambda_q8, uint32_t* sigma_q16, int n) {
   constexpr int kChunk = 64;
   uint64_t x[kChunk];
@@ -474,6 +485,15 @@ Status PoissonTable::Build(Span<uint32_t> storage) {
   table_ = storage.data;
   avx2_ = CpuHasAvx2();
   avx512_ = CpuHasAvx512();
+  return Status::Ok();
+}
+
+Status PoissonTable::CopyFrom(const PoissonTable& built, Span<uint32_t> storage) {
+  if (storage.data == nullptr || storage.size < kEntries || !built.built())
+    return Status(StatusCode::kResourceExhausted, "poisson table needs kEntries uint32 and a built table", "storage");
+  std::memcpy(storage.data, built.table_, kEntries * sizeof(uint32_t));
+  *this = built;
+  table_ = storage.data;
   return Status::Ok();
 }
 

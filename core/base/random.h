@@ -120,6 +120,9 @@ class GaussianTable {
   // Fills storage[0 .. kEntries) (caller-owned, configure time; uses
   // detmath::InvNormalCdf) and keeps a pointer to it.
   [[nodiscard]] Status Build(Span<int32_t> storage);
+  // The same from a built table's entries (a copy: the table is a constant).
+  [[nodiscard]] Status CopyFrom(const GaussianTable& built, Span<int32_t> storage);
+  bool built() const { return table_ != nullptr; }
 
   // Per pixel: integers only, no loops. Requires a successful Build().
   int32_t Sample(uint32_t u) const {
@@ -206,6 +209,9 @@ class PoissonTable {
   // Fills storage[0 .. kEntries) (caller-owned, configure time; uses
   // detmath::Exp) and keeps a pointer to it.
   [[nodiscard]] Status Build(Span<uint32_t> storage);
+  // The same from a built table's entries (a copy: the table is a constant).
+  [[nodiscard]] Status CopyFrom(const PoissonTable& built, Span<uint32_t> storage);
+  bool built() const { return table_ != nullptr; }
 
   // Per pixel: integers only, bounded time, defined for every input.
   // Requires a successful Build().

@@ -1,5 +1,7 @@
 #include "core/isp/gamma.h"
 
+#include <cstring>
+
 #include "core/base/detmath.h"
 #include "core/base/simd.h"
 
@@ -110,6 +112,20 @@ Status GammaStage::Init(Arena& tables) {
   table_[kTableSize] = 0;
   avx2_ = CpuHasAvx2();
   avx512_ = CpuHasAvx512();
+  return Status::Ok();
+}
+
+Status GammaStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
+  const GammaStage& p = static_cast<const GammaStage&>(previous);  // the same class (Stage::InitFrom)
+  *copied = 0;
+  if (p.table_ == nullptr || p.config_.curve != config_.curve || !SameBits(p.config_.gamma, config_.gamma))
+    return Init(tables);
+  table_ = tables.Take<uint16_t>(kTableSize + 1);
+  if (table_ == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the gamma table");
+  std::memcpy(table_, p.table_, (kTableSize + 1) * sizeof(uint16_t));
+  avx2_ = p.avx2_;
+  avx512_ = p.avx512_;
+  *copied = 1;
   return Status::Ok();
 }
 

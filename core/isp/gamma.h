@@ -38,6 +38,7 @@ class GammaStage final : public Stage {
   const char* IdentityReason() const override;
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;  // builds the table
+  Status InitFrom(Arena& tables, const Stage& previous, int* copied) override;  // copies it for the same curve
   void ProcessRow(const RowArgs& args) const override;
 
   // The curve in double, v and result in [0, 1] (what the table samples).

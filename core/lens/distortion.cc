@@ -1024,7 +1024,8 @@ double ResampleKernel(ResampleFilter f, double t) {
   return 0.0;
 }
 
-Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometry& g) {
+Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometry& g,
+                                  const DistortionStage* previous) {
   config_ = c;
   geometry_ = g;
   site_only_ = false;
@@ -1053,6 +1054,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
       if (!(mesh.dxdy[i] >= -4096.0f && mesh.dxdy[i] <= 4096.0f))
         return InvalidArgument("distortion.mesh", "displacements must be finite, within 4096 pixels");
   }
+  mesh_digest_ = MeshDigest(mesh);
   if (IdentityReason() != nullptr) return Status::Ok();
   if (m.model == DistortionModel::kOff && m.fx == 0.0 && m.fy == 0.0) {
     // Mesh or chromatic aberration alone: the centre defaults to the frame's.
@@ -1111,6 +1113,15 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
     return InvalidArgument(m.model == DistortionModel::kFisheye ? "distortion.k1" : "distortion.k1",
                            "the radial model folds over (stops increasing) inside the frame, so those pixels "
                            "have no unique source: check k1..k6 (fisheye: k1..k4) and fx, fy");
+
+  if (previous != nullptr && SameTables(*previous)) {
+    for (int j = 0; j < grid_h_; ++j) {
+      band_first_[j] = previous->band_first_[j];
+      band_last_[j] = previous->band_last_[j];
+    }
+    max_window_ = previous->max_window_;
+    return Status::Ok();
+  }
 
   // Input rows per band: the floor of the lowest and highest source row of
   // the band's two node rows (every interpolated position lies between them),
@@ -1246,13 +1257,69 @@ void DistortionStage::CountTables(WorkspaceCounter& counter) const {
 
 size_t DistortionStage::ScratchBytes(int /*width*/) const { return static_cast<size_t>(grid_w_) * 2 * sizeof(int32_t); }
 
-Status DistortionStage::Init(Arena& tables) {
-  table_ = tables.Take<int32_t>(static_cast<size_t>(grid_w_) * grid_h_ * 2);
-  weights_ = tables.Take<int16_t>(static_cast<size_t>(taps_) << phase_bits_);
-  wt_ = tables.Take<int32_t>(static_cast<size_t>(kLaneTaps) << phase_bits_);
-  wtap_ = tables.Take<int32_t>(static_cast<size_t>(taps_) * TapStride());
+namespace {
+
+bool SameLens(const LensModel& a, const LensModel& b) {
+  for (int i = 0; i < 6; ++i)
+    if (!SameBits(a.k[i], b.k[i])) return false;
+  return a.model == b.model && SameBits(a.fx, b.fx) && SameBits(a.fy, b.fy) && SameBits(a.cx, b.cx) &&
+         SameBits(a.cy, b.cy) && SameBits(a.p1, b.p1) && SameBits(a.p2, b.p2);
+}
+
+}  // namespace
+
+// The mesh's values as Configure read them: 64-bit FNV-1a of their bytes, so
+// that a mesh changed in place (the same pointer) between two configurations
+// does not count as the same.
+uint64_t DistortionStage::MeshDigest(const DisplacementMesh& mesh) {
+  if (mesh.dxdy == nullptr) return 0;
+  const uint8_t* bytes = reinterpret_cast<const uint8_t*>(mesh.dxdy);
+  const size_t n = sizeof(float) * 2 * static_cast<size_t>(mesh.cols) * mesh.rows;
+  uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a offset basis and prime
+  for (size_t i = 0; i < n; ++i) h = (h ^ bytes[i]) * 0x100000001b3ull;
+  return h;
+}
+
+bool DistortionStage::SameTables(const DistortionStage& o) const {
+  const DistortionConfig &a = config_, &b = o.config_;
+  for (int i = 0; i < 3; ++i)
+    if (!SameBits(a.chromatic_scale[i], b.chromatic_scale[i])) return false;
+  const bool same_mesh = (a.mesh.dxdy == nullptr) == (b.mesh.dxdy == nullptr) && a.mesh.cols == b.mesh.cols &&
+                         a.mesh.rows == b.mesh.rows && SameBits(a.mesh.step, b.mesh.step) &&
+                         mesh_digest_ == o.mesh_digest_;
+  return o.table_ != nullptr && geometry_ == o.geometry_ && a.filter == b.filter && a.phases == b.phases &&
+         a.grid_step == b.grid_step && SameLens(a.lens, b.lens) && same_mesh;
+}
+
+Status DistortionStage::Init(Arena& tables) { return Build(tables, nullptr); }
+
+Status DistortionStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
+  const DistortionStage& p = static_cast<const DistortionStage&>(previous);  // the same class (Stage::InitFrom)
+  const DistortionStage* same = SameTables(p) ? &p : nullptr;
+  *copied = same != nullptr ? 4 : 0;
+  return Build(tables, same);
+}
+
+Status DistortionStage::Build(Arena& tables, const DistortionStage* same) {
+  const size_t nodes = static_cast<size_t>(grid_w_) * grid_h_ * 2, weights = static_cast<size_t>(taps_) << phase_bits_,
+               lane_weights = static_cast<size_t>(kLaneTaps) << phase_bits_,
+               tap_weights = static_cast<size_t>(taps_) * TapStride();
+  table_ = tables.Take<int32_t>(nodes);
+  weights_ = tables.Take<int16_t>(weights);
+  wt_ = tables.Take<int32_t>(lane_weights);
+  wtap_ = tables.Take<int32_t>(tap_weights);
   if (table_ == nullptr || weights_ == nullptr || wt_ == nullptr || wtap_ == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for the distortion table");
+  if (same != nullptr) {
+    std::memcpy(table_, same->table_, nodes * sizeof(int32_t));
+    std::memcpy(weights_, same->weights_, weights * sizeof(int16_t));
+    std::memcpy(wt_, same->wt_, lane_weights * sizeof(int32_t));
+    std::memcpy(wtap_, same->wtap_, tap_weights * sizeof(int32_t));
+    fast_path_ = same->fast_path_;
+    avx2_ = same->avx2_;
+    avx512_ = same->avx512_;
+    return Status::Ok();
+  }
   for (int j = 0; j < grid_h_; ++j)
     for (int i = 0; i < grid_w_; ++i) {
       int32_t* node = table_ + (static_cast<size_t>(j) * grid_w_ + i) * 2;

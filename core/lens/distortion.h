@@ -64,7 +64,8 @@ enum class ResampleFilter : uint8_t { kBilinear, kBicubic, kLanczos3 };
 // e.g. measured): node (i, j) sits at output pixel (i * step, j * step) and
 // moves that pixel's source by (dx, dy) pixels, added to the lens model's
 // source (alone when the model is off). Between nodes: bilinear; beyond the
-// last node: the edge node's value. Caller-owned; read at Configure and Init only.
+// last node: the edge node's value. Caller-owned; read at Configure and Init
+// only (a reconfiguration compares a digest of the values Configure read).
 struct DisplacementMesh {
   const float* dxdy = nullptr;  // cols * rows pairs (dx, dy), row-major
   int cols = 0, rows = 0;
@@ -87,7 +88,11 @@ class DistortionStage final : public Stage {
   static constexpr int kMaxBands = 16384 / 4 + 2;
   static constexpr int kLaneTaps = 8;  // int32 weights per phase in wt_, the AVX2 lanes' table (>= taps)
 
-  Status Configure(const DistortionConfig& config, const SensorGeometry& geometry);
+  // previous (optional): this stage of an initialised pipeline (Stage::InitFrom).
+  // With the same configuration and geometry its band ranges are taken
+  // instead of solving the grid's nodes again.
+  Status Configure(const DistortionConfig& config, const SensorGeometry& geometry,
+                   const DistortionStage* previous = nullptr);
   void SetSiteOnly(bool site_only) { site_only_ = site_only; }
   bool site_only() const { return site_only_; }
 
@@ -98,6 +103,7 @@ class DistortionStage final : public Stage {
   void CountTables(WorkspaceCounter& counter) const override;
   size_t ScratchBytes(int width) const override;
   Status Init(Arena& tables) override;
+  Status InitFrom(Arena& tables, const Stage& previous, int* copied) override;  // all tables, or none
   void ProcessRow(const RowArgs& args) const override;
 
   // Table size in bytes and the widest window of input rows (for reports).
@@ -113,6 +119,12 @@ class DistortionStage final : public Stage {
   void ForceGeneralPathForTest(bool force) { force_general_ = force; }
 
  private:
+  // Whether `other` was initialised from the same configuration and geometry
+  // (then its band ranges and tables are this stage's).
+  bool SameTables(const DistortionStage& other) const;
+  static uint64_t MeshDigest(const DisplacementMesh& mesh);
+  // Init; copies every table from `same` when it is not null (SameTables).
+  Status Build(Arena& tables, const DistortionStage* same);
   // The mesh's displacement at output position (u, v) (pixels).
   void MeshDisplacement(double u, double v, double* dx, double* dy) const;
   // The source position (pixels) of grid node (i, j); false if none.
@@ -148,6 +160,7 @@ class DistortionStage final : public Stage {
   int16_t band_first_[kMaxBands] = {};
   int16_t band_last_[kMaxBands] = {};
   int max_window_ = 1;
+  uint64_t mesh_digest_ = 0;   // MeshDigest of the configured mesh
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
   int32_t* wt_ = nullptr;      // the same as int32, phases x kLaneTaps (AVX2 lanes)

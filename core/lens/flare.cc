@@ -1,5 +1,7 @@
 #include "core/lens/flare.h"
 
+#include <cstring>
+
 #include "core/base/detmath.h"
 #include "core/base/wide.h"
 #include "core/pipeline/pipeline.h"  // FrameInput
@@ -19,17 +21,33 @@ inline uint32_t GlareShare(uint32_t v, uint32_t threshold, uint32_t f_q16) {
   return v > threshold ? static_cast<uint32_t>(RoundShiftU(static_cast<uint64_t>(v - threshold) * f_q16, 16)) : 0;
 }
 
-// Is (dx, dy) inside the aperture shape of circumradius r: a disc (blades < 3)
-// or a regular polygon with a vertex straight up.
-bool InsideAperture(int dx, int dy, double r, int blades) {
-  if (blades < 3) return dx * dx + dy * dy <= r * r;
-  const double apothem = r * detmath::Cos(kPi / blades);
-  for (int k = 0; k < blades; ++k) {
-    const double phi = kPi / 2 + kPi / blades + 2 * kPi * k / blades;  // edge normals, between the vertices
-    if (dx * detmath::Cos(phi) + dy * detmath::Sin(phi) > apothem) return false;
+constexpr int kMaxBlades = 16;
+
+// The aperture shape of circumradius r: a disc (blades < 3) or a regular
+// polygon with a vertex straight up, its edge normals' sines and cosines
+// computed once (Init asks for every pixel of each ghost).
+struct Aperture {
+  Aperture(double radius, int n) : r(radius), blades(n) {
+    if (n < 3) return;
+    apothem = r * detmath::Cos(kPi / n);
+    for (int k = 0; k < n; ++k) {
+      const double phi = kPi / 2 + kPi / n + 2 * kPi * k / n;  // edge normals, between the vertices
+      cos_phi[k] = detmath::Cos(phi);
+      sin_phi[k] = detmath::Sin(phi);
+    }
   }
-  return true;
-}
+  // Is (dx, dy) inside?
+  bool Inside(int dx, int dy) const {
+    if (blades < 3) return dx * dx + dy * dy <= r * r;
+    for (int k = 0; k < blades; ++k)
+      if (dx * cos_phi[k] + dy * sin_phi[k] > apothem) return false;
+    return true;
+  }
+  double r;
+  int blades;
+  double apothem = 0.0;
+  double cos_phi[kMaxBlades] = {}, sin_phi[kMaxBlades] = {};
+};
 
 }  // namespace
 
@@ -38,7 +56,7 @@ Status FlareStage::Configure(const FlareConfig& c, const SensorGeometry& g) {
   if (!InRange(c.glare_fraction, 0.0, 1.0)) return InvalidArgument("flare.glare_fraction", "must be in [0, 1]");
   if (c.glare_radius < 1 || c.glare_radius > kMaxGlareRadius)
     return InvalidArgument("flare.glare_radius", "must be in [1, 32] pixels");
-  if (c.blades < 0 || c.blades > 16 || c.blades == 1 || c.blades == 2)
+  if (c.blades < 0 || c.blades > kMaxBlades || c.blades == 1 || c.blades == 2)
     return InvalidArgument("flare.blades", "must be 0 (round) or 3 .. 16");
   if (!InRange(c.haze, 0.0, 1.0)) return InvalidArgument("flare.haze", "must be in [0, 1]");
   if (c.ghost_count < 0 || c.ghost_count > kMaxGhosts) return InvalidArgument("flare.ghost_count", "must be 0 .. 4");
@@ -79,14 +97,35 @@ void FlareStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<FlareSource>(static_cast<size_t>(FlareEnvironmentCapacity(config_)));
 }
 
-Status FlareStage::Init(Arena& tables) {
+Status FlareStage::Init(Arena& tables) { return Build(tables, nullptr); }
+
+Status FlareStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
+  const FlareStage& p = static_cast<const FlareStage&>(previous);  // the same class (Stage::InitFrom)
+  const bool same = p.kernel_ != nullptr && p.config_.glare_radius == config_.glare_radius &&
+                    p.config_.blades == config_.blades;
+  *copied = same ? 1 : 0;
+  return Build(tables, same ? &p : nullptr);
+}
+
+Status FlareStage::Build(Arena& tables, const FlareStage* same_kernel) {
   // Glare kernel: a glow 1 / (1 + (d / 2)^2) plus diffraction spikes, then
   // normalised to Q0.32 summing to exactly 2^32 (the remainder at the centre).
   const int R = config_.glare_radius, side = kernel_side_;
   uint32_t* k = tables.Take<uint32_t>(static_cast<size_t>(side) * side);
   if (k == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
+  if (same_kernel != nullptr) {
+    std::memcpy(k, same_kernel->kernel_, static_cast<size_t>(side) * side * sizeof(uint32_t));
+    kernel_ = k;
+    return BuildGhostsAndEnvironment(tables);
+  }
   const int n = config_.blades;
   const int spikes = n < 3 ? 0 : (n % 2 == 0 ? n : 2 * n);
+  double cos_theta[2 * kMaxBlades], sin_theta[2 * kMaxBlades];  // each spike's direction
+  for (int s = 0; s < spikes; ++s) {
+    const double theta = kPi / 2 + 2 * kPi * s / spikes;
+    cos_theta[s] = detmath::Cos(theta);
+    sin_theta[s] = detmath::Sin(theta);
+  }
   // Two passes (total, then the quantised weights) so no double table sits on
   // the stack (33 KB at R = 32 would not suit small targets).
   const auto weight = [&](int dx, int dy) {
@@ -94,9 +133,8 @@ Status FlareStage::Init(Arena& tables) {
     if (d2 > double(R) * R) return 0.0;
     double v = 1.0 / (1.0 + d2 / 4.0);
     for (int s = 0; s < spikes; ++s) {
-      const double theta = kPi / 2 + 2 * kPi * s / spikes;
-      const double along = dx * detmath::Cos(theta) + dy * detmath::Sin(theta);
-      const double perp = -dx * detmath::Sin(theta) + dy * detmath::Cos(theta);
+      const double along = dx * cos_theta[s] + dy * sin_theta[s];
+      const double perp = -dx * sin_theta[s] + dy * cos_theta[s];
       if (along > 0) v += 2.0 * detmath::Exp(-perp * perp / 0.5) / (1.0 + along / 4.0);
     }
     return v;
@@ -113,16 +151,22 @@ Status FlareStage::Init(Arena& tables) {
     }
   k[R * side + R] += static_cast<uint32_t>(4294967296ull - sum);
   kernel_ = k;
+  return BuildGhostsAndEnvironment(tables);
+}
+
+Status FlareStage::BuildGhostsAndEnvironment(Arena& tables) {
+  const int n = config_.blades;
   // Ghost shapes: the half-width of each row of the aperture polygon (or disc), and its area.
   for (int i = 0; i < config_.ghost_count; ++i) {
     const int r = ghost_radius_[i];
+    const Aperture aperture(config_.ghost_radius_px[i], n);
     int16_t* hw = tables.Take<int16_t>(static_cast<size_t>(2 * r + 1));
     if (hw == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for flare tables");
     int64_t area = 0;
     for (int dy = -r; dy <= r; ++dy) {
       int half = -1;
       for (int dx = 0; dx <= r; ++dx)
-        if (InsideAperture(dx, dy, config_.ghost_radius_px[i], n)) half = dx;
+        if (aperture.Inside(dx, dy)) half = dx;
       hw[dy + r] = static_cast<int16_t>(half);
       area += half >= 0 ? 2 * half + 1 : 0;
     }

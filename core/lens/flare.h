@@ -97,6 +97,8 @@ class FlareStage final : public Stage {
   const char* IdentityReason() const override;
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
+  // Copies the glare kernel when glare_radius and blades are previous's.
+  Status InitFrom(Arena& tables, const Stage& previous, int* copied) override;
   void ProcessRow(const RowArgs& args) const override;
 
   // The pre-pass's part of the model (shared so both compute the same values).
@@ -113,6 +115,9 @@ class FlareStage final : public Stage {
   uint32_t glare_q16_ = 0;   // glare fraction, Q0.16
   int kernel_side_ = 0;
   const uint32_t* kernel_ = nullptr;            // Q0.32, kernel_side_^2, sums to 2^32
+  // Init; the glare kernel is copied from `same_kernel` when it is not null.
+  Status Build(Arena& tables, const FlareStage* same_kernel);
+  Status BuildGhostsAndEnvironment(Arena& tables);  // Init after the kernel
   const int16_t* ghost_half_width_[kMaxGhosts] = {};  // per row of the ghost, -1 = none
   int ghost_radius_[kMaxGhosts] = {};
   UScale ghost_factor_[kMaxGhosts][3];          // intensity * tint / area

@@ -238,7 +238,16 @@ StageId Pipeline::NextRunning(const StageId* order, int from, int count) const {
   return StageId::kCount;
 }
 
-Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask) {
+const Stage* Pipeline::InitialisedStage(StageId id) const {
+  if (!initialised_) return nullptr;
+  for (int i = 0; i < run_count_; ++i)
+    if (run_[i] == StageFor(id)) return run_[i];
+  return nullptr;
+}
+
+Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask,
+                           const Pipeline* previous) {
+  if (previous == this) previous = nullptr;  // its state is about to be replaced
   initialised_ = false;
   config_ = config;
   const SensorGeometry& g = config.geometry;
@@ -257,7 +266,8 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(dof_rows_.Configure(config.dof, g, config.exposure.f_number));
   CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
-  CAMSIM_TRY(distortion_.Configure(config.distortion, g));
+  const Stage* previous_distortion = previous != nullptr ? previous->InitialisedStage(StageId::kDistortion) : nullptr;
+  CAMSIM_TRY(distortion_.Configure(config.distortion, g, static_cast<const DistortionStage*>(previous_distortion)));
   CAMSIM_TRY(flare_.Configure(config.flare, g));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
@@ -412,12 +422,21 @@ size_t Pipeline::WorkspaceBytes() const {
   return table_bytes_ + static_cast<size_t>(workers_) * worker_bytes_ + kWorkspaceAlign;
 }
 
-Status Pipeline::Init(Span<uint8_t> workspace) {
+Status Pipeline::Init(Span<uint8_t> workspace, const Pipeline* previous) {
   initialised_ = false;
+  if (previous == this) previous = nullptr;
   if (workspace.size < WorkspaceBytes())
     return Status(StatusCode::kResourceExhausted, "workspace smaller than WorkspaceBytes()");
   Arena arena(workspace);
-  for (int i = 0; i < run_count_; ++i) CAMSIM_TRY(const_cast<Stage*>(run_[i])->Init(arena));
+  int running = 0;
+  for (int e = 0; e < plan_.count; ++e) {
+    if (!plan_.entries[e].runs) continue;
+    const int i = running++;
+    Stage* stage = const_cast<Stage*>(run_[i]);
+    const Stage* before = previous != nullptr ? previous->InitialisedStage(plan_.entries[e].id) : nullptr;
+    copied_tables_[i] = 0;
+    CAMSIM_TRY(before != nullptr ? stage->InitFrom(arena, *before, &copied_tables_[i]) : stage->Init(arena));
+  }
   workers_base_ = arena.Take<uint8_t>(static_cast<size_t>(workers_) * worker_bytes_);
   if (workers_base_ == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for line rings");
   initialised_ = true;

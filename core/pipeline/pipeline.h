@@ -150,7 +150,13 @@ class Pipeline {
  public:
   // Validates every configured stage, plans, and sizes the workspace. The only
   // step besides Init that can fail.
-  Status Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask);
+  // previous (optional, a reconfiguration): another pipeline, initialised and
+  // unchanged while the call runs; a stage whose configuration equals its
+  // counterpart's there takes what that computed instead of computing it
+  // again (Stage::InitFrom). The bytes are those of a pipeline configured
+  // without it.
+  Status Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask,
+                   const Pipeline* previous = nullptr);
   const Plan& plan() const { return plan_; }
 
   // Workspace: tables shared by all workers + per worker line rings and scratch.
@@ -158,8 +164,11 @@ class Pipeline {
   size_t TableBytes() const { return table_bytes_; }
   size_t WorkerBytes() const { return worker_bytes_; }
 
-  // Binds the caller's workspace (WorkspaceBytes() long) and builds tables.
-  Status Init(Span<uint8_t> workspace);
+  // Binds the caller's workspace (WorkspaceBytes() long) and builds tables;
+  // previous as for Configure: the tables it built for the same inputs are copied.
+  Status Init(Span<uint8_t> workspace, const Pipeline* previous = nullptr);
+  // The tables running stage i copied from the previous pipeline at Init.
+  int CopiedTables(int i) const { return copied_tables_[i]; }
 
   // Checks that a frame's inputs match the configuration (sizes, required
   // planes). Call before ProcessStrip: processing itself cannot fail.
@@ -207,6 +216,8 @@ class Pipeline {
   void Produce(StripState& s, int ring, int row) const;
   Stage* StageFor(StageId id);
   const Stage* StageFor(StageId id) const;
+  // Stage `id` when this pipeline is initialised and ran it, else nullptr.
+  const Stage* InitialisedStage(StageId id) const;
   StageId NextRunning(const StageId* order, int from, int count) const;
 
   PipelineConfig config_;
@@ -227,6 +238,7 @@ class Pipeline {
   size_t worker_bytes_ = 0;
   uint8_t* workers_base_ = nullptr;
   bool initialised_ = false;
+  int copied_tables_[kStageCount] = {};  // per running stage, at Init
 
   DofGatherStage dof_gather_;
   DofRowStage dof_rows_;

@@ -11,6 +11,8 @@
 //                                   anything runs.
 //   4. Init(tables)                 builds its read-only tables in the caller's
 //                                   workspace; can fail only if that is too small.
+//      InitFrom(tables, previous)   the same, copying the tables whose inputs
+//                                   equal those of `previous` (a reconfiguration).
 //   5. ProcessRow(args)             produces one output row from a window of
 //                                   input rows. Cannot fail, allocates nothing,
 //                                   is const (safe on many workers at once), and
@@ -20,6 +22,7 @@
 //                                   thread count give the same bytes.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 
 #include "core/base/check.h"
@@ -79,6 +82,7 @@ struct SensorGeometry {
   int height = 0;
   Cfa cfa = Cfa::kBayerRG;
   int adc_bits = 12;  // 8..16
+  bool operator==(const SensorGeometry&) const = default;
 };
 
 // Optional per-pixel inputs besides radiance, provided by the caller per frame.
@@ -161,11 +165,25 @@ class Stage {
   virtual size_t StateBytes(int /*width*/) const { return 0; }
   virtual void BeginStrip(uint8_t* /*state*/) const {}
   virtual Status Init(Arena& /*tables*/) { return Status::Ok(); }
+  // Init after a reconfiguration: `previous` is this stage (the same class)
+  // of another pipeline, initialised and unchanged until this returns. A
+  // table whose inputs equal previous's is copied from it instead of built:
+  // the same bytes as Init, without the work (the emulated camera rebuilds
+  // its pipeline on every ExposureTime write). *copied counts the tables
+  // copied. Stages without costly tables keep this default: Init.
+  virtual Status InitFrom(Arena& tables, const Stage& /*previous*/, int* copied) {
+    *copied = 0;
+    return Init(tables);
+  }
   virtual void ProcessRow(const RowArgs& args) const = 0;
 
  protected:
   ~Stage() = default;
 };
+
+// The equality InitFrom compares configuration values with: bit for bit, so
+// that 0.0 and -0.0 differ and nothing could round differently.
+inline bool SameBits(double a, double b) { return std::bit_cast<uint64_t>(a) == std::bit_cast<uint64_t>(b); }
 
 // Reflect-101 of an index into [0, n): -1 -> 1, n -> n - 2; any distance.
 constexpr int Reflect101(int i, int n) {

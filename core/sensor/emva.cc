@@ -1,6 +1,7 @@
 #include "core/sensor/emva.h"
 
 #include <cmath>
+#include <cstring>
 
 #include "core/base/check.h"
 #include "core/base/detmath.h"
@@ -152,12 +153,29 @@ void SensorStage::CountTables(WorkspaceCounter& counter) const {
 }
 
 Status SensorStage::Init(Arena& tables) {
+  int copied = 0;
+  return Build(tables, nullptr, &copied);
+}
+
+Status SensorStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
+  const SensorStage& p = static_cast<const SensorStage&>(previous);  // the same class (Stage::InitFrom)
+  return Build(tables, p.gauss_.built() ? &p : nullptr, copied);
+}
+
+Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copied) {
+  *copied = 0;
   int32_t* g = tables.Take<int32_t>(GaussianTable::kEntries);
   uint32_t* p = tables.Take<uint32_t>(PoissonTable::kEntries);
   if (g == nullptr || p == nullptr)
     return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
-  CAMSIM_TRY(gauss_.Build(Span<int32_t>{g, GaussianTable::kEntries}));
-  CAMSIM_TRY(poisson_.Build(Span<uint32_t>{p, PoissonTable::kEntries}));
+  if (previous != nullptr) {  // constants
+    CAMSIM_TRY(gauss_.CopyFrom(previous->gauss_, Span<int32_t>{g, GaussianTable::kEntries}));
+    CAMSIM_TRY(poisson_.CopyFrom(previous->poisson_, Span<uint32_t>{p, PoissonTable::kEntries}));
+    *copied += 2;
+  } else {
+    CAMSIM_TRY(gauss_.Build(Span<int32_t>{g, GaussianTable::kEntries}));
+    CAMSIM_TRY(poisson_.Build(Span<uint32_t>{p, PoissonTable::kEntries}));
+  }
   avx2_ = CpuHasAvx2();
   avx512_ = CpuHasAvx512();
   listed_ = nullptr;
@@ -187,6 +205,10 @@ Status SensorStage::Init(Arena& tables) {
     listed_ = l;
     listed_row_ = row;
   }
+  // The fixed pattern and the column offsets: draws keyed by the seed, scaled by their sigmas.
+  const bool same_draws = previous != nullptr && previous->seed_ == seed_ &&
+                          previous->geometry_.width == geometry_.width &&
+                          previous->geometry_.height == geometry_.height;
   pattern_ = nullptr;
   if (UsesPatternTable()) {
     // The words ProcessRow would draw: pixel x of channel ch, row y takes words
@@ -194,26 +216,37 @@ Status SensorStage::Init(Arena& tables) {
     PatternEntry* t = tables.Take<PatternEntry>(PatternEntries());
     if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the sensor's fixed pattern");
     pattern_ = t;
-    for (int ch = 0; ch < input_channels_; ++ch)
-      for (int y = 0; y < geometry_.height; ++y)
-        for (int x = 0; x < geometry_.width; x += 2) {
-          const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
-                                        static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
-          *t++ = Pattern(gauss_.Sample(b.v[0]), gauss_.Sample(b.v[1]));
-          if (x + 1 < geometry_.width) *t++ = Pattern(gauss_.Sample(b.v[2]), gauss_.Sample(b.v[3]));
-        }
+    if (same_draws && previous->pattern_ != nullptr && previous->input_channels_ == input_channels_ &&
+        previous->prnu_q16_ == prnu_q16_ && previous->dsnu_q8_ == dsnu_q8_) {
+      std::memcpy(t, previous->pattern_, PatternEntries() * sizeof(PatternEntry));
+      ++*copied;
+    } else {
+      for (int ch = 0; ch < input_channels_; ++ch)
+        for (int y = 0; y < geometry_.height; ++y)
+          for (int x = 0; x < geometry_.width; x += 2) {
+            const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
+                                          static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
+            *t++ = Pattern(gauss_.Sample(b.v[0]), gauss_.Sample(b.v[1]));
+            if (x + 1 < geometry_.width) *t++ = Pattern(gauss_.Sample(b.v[2]), gauss_.Sample(b.v[3]));
+          }
+    }
   }
   column_offset_ = nullptr;
   if (col_fpn_q8_ != 0) {
     // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
     int32_t* t = tables.Take<int32_t>(static_cast<size_t>(ColumnTableEntries()));
     if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
-    for (int ch = 0; ch < kMaxChannels; ++ch)
-      for (int x = 0; x < geometry_.width; ++x) {
-        const RandomBits b = DrawBits(seed_, kStreamSensorRowColumn, 0, static_cast<uint32_t>(x), 0,
-                                      static_cast<uint32_t>(2 * ch));
-        t[ch * geometry_.width + x] = static_cast<int32_t>(RoundShift(col_fpn_q8_ * gauss_.Sample(b.v[0]), 16));
-      }
+    if (same_draws && previous->column_offset_ != nullptr && previous->col_fpn_q8_ == col_fpn_q8_) {
+      std::memcpy(t, previous->column_offset_, static_cast<size_t>(ColumnTableEntries()) * sizeof(int32_t));
+      ++*copied;
+    } else {
+      for (int ch = 0; ch < kMaxChannels; ++ch)
+        for (int x = 0; x < geometry_.width; ++x) {
+          const RandomBits b = DrawBits(seed_, kStreamSensorRowColumn, 0, static_cast<uint32_t>(x), 0,
+                                        static_cast<uint32_t>(2 * ch));
+          t[ch * geometry_.width + x] = static_cast<int32_t>(RoundShift(col_fpn_q8_ * gauss_.Sample(b.v[0]), 16));
+        }
+    }
     column_offset_ = t;
   }
   return Status::Ok();

@@ -129,6 +129,9 @@ class SensorStage final : public Stage {
   Result<LineFormat> Plan(LineFormat in) const override;
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
+  // Copies the noise's constant tables, and the fixed pattern and column
+  // offsets when their inputs (seed, size, sigmas) are previous's.
+  Status InitFrom(Arena& tables, const Stage& previous, int* copied) override;
   void ProcessRow(const RowArgs& args) const override;
   // Channels of the sensor's input lines (1: mosaic or mono, 3: one sensor
   // per colour): the pipeline's planner sets it; it sizes the fixed-pattern table.
@@ -143,6 +146,8 @@ class SensorStage final : public Stage {
   void ForcePortablePathForTest(bool force) { force_portable_ = force; }
 
  private:
+  // Init; copies from `previous` (an initialised sensor stage) what it can.
+  Status Build(Arena& tables, const SensorStage* previous, int* copied);
   int ColumnTableEntries() const { return kMaxChannels * geometry_.width; }
   SensorConfig config_;
   SensorGeometry geometry_;

@@ -1,0 +1,155 @@
+// Reconfiguration: a pipeline configured with `previous` (Pipeline::Configure,
+// Stage::InitFrom) copies the tables whose inputs did not change, and gives
+// the bytes of a pipeline built from scratch for every change.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/pipeline/pipeline.h"
+#include "tests/support/fixtures.h"
+#include "tests/support/test_support.h"
+
+namespace camsim {
+namespace {
+
+constexpr int kW = 96, kH = 80;
+
+// Every stage with tables InitFrom can copy is on: the lens with chromatic
+// aberration and a mesh, flare with ghosts, the sensor's stored fixed pattern
+// and column offsets, an sRGB curve.
+struct Base {
+  std::vector<float> mesh = std::vector<float>(2 * 4 * 3, 0.25f);
+  PipelineConfig config = test::DemoConfig(kW, kH);
+  Base() {
+    config.distortion.lens = test::TypicalLens(kW, kH);
+    config.distortion.chromatic_scale[0] = 1.003;
+    config.distortion.mesh = DisplacementMesh{mesh.data(), 4, 3, 32.0};
+    config.flare.enabled = true;
+    config.flare.threshold = 50.0;  // the textured scene's bright spot
+    config.sensor.fixed_pattern_table = true;
+    config.sensor.column_fpn_e = 2.0;
+    config.gamma.curve = GammaCurve::kSrgb;
+  }
+};
+
+// Configures and initialises `config`, with `previous` (may be null); the
+// workspace starts filled with `fill`, so a table left unwritten shows.
+std::unique_ptr<test::Built> BuildFrom(const PipelineConfig& config, const Pipeline* previous, uint8_t fill) {
+  auto b = std::make_unique<test::Built>();
+  b->status = b->pipeline.Configure(config, 1, false, previous);
+  if (!b->status.ok()) return b;
+  b->workspace.assign(b->pipeline.WorkspaceBytes(), fill);
+  b->status = b->pipeline.Init(Span<uint8_t>{b->workspace.data(), b->workspace.size()}, previous);
+  return b;
+}
+
+// Copied tables per stage name for a change of the base configuration; a
+// stage not named copies none.
+struct Change {
+  const char* what;
+  std::function<void(Base&)> apply;
+  std::vector<std::pair<std::string, int>> copied;
+};
+
+// Distortion: its 4 tables. Flare: the glare kernel. Sensor: the Gaussian and
+// Poisson constants, the fixed pattern, the column offsets. Gamma: its curve.
+const std::vector<Change>& Changes() {
+  static const std::vector<Change> changes = {
+      {"ExposureTime", [](Base& b) { b.config.exposure.exposure_time_us *= 1.5; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"Gain", [](Base& b) { b.config.sensor.gain_db += 6.0; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"k1", [](Base& b) { b.config.distortion.lens.k[0] += 0.01; },
+       {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"cx", [](Base& b) { b.config.distortion.lens.cx += 0.5; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"chromatic scale", [](Base& b) { b.config.distortion.chromatic_scale[2] = 0.998; },
+       {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"the mesh's values, in place", [](Base& b) { b.mesh[5] = -0.5f; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"grid step", [](Base& b) { b.config.distortion.grid_step = 16; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"seed", [](Base& b) { b.config.seed += 1; }, {{"distortion", 4}, {"flare", 1}, {"sensor", 2}, {"gamma", 1}}},
+      {"PRNU", [](Base& b) { b.config.sensor.prnu_percent = 1.0; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
+      {"column FPN", [](Base& b) { b.config.sensor.column_fpn_e = 3.0; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
+      {"glare radius", [](Base& b) { b.config.flare.glare_radius = 12; },
+       {{"distortion", 4}, {"sensor", 4}, {"gamma", 1}}},
+      {"blades", [](Base& b) { b.config.flare.blades = 5; }, {{"distortion", 4}, {"sensor", 4}, {"gamma", 1}}},
+      {"flare threshold", [](Base& b) { b.config.flare.threshold = 80.0; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"gamma curve", [](Base& b) { b.config.gamma.curve = GammaCurve::kPower; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 4}}},
+      {"frame size", [](Base& b) { b.config.geometry.width = kW - 2; }, {{"flare", 1}, {"sensor", 2}, {"gamma", 1}}},
+  };
+  return changes;
+}
+
+int Expected(const Change& c, const char* stage) {
+  for (const auto& [name, n] : c.copied)
+    if (name == stage) return n;
+  return 0;
+}
+
+TEST(Reconfigure, CopiedTablesGiveTheBytesOfAPipelineBuiltFromScratch) {
+  for (const Change& change : Changes()) {
+    SCOPED_TRACE(change.what);
+    Base base;
+    auto before = BuildFrom(base.config, nullptr, 0);
+    ASSERT_TRUE(before->status.ok()) << before->status.message();
+    change.apply(base);
+    const int w = base.config.geometry.width, h = base.config.geometry.height;
+    const test::Scene scene = test::TexturedScene(w, h);
+    auto fresh = BuildFrom(base.config, nullptr, 0);
+    auto reused = BuildFrom(base.config, &before->pipeline, 0xA5);
+    ASSERT_TRUE(fresh->status.ok()) << fresh->status.message();
+    ASSERT_TRUE(reused->status.ok()) << reused->status.message();
+    EXPECT_EQ(reused->pipeline.WorkspaceBytes(), fresh->pipeline.WorkspaceBytes());
+    const Plan& plan = reused->pipeline.plan();
+    ASSERT_EQ(plan.running, fresh->pipeline.plan().running);
+    for (int i = 0; i < plan.running; ++i) {
+      const char* name = reused->pipeline.running_stage(i).name();
+      EXPECT_EQ(reused->pipeline.CopiedTables(i), Expected(change, name)) << name;
+      EXPECT_EQ(fresh->pipeline.CopiedTables(i), 0) << name;
+    }
+    for (uint32_t frame : {0u, 7u}) {
+      const std::vector<uint32_t> want = test::RunFrame(*fresh, scene, frame, 13);
+      ASSERT_EQ(test::UnwrittenCount(want), 0u);
+      EXPECT_EQ(test::RunFrame(*reused, scene, frame, 13), want) << "frame " << frame;
+    }
+  }
+}
+
+// Only an initialised pipeline lends its tables, and only for stages it ran.
+TEST(Reconfigure, OnlyStagesThatRanInAnInitialisedPipelineLendTheirTables) {
+  Base base;
+  Pipeline configured_only;
+  ASSERT_TRUE(configured_only.Configure(base.config, 1, false).ok());
+  auto b = BuildFrom(base.config, &configured_only, 0);
+  ASSERT_TRUE(b->status.ok());
+  for (int i = 0; i < b->pipeline.plan().running; ++i) EXPECT_EQ(b->pipeline.CopiedTables(i), 0);
+
+  PipelineConfig linear = base.config;
+  linear.gamma.curve = GammaCurve::kLinear;  // left out: its stage has no table
+  auto without_gamma = BuildFrom(linear, nullptr, 0);
+  ASSERT_TRUE(without_gamma->status.ok());
+  auto with_gamma = BuildFrom(base.config, &without_gamma->pipeline, 0);
+  ASSERT_TRUE(with_gamma->status.ok());
+  const Plan& plan = with_gamma->pipeline.plan();
+  ASSERT_EQ(std::string(with_gamma->pipeline.running_stage(plan.running - 1).name()), "gamma");
+  EXPECT_EQ(with_gamma->pipeline.CopiedTables(plan.running - 1), 0);
+  EXPECT_EQ(with_gamma->pipeline.CopiedTables(0), 1) << "flare ran in both";
+
+  // Reconfiguring a pipeline from itself is a plain reconfiguration.
+  auto self = BuildFrom(base.config, nullptr, 0);
+  ASSERT_TRUE(self->status.ok());
+  ASSERT_TRUE(self->pipeline.Configure(base.config, 1, false, &self->pipeline).ok());
+  ASSERT_TRUE(self->pipeline.Init(Span<uint8_t>{self->workspace.data(), self->workspace.size()}, &self->pipeline).ok());
+  for (int i = 0; i < self->pipeline.plan().running; ++i) EXPECT_EQ(self->pipeline.CopiedTables(i), 0);
+  const test::Scene scene = test::TexturedScene(kW, kH);
+  EXPECT_EQ(test::RunFrame(*self, scene, 1, 16), test::RunFrame(*b, scene, 1, 16));
+}
+
+}  // namespace
+}  // namespace camsim
