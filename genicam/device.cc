@@ -571,7 +571,7 @@ bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
 
 bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
   if (!renderer_->Install(std::move(planned), origins_, error)) return false;
-  current_scene_ = -1;  // the input is prepared again for the new pipeline
+  if (!renderer_->has_scene()) current_scene_ = -1;  // the next frame prepares its input again
   return true;
 }
 

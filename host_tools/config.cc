@@ -980,7 +980,7 @@ bool ResolveEnvironment(RunConfig* c, std::string* error) {
 }
 
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
-                  std::string* error) {
+                  std::string* error, const Pipeline* previous) {
   PipelineConfig& p = c->core;
   if (c->width < 0 || c->height < 0) {
     *error = DescribeStatus(InvalidArgument(c->width < 0 ? "sensor.width" : "sensor.height", "must be >= 0"), origins);
@@ -1030,7 +1030,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
     p.sensor.defect_count = static_cast<int>(list->size());
   }
   Pipeline probe;
-  const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty());
+  const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty(), previous);
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
@@ -1069,7 +1069,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
           q.sensor.gain_db = g.value;
           q.exposure.f_number = f.value;
           Pipeline corner;
-          const Status cs = corner.Configure(q, workers, !c->vignetting_mask.empty());
+          const Status cs = corner.Configure(q, workers, !c->vignetting_mask.empty(), previous);
           if (cs.ok()) continue;
           std::string at = std::string(t.key) + " = " + FormatNumber(t.value) + ", " + g.key + " = " +
                            FormatNumber(g.value);

@@ -30,9 +30,10 @@ bool FrameRenderer::PlanPipeline(const RunConfig& config, const Origins& origins
                                  int scene_height, PlannedPipeline* planned, std::string* error) const {
   planned->finished = config;
   RunConfig& rc = planned->finished;
-  if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error)) return false;
+  // The pipeline in use lends what the new one computes the same (Pipeline::Configure).
+  if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error, pipeline_.get())) return false;
   planned->pipeline.reset(new Pipeline);
-  const Status s = planned->pipeline->Configure(rc.core, threads_, !rc.vignetting_mask.empty());
+  const Status s = planned->pipeline->Configure(rc.core, threads_, !rc.vignetting_mask.empty(), pipeline_.get());
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
@@ -44,7 +45,7 @@ bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std
   std::unique_ptr<Pipeline>& p = planned.pipeline;
   const RunConfig& rc = planned.finished;
   std::vector<uint8_t> workspace(p->WorkspaceBytes(), 0);
-  const Status si = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
+  const Status si = p->Init(Span<uint8_t>{workspace.data(), workspace.size()}, pipeline_.get());
   if (!si.ok()) {
     *error = DescribeStatus(si, origins);
     return false;
@@ -58,10 +59,11 @@ bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std
   }
   pipeline_ = std::move(p);
   workspace_ = std::move(workspace);
+  // The scene stays when its size and fit still hold; the pre-passes follow
+  // the new settings (smear depends on the exposure time, flare on its threshold).
+  has_scene_ = has_scene_ && rc.fit == fit_ && input_.width == pipeline_->width() &&
+               input_.height == pipeline_->height();
   fit_ = rc.fit;
-  // The scene stays when its size still fits; the pre-passes follow the new
-  // settings (smear depends on the exposure time, flare on its threshold).
-  has_scene_ = has_scene_ && input_.width == pipeline_->width() && input_.height == pipeline_->height();
   if (has_scene_) RunPrepasses();
   else view_ = FrameInput();
   return true;

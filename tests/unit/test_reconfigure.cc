@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "core/pipeline/pipeline.h"
+#include "host_tools/config.h"
+#include "host_tools/render.h"
 #include "tests/support/fixtures.h"
 #include "tests/support/test_support.h"
 
@@ -149,6 +151,61 @@ TEST(Reconfigure, OnlyStagesThatRanInAnInitialisedPipelineLendTheirTables) {
   for (int i = 0; i < self->pipeline.plan().running; ++i) EXPECT_EQ(self->pipeline.CopiedTables(i), 0);
   const test::Scene scene = test::TexturedScene(kW, kH);
   EXPECT_EQ(test::RunFrame(*self, scene, 1, 16), test::RunFrame(*b, scene, 1, 16));
+}
+
+// The host's renderer, as the emulated camera uses it on an ExposureTime
+// write: plan and install a new pipeline over the one in use. The scene stays,
+// the lens's tables are copied, and the frame is the one a renderer built for
+// the new setting from scratch gives.
+std::vector<uint8_t> RenderRgb(host::FrameRenderer& r) {
+  std::vector<uint8_t> rgb(static_cast<size_t>(r.pipeline().width()) * r.pipeline().height() * 3);
+  Tap tap;
+  tap.format = TapFormat::kU8;
+  tap.data = rgb.data();
+  tap.stride = static_cast<ptrdiff_t>(r.pipeline().width()) * 3;
+  r.Render(2, &tap, 1, nullptr);
+  return rgb;
+}
+
+TEST(Reconfigure, TheRendererKeepsItsSceneAndCopiesTheLensTables) {
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  ASSERT_TRUE(host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error)) << error;
+  ASSERT_TRUE(host::ParseConfig("[distortion]\nmodel = \"brown\"\nk1 = -0.28\nk2 = 0.07\np1 = 0.0012\n", "lens",
+                                &rc, &origins, &error))
+      << error;
+  io::SceneFrame scene;
+  scene.width = kW;
+  scene.height = kH;
+  for (io::FloatPlane* p : {&scene.r, &scene.g, &scene.b}) {
+    p->width = kW;
+    p->height = kH;
+    for (int i = 0; i < kW * kH; ++i) p->data.push_back(static_cast<float>((i * 37) % 101) / 50.0f);
+  }
+  host::FrameRenderer r(1, 0);
+  ASSERT_TRUE(r.Configure(rc, origins, kW, kH, nullptr, &error)) << error;
+  ASSERT_TRUE(r.SetScene(scene, &error)) << error;
+  const std::vector<uint8_t> first = RenderRgb(r);
+
+  host::RunConfig longer = rc;
+  longer.core.exposure.exposure_time_us *= 1.5;
+  host::PlannedPipeline planned;
+  ASSERT_TRUE(r.PlanPipeline(longer, origins, kW, kH, &planned, &error)) << error;
+  ASSERT_TRUE(r.Install(std::move(planned), origins, &error)) << error;
+  EXPECT_TRUE(r.has_scene());
+  const Plan& plan = r.pipeline().plan();
+  ASSERT_EQ(std::string(r.pipeline().running_stage(0).name()), "distortion");
+  EXPECT_EQ(r.pipeline().CopiedTables(0), 4);
+  EXPECT_EQ(std::string(r.pipeline().running_stage(plan.running - 1).name()), "gamma");
+  EXPECT_EQ(r.pipeline().CopiedTables(plan.running - 1), 1);
+  const std::vector<uint8_t> second = RenderRgb(r);
+  EXPECT_NE(second, first) << "the exposure changed the frame";
+
+  host::FrameRenderer fresh(1, 0);
+  ASSERT_TRUE(fresh.Configure(longer, origins, kW, kH, nullptr, &error)) << error;
+  ASSERT_TRUE(fresh.SetScene(scene, &error)) << error;
+  EXPECT_EQ(RenderRgb(fresh), second);
 }
 
 }  // namespace
