@@ -2,7 +2,7 @@
 // Aravis client over loopback, and how many frames were lost on the way.
 //   camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]
 //                   [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]
-//                   [--reconfigures N] [--rate FPS]
+//                   [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous]
 // --prime 0 turns off the device's first-frame leader (GigeDevice::PrimeReceiver)
 // to show the first frame lost to the default socket buffer.
 // --reconfigures N first times N ExposureTime writes, each synced at once
@@ -10,6 +10,8 @@
 // prints the median time per write.
 // --rate FPS sets AcquisitionFrameRate (default: AcquisitionFrameRateEnable
 // off, frames as fast as they are made).
+// --exposure-auto Continuous: the device's auto exposure sets ExposureTime
+// and Gain after every frame (each step rebuilds the pipeline).
 // The device runs in this process (its render threads + Aravis's GVCP/GVSP
 // thread) with the demo configuration (every stage on).
 #include <arv.h>
@@ -30,7 +32,7 @@ int main(int argc, char** argv) {
   o.pattern = "gradient";
   int width = 1920, height = 1080, frames = 100, packet = 9000, reconfigures = 0;
   double rate = 0.0;
-  std::string format = "BayerRG8";
+  std::string format = "BayerRG8", exposure_auto = "Off";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--width") width = std::atoi(v.c_str());
@@ -43,6 +45,7 @@ int main(int argc, char** argv) {
     else if (a == "--prime") o.prime_first_frame = v != "0";
     else if (a == "--reconfigures") reconfigures = std::atoi(v.c_str());
     else if (a == "--rate") rate = std::atof(v.c_str());
+    else if (a == "--exposure-auto") exposure_auto = v;
     else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       return 1;
@@ -84,6 +87,7 @@ int main(int argc, char** argv) {
   if (!e) arv_camera_set_boolean(cam, "AcquisitionFrameRateEnable", rate > 0, &e);
   if (!e && rate > 0) arv_camera_set_float(cam, "AcquisitionFrameRate", rate, &e);
   if (!e) arv_camera_gv_set_packet_size(cam, packet, &e);
+  if (!e) arv_camera_set_string(cam, "ExposureAuto", exposure_auto.c_str(), &e);
   if (e) {
     std::fprintf(stderr, "camsim_gige_fps: %s\n", e->message);
     return 1;
@@ -126,9 +130,9 @@ int main(int argc, char** argv) {
   const guint64 missing = arv_stream_get_info_uint64_by_name(stream, "n_missing_packets");
   const guint64 duplicated = arv_stream_get_info_uint64_by_name(stream, "n_duplicated_packets");
   arv_camera_stop_acquisition(cam, nullptr);
-  std::printf("%dx%d %s, %d thread(s), packet %d B: %d frames in %.2f s = %.2f fps, %.1f MB/s; "
+  std::printf("%dx%d %s, %d thread(s), packet %d B, ExposureAuto %s: %d frames in %.2f s = %.2f fps, %.1f MB/s; "
               "failed buffers %d, frame-id gaps %llu, underruns %llu, missing packets %llu, duplicated %llu\n",
-              width, height, format.c_str(), o.threads, packet, ok, s, ok / s, ok * (payload / 1e6) / s, failed,
+              width, height, format.c_str(), o.threads, packet, exposure_auto.c_str(), ok, s, ok / s, ok * (payload / 1e6) / s, failed,
               static_cast<unsigned long long>(gaps), static_cast<unsigned long long>(underruns),
               static_cast<unsigned long long>(missing), static_cast<unsigned long long>(duplicated));
   g_object_unref(stream);
