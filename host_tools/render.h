@@ -61,7 +61,7 @@ class FrameRenderer {
   void Render(uint32_t frame, const Tap* taps, int tap_count, std::vector<WorkerStats>* stats);
 
   const Pipeline& pipeline() const { return *pipeline_; }
-  // Whether a scene is set for the pipeline in use (Install keeps it when its size still fits).
+  // Whether a scene is set for the pipeline in use (Install keeps it while its size and fit hold).
   bool has_scene() const { return has_scene_; }
   const CoreInput& input() const { return input_; }
   // The frame as the core sees it: the scene's planes and the pre-passes' results.

@@ -118,7 +118,8 @@ Status GammaStage::Init(Arena& tables) {
 Status GammaStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
   const GammaStage& p = static_cast<const GammaStage&>(previous);  // the same class (Stage::InitFrom)
   *copied = 0;
-  if (p.table_ == nullptr || p.config_.curve != config_.curve || !SameBits(p.config_.gamma, config_.gamma))
+  if (&p == this || p.table_ == nullptr || p.config_.curve != config_.curve ||
+      !SameBits(p.config_.gamma, config_.gamma))
     return Init(tables);
   table_ = tables.Take<uint16_t>(kTableSize + 1);
   if (table_ == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the gamma table");

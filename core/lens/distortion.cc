@@ -1268,15 +1268,18 @@ bool SameLens(const LensModel& a, const LensModel& b) {
 
 }  // namespace
 
-// The mesh's values as Configure read them: 64-bit FNV-1a of their bytes, so
+// The mesh's values as Configure read them: a 64-bit FNV-1a of their bits, so
 // that a mesh changed in place (the same pointer) between two configurations
 // does not count as the same.
 uint64_t DistortionStage::MeshDigest(const DisplacementMesh& mesh) {
   if (mesh.dxdy == nullptr) return 0;
-  const uint8_t* bytes = reinterpret_cast<const uint8_t*>(mesh.dxdy);
-  const size_t n = sizeof(float) * 2 * static_cast<size_t>(mesh.cols) * mesh.rows;
-  uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a offset basis and prime
-  for (size_t i = 0; i < n; ++i) h = (h ^ bytes[i]) * 0x100000001b3ull;
+  const size_t values = 2 * static_cast<size_t>(mesh.cols) * mesh.rows;
+  uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a's offset basis and prime, a value's 32 bits at a time
+  for (size_t i = 0; i < values; ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, mesh.dxdy + i, sizeof bits);
+    h = (h ^ bits) * 0x100000001b3ull;
+  }
   return h;
 }
 
@@ -1287,8 +1290,8 @@ bool DistortionStage::SameTables(const DistortionStage& o) const {
   const bool same_mesh = (a.mesh.dxdy == nullptr) == (b.mesh.dxdy == nullptr) && a.mesh.cols == b.mesh.cols &&
                          a.mesh.rows == b.mesh.rows && SameBits(a.mesh.step, b.mesh.step) &&
                          mesh_digest_ == o.mesh_digest_;
-  return o.table_ != nullptr && geometry_ == o.geometry_ && a.filter == b.filter && a.phases == b.phases &&
-         a.grid_step == b.grid_step && SameLens(a.lens, b.lens) && same_mesh;
+  return &o != this && o.table_ != nullptr && geometry_ == o.geometry_ && a.filter == b.filter &&
+         a.phases == b.phases && a.grid_step == b.grid_step && SameLens(a.lens, b.lens) && same_mesh;
 }
 
 Status DistortionStage::Init(Arena& tables) { return Build(tables, nullptr); }

@@ -101,7 +101,7 @@ Status FlareStage::Init(Arena& tables) { return Build(tables, nullptr); }
 
 Status FlareStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
   const FlareStage& p = static_cast<const FlareStage&>(previous);  // the same class (Stage::InitFrom)
-  const bool same = p.kernel_ != nullptr && p.config_.glare_radius == config_.glare_radius &&
+  const bool same = &p != this && p.kernel_ != nullptr && p.config_.glare_radius == config_.glare_radius &&
                     p.config_.blades == config_.blades;
   *copied = same ? 1 : 0;
   return Build(tables, same ? &p : nullptr);

@@ -150,8 +150,9 @@ class Pipeline {
  public:
   // Validates every configured stage, plans, and sizes the workspace. The only
   // step besides Init that can fail.
-  // previous (optional, a reconfiguration): another pipeline, initialised and
-  // unchanged while the call runs; a stage whose configuration equals its
+  // previous (optional, a reconfiguration): another pipeline, initialised,
+  // its workspace still alive, and unchanged while the call runs (a pipeline
+  // cannot tell that its workspace was freed); a stage whose configuration equals its
   // counterpart's there takes what that computed instead of computing it
   // again (Stage::InitFrom). The bytes are those of a pipeline configured
   // without it.

@@ -166,7 +166,8 @@ class Stage {
   virtual void BeginStrip(uint8_t* /*state*/) const {}
   virtual Status Init(Arena& /*tables*/) { return Status::Ok(); }
   // Init after a reconfiguration: `previous` is this stage (the same class)
-  // of another pipeline, initialised and unchanged until this returns. A
+  // of another pipeline, initialised and unchanged until this returns (this
+  // stage itself is no previous: its tables are rebuilt). A
   // table whose inputs equal previous's is copied from it instead of built:
   // the same bytes as Init, without the work (the emulated camera rebuilds
   // its pipeline on every ExposureTime write). *copied counts the tables

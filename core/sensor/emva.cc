@@ -159,7 +159,7 @@ Status SensorStage::Init(Arena& tables) {
 
 Status SensorStage::InitFrom(Arena& tables, const Stage& previous, int* copied) {
   const SensorStage& p = static_cast<const SensorStage&>(previous);  // the same class (Stage::InitFrom)
-  return Build(tables, p.gauss_.built() ? &p : nullptr, copied);
+  return Build(tables, &p != this && p.gauss_.built() ? &p : nullptr, copied);
 }
 
 Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copied) {
@@ -205,10 +205,11 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
     listed_ = l;
     listed_row_ = row;
   }
-  // The fixed pattern and the column offsets: draws keyed by the seed, scaled by their sigmas.
-  const bool same_draws = previous != nullptr && previous->seed_ == seed_ &&
-                          previous->geometry_.width == geometry_.width &&
-                          previous->geometry_.height == geometry_.height;
+  // The fixed pattern (per pixel) and the column offsets (per column): draws
+  // keyed by the seed, scaled by their sigmas.
+  const bool same_columns =
+      previous != nullptr && previous->seed_ == seed_ && previous->geometry_.width == geometry_.width;
+  const bool same_pixels = same_columns && previous->geometry_.height == geometry_.height;
   pattern_ = nullptr;
   if (UsesPatternTable()) {
     // The words ProcessRow would draw: pixel x of channel ch, row y takes words
@@ -216,7 +217,7 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
     PatternEntry* t = tables.Take<PatternEntry>(PatternEntries());
     if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the sensor's fixed pattern");
     pattern_ = t;
-    if (same_draws && previous->pattern_ != nullptr && previous->input_channels_ == input_channels_ &&
+    if (same_pixels && previous->pattern_ != nullptr && previous->input_channels_ == input_channels_ &&
         previous->prnu_q16_ == prnu_q16_ && previous->dsnu_q8_ == dsnu_q8_) {
       std::memcpy(t, previous->pattern_, PatternEntries() * sizeof(PatternEntry));
       ++*copied;
@@ -236,7 +237,7 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
     // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
     int32_t* t = tables.Take<int32_t>(static_cast<size_t>(ColumnTableEntries()));
     if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for sensor tables");
-    if (same_draws && previous->column_offset_ != nullptr && previous->col_fpn_q8_ == col_fpn_q8_) {
+    if (same_columns && previous->column_offset_ != nullptr && previous->col_fpn_q8_ == col_fpn_q8_) {
       std::memcpy(t, previous->column_offset_, static_cast<size_t>(ColumnTableEntries()) * sizeof(int32_t));
       ++*copied;
     } else {

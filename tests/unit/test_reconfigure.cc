@@ -54,6 +54,7 @@ struct Change {
   const char* what;
   std::function<void(Base&)> apply;
   std::vector<std::pair<std::string, int>> copied;
+  std::function<void(Base&)> setup = nullptr;  // applied to both configurations first
 };
 
 // Distortion: its 4 tables. Flare: the glare kernel. Sensor: the Gaussian and
@@ -83,7 +84,33 @@ const std::vector<Change>& Changes() {
        {{"distortion", 4}, {"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
       {"gamma curve", [](Base& b) { b.config.gamma.curve = GammaCurve::kPower; },
        {{"distortion", 4}, {"flare", 1}, {"sensor", 4}}},
-      {"frame size", [](Base& b) { b.config.geometry.width = kW - 2; }, {{"flare", 1}, {"sensor", 2}, {"gamma", 1}}},
+      {"frame width", [](Base& b) { b.config.geometry.width = kW - 2; }, {{"flare", 1}, {"sensor", 2}, {"gamma", 1}}},
+      {"frame height", [](Base& b) { b.config.geometry.height = kH + 2; }, {{"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
+      {"ADC bits", [](Base& b) { b.config.geometry.adc_bits = 10; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      // Every input of the lens's tables; filter and phases also size them.
+      {"filter", [](Base& b) { b.config.distortion.filter = ResampleFilter::kBicubic; },
+       {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"phases", [](Base& b) { b.config.distortion.phases = 128; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"fy", [](Base& b) { b.config.distortion.lens.fy *= 1.01; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"k2", [](Base& b) { b.config.distortion.lens.k[1] += 0.01; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"p2", [](Base& b) { b.config.distortion.lens.p2 += 1e-3; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"green's chromatic scale", [](Base& b) { b.config.distortion.chromatic_scale[1] = 1.001; },
+       {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"mesh step", [](Base& b) { b.config.distortion.mesh.step = 24.0; }, {{"flare", 1}, {"sensor", 4}, {"gamma", 1}}},
+      {"gamma exponent", [](Base& b) { b.config.gamma.gamma = 2.4; }, {{"distortion", 4}, {"flare", 1}, {"sensor", 4}},
+       [](Base& b) { b.config.gamma.curve = GammaCurve::kPower; }},
+      {"DSNU", [](Base& b) { b.config.sensor.dsnu_e = 2.5; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
+      // Without the CFA, a sensor per colour: its fixed pattern has three planes.
+      {"sensor channels",
+       [](Base& b) {
+         int n = 0;
+         for (int i = 0; i < b.config.order_count; ++i)
+           if (b.config.order[i] != StageId::kCfa && b.config.order[i] != StageId::kDemosaic)
+             b.config.order[n++] = b.config.order[i];
+         b.config.order_count = n;
+       },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
   };
   return changes;
 }
@@ -98,6 +125,7 @@ TEST(Reconfigure, CopiedTablesGiveTheBytesOfAPipelineBuiltFromScratch) {
   for (const Change& change : Changes()) {
     SCOPED_TRACE(change.what);
     Base base;
+    if (change.setup) change.setup(base);
     auto before = BuildFrom(base.config, nullptr, 0);
     ASSERT_TRUE(before->status.ok()) << before->status.message();
     change.apply(base);
@@ -206,6 +234,35 @@ TEST(Reconfigure, TheRendererKeepsItsSceneAndCopiesTheLensTables) {
   ASSERT_TRUE(fresh.Configure(longer, origins, kW, kH, nullptr, &error)) << error;
   ASSERT_TRUE(fresh.SetScene(scene, &error)) << error;
   EXPECT_EQ(RenderRgb(fresh), second);
+}
+
+// A prepared scene holds only while the sensor's size and the scene fit do:
+// a sensor smaller than the scene crops it or scales it down.
+TEST(Reconfigure, TheRendererDropsItsSceneWhenItsFitChanges) {
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  ASSERT_TRUE(host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error)) << error;
+  rc.width = kW / 2;
+  rc.height = kH / 2;
+  io::SceneFrame scene;
+  scene.width = kW;
+  scene.height = kH;
+  for (io::FloatPlane* p : {&scene.r, &scene.g, &scene.b}) {
+    p->width = kW;
+    p->height = kH;
+    p->data.assign(static_cast<size_t>(kW) * kH, 0.5f);
+  }
+  host::FrameRenderer r(1, 0);
+  ASSERT_TRUE(r.Configure(rc, origins, kW, kH, nullptr, &error)) << error;
+  ASSERT_TRUE(r.SetScene(scene, &error)) << error;
+  host::RunConfig next = rc;
+  next.core.exposure.exposure_time_us *= 2;
+  ASSERT_TRUE(r.Configure(next, origins, kW, kH, nullptr, &error)) << error;
+  EXPECT_TRUE(r.has_scene()) << "same size and fit";
+  next.fit = host::SceneFit::kScale;
+  ASSERT_TRUE(r.Configure(next, origins, kW, kH, nullptr, &error)) << error;
+  EXPECT_FALSE(r.has_scene()) << "the cropped scene does not hold for a scaled one";
 }
 
 }  // namespace
