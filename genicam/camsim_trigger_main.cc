@@ -65,7 +65,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (width_ms >= interval_ms && count > 1) {
-    std::fprintf(stderr, "camsim-trigger: --width-ms must be shorter than --interval-ms\n");
+    std::fprintf(stderr, "camsim-trigger: --width-ms (%ld) must be shorter than --interval-ms (%ld)\n", width_ms,
+                 interval_ms);
     return 1;
   }
   std::string error;

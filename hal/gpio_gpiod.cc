@@ -1,6 +1,7 @@
 // libgpiod v1 backend of hal/gpio.h.
 #include <gpiod.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
@@ -46,13 +47,26 @@ bool Open(const std::string& spec, Opened* out, std::string* error) {
 class GpiodInput : public InputLine {
  public:
   GpiodInput(std::string spec, Opened o) : spec_(std::move(spec)), o_(o) {}
+  GpiodInput(const GpiodInput&) = delete;  // owns the chip
+  GpiodInput& operator=(const GpiodInput&) = delete;
   ~GpiodInput() override {
     gpiod_line_release(o_.line);
     gpiod_chip_close(o_.chip);
   }
   int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override {
-    const timespec ts{timeout_ms / 1000, (timeout_ms % 1000) * 1000000L};
-    const int r = gpiod_line_event_wait(o_.line, &ts);
+    // libgpiod v1 waits with one ppoll: a signal ends it with EINTR, which is
+    // not a line failure. The wait goes on until the deadline.
+    using Clock = std::chrono::steady_clock;
+    const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
+    int r = 0;
+    for (;;) {
+      const long long left_ns = std::max<long long>(
+          0, std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - Clock::now()).count());
+      const timespec ts{static_cast<time_t>(left_ns / 1000000000), static_cast<long>(left_ns % 1000000000)};
+      errno = 0;
+      r = gpiod_line_event_wait(o_.line, &ts);
+      if (!(r < 0 && errno == EINTR)) break;
+    }
     if (r <= 0) {
       if (r < 0) *error = "GPIO line '" + spec_ + "': " + Reason();
       return r;
@@ -75,6 +89,8 @@ class GpiodInput : public InputLine {
 class GpiodOutput : public OutputLine {
  public:
   GpiodOutput(std::string spec, Opened o) : spec_(std::move(spec)), o_(o) {}
+  GpiodOutput(const GpiodOutput&) = delete;  // owns the chip
+  GpiodOutput& operator=(const GpiodOutput&) = delete;
   ~GpiodOutput() override {
     gpiod_line_release(o_.line);
     gpiod_chip_close(o_.chip);
@@ -105,7 +121,8 @@ bool ParseLineSpec(const std::string& spec, std::string* chip, unsigned* offset,
   char* end = nullptr;
   errno = 0;
   const unsigned long v = std::strtoul(num.c_str(), &end, 10);
-  if (*end != '\0' || num[0] == '-' || errno != 0 || v > 65535) {
+  // Digits only: strtoul alone would take " 17", "+17" and "-1" (as a huge number).
+  if (*end != '\0' || !(num[0] >= '0' && num[0] <= '9') || errno != 0 || v > 65535) {
     *error = "GPIO line '" + spec + "': offset '" + num + "' is not a line number (0..65535)";
     return false;
   }

@@ -3,16 +3,24 @@
 namespace camsim::hal {
 
 ThreadPool::ThreadPool(int threads) {
-  for (int i = 1; i < threads; ++i) threads_.emplace_back([this, i] { Loop(i); });
+  try {
+    for (int i = 1; i < threads; ++i) threads_.emplace_back([this, i] { Loop(i); });
+  } catch (...) {  // a thread could not start: the ones that did must not outlive the pool
+    Stop();
+    throw;
+  }
 }
 
-ThreadPool::~ThreadPool() {
+ThreadPool::~ThreadPool() { Stop(); }
+
+void ThreadPool::Stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
   }
   start_.notify_all();
   for (std::thread& t : threads_) t.join();
+  threads_.clear();
 }
 
 void ThreadPool::Run(const std::function<void(int)>& job) {
@@ -23,10 +31,17 @@ void ThreadPool::Run(const std::function<void(int)>& job) {
     ++generation_;
   }
   start_.notify_all();
+  // The other workers hold a pointer to `job`: they finish before Run
+  // returns, also when worker 0's part throws.
+  struct WaitForWorkers {
+    ThreadPool* pool;
+    ~WaitForWorkers() {
+      std::unique_lock<std::mutex> lock(pool->mutex_);
+      pool->done_.wait(lock, [this] { return pool->pending_ == 0; });
+      pool->job_ = nullptr;
+    }
+  } wait{this};
   job(0);
-  std::unique_lock<std::mutex> lock(mutex_);
-  done_.wait(lock, [this] { return pending_ == 0; });
-  job_ = nullptr;
 }
 
 void ThreadPool::Loop(int worker) {

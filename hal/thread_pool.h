@@ -12,7 +12,8 @@ namespace camsim::hal {
 
 class ThreadPool {
  public:
-  explicit ThreadPool(int threads);  // threads >= 1; the caller's thread is worker 0
+  // The caller's thread is worker 0; threads below 1 give 1.
+  explicit ThreadPool(int threads);
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;
   ThreadPool& operator=(const ThreadPool&) = delete;
@@ -20,10 +21,12 @@ class ThreadPool {
   int size() const { return static_cast<int>(threads_.size()) + 1; }
 
   // Runs job(worker) once on every worker (0 .. size()-1) and waits for all.
+  // job must not throw on workers 1 and up (std::thread ends the program).
   void Run(const std::function<void(int worker)>& job);
 
  private:
   void Loop(int worker);
+  void Stop();  // ends and joins the workers
 
   std::vector<std::thread> threads_;
   std::mutex mutex_;

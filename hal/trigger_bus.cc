@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 
 #include "hal/gpio.h"
@@ -48,9 +49,13 @@ class BusInput : public InputLine {
     unlink(path_.c_str());
   }
   int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override {
+    // A signal or a datagram that is not a bus edge does not restart the timeout.
+    using Clock = std::chrono::steady_clock;
+    const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
     for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
       pollfd p{fd_, POLLIN, 0};
-      const int r = poll(&p, 1, timeout_ms);
+      const int r = poll(&p, 1, left > 0 ? static_cast<int>(left) : 0);
       if (r < 0 && errno == EINTR) continue;
       if (r < 0) {
         *error = "trigger bus '" + spec_ + "': " + Reason();
@@ -123,7 +128,11 @@ std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* er
     return nullptr;
   }
   struct stat st;
-  if (stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+  if (stat(dir.c_str(), &st) != 0) {
+    *error = "trigger bus '" + spec + "': cannot use '" + dir + "': " + Reason();
+    return nullptr;
+  }
+  if (!S_ISDIR(st.st_mode)) {
     *error = "trigger bus '" + spec + "': '" + dir + "' is not a directory";
     return nullptr;
   }
@@ -155,6 +164,28 @@ BusOutput::~BusOutput() {
 
 bool BusOutput::Set(bool high, std::string* error) {
   if (high == level_) return true;
+  // The level changes only once the edge could be sent: after a failure the
+  // same Set tries again instead of finding the line already at that level.
+  if (fd_ < 0) {
+    const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) {
+      *error = "trigger bus '" + spec_ + "': socket: " + Reason();
+      return false;
+    }
+    // An input queues max_dgram_qlen datagrams (10 by default): beyond that a send waits, up to this long.
+    const timeval timeout{0, kSendTimeoutMs * 1000};
+    if (setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout) != 0) {
+      *error = "trigger bus '" + spec_ + "': cannot set the send timeout: " + Reason();
+      close(fd);
+      return false;
+    }
+    fd_ = fd;
+  }
+  DIR* d = opendir(dir_.c_str());
+  if (!d) {
+    *error = "trigger bus '" + spec_ + "': cannot open directory '" + dir_ + "': " + Reason();
+    return false;
+  }
   level_ = high;
   TriggerBusMessage m;
   m.rising = high;
@@ -162,18 +193,6 @@ bool BusOutput::Set(bool high, std::string* error) {
   m.sequence = ++sequence_;
   uint8_t msg[16];
   m.Encode(msg);
-  if (fd_ < 0) {
-    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    // An input queues max_dgram_qlen datagrams (10 by default): beyond that a send waits, up to this long.
-    const timeval timeout{0, kSendTimeoutMs * 1000};
-    if (fd_ >= 0) setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
-  }
-  DIR* d = opendir(dir_.c_str());
-  if (fd_ < 0 || !d) {
-    *error = "trigger bus '" + spec_ + "': cannot open directory '" + dir_ + "': " + Reason();
-    if (d) closedir(d);
-    return false;
-  }
   receivers_ = 0;
   const size_t prefix = sizeof kInputPrefix - 1, suffix = sizeof kInputSuffix - 1;
   while (const dirent* e = readdir(d)) {
@@ -204,6 +223,8 @@ std::unique_ptr<BusOutput> OpenBusOutput(const std::string& spec, std::string* e
   return std::make_unique<BusOutput>(spec, dir);
 }
 
+namespace {
+
 // "udp:..." and the like: a scheme that is not ours (a gpiochip name has no scheme).
 bool UnknownScheme(const std::string& spec, std::string* error) {
   for (const char* s : {"udp:", "tcp:", "unix-stream:", "bus:"})
@@ -214,6 +235,8 @@ bool UnknownScheme(const std::string& spec, std::string* error) {
     }
   return false;
 }
+
+}  // namespace
 
 std::unique_ptr<InputLine> OpenInputLine(const std::string& spec, const std::string& consumer, std::string* error) {
   if (IsBusSpec(spec)) return OpenBusInput(spec, error);

@@ -6,6 +6,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -239,7 +241,8 @@ TEST(GigeGpio, LineSpecsAreChecked) {
   EXPECT_EQ(offset, 17u);
   EXPECT_TRUE(hal::ParseLineSpec("/dev/gpiochip2:0", &chip, &offset, &error));
   EXPECT_EQ(chip, "/dev/gpiochip2");
-  for (const char* bad : {"gpiochip0", "gpiochip0:", ":3", "gpiochip0:x", "gpiochip0:-1", "gpiochip0:70000"}) {
+  for (const char* bad : {"gpiochip0", "gpiochip0:", ":3", "gpiochip0:x", "gpiochip0:-1", "gpiochip0:70000",
+                          "gpiochip0: 17", "gpiochip0:+17", "gpiochip0:17 "}) {
     error.clear();
     EXPECT_FALSE(hal::ParseLineSpec(bad, &chip, &offset, &error)) << bad;
     EXPECT_NE(error.find(bad), std::string::npos) << error;
@@ -304,27 +307,98 @@ TEST(GigeGpio, DeviceRefusesToStartWithAMissingTriggerLineOnly) {
 
 TEST(GigeTriggerBus, BadSpecsGiveAClearErrorNamingThem) {
   std::string error;
+  // Each call's own message (error cleared before it).
+  const auto input = [&error](const std::string& spec) {
+    error.clear();
+    return hal::OpenInputLine(spec, "test", &error);
+  };
   // Not a bus spec, a scheme we do not have, a directory whose parent is missing.
-  EXPECT_EQ(hal::OpenInputLine("unix:", "test", &error), nullptr);
+  EXPECT_EQ(input("unix:"), nullptr);
   EXPECT_NE(error.find("'unix:'"), std::string::npos) << error;
   EXPECT_NE(error.find("unix:DIR"), std::string::npos) << error;
-  EXPECT_EQ(hal::OpenInputLine("udp:127.0.0.1:5000", "test", &error), nullptr);
+  EXPECT_EQ(input("udp:127.0.0.1:5000"), nullptr);
   EXPECT_NE(error.find("udp:127.0.0.1:5000"), std::string::npos) << error;
   EXPECT_NE(error.find("unix:DIR"), std::string::npos) << error;
-  EXPECT_EQ(hal::OpenInputLine("unix:/camsim-no-such-dir/bus", "test", &error), nullptr);
+  EXPECT_EQ(input("unix:/camsim-no-such-dir/bus"), nullptr);
   EXPECT_NE(error.find("unix:/camsim-no-such-dir/bus"), std::string::npos) << error;
   EXPECT_NE(error.find("No such file or directory"), std::string::npos) << error;
+  error.clear();
   EXPECT_EQ(hal::OpenOutputLine("unix:/camsim-no-such-dir/bus", "test", &error), nullptr);
   EXPECT_NE(error.find("unix:/camsim-no-such-dir/bus"), std::string::npos) << error;
   const std::string long_dir = testing::TempDir() + std::string(120, 'd');
-  EXPECT_EQ(hal::OpenInputLine("unix:" + long_dir, "test", &error), nullptr);
+  EXPECT_EQ(input("unix:" + long_dir), nullptr);
   EXPECT_NE(error.find("longer than"), std::string::npos) << error;
   rmdir(long_dir.c_str());
+  // A file where the bus directory should be.
+  const std::string file = testing::TempDir() + "camsim-bus-file-" + std::to_string(getpid());
+  std::fclose(std::fopen(file.c_str(), "w"));
+  EXPECT_EQ(input("unix:" + file), nullptr);
+  EXPECT_NE(error.find("is not a directory"), std::string::npos) << error;
+  std::remove(file.c_str());
   // The device refuses to start on a bad bus and says which.
   DeviceOptions o = SmallDevice();
   o.trigger_line = "unix:/camsim-no-such-dir/bus";
+  error.clear();
   EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
   EXPECT_NE(error.find("unix:/camsim-no-such-dir/bus"), std::string::npos) << error;
+}
+
+// An edge that could not be sent is not lost: the line keeps its level, so
+// the same Set sends it once the bus is back.
+TEST(GigeTriggerBus, AnEdgeThatFailedIsSentByTheNextSet) {
+  const std::string dir = testing::TempDir() + "camsim-retry-" + std::to_string(getpid());
+  std::string error;
+  auto out = [&] {
+    auto in = hal::OpenInputLine("unix:" + dir, "test", &error);  // creates the directory
+    return hal::OpenBusOutput("unix:" + dir, &error);
+  }();
+  ASSERT_NE(out, nullptr) << error;
+  ASSERT_EQ(rmdir(dir.c_str()), 0);
+  error.clear();
+  EXPECT_FALSE(out->Set(true, &error));
+  EXPECT_NE(error.find(dir), std::string::npos) << error;
+  auto in = hal::OpenInputLine("unix:" + dir, "test", &error);
+  ASSERT_NE(in, nullptr) << error;
+  ASSERT_TRUE(out->Set(true, &error)) << error;
+  EXPECT_EQ(out->last_receivers(), 1);
+  hal::Edge edge;
+  ASSERT_EQ(in->WaitEdge(1000, &edge, &error), 1);
+  EXPECT_EQ(edge, hal::Edge::kRising);
+  in.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
+}
+
+// Datagrams that are not bus edges do not restart an input's timeout.
+TEST(GigeTriggerBus, ForeignDatagramsDoNotHoldAWaitPastItsTimeout) {
+  const std::string dir = testing::TempDir() + "camsim-junk-" + std::to_string(getpid());
+  std::string error;
+  auto in = hal::OpenInputLine("unix:" + dir, "test", &error);
+  ASSERT_NE(in, nullptr) << error;
+  std::string socket_path;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) socket_path = e.path().string();
+  ASSERT_FALSE(socket_path.empty());
+  std::atomic<bool> stop{false};
+  std::thread sender([&] {  // one junk datagram every 5 ms for up to 3 s
+    const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::snprintf(a.sun_path, sizeof a.sun_path, "%s", socket_path.c_str());
+    for (int i = 0; i < 600 && !stop; ++i) {
+      sendto(fd, "junk", 4, MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&a), sizeof a);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    close(fd);
+  });
+  hal::Edge edge;
+  const auto t0 = std::chrono::steady_clock::now();
+  const int r = in->WaitEdge(100, &edge, &error);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  stop = true;
+  sender.join();
+  EXPECT_EQ(r, 0) << error;
+  EXPECT_LT(ms, 2000.0) << "the junk kept the wait going";
+  in.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
 }
 
 TEST(GigeTriggerBus, EveryInputGetsEachEdgeWithItsFrameIndex) {
