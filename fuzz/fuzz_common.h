@@ -318,6 +318,69 @@ inline uint32_t DomainMax(Domain d, int adc_bits) {
   return 0xFFFFFFFFu;
 }
 
+// Changes a reconfiguration may make besides Params(): what sizes or fills a
+// stage's tables (fuzz_reconfigure). Selector s >= Params().size() picks
+// (s - Params().size()) % kExtraChanges; one value byte follows.
+inline constexpr int kExtraChanges = 8;
+inline void DecodeChange(ByteReader& r, PipelineConfig* c) {
+  const size_t n = Params().size();
+  const size_t s = r.Byte();
+  if (s < n) {
+    double& v = Params()[s].ref(*c);
+    v = DecodeNumber(r, Params()[s], v);
+    return;
+  }
+  const uint8_t b = r.Byte();
+  switch ((s - n) % kExtraChanges) {
+    case 0: c->seed += 1u + b; break;
+    case 1: c->flare.glare_radius = 1 + b % 40; break;  // 33..40: refused
+    case 2: c->flare.blades = b % 18; break;            // 1, 2, 17: refused
+    case 3: c->distortion.phases = 16 << (b % 6); break;  // 512: refused
+    case 4: c->distortion.grid_step = 4 << (b % 6); break;  // 128: refused
+    case 5: c->sensor.fixed_pattern_table = b & 1; break;
+    case 6: c->sensor.column_fpn_e = b / 8.0; break;
+    case 7: c->distortion.filter = static_cast<ResampleFilter>(b % 3); break;
+  }
+}
+
+// A frame through every running stage of a configured, initialised
+// pipeline: each stage's output (tap), prefilled with `fill`.
+struct TappedRun {
+  std::vector<std::vector<uint32_t>> out;
+  std::vector<Tap> taps;
+  std::vector<LineFormat> formats;
+  TappedRun(const Pipeline& p, uint32_t fill) {
+    const Plan& plan = p.plan();
+    for (int e = 0; e < plan.count; ++e)
+      if (plan.entries[e].runs) formats.push_back(plan.entries[e].out);
+    FUZZ_CHECK(static_cast<int>(formats.size()) == plan.running, "plan entries");
+    out.resize(formats.size());
+    taps.resize(formats.size());
+    for (size_t i = 0; i < out.size(); ++i) {
+      out[i].assign(static_cast<size_t>(p.width()) * p.height() * formats[i].channels, fill);
+      taps[i].stage = static_cast<int>(i);
+      taps[i].format = TapFormat::kU32;
+      taps[i].data = out[i].data();
+      taps[i].stride = static_cast<ptrdiff_t>(p.width()) * formats[i].channels;
+    }
+  }
+};
+
+// The per-frame pre-passes (flare, smear) the configuration asks for, as the
+// host runs them, into storage the returned input points to.
+struct Prepassed {
+  std::vector<FlareSource> flare_sources;
+  FlareFrame flare;
+  std::vector<uint32_t> smear;
+  FrameInput input;
+  Prepassed(const Pipeline& p, const FrameInput& plain)
+      : flare_sources(static_cast<size_t>(p.PrepassFlareSources())),
+        smear(static_cast<size_t>(p.PrepassSmearEntries())) {
+    input = p.RunPrepasses(plain, Span<FlareSource>{flare_sources.data(), flare_sources.size()}, &flare,
+                           Span<uint32_t>{smear.data(), smear.size()});
+  }
+};
+
 // Configures (errors are fine: returns false), then runs the frame twice: the
 // whole frame in strips of `rows_a` on worker 0, and in strips of `rows_b`
 // alternating between workers 0 and 1, with every tap prefilled differently.
@@ -332,37 +395,21 @@ inline bool RunChecked(const PipelineConfig& config, const FrameInput& plain, bo
   std::vector<uint8_t> workspace(p.WorkspaceBytes(), 0xA5);
   const Status init = p.Init(Span<uint8_t>{workspace.data(), workspace.size()});
   FUZZ_CHECK(init.ok(), "Init failed after Configure succeeded: %s", init.message());
-  // The per-frame pre-passes (flare, smear) the configuration asks for, as the host runs them.
-  std::vector<FlareSource> flare_sources(static_cast<size_t>(p.PrepassFlareSources()));
-  FlareFrame flare;
-  std::vector<uint32_t> smear(static_cast<size_t>(p.PrepassSmearEntries()));
-  const FrameInput input = p.RunPrepasses(plain, Span<FlareSource>{flare_sources.data(), flare_sources.size()},
-                                          &flare, Span<uint32_t>{smear.data(), smear.size()});
+  const Prepassed prepassed(p, plain);
+  const FrameInput& input = prepassed.input;
   const Status in = p.CheckInput(input);
   FUZZ_CHECK(in.ok(), "CheckInput refused a well-formed frame: %s", in.message());
 
   const Plan& plan = p.plan();
   FUZZ_CHECK(plan.running >= 1 && plan.running <= kStageCount, "running %d", plan.running);
-  const int w = p.width(), h = p.height();
+  const int h = p.height();
   // Tap every running stage.
-  std::vector<std::vector<uint32_t>> out_a(static_cast<size_t>(plan.running)), out_b(out_a.size());
-  std::vector<Tap> taps_a(out_a.size()), taps_b(out_a.size());
-  std::vector<LineFormat> formats;
-  for (int e = 0; e < plan.count; ++e)
-    if (plan.entries[e].runs) formats.push_back(plan.entries[e].out);
-  FUZZ_CHECK(static_cast<int>(formats.size()) == plan.running, "plan entries");
-  for (size_t i = 0; i < out_a.size(); ++i) {
-    const size_t n = static_cast<size_t>(w) * h * formats[i].channels;
-    out_a[i].assign(n, 0xA5A5A5A5u);
-    out_b[i].assign(n, 0x5A5A5A5Au);
-    for (auto [taps, out] : {std::pair{&taps_a, &out_a}, std::pair{&taps_b, &out_b}}) {
-      Tap& t = (*taps)[i];
-      t.stage = static_cast<int>(i);
-      t.format = TapFormat::kU32;
-      t.data = (*out)[i].data();
-      t.stride = static_cast<ptrdiff_t>(w) * formats[i].channels;
-    }
-  }
+  TappedRun a(p, 0xA5A5A5A5u), b(p, 0x5A5A5A5Au);
+  std::vector<std::vector<uint32_t>>& out_a = a.out;
+  const std::vector<std::vector<uint32_t>>& out_b = b.out;
+  std::vector<Tap>& taps_a = a.taps;
+  std::vector<Tap>& taps_b = b.taps;
+  const std::vector<LineFormat>& formats = a.formats;
   WorkerStats stats{};
   p.ProcessFrame(input, 7, rows_a, taps_a.data(), static_cast<int>(taps_a.size()), &stats, nullptr);
   if (rows_b < 1) rows_b = 1;

@@ -42,7 +42,7 @@ struct MemFile {
 };
 
 // Not instrumented (coverage, ASan: plain in-bounds reads of a vector): a
-// display window of up to 16384 x 16384 from a few hundred bytes makes these
+// display window of up to 2^25 pixels from a few hundred bytes makes these
 // loops long, and they find nothing new anyway.
 __attribute__((no_sanitize("coverage", "address"))) void CheckPlane(const camsim::io::FloatPlane& p,
                                                                     const camsim::io::SceneFrame& f,
@@ -80,12 +80,13 @@ void CheckFrame(const camsim::io::SceneFrame& f) {
   FUZZ_CHECK(!f.layout.empty() && !f.source.empty(), "layout or source empty");
 }
 
-// The loader accepts display windows up to 16384 x 16384 whatever the file's
-// size, so a header of a few hundred bytes can make it allocate and fill
-// gigabytes (reported; the fix is a pixel limit in the loader). Such inputs
-// only exhaust -rss_limit_mb and the time limit without exercising anything
-// new, so they are skipped: when OpenEXRCore can read the headers and some
-// part's display window is larger than this, the input is not loaded.
+// The loader accepts display windows up to 2^25 pixels (8K UHD) whatever
+// the file's size, so a header of a few hundred bytes can make it allocate
+// and fill about 0.5 GB (an 8192 x 4096 window with depth and motion: 1.7 GB
+// through `camsim run`). Such inputs only exhaust -rss_limit_mb and the time
+// limit without exercising anything new, so they are skipped: when
+// OpenEXRCore can read the headers and some part's display window is larger
+// than this, the input is not loaded.
 constexpr int64_t kMaxFuzzPixels = int64_t{1} << 22;
 
 bool HugeDisplayWindow(const std::string& path) {

@@ -14,8 +14,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -232,6 +234,35 @@ void CoreSeeds(const fs::path& dir) {
   write("flare_smear_12x10.bin", c, false, ramp);
 }
 
+// fuzz_reconfigure: each core seed after changes that copy tables (the
+// sensor's stored fixed pattern and column offsets on in both) and a change
+// of the second configuration's exposure time (fuzz_reconfigure.cc's layout).
+void ReconfigureSeeds(const fs::path& core_dir, const fs::path& dir) {
+  const auto selector = [](const char* name) {
+    const auto& params = fuzz::Params();
+    for (size_t i = 0; i < params.size(); ++i)
+      if (std::strcmp(params[i].name, name) == 0) return static_cast<uint8_t>(i);
+    std::fprintf(stderr, "make_seeds: no parameter %s\n", name);
+    std::exit(1);
+  };
+  const auto extra = [](int change) { return static_cast<uint8_t>(fuzz::Params().size() + change); };
+  std::vector<uint8_t> prefix = {static_cast<uint8_t>(2 | (1 << 3)),  // 2 shared changes, 1 of the second
+                                 extra(5), 1,                          // fixed_pattern_table = true
+                                 extra(6), 16,                         // column_fpn_e = 2
+                                 selector("exposure_time_us"), 255};   // a raw double
+  const double exposure = 15000.0;
+  uint8_t raw[8];
+  std::memcpy(raw, &exposure, 8);
+  prefix.insert(prefix.end(), raw, raw + 8);
+  for (const auto& e : fs::directory_iterator(core_dir)) {
+    std::ifstream in(e.path(), std::ios::binary);
+    std::vector<uint8_t> blob = prefix;
+    blob.insert(blob.end(), std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    std::ofstream(dir / e.path().filename(), std::ios::binary)
+        .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -240,10 +271,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path out = argv[1];
-  for (const char* t : {"fuzz_exr_loader", "fuzz_config", "fuzz_core"}) fs::create_directories(out / t);
+  for (const char* t : {"fuzz_exr_loader", "fuzz_config", "fuzz_core", "fuzz_reconfigure"})
+    fs::create_directories(out / t);
   ExrSeeds(out / "fuzz_exr_loader");
   ConfigSeeds(out / "fuzz_config");
   CoreSeeds(out / "fuzz_core");
+  ReconfigureSeeds(out / "fuzz_core", out / "fuzz_reconfigure");
   std::printf("make_seeds: wrote seeds under %s\n", out.string().c_str());
   return 0;
 }

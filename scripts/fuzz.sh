@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-20}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_exr_loader fuzz_config fuzz_core fuzz_gige_registers)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_exr_loader fuzz_config fuzz_core fuzz_reconfigure fuzz_gige_registers)
 
 # camsim's own packages, then libFuzzer's runtime (clang's compiler-rt).
 bash scripts/install-deps.sh
