@@ -31,7 +31,13 @@ std::string Stem(const std::string& path) {
 }
 
 // The name a --dump-stages image of running stage r takes after the stem.
-std::string DumpSuffix(int r, StageId id) { return "." + std::to_string(r) + "_" + StageName(id); }
+std::string DumpSuffix(int r, StageId id) {
+  std::string s = ".";  // appended step by step: GCC 12's -Wrestrict misreads "." + std::string
+  s += std::to_string(r);
+  s += '_';
+  s += StageName(id);
+  return s;
+}
 
 // The raw sensor output's files: a PGM for one channel (mono or mosaic), a PPM
 // for three (RGB, when no CFA stage runs), the .raw samples and their sidecar.
@@ -97,9 +103,46 @@ bool ClaimOutputs(const std::vector<std::string>& paths, const std::string& who,
   return true;
 }
 
+constexpr char kReportVersion[] = "0.1.0";  // the report's camsim_version
+
+// The length of the well-formed UTF-8 sequence at s[i] (RFC 3629: no
+// overlong forms, surrogates or code points beyond U+10FFFF), 0 if none.
+size_t Utf8SequenceAt(const std::string& s, size_t i) {
+  const auto at = [&s](size_t k) { return k < s.size() ? static_cast<unsigned char>(s[k]) : 0u; };
+  const unsigned c = at(i);
+  const auto tail = [&](size_t k) { return at(k) >= 0x80 && at(k) <= 0xBF; };
+  if (c < 0x80) return 1;
+  if (c >= 0xC2 && c <= 0xDF) return tail(i + 1) ? 2 : 0;
+  if (c >= 0xE0 && c <= 0xEF) {
+    const unsigned lo = c == 0xE0 ? 0xA0 : 0x80, hi = c == 0xED ? 0x9F : 0xBF;
+    return at(i + 1) >= lo && at(i + 1) <= hi && tail(i + 2) ? 3 : 0;
+  }
+  if (c >= 0xF0 && c <= 0xF4) {
+    const unsigned lo = c == 0xF0 ? 0x90 : 0x80, hi = c == 0xF4 ? 0x8F : 0xBF;
+    return at(i + 1) >= lo && at(i + 1) <= hi && tail(i + 2) && tail(i + 3) ? 4 : 0;
+  }
+  return 0;
+}
+
+// A JSON string: quotes, backslashes and control characters escaped, and a
+// byte that is not part of well-formed UTF-8 (a file name or an EXR channel
+// name can hold any bytes) as U+FFFD, so that the report always parses.
 std::string JsonString(const std::string& s) {
   std::string out = "\"";
-  for (char ch : s) {
+  for (size_t i = 0; i < s.size();) {
+    const char ch = s[i];
+    const size_t n = Utf8SequenceAt(s, i);
+    if (n == 0) {
+      out += "\\ufffd";
+      ++i;
+      continue;
+    }
+    if (n > 1) {
+      out.append(s, i, n);
+      i += n;
+      continue;
+    }
+    ++i;
     if (ch == '"' || ch == '\\') out += '\\';
     if (static_cast<unsigned char>(ch) < 0x20) {
       char buf[8];
@@ -110,6 +153,12 @@ std::string JsonString(const std::string& s) {
     out += ch;
   }
   return out + "\"";
+}
+
+// The report of a run that failed before it had a pipeline: its error alone.
+std::string ErrorReportJson(const std::string& error) {
+  return std::string("{\n  \"camsim_version\": \"") + kReportVersion + "\",\n  \"frames\": [],\n  \"error\": " +
+         JsonString(error) + "\n}\n";
 }
 
 std::string Num(double v) {
@@ -258,7 +307,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
                        const Accumulated& acc, const std::string& error) {
   const Plan& plan = p.plan();
   std::ostringstream j;
-  j << "{\n  \"camsim_version\": \"0.1.0\",\n";
+  j << "{\n  \"camsim_version\": \"" << kReportVersion << "\",\n";
   j << "  \"sensor\": {\"width\": " << p.width() << ", \"height\": " << p.height() << ", \"cfa\": "
     << JsonString(CfaName(rc.core.geometry.cfa)) << ", \"adc_bits\": " << rc.core.geometry.adc_bits << "},\n";
   j << "  \"threads\": " << threads << ", \"strip_rows\": "
@@ -443,42 +492,43 @@ int RunCommand(const RunOptions& o) {
     std::fprintf(stderr, "camsim: --threads must be 1..64 and --strip-rows >= 1\n");
     return 1;
   }
-  std::vector<std::string> files;
-  if (!io::ExpandInputs(o.inputs, &files, &error)) {
-    std::fprintf(stderr, "camsim: %s\n", error.c_str());
-    return 1;
-  }
   // Every file the run reads (scenes, depth, the configuration and the files
   // it names) by resolved path, and the paths outputs claim: no output may
   // overwrite an input or another output of this run.
   std::map<std::string, std::string> inputs, claimed;
-  for (const std::string& in : files) inputs.emplace(Resolved(in, true), "'" + in + "'");
   if (!o.depth_path.empty()) inputs.emplace(Resolved(o.depth_path, true), "'" + o.depth_path + "' (--depth)");
   if (!o.config_path.empty()) inputs.emplace(Resolved(o.config_path, true), "'" + o.config_path + "' (--config)");
   for (const auto& [key, path] : ConfigInputFiles(rc))
     inputs.emplace(Resolved(path, true), "'" + path + "' (" + key + ")");
-  if (!o.report_path.empty() && !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &error)) {
-    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+  std::vector<std::string> files;
+  const bool expanded = io::ExpandInputs(o.inputs, &files, &error);
+  for (const std::string& in : expanded ? files : o.inputs) inputs.emplace(Resolved(in, true), "'" + in + "'");
+  std::string claim_error;
+  if (!o.report_path.empty() && !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &claim_error)) {
+    std::fprintf(stderr, "camsim: %s\n", claim_error.c_str());
     return 1;
   }
-  if (!o.depth_path.empty() && files.size() > 1) {
-    std::fprintf(stderr,
-                 "camsim: --depth %s: the inputs are %zu frames, and one depth file cannot describe a sequence "
-                 "(give each frame its depth channel in its own EXR)\n",
-                 o.depth_path.c_str(), files.size());
-    return 1;
-  }
-  if (o.out_dir.empty()) {
-    std::fprintf(stderr, "camsim: --out DIR is required\n");
-    return 1;
-  }
+  // From here on a failure is also written to the report (when one is asked
+  // for), so that an older report at that path cannot pass for this run's.
+  const auto fail = [&o](int code, const std::string& message) {
+    std::fprintf(stderr, "camsim: %s\n", message.c_str());
+    std::string werr;
+    if (!o.report_path.empty() && !io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
+      std::fprintf(stderr, "camsim: %s\n", werr.c_str());
+    return code;
+  };
+  if (!expanded) return fail(1, error);
+  if (!o.depth_path.empty() && files.size() > 1)
+    return fail(1, "--depth " + o.depth_path + ": the inputs are " + std::to_string(files.size()) +
+                       " frames, and one depth file cannot describe a sequence (give each frame its depth channel "
+                       "in its own EXR)");
+  if (o.out_dir.empty()) return fail(1, "--out DIR is required");
   const int made = mkdir(o.out_dir.c_str(), 0755);
   const int mkdir_errno = errno;
   struct stat st;
   if (stat(o.out_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
     const char* why = made == 0 || mkdir_errno == EEXIST ? "a file of that name is in the way" : std::strerror(mkdir_errno);
-    std::fprintf(stderr, "camsim: cannot create output directory '%s': %s\n", o.out_dir.c_str(), why);
-    return 2;
+    return fail(2, "cannot create output directory '" + o.out_dir + "': " + why);
   }
 
   FrameRenderer renderer(o.threads, o.strip_rows);
@@ -756,9 +806,13 @@ int RunCommand(const RunOptions& o) {
                    total / acc.frames.size(), o.threads, o.out_dir.c_str());
     }
   }
-  if (!o.report_path.empty() && renderer.pipeline().plan().count > 0) {
+  if (!o.report_path.empty()) {
+    // A run that failed before it had a pipeline still writes its error.
+    const std::string report = renderer.pipeline().plan().count > 0
+                                   ? ReportJson(o, rc, renderer.pipeline(), o.threads, acc, error)
+                                   : ErrorReportJson(error);
     std::string werr;
-    if (!io::WriteTextFile(o.report_path, ReportJson(o, rc, renderer.pipeline(), o.threads, acc, error), &werr)) {
+    if (!io::WriteTextFile(o.report_path, report, &werr)) {
       std::fprintf(stderr, "camsim: %s\n", werr.c_str());
       if (exit_code == 0) exit_code = 2;
     }

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <new>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -71,7 +73,14 @@ std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names) 
     const Imf::ChannelList& channels = file.header(p).channels();
     for (auto it = channels.begin(); it != channels.end(); ++it, ++n) {
       if (n == max_names) return list + ", ...";
-      list += (n ? ", " : "") + std::string(it.name());
+      // A name is any bytes: shown printable, so that no terminal control sequence reaches the user.
+      list += n ? ", " : "";
+      for (const char* c = it.name(); *c != '\0'; ++c) {
+        const unsigned char b = static_cast<unsigned char>(*c);
+        char hex[5];
+        std::snprintf(hex, sizeof hex, "\\x%02x", b);
+        list += b >= 0x20 && b < 0x7f ? std::string(1, *c) : std::string(hex);
+      }
     }
   }
   return n ? list : "(none)";
@@ -79,6 +88,8 @@ std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names) 
 
 std::string ExrExceptionMessage(const std::string& path, const std::exception& e) {
   if (dynamic_cast<const UnsupportedExr*>(&e) != nullptr) return "'" + path + "': " + e.what();
+  if (dynamic_cast<const std::bad_alloc*>(&e) != nullptr)
+    return "'" + path + "': out of memory while reading it (a corrupt header, or a frame too large for this machine)";
   return "'" + path + "' is not a readable OpenEXR file: " + e.what();
 }
 

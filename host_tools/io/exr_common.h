@@ -60,8 +60,9 @@ struct ChannelRead {
 void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<ChannelRead>& reads);
 
 // Formats the error for an exception thrown while reading `path`:
-// "'path': ..." for UnsupportedExr, else (OpenEXR's Iex exceptions, bad_alloc
-// from a corrupt header, ...) "'path' is not a readable OpenEXR file: ...".
+// "'path': ..." for UnsupportedExr, "'path': out of memory ..." for bad_alloc
+// (a corrupt header's sizes, or a real frame too large), else (OpenEXR's Iex
+// exceptions, ...) "'path' is not a readable OpenEXR file: ...".
 std::string ExrExceptionMessage(const std::string& path, const std::exception& e);
 
 // Runs `fn` (returns bool, may throw) and turns exceptions into false + *error.

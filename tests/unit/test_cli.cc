@@ -15,6 +15,7 @@
 
 #include "host_tools/io/image_write.h"
 #include "host_tools/render.h"
+#include "tests/support/exr_fixture.h"
 
 namespace {
 
@@ -576,6 +577,35 @@ TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   const Result missing = Camsim("run --input " + dir + "/nope.exr --out " + dir);
   EXPECT_EQ(missing.code, 1);
   EXPECT_NE(missing.err.find("nope.exr"), std::string::npos);
+}
+
+// A run that fails before its first frame still writes its report (the
+// error), so an older report at that path cannot pass for it; names with
+// any bytes stay valid JSON, and an EXR's channel names reach the terminal
+// printable.
+TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
+  const std::string dir = TempDir("failreport");
+  const std::string report = dir + "/report.json";
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + dir + "/out --report " + report).code,
+            0);
+  ASSERT_NE(Slurp(report).find("\"error\": null"), std::string::npos);
+  const std::string missing = dir + "/no\xff\xfe such.exr";  // not UTF-8
+  const Result r = Camsim("run --config " + kConfig + " --input '" + missing + "' --out " + dir + "/out --report " +
+                          report);
+  EXPECT_EQ(r.code, 1);
+  const std::string text = Slurp(report);
+  EXPECT_EQ(text.find("\"error\": null"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"error\": \"") , std::string::npos) << text;
+  EXPECT_NE(text.find("no\\ufffd\\ufffd such.exr"), std::string::npos) << text;
+  for (char c : text) EXPECT_LT(static_cast<unsigned char>(c), 0x80u) << "a raw byte in " << text;
+
+  const std::string odd = dir + "/odd_channels.exr";
+  camsim::test::WriteExrFixture(odd, camsim::test::Box(0, 0, 3, 3), camsim::test::Box(0, 0, 3, 3),
+                        {{"Q\x1b[31mred", Imf::FLOAT, std::vector<float>(16, 1.0f)}});
+  const Result o = Camsim("run --config " + kConfig + " --input " + odd + " --out " + dir + "/out2");
+  EXPECT_EQ(o.code, 1);
+  EXPECT_NE(o.err.find("Q\\x1b[31mred"), std::string::npos) << o.err;
+  EXPECT_EQ(o.err.find('\x1b'), std::string::npos) << "an escape sequence reached the terminal";
 }
 
 TEST(Cli, OptionErrorsNameTheOptionAndValue) {
