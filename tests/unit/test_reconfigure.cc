@@ -181,6 +181,19 @@ TEST(Reconfigure, OnlyStagesThatRanInAnInitialisedPipelineLendTheirTables) {
   EXPECT_EQ(test::RunFrame(*self, scene, 1, 16), test::RunFrame(*b, scene, 1, 16));
 }
 
+// A kW x kH scene of grey levels 0 .. 2.
+io::SceneFrame GreyScene() {
+  io::SceneFrame scene;
+  scene.width = kW;
+  scene.height = kH;
+  for (io::FloatPlane* p : {&scene.r, &scene.g, &scene.b}) {
+    p->width = kW;
+    p->height = kH;
+    for (int i = 0; i < kW * kH; ++i) p->data.push_back(static_cast<float>((i * 37) % 101) / 50.0f);
+  }
+  return scene;
+}
+
 // The host's renderer, as the emulated camera uses it on an ExposureTime
 // write: plan and install a new pipeline over the one in use. The scene stays,
 // the lens's tables are copied, and the frame is the one a renderer built for
@@ -203,14 +216,7 @@ TEST(Reconfigure, TheRendererKeepsItsSceneAndCopiesTheLensTables) {
   ASSERT_TRUE(host::ParseConfig("[distortion]\nmodel = \"brown\"\nk1 = -0.28\nk2 = 0.07\np1 = 0.0012\n", "lens",
                                 &rc, &origins, &error))
       << error;
-  io::SceneFrame scene;
-  scene.width = kW;
-  scene.height = kH;
-  for (io::FloatPlane* p : {&scene.r, &scene.g, &scene.b}) {
-    p->width = kW;
-    p->height = kH;
-    for (int i = 0; i < kW * kH; ++i) p->data.push_back(static_cast<float>((i * 37) % 101) / 50.0f);
-  }
+  const io::SceneFrame scene = GreyScene();
   host::FrameRenderer r(1, 0);
   ASSERT_TRUE(r.Configure(rc, origins, kW, kH, nullptr, &error)) << error;
   ASSERT_TRUE(r.SetScene(scene, &error)) << error;
@@ -245,14 +251,7 @@ TEST(Reconfigure, TheRendererDropsItsSceneWhenItsFitChanges) {
   ASSERT_TRUE(host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error)) << error;
   rc.width = kW / 2;
   rc.height = kH / 2;
-  io::SceneFrame scene;
-  scene.width = kW;
-  scene.height = kH;
-  for (io::FloatPlane* p : {&scene.r, &scene.g, &scene.b}) {
-    p->width = kW;
-    p->height = kH;
-    p->data.assign(static_cast<size_t>(kW) * kH, 0.5f);
-  }
+  const io::SceneFrame scene = GreyScene();
   host::FrameRenderer r(1, 0);
   ASSERT_TRUE(r.Configure(rc, origins, kW, kH, nullptr, &error)) << error;
   ASSERT_TRUE(r.SetScene(scene, &error)) << error;
