@@ -247,16 +247,22 @@ double InputBrightness(const CoreInput& in, const RunConfig& rc, const std::vect
   return total > 0 ? weighted / total : 0.0;
 }
 
+// t + f, held at the int64 limits: a frame's sums stay below 2^60, but a
+// long run of saturated frames adds up past 2^63.
+void AddHeld(int64_t* t, int64_t f) {
+  if (__builtin_add_overflow(*t, f, t)) *t = f < 0 ? INT64_MIN : INT64_MAX;
+}
+
 void AddStats(const WorkerStats& from, int stages, WorkerStats* to) {
   for (int i = 0; i < stages; ++i) {
     StageStats& t = to->stage[i];
     const StageStats& f = from.stage[i];
     for (int c = 0; c < 3; ++c) {
-      t.sum[c] += f.sum[c];
-      t.count[c] += f.count[c];
-      t.aux_sum[c] += f.aux_sum[c];
+      AddHeld(&t.sum[c], f.sum[c]);
+      AddHeld(&t.count[c], f.count[c]);
+      AddHeld(&t.aux_sum[c], f.aux_sum[c]);
     }
-    t.skipped_px += f.skipped_px;
+    AddHeld(&t.skipped_px, f.skipped_px);
     t.ticks += f.ticks;
   }
 }

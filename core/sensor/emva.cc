@@ -125,6 +125,8 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
       return InvalidArgument("sensor.defects_file", "listed defect outside the frame");
     if (i > 0 && (d.y < c.defects[i - 1].y || (d.y == c.defects[i - 1].y && d.x <= c.defects[i - 1].x)))
       return InvalidArgument("sensor.defects_file", "listed defects must be sorted by (y, x) without duplicates");
+    if (d.value != d.value)  // a negative value asks for the default; NaN is none
+      return InvalidArgument("sensor.defects_file", "a listed defect's value is NaN");
     if (d.kind == DefectKind::kHot && d.value >= 0 &&
         !InRange(DarkElectrons(c, exposure_time_us, d.value), 0.0, kMaxFullWell))
       return InvalidArgument("sensor.defects_file", "hot-pixel charge per exposure exceeds 1e6 electrons");

@@ -3,6 +3,8 @@
 // output is the same for any strip height and thread count, and bad lists and
 // files are refused with errors naming the file, line and column.
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <unistd.h>
 
 #include <fstream>
@@ -106,7 +108,11 @@ TEST(ListedDefects, CoreRefusesUnsortedOrOutsideLists) {
   const DefectPixel unsorted[] = {D(5, 3, DefectKind::kDead), D(4, 3, DefectKind::kDead)};
   const DefectPixel outside[] = {D(kW, 0, DefectKind::kDead)};
   const DefectPixel bad_stuck[] = {D(1, 1, DefectKind::kStuck, 5000)};
-  for (const auto& [list, n] : {std::pair{unsorted, 2}, std::pair{outside, 1}, std::pair{bad_stuck, 1}}) {
+  // NaN is not "the default" (a negative value): refused, for either kind that has a value.
+  const DefectPixel nan_stuck[] = {D(1, 1, DefectKind::kStuck, std::nan(""))};
+  const DefectPixel nan_hot[] = {D(1, 1, DefectKind::kHot, std::nan(""))};
+  for (const auto& [list, n] : {std::pair{unsorted, 2}, std::pair{outside, 1}, std::pair{bad_stuck, 1},
+                                std::pair{nan_stuck, 1}, std::pair{nan_hot, 1}}) {
     PipelineConfig c = Quiet();
     c.sensor.defects = list;
     c.sensor.defect_count = n;
