@@ -497,6 +497,50 @@ void BM_ColorMatrix(benchmark::State& state) {
 }
 BENCHMARK(BM_ColorMatrix)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The flare stage alone (its pre-pass included) on a frame bright in every
+// pixel: the worst case for its per-row search of sources. Arg 2 = 1: every
+// source visited on every row (FlareStage::ForceEverySourceForTest, the loop
+// before sources were found by tile row), 0: found by tile row.
+void BM_FlareBright(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  PipelineConfig c;
+  c.geometry = {w, h, Cfa::kBayerRG, 12};
+  c.order[0] = StageId::kFlare;
+  c.order_count = 1;
+  c.flare.enabled = true;
+  c.flare.threshold = 1.0;
+  Pipeline p;
+  if (!p.Configure(c, 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  const_cast<FlareStage&>(p.flare_stage()).ForceEverySourceForTest(state.range(2) != 0);
+  // Radiance 2 everywhere (above the threshold): every tile is a source.
+  std::vector<uint32_t> plane(static_cast<size_t>(w) * h, 2u << 16);
+  FrameInput in;
+  for (int ch = 0; ch < 3; ++ch) in.radiance[ch] = MakeImageView<const uint32_t>(plane.data(), w, h);
+  std::vector<uint32_t> out(static_cast<size_t>(w) * h * 3);
+  Tap tap;
+  tap.format = TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = static_cast<ptrdiff_t>(w) * 3;
+  std::vector<FlareSource> sources(static_cast<size_t>(FlareMaxSources(c.geometry)));
+  FlareFrame flare;
+  for (auto _ : state) {
+    ComputeFlare(c.flare, c.geometry, in, Span<FlareSource>{sources.data(), sources.size()}, &flare);
+    in.flare = &flare;
+    p.ProcessFrame(in, 0, 64, &tap, 1, nullptr, nullptr);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["sources"] = flare.count;
+}
+BENCHMARK(BM_FlareBright)
+    ->Args({1920, 1080, 0})
+    ->Args({1920, 1080, 1})
+    ->Args({4096, 2160, 0})
+    ->Args({4096, 2160, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 // The demo camera with the issue-5 artefacts on: flare (its bright-tile
 // pre-pass included), blooming, CCD smear (its column pre-pass included), row
 // and column FPN and defect pixels. The difference to BM_Pipeline is their cost.

@@ -207,9 +207,88 @@ void FlareStage::ProcessRow(const RowArgs& a) const {
     const uint32_t haze = SatU32(uint64_t{frame != nullptr ? frame->haze[c] : 0u} + env_haze_[c]);
     for (int x = 0; x < W; ++x) out[x] = SatU32(uint64_t{in[x]} - GlareShare(in[x], threshold_, glare_q16_) + haze);
   }
-  if (frame != nullptr)
+  if (frame != nullptr && every_source_)
     for (int s = 0; s < frame->count; ++s) AddSource(frame->sources[s], a);
+  else if (frame != nullptr)
+    AddFrameSources(*frame, a);
   for (int s = 0; s < env_count_; ++s) AddSource(env_sources_[s], a);
+}
+
+namespace {
+
+// floor(n / d) for d != 0.
+int64_t FloorDiv(int64_t n, int64_t d) {
+  const int64_t q = n / d;
+  return n % d != 0 && (n < 0) != (d < 0) ? q - 1 : q;
+}
+
+}  // namespace
+
+// Ghost g of a source at row v is centred on row gy = floor((K + 2 s v) /
+// 2^17) (FlareGhostCentre, K = c2 2^16 - s c2 + 2^16, c2 = height - 1, s the
+// scale in Q16.16) and reaches row y when y - r <= gy <= y + r, that is when
+// (y - r) 2^17 <= K + 2 s v < (y + r + 1) 2^17: an interval of v, whose ends
+// are taken here one row wider than their quotients' floors.
+bool FlareStage::GhostTileRows(int g, int y, int* first, int* last) const {
+  const int64_t s = ghost_scale_q16_[g], c2 = geometry_.height - 1, r = ghost_radius_[g];
+  const int64_t k = c2 * 65536 - s * c2 + 65536;
+  const int64_t lo = (y - r) * int64_t{131072} - k, hi = (y + r + 1) * int64_t{131072} - k;
+  if (s == 0) {  // every ghost at the centre
+    if (lo > 0 || hi <= 0) return false;
+    *first = 0;
+    *last = (geometry_.height - 1) / kFlareTile;
+    return true;
+  }
+  const int64_t a = FloorDiv(lo, 2 * s), b = FloorDiv(hi, 2 * s);
+  const int64_t v0 = (a < b ? a : b) - 1, v1 = (a < b ? b : a) + 1;
+  *first = static_cast<int>(FloorDiv(v0, kFlareTile));
+  *last = static_cast<int>(FloorDiv(v1, kFlareTile));
+  return true;
+}
+
+// The frame's sources lie in their tiles (0 <= y, y / kFlareTile = the tile
+// row), listed tile row by tile row. The glare reaches row y from sources
+// within glare_radius rows, each ghost from an interval of rows
+// (GhostTileRows): up to 1 + kMaxGhosts intervals of tile rows, merged, and
+// their sources found by binary search. Each source that can reach the row is
+// visited once, in list order, as by a loop over all of them: the same bytes.
+void FlareStage::AddFrameSources(const FlareFrame& frame, const RowArgs& a) const {
+  const int y = a.y, last_row = (geometry_.height - 1) / kFlareTile, R = config_.glare_radius;
+  int first[1 + kMaxGhosts], last[1 + kMaxGhosts], n = 0;
+  first[n] = static_cast<int>(FloorDiv(y - R, kFlareTile));
+  last[n++] = static_cast<int>(FloorDiv(y + R, kFlareTile));
+  for (int g = 0; g < config_.ghost_count; ++g)
+    if (GhostTileRows(g, y, &first[n], &last[n])) ++n;
+  // Clip to the frame's tile rows; sort by first row (insertion: at most 5).
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const int f = first[i] < 0 ? 0 : first[i], l = last[i] > last_row ? last_row : last[i];
+    if (f > l) continue;
+    int j = m++;
+    for (; j > 0 && first[j - 1] > f; --j) {
+      first[j] = first[j - 1];
+      last[j] = last[j - 1];
+    }
+    first[j] = f;
+    last[j] = l;
+  }
+  const FlareSource* src = frame.sources;
+  int next = 0;  // sources before it are done
+  for (int i = 0; i < m; ++i) {
+    if (i + 1 < m && first[i + 1] <= last[i] + 1) {  // overlapping or adjacent: merge into the next
+      first[i + 1] = first[i];
+      if (last[i + 1] < last[i]) last[i + 1] = last[i];
+      continue;
+    }
+    // The first source of tile row first[i] (binary search from `next`).
+    int lo = next, hi = frame.count;
+    while (lo < hi) {
+      const int mid = lo + (hi - lo) / 2;
+      if (src[mid].y / kFlareTile < first[i]) lo = mid + 1;
+      else hi = mid;
+    }
+    for (next = lo; next < frame.count && src[next].y / kFlareTile <= last[i]; ++next) AddSource(src[next], a);
+  }
 }
 
 // Glare and ghosts of one source on row a.y. Sources may lie outside the

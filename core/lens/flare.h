@@ -84,7 +84,7 @@ struct FlareSource {
 
 // A frame's flare statistics (ComputeFlare), read by the stage.
 struct FlareFrame {
-  const FlareSource* sources = nullptr;
+  const FlareSource* sources = nullptr;  // in ComputeFlare's order: tile rows top to bottom
   int count = 0;
   uint32_t haze[3] = {};  // veiling glare added to every pixel, Q16.16
 };
@@ -107,6 +107,10 @@ class FlareStage final : public Stage {
   // The environment map's sources (after Init) and what the map gave.
   Span<const FlareSource> environment_sources() const { return {env_sources_, static_cast<size_t>(env_count_)}; }
   const FlareEnvironmentSummary& environment_summary() const { return env_summary_; }
+  // ProcessRow visits only the frame's sources whose glare or ghosts can
+  // reach the row (found by tile row); tests can make it visit every source
+  // to compare the two (the same bytes).
+  void ForceEverySourceForTest(bool force) { every_source_ = force; }
 
  private:
   FlareConfig config_;
@@ -126,7 +130,12 @@ class FlareStage final : public Stage {
   int env_count_ = 0;
   uint32_t env_haze_[3] = {};                   // Q16.16 added to every pixel
   FlareEnvironmentSummary env_summary_;
+  bool every_source_ = false;  // tests only
   void AddSource(const FlareSource& src, const RowArgs& a) const;
+  // AddSource for the frame's sources that can reach row a.y, in their order.
+  void AddFrameSources(const FlareFrame& frame, const RowArgs& a) const;
+  // The tile rows whose sources' ghost g can reach row y (a superset); false if none.
+  bool GhostTileRows(int g, int y, int* first, int* last) const;
 };
 
 // Entries ComputeFlare may fill (one per tile).

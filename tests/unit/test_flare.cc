@@ -141,6 +141,50 @@ TEST(Flare, MatchesTheDoubleReference) {
   RecordProperty("max_abs_error", std::to_string(max_err));
 }
 
+// ProcessRow visits only the sources whose glare or ghosts can reach the
+// row (by tile row); visiting every source gives the same bytes. Scenes
+// bright in many tiles, ghosts at every kind of scale (mirrored, zero,
+// beyond the frame, barely moving), radii at their limits, odd sizes.
+TEST(Flare, SourcesFoundByTileRowGiveTheBytesOfVisitingEverySource) {
+  struct Case {
+    int w, h, glare_radius, ghosts;
+    double scale[kMaxGhosts], radius[kMaxGhosts];
+  };
+  const Case cases[] = {
+      {64, 48, 16, 2, {-1.0, -0.5}, {24.0, 10.0}},
+      {67, 53, 1, 4, {0.0, 4.0, -4.0, 0.01}, {1.0, 64.0, 64.0, 3.0}},
+      {33, 131, 32, 3, {-1.5, 0.5, 2.0}, {40.0, 6.0, 1.0}},
+      {131, 17, 7, 4, {1.0, -0.01, -3.0, 0.3}, {5.0, 64.0, 20.0, 2.0}},
+  };
+  for (const Case& k : cases) {
+    FlareConfig f;
+    f.enabled = true;
+    f.threshold = 2.0;
+    f.glare_radius = k.glare_radius;
+    f.ghost_count = k.ghosts;
+    for (int g = 0; g < k.ghosts; ++g) {
+      f.ghost_scale[g] = k.scale[g];
+      f.ghost_radius_px[g] = k.radius[g];
+      f.ghost_intensity[g] = 0.05;
+    }
+    auto b = test::Build(FlareOnly(k.w, k.h, f));
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    test::Scene s = test::FlatScene(k.w, k.h, 0.5, 0.5, 0.5);
+    for (int y = 0; y < k.h; ++y)  // a bright pixel in most tiles, some saturating
+      for (int x = 0; x < k.w; ++x)
+        if ((x * 7 + y * 13) % 23 == 0)
+          for (int c = 0; c < 3; ++c)
+            s.plane[c][static_cast<size_t>(y) * k.w + x] = (x + y) % 5 == 0 ? 0xFFFFFFFFu : (50u + x + c) << 16;
+    auto& stage = const_cast<FlareStage&>(b->pipeline.flare_stage());
+    int sources = 0;
+    stage.ForceEverySourceForTest(true);
+    const std::vector<uint32_t> every = RunFlare(*b, s, 7, &sources);
+    stage.ForceEverySourceForTest(false);
+    EXPECT_GT(sources, k.w * k.h / 256 / 2) << k.w << "x" << k.h;
+    EXPECT_EQ(RunFlare(*b, s, 7), every) << k.w << "x" << k.h;
+  }
+}
+
 TEST(Flare, NoBrightPixelPassesTheFrameUnchanged) {
   FlareConfig f;
   f.enabled = true;
