@@ -155,6 +155,12 @@ std::string JsonString(const std::string& s) {
   return out + "\"";
 }
 
+// What the EXR reader replaced (exr_scene.h's rules), as a JSON object.
+std::string SanitisedJson(const io::InputSanitizeStats& st) {
+  return "{\"nan\": " + std::to_string(st.nan) + ", \"pos_inf\": " + std::to_string(st.pos_inf) +
+         ", \"neg_inf\": " + std::to_string(st.neg_inf) + ", \"negative\": " + std::to_string(st.negative) + "}";
+}
+
 // The report of a run that failed before it had a pipeline: its error alone.
 std::string ErrorReportJson(const std::string& error) {
   return std::string("{\n  \"camsim_version\": \"") + kReportVersion + "\",\n  \"frames\": [],\n  \"error\": " +
@@ -184,7 +190,7 @@ struct FrameRecord {
   std::string input;
   std::vector<std::string> outputs;
   double wall_ms = 0;
-  io::InputSanitizeStats radiance_stats;
+  io::InputSanitizeStats radiance_stats, depth_stats;
   std::string layout;
   bool has_depth = false, has_motion = false;    // loaded
   bool depth_used = false, motion_used = false;  // read by a running stage
@@ -325,8 +331,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     const io::InputSanitizeStats& st = rc.environment_data->stats;
     j << "  \"flare_environment\": {\"map\": " << JsonString(rc.environment_map) << ", \"width\": "
       << rc.environment_data->width << ", \"height\": " << rc.environment_data->height
-      << ", \"sanitised\": {\"nan\": " << st.nan << ", \"pos_inf\": " << st.pos_inf << ", \"neg_inf\": "
-      << st.neg_inf << ", \"negative\": " << st.negative << "}, \"bright_texels\": " << e.bright_texels
+      << ", \"sanitised\": " << SanitisedJson(st) << ", \"bright_texels\": " << e.bright_texels
       << ", \"sources\": " << e.sources << ", \"in_frame_skipped\": " << e.in_frame
       << ", \"haze_only_texels\": " << e.haze_only << "},\n";
   }
@@ -378,10 +383,11 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
   for (size_t i = 0; i < acc.frames.size(); ++i) {
     const FrameRecord& f = acc.frames[i];
     j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
-      << ", \"sanitised\": {\"nan\": " << f.radiance_stats.nan << ", \"pos_inf\": " << f.radiance_stats.pos_inf
-      << ", \"neg_inf\": " << f.radiance_stats.neg_inf << ", \"negative\": " << f.radiance_stats.negative
-      << "}, \"layout\": " << JsonString(f.layout) << ", \"depth\": " << (f.has_depth ? (f.depth_used ? "\"present, used\"" : "\"present, unused\"") : "null")
-      << ", \"motion\": " << (f.has_motion ? (f.motion_used ? "\"present, used\"" : "\"present, unused\"") : "null") << ", \"outputs\": [";
+      << ", \"sanitised\": " << SanitisedJson(f.radiance_stats) << ", \"layout\": " << JsonString(f.layout)
+      << ", \"depth\": " << (f.has_depth ? (f.depth_used ? "\"present, used\"" : "\"present, unused\"") : "null");
+    if (f.has_depth) j << ", \"depth_sanitised\": " << SanitisedJson(f.depth_stats);
+    j << ", \"motion\": " << (f.has_motion ? (f.motion_used ? "\"present, used\"" : "\"present, unused\"") : "null")
+      << ", \"outputs\": [";
     for (size_t k = 0; k < f.outputs.size(); ++k) j << (k ? ", " : "") << JsonString(f.outputs[k]);
     j << "]";
     if (f.has_ae)
@@ -671,6 +677,7 @@ int RunCommand(const RunOptions& o) {
     rec.wall_ms = (hal::NowNs() - t0) / 1e6;
     rec.input = scene.source;
     rec.radiance_stats = scene.radiance_stats;
+    rec.depth_stats = scene.depth_stats;
     rec.layout = scene.layout;
     rec.has_depth = scene.has_depth;
     rec.has_motion = scene.has_motion;

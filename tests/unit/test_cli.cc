@@ -608,6 +608,29 @@ TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
   EXPECT_EQ(o.err.find('\x1b'), std::string::npos) << "an escape sequence reached the terminal";
 }
 
+// The report counts what the EXR reader replaced in the depth channel too
+// (NaN, infinities, negative depths), per frame.
+TEST(Cli, ReportCountsTheDepthsTheReaderReplaced) {
+  const std::string dir = TempDir("depthstats");
+  const std::string exr = dir + "/rgbz.exr";
+  std::vector<float> z(16, 2.0f);
+  z[1] = std::nanf("");
+  z[2] = -1.0f;
+  z[3] = -3.0f;
+  z[4] = INFINITY;
+  const std::vector<float> grey(16, 0.5f);
+  camsim::test::WriteExrFixture(exr, camsim::test::Box(0, 0, 3, 3), camsim::test::Box(0, 0, 3, 3),
+                                {{"R", Imf::FLOAT, grey}, {"G", Imf::FLOAT, grey}, {"B", Imf::FLOAT, grey},
+                                 {"Z", Imf::FLOAT, z}});
+  const Result r = Camsim("run --config " + kConfig + " --input " + exr + " --out " + dir + "/out --report " + dir +
+                          "/report.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string report = Slurp(dir + "/report.json");
+  EXPECT_NE(report.find("\"depth_sanitised\": {\"nan\": 1, \"pos_inf\": 1, \"neg_inf\": 0, \"negative\": 2}"),
+            std::string::npos)
+      << report;
+}
+
 TEST(Cli, OptionErrorsNameTheOptionAndValue) {
   struct Case {
     const char* args;
