@@ -249,8 +249,8 @@ bool FlareStage::GhostTileRows(int g, int y, int* first, int* last) const {
 // The frame's sources lie in their tiles (0 <= y, y / kFlareTile = the tile
 // row), listed tile row by tile row. The glare reaches row y from sources
 // within glare_radius rows, each ghost from an interval of rows
-// (GhostTileRows): up to 1 + kMaxGhosts intervals of tile rows, merged, and
-// their sources found by binary search. Each source that can reach the row is
+// (GhostTileRows): up to 1 + kMaxGhosts intervals of tile rows, whose
+// sources are found by binary search. Each source that can reach the row is
 // visited once, in list order, as by a loop over all of them: the same bytes.
 void FlareStage::AddFrameSources(const FlareFrame& frame, const RowArgs& a) const {
   const int y = a.y, last_row = (geometry_.height - 1) / kFlareTile, R = config_.glare_radius;
@@ -272,15 +272,12 @@ void FlareStage::AddFrameSources(const FlareFrame& frame, const RowArgs& a) cons
     first[j] = f;
     last[j] = l;
   }
+  // Intervals in order of their first rows, each searched from the source
+  // after the last one visited: overlapping intervals visit no source twice.
   const FlareSource* src = frame.sources;
   int next = 0;  // sources before it are done
   for (int i = 0; i < m; ++i) {
-    if (i + 1 < m && first[i + 1] <= last[i] + 1) {  // overlapping or adjacent: merge into the next
-      first[i + 1] = first[i];
-      if (last[i + 1] < last[i]) last[i + 1] = last[i];
-      continue;
-    }
-    // The first source of tile row first[i] (binary search from `next`).
+    // The first source not done of tile row first[i] or later (binary search).
     int lo = next, hi = frame.count;
     while (lo < hi) {
       const int mid = lo + (hi - lo) / 2;
