@@ -365,6 +365,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
 
   if (o.serve) {
     if (!CheckGvcpAddress(o.address, error)) return false;
+    if (!FakeCameraBoundsInForce()) {
+      *error = "the range checks on Aravis's fake camera memory are not linked in (genicam/fake_camera_bounds.cc), "
+               "so one GVCP packet outside the memory map would crash the camera: link camsim_genicam statically "
+               "into the executable";
+      return false;
+    }
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
     if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
       *error = "cannot serve on " + o.address +

@@ -113,6 +113,11 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* config, host::Ori
 void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
                    int y, int w, int h, uint8_t* out);
 
+// True when genicam/fake_camera_bounds.cc's range checks stand in for
+// Aravis's fake camera memory functions (one GVCP packet outside the memory
+// map would otherwise crash the camera). Start refuses to serve without them.
+bool FakeCameraBoundsInForce();
+
 class GigeDevice {
  public:
   static std::unique_ptr<GigeDevice> Start(const DeviceOptions& options, std::string* error);

@@ -1143,20 +1143,35 @@ class RawController {
   }
   // WRITEREG_CMD (0x0082) of one register; true when acknowledged.
   bool Write(uint32_t address, uint32_t value) {
-    uint8_t cmd[16] = {0x42, 0x01, 0x00, 0x82, 0x00, 0x08, uint8_t(++id_ >> 8), uint8_t(id_)};
-    for (int i = 0; i < 4; ++i) {
-      cmd[8 + i] = static_cast<uint8_t>(address >> (24 - 8 * i));
-      cmd[12 + i] = static_cast<uint8_t>(value >> (24 - 8 * i));
-    }
-    sockaddr_in to{};
-    to.sin_family = AF_INET;
-    to.sin_port = htons(3956);
-    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (sendto(fd_, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to) != sizeof cmd) return false;
-    pollfd p{fd_, POLLIN, 0};
-    uint8_t ack[64];
-    // The fake camera answers between frames: one packet per frame when they come back to back.
-    return poll(&p, 1, 10000) > 0 && recv(fd_, ack, sizeof ack, 0) >= 12 && ack[3] == 0x83;
+    std::vector<uint8_t> body;
+    Put32(&body, address);
+    Put32(&body, value);
+    return Command(0x82, body, nullptr);
+  }
+  // READREG_CMD (0x0080) of one register; true when acknowledged.
+  bool Read(uint32_t address, uint32_t* value) {
+    std::vector<uint8_t> body, ack;
+    Put32(&body, address);
+    if (!Command(0x80, body, &ack) || ack.size() < 12) return false;
+    *value = Get32(ack, 8);
+    return true;
+  }
+  // READMEM_CMD (0x0084) of `size` bytes; true when acknowledged.
+  bool ReadMemory(uint32_t address, uint16_t size, std::vector<uint8_t>* data) {
+    std::vector<uint8_t> body, ack;
+    Put32(&body, address);
+    Put32(&body, size);
+    if (!Command(0x84, body, &ack) || ack.size() < 12u + size) return false;
+    data->assign(ack.begin() + 12, ack.begin() + 12 + size);
+    return true;
+  }
+  // WRITEMEM_CMD (0x0086) of `data` at address, its header's length field
+  // set to `length` (4 + data.size() in a well-formed packet).
+  bool WriteMemory(uint32_t address, const std::vector<uint8_t>& data, uint16_t length) {
+    std::vector<uint8_t> body;
+    Put32(&body, address);
+    body.insert(body.end(), data.begin(), data.end());
+    return Command(0x86, body, nullptr, length);
   }
   // True when a frame's GVSP trailer (packet format 2: the frame was sent
   // whole; a leader alone may be the device's primer) reaches the stream sink
@@ -1174,6 +1189,39 @@ class RawController {
   uint16_t sink_port() const { return sink_port_; }
 
  private:
+  static void Put32(std::vector<uint8_t>* b, uint32_t v) {
+    for (int i = 0; i < 4; ++i) b->push_back(static_cast<uint8_t>(v >> (24 - 8 * i)));
+  }
+  static uint32_t Get32(const std::vector<uint8_t>& b, size_t at) {
+    return uint32_t{b[at]} << 24 | uint32_t{b[at + 1]} << 16 | uint32_t{b[at + 2]} << 8 | b[at + 3];
+  }
+  // Sends a GVCP command (header: key 0x42, flag "acknowledge", command,
+  // length of body, request id) and waits for its acknowledgement (command
+  // + 1, same request id). length < 0: the body's length.
+  bool Command(uint16_t command, const std::vector<uint8_t>& body, std::vector<uint8_t>* ack, int length = -1) {
+    const uint16_t id = ++id_;
+    const uint16_t n = static_cast<uint16_t>(length < 0 ? body.size() : length);
+    std::vector<uint8_t> cmd = {0x42, 0x01, uint8_t(command >> 8), uint8_t(command), uint8_t(n >> 8), uint8_t(n),
+                                uint8_t(id >> 8), uint8_t(id)};
+    cmd.insert(cmd.end(), body.begin(), body.end());
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(3956);
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (sendto(fd_, cmd.data(), cmd.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof to) !=
+        static_cast<ssize_t>(cmd.size()))
+      return false;
+    // The fake camera answers between frames: one packet per frame when they come back to back.
+    std::vector<uint8_t> reply(2048);
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, 10000) <= 0) return false;
+    const ssize_t got = recv(fd_, reply.data(), reply.size(), 0);
+    if (got < 8 || (uint16_t(reply[2] << 8 | reply[3])) != command + 1 || (uint16_t(reply[6] << 8 | reply[7])) != id)
+      return false;
+    reply.resize(static_cast<size_t>(got));
+    if (ack != nullptr) *ack = reply;
+    return true;
+  }
   int fd_ = -1, sink_ = -1;
   uint16_t sink_port_ = 0, id_ = 0;
 };
@@ -1246,6 +1294,62 @@ TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
   ASSERT_TRUE(next.Write(reg::kAcquisition, 1));
   EXPECT_TRUE(next.FrameArrives(20000)) << "the stream still goes to the dead client";
   ASSERT_TRUE(next.Write(reg::kAcquisition, 0));
+}
+
+// Aravis 0.8.26's fake camera sums addresses in 32 bits and does not check a
+// read past its GenICam XML: each access below made it copy gigabytes and
+// crash the camera. genicam/fake_camera_bounds.cc checks the range.
+TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  ASSERT_TRUE(genicam::FakeCameraBoundsInForce());
+  std::ifstream file(device_->xml_path(), std::ios::binary);
+  const std::string xml((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  ASSERT_FALSE(xml.empty());
+  const uint32_t xml_start = ARV_FAKE_CAMERA_MEMORY_SIZE, end = xml_start + static_cast<uint32_t>(xml.size());
+
+  RawController raw;
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
+  uint32_t value = 1;
+  EXPECT_TRUE(raw.Read(0x20000 + static_cast<uint32_t>(xml.size()), &value));  // past the XML
+  EXPECT_EQ(value, 0u);
+  value = 1;
+  EXPECT_TRUE(raw.Read(0xFFFFFFFCu, &value));  // address + 4 wraps to 0
+  EXPECT_EQ(value, 0u);
+  std::vector<uint8_t> block;
+  EXPECT_TRUE(raw.ReadMemory(0xFFFFFFF0u, 32, &block));
+  EXPECT_EQ(block, std::vector<uint8_t>(32, 0));
+  // A block that runs past the XML's end: its last bytes, then zeros.
+  const uint32_t last = (end - 2) & ~3u;
+  ASSERT_TRUE(raw.ReadMemory(last, 8, &block));
+  std::vector<uint8_t> expected(xml.begin() + (last - xml_start), xml.end());
+  expected.resize(8, 0);
+  EXPECT_EQ(block, expected);
+  // The first bytes of the XML, read as a register.
+  ASSERT_TRUE(raw.Read(xml_start, &value));
+  EXPECT_EQ(value, uint32_t{uint8_t(xml[0])} << 24 | uint32_t{uint8_t(xml[1])} << 16 |
+                       uint32_t{uint8_t(xml[2])} << 8 | uint8_t(xml[3]));
+
+  uint32_t width = 0;
+  ASSERT_TRUE(raw.Read(reg::kWidth, &width));
+  EXPECT_TRUE(raw.Write(0xFFFFFFFCu, 1));  // address + 4 wraps to 0
+  EXPECT_TRUE(raw.WriteMemory(0xFFFFFFF8u, std::vector<uint8_t>(16, 0xff), 20));
+  // A length field below 4 leaves a data length of about 4 GiB.
+  EXPECT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 2}, 2));
+  EXPECT_TRUE(raw.WriteMemory(xml_start, {'x', 'x', 'x', 'x'}, 8));  // the XML is read-only
+  ASSERT_TRUE(raw.Read(xml_start, &value));
+  EXPECT_NE(value, 0x78787878u);
+  value = 0;
+  ASSERT_TRUE(raw.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, width);
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
+
+  Client client;
+  ASSERT_TRUE(client.ok()) << client.last_error;
+  GError* error = nullptr;
+  EXPECT_EQ(arv_camera_get_integer(client.camera(), "Width", &error), static_cast<gint64>(width));
+  EXPECT_EQ(error, nullptr);
+  g_clear_error(&error);
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
