@@ -275,9 +275,9 @@ void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
 bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
   switch (f.kind) {
     case Kind::kInteger: {
-      // SCPS0: the size is the low 16 bits; the client may set flag bits
+      // A masked register (SCPS0): the other bits are the client's flags
       // (bit 31 fires a test packet during packet-size negotiation).
-      const double x = static_cast<double>(f.address == reg::kPacketSize ? (v & 0xffff) : v);
+      const double x = static_cast<double>(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
       return x >= f.min && x <= f.max && std::fmod(x - f.min, f.inc) == 0.0;
     }
     case Kind::kFloat: {

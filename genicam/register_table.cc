@@ -243,7 +243,11 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   payload.formula = "(W*H*((PF>>16)&255))/8";
   payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}};
   t.push_back(payload);
-  t.push_back(Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 1, "Stream packet size.", "B"));
+  // SCPS0's low 16 bits; its high bits are flags (31: fire a test packet,
+  // 30: do not fragment, 29: pixel endianness) that a size write keeps.
+  Feature packet = Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 1, "Stream packet size.", "B");
+  packet.low_bits = 16;
+  t.push_back(packet);
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
 
   const char* sim = "Simulation";
@@ -394,15 +398,18 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
       case Kind::kSwissKnife: break;
     }
     if (!f.alias_of.empty()) continue;  // the register node is the original's
-    const bool is_float = f.kind == Kind::kFloat;
-    x << "  <" << (is_float ? "FloatReg" : "IntReg") << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
+    const bool is_float = f.kind == Kind::kFloat, masked = f.low_bits > 0;
+    const char* reg_kind = is_float ? "FloatReg" : (masked ? "MaskedIntReg" : "IntReg");
+    x << "  <" << reg_kind << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
       << "    <Address>" << Hex(f.address) << "</Address>\n";
     if (!f.selected_by.empty()) x << "    <pIndex Offset=\"4\">" << f.selected_by << "Reg</pIndex>\n";
     x << "    <Length>" << f.length << "</Length>\n"
       << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>Device</pPort>\n"
       << "    <Cachable>NoCache</Cachable>\n";
+    // Big-endian bit numbers count from the most significant bit (0).
+    if (masked) x << "    <LSB>" << f.length * 8 - 1 << "</LSB>\n    <MSB>" << f.length * 8 - f.low_bits << "</MSB>\n";
     if (!is_float) x << "    <Sign>Unsigned</Sign>\n";
-    x << "    <Endianess>BigEndian</Endianess>\n  </" << (is_float ? "FloatReg" : "IntReg") << ">\n";
+    x << "    <Endianess>BigEndian</Endianess>\n  </" << reg_kind << ">\n";
   }
   x << "  <Port Name=\"Device\" NameSpace=\"Standard\"/>\n</RegisterDescription>\n";
   return x.str();

@@ -50,6 +50,9 @@ struct Feature {
   // selector the device last saw, so Selector-then-value writes cannot race.
   std::string selected_by;
   int selections = 1;
+  // kInteger: the value is the register's low `low_bits` bits (a GenICam
+  // MaskedIntReg; writes keep the other bits); 0: the whole register.
+  int low_bits = 0;
 };
 
 // Register addresses (named once, used by the table, the device and the tests).

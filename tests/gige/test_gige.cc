@@ -150,6 +150,7 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
     if (f.selected_by.empty()) {
       EXPECT_EQ(arv_gc_register_get_address(ARV_GC_REGISTER(r), nullptr), f.address) << f.name;
     }
+    EXPECT_EQ(ARV_IS_GC_MASKED_INT_REG_NODE(r), f.low_bits > 0) << f.name;
     if (f.kind == genicam::Kind::kInteger) {
       EXPECT_EQ(arv_gc_integer_get_min(ARV_GC_INTEGER(node), nullptr), static_cast<int64_t>(f.min)) << f.name;
       // A pMax reads the device: GigeE2E.WindowMaximaLeaveRoomForTheOtherFeature checks it there.
@@ -872,6 +873,26 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
   arv_camera_set_string(c.camera(), "DeviceUserID", "left", &e);
   EXPECT_EQ(e, nullptr);
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "DeviceUserID", nullptr), "left");
+}
+
+// GevSCPSPacketSize is SCPS0's low 16 bits: the flag bits above them (here
+// 30, do not fragment) are not part of the size and a size write keeps them.
+TEST_F(GigeE2E, PacketSizeIsTheLow16BitsOfItsRegister) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  constexpr uint32_t kDoNotFragment = 1u << 30;
+  GError* e = nullptr;
+  arv_device_write_register(c.device(), reg::kPacketSize, kDoNotFragment | 1400, &e);
+  ASSERT_EQ(e, nullptr);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "GevSCPSPacketSize"), 1400);
+  SetInt(c, "GevSCPSPacketSize", 1500);
+  Settle();
+  EXPECT_EQ(device_->writes_refused(), 0u);
+  guint32 raw = 0;
+  EXPECT_TRUE(arv_device_read_register(c.device(), reg::kPacketSize, &raw, &e));
+  EXPECT_EQ(raw, kDoNotFragment | 1500);
+  g_clear_error(&e);
 }
 
 TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
