@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "genicam/fake_camera_hooks.h"
 #include "host_tools/io/image_write.h"
 #include "host_tools/io/sequence.h"
 
@@ -25,10 +26,10 @@ namespace {
 // Registers the pipeline depends on: a change reconfigures it.
 constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain, reg::kBlackLevel, reg::kSimFNumber,
                                            reg::kSimSeed};
-// Window registers: frozen while acquiring (the payload size is fixed then).
-bool IsGeometry(uint32_t a) {
-  return a == reg::kWidth || a == reg::kHeight || a == reg::kOffsetX || a == reg::kOffsetY || a == reg::kPixelFormat;
-}
+// The payload's registers: frozen while acquiring (the stream's buffers are
+// sized) and while TLParamsLocked is 1.
+constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
+                                           reg::kPixelFormat};
 using reg::kControlChannelPrivilege, reg::kStreamPort, reg::kStreamDestAddress;
 constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
 // The fake camera polls its software-trigger register at this rate when in
@@ -241,7 +242,10 @@ uint32_t GigeDevice::Read(uint32_t address) const {
   arv_fake_camera_read_register(fake_, address, &v);
   return v;
 }
-void GigeDevice::Write(uint32_t address, uint32_t value) { arv_fake_camera_write_register(fake_, address, value); }
+void GigeDevice::Write(uint32_t address, uint32_t value) {
+  DeviceWrites own;
+  arv_fake_camera_write_register(fake_, address, value);
+}
 double GigeDevice::ReadDouble(uint32_t address) const {
   uint8_t b[8];
   arv_fake_camera_read_memory(fake_, address, 8, b);
@@ -253,6 +257,7 @@ void GigeDevice::WriteDouble(uint32_t address, double value) {
   const uint64_t v = DoubleBits(value);
   uint8_t b[8];
   for (int i = 0; i < 8; ++i) b[i] = static_cast<uint8_t>(v >> (56 - 8 * i));
+  DeviceWrites own;
   arv_fake_camera_write_memory(fake_, address, 8, b);
 }
 uint64_t GigeDevice::ReadFeature(const Feature& f) const {
@@ -363,14 +368,14 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   }
   if (!io::WriteTextFile(xml_path_, xml, error)) return false;
 
+  if (!FakeCameraHooksInForce()) {
+    *error = "the hooks on Aravis's fake camera memory are not linked in (genicam/fake_camera_hooks.cc): without "
+             "them one GVCP packet outside the memory map would crash the camera, and writes to the window "
+             "during acquisition would not be refused; link camsim_genicam statically into the executable";
+    return false;
+  }
   if (o.serve) {
     if (!CheckGvcpAddress(o.address, error)) return false;
-    if (!FakeCameraBoundsInForce()) {
-      *error = "the range checks on Aravis's fake camera memory are not linked in (genicam/fake_camera_bounds.cc), "
-               "so one GVCP packet outside the memory map would crash the camera: link camsim_genicam statically "
-               "into the executable";
-      return false;
-    }
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
     if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
       *error = "cannot serve on " + o.address +
@@ -386,11 +391,13 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     }
   }
   arv_fake_camera_set_trigger_frequency(fake_, kTriggerPollHz);
+  SetWriteFilter(fake_, &GigeDevice::FilterClientWrite, this);
 
   // Bootstrap strings, then every register's initial value.
   auto put_string = [&](uint32_t address, const std::string& s, size_t size) {
     std::vector<char> b(size, 0);
     std::memcpy(b.data(), s.data(), std::min(s.size(), size - 1));
+    DeviceWrites own;
     arv_fake_camera_write_memory(fake_, address, static_cast<guint32>(size), b.data());
   };
   put_string(reg::kVendorName, strings.vendor, 32);
@@ -455,6 +462,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
 }
 
 GigeDevice::~GigeDevice() {
+  if (fake_) SetWriteFilter(fake_, nullptr, nullptr);
   stop_ = true;
   if (sync_thread_.joinable()) sync_thread_.join();
   if (trigger_thread_.joinable()) trigger_thread_.join();
@@ -581,6 +589,28 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
   return true;
 }
 
+// A client's change of the payload's registers while acquiring or while
+// TLParamsLocked is 1 is refused as it arrives, in the order the client's
+// writes came: a window written before AcquisitionStart (even in the same
+// millisecond) is taken, and a refused one never reaches the fake camera's
+// stream. Writing the value in use changes nothing and passes.
+bool GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, const uint8_t* data) {
+  auto* d = static_cast<GigeDevice*>(self);
+  if (d->Read(reg::kAcquisition) == 0 && d->Read(reg::kTLParamsLocked) != 1) return true;
+  for (uint32_t g : kGeometryRegisters) {
+    const uint32_t now = d->Read(g);
+    for (uint32_t b = 0; b < 4; ++b) {
+      const uint64_t at = uint64_t{g} + b;
+      if (at < address || at >= uint64_t{address} + size) continue;
+      if (data[at - address] != static_cast<uint8_t>(now >> (24 - 8 * b))) {
+        ++d->writes_refused_;
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 void GigeDevice::Sync() {
   using namespace reg;
   const bool acquiring = Read(kAcquisition) != 0;
@@ -603,16 +633,8 @@ void GigeDevice::Sync() {
     restart_stream_ = true;
   }
   stream_dest_ = dest;
-  // Geometry is locked once a sync has seen the acquisition running, or
-  // TLParamsLocked set (SFNC: a GenTL consumer sets it before
-  // AcquisitionStart and clears it after AcquisitionStop). A write this sync
-  // finds together with a new AcquisitionStart or TLParamsLocked came before
-  // it (a client sets the window, then locks and starts), and the fake camera
-  // sizes its stream from those registers: it is taken.
-  const bool tl_locked = Read(kTLParamsLocked) == 1;
-  const bool geometry_locked = (acquiring && sync_saw_acquiring_) || (tl_locked && sync_saw_tl_locked_);
+  // The payload's registers during acquisition: FilterClientWrite.
   sync_saw_acquiring_ = acquiring;
-  sync_saw_tl_locked_ = tl_locked;
   if (!acquiring) was_acquiring_ = false;
   if (!acquiring || Applied(kTriggerMode) == 0) {
     // Triggers belong to an acquisition in trigger mode: none left for the next.
@@ -629,7 +651,7 @@ void GigeDevice::Sync() {
       continue;
     const uint64_t v = ReadFeature(f);
     if (v == applied_.at(f.address)) continue;
-    if (Valid(f, v) && !(geometry_locked && IsGeometry(f.address))) {
+    if (Valid(f, v)) {
       next[f.address] = v;
       changed.push_back(&f);
     } else {

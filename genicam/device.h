@@ -113,11 +113,6 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* config, host::Ori
 void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
                    int y, int w, int h, uint8_t* out);
 
-// True when genicam/fake_camera_bounds.cc's range checks stand in for
-// Aravis's fake camera memory functions (one GVCP packet outside the memory
-// map would otherwise crash the camera). Start refuses to serve without them.
-bool FakeCameraBoundsInForce();
-
 class GigeDevice {
  public:
   static std::unique_ptr<GigeDevice> Start(const DeviceOptions& options, std::string* error);
@@ -188,6 +183,8 @@ class GigeDevice {
   void SyncLoop();
   void TriggerLoop();
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
+  // The write filter (fake_camera_hooks.h) on clients' writes, as they arrive.
+  static bool FilterClientWrite(void* self, uint32_t address, uint32_t size, const uint8_t* data);
 
   std::vector<Feature> table_;
   std::vector<Feature> registers_;  // FeatureRegisters(table_): what Sync reads and checks
@@ -248,7 +245,6 @@ class GigeDevice {
   std::chrono::steady_clock::time_point frame_slot_{};  // the last frame's slot (NextFrameSlot)
   uint64_t stream_dest_ = 0;         // stream destination at the last sync
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
-  bool sync_saw_tl_locked_ = false;  // TLParamsLocked = 1 at the last sync
   bool restart_stream_ = false;
   std::string address_;
   bool prime_first_frame_ = true;

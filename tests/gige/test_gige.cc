@@ -20,6 +20,7 @@
 #include <map>
 #include <thread>
 
+#include "genicam/fake_camera_hooks.h"
 #include "tests/gige/gige_client.h"
 
 namespace camsim::gigetest {
@@ -98,6 +99,10 @@ std::vector<uint8_t> Be64(double x) {
 // Register access on a device without network (DeviceOptions::serve false).
 void WriteReg(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
   ASSERT_TRUE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
+}
+// A write the device refuses as it arrives (the payload's registers while acquiring).
+void WriteRegRefused(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
+  ASSERT_FALSE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
 }
 uint32_t ReadReg32(const GigeDevice& d, uint32_t address) {
   uint8_t b[4] = {};
@@ -643,7 +648,8 @@ TEST(GigeRegisters, ADeviceWhoseStagesLeaveTheCfaOutDoesNotStart) {
 // The configured exposure may be longer than 1 s (the core allows 100 s): the
 // register reports it, and a later write of another pipeline register keeps it.
 // A client sets the window and starts at once: one sync finds both writes.
-// The window is taken; once a sync has seen the acquisition, it is locked.
+// The window came first and is taken; one written after the start is refused
+// as it arrives.
 TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
   DeviceOptions o = SmallDevice();
   o.serve = false;
@@ -661,14 +667,44 @@ TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
   std::vector<uint8_t> frame;
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 32, 16));
-  WriteReg(*d, reg::kWidth, Be32(16));  // during the acquisition: refused
+  WriteRegRefused(*d, reg::kWidth, Be32(16));  // during the acquisition
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  EXPECT_EQ(d->writes_refused(), 1u);
+  WriteReg(*d, reg::kWidth, Be32(32));  // the value in use: nothing changes
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
   EXPECT_EQ(d->writes_refused(), 1u);
 }
 
+// An Aravis client stops, changes the window and starts again in about
+// 0.2 ms, well inside one register sync: the sync sees the acquisition
+// running before and after, and the window is still taken (until 2026-11-27
+// it was refused as a write during acquisition).
+TEST(GigeRegisters, StopWindowStartBetweenTwoSyncsTakesTheWindow) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));
+  WriteReg(*d, reg::kAcquisition, Be32(1));
+  d->SyncNow();
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  WriteReg(*d, reg::kAcquisition, Be32(0));
+  WriteReg(*d, reg::kOffsetX, Be32(8));
+  WriteReg(*d, reg::kWidth, Be32(16));
+  WriteReg(*d, reg::kPixelFormat, Be32(genicam::BayerCode(Cfa::kBayerRG, 8)));
+  WriteReg(*d, reg::kAcquisition, Be32(1));
+  d->SyncNow();
+  EXPECT_EQ(d->writes_refused(), 0u);
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 16u);
+  EXPECT_EQ(d->CheckInvariants(), "");
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 1, genicam::BayerCode(Cfa::kBayerRG, 8), 8, 0, 16, 48));
+}
+
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
-// from the sync after, the payload's features are locked until it is cleared.
+// from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
   DeviceOptions o = SmallDevice();
   o.serve = false;
@@ -678,8 +714,8 @@ TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
   WriteReg(*d, reg::kTLParamsLocked, Be32(1));
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
-  WriteReg(*d, reg::kWidth, Be32(16));
-  WriteReg(*d, reg::kPixelFormat, Be32(genicam::BayerCode(Cfa::kBayerRG, 8)));
+  WriteRegRefused(*d, reg::kWidth, Be32(16));
+  WriteRegRefused(*d, reg::kPixelFormat, Be32(genicam::BayerCode(Cfa::kBayerRG, 8)));
   WriteReg(*d, reg::kExposureTime, Be64(2000.0));  // not a payload feature: taken
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
@@ -1319,11 +1355,11 @@ TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
 
 // Aravis 0.8.26's fake camera sums addresses in 32 bits and does not check a
 // read past its GenICam XML: each access below made it copy gigabytes and
-// crash the camera. genicam/fake_camera_bounds.cc checks the range.
+// crash the camera. genicam/fake_camera_hooks.cc checks the range.
 TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   device_ = StartDevice(SmallDevice());
   ASSERT_NE(device_, nullptr);
-  ASSERT_TRUE(genicam::FakeCameraBoundsInForce());
+  ASSERT_TRUE(genicam::FakeCameraHooksInForce());
   std::ifstream file(device_->xml_path(), std::ios::binary);
   const std::string xml((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
   ASSERT_FALSE(xml.empty());
@@ -1426,6 +1462,50 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
   // Old frames: those already in the client's 4 buffers or being rendered
   // when the write landed; no more.
   EXPECT_LE(old_after_write, 4 + 1) << "old settings after the write was applied";
+}
+
+// Over the network: a window written while streaming is refused as it
+// arrives, so every frame keeps the window in use (until 2026-11-27 the fake
+// camera's stream could take the refused size before the sync restored it);
+// stop, a new window and start sent at once (inside one register sync) take
+// the new window.
+TEST_F(GigeE2E, TheWindowChangesBetweenAcquisitionsAndNotDuringOne) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  int width = 0;
+  EXPECT_FALSE(c.Grab(3000, nullptr, &width).empty());
+  EXPECT_EQ(width, 64);
+  GError* e = nullptr;
+  arv_camera_set_integer(c.camera(), "Width", 32, &e);  // acknowledged, not taken
+  EXPECT_EQ(e, nullptr);
+  g_clear_error(&e);
+  EXPECT_EQ(ReadInt(c, "Width"), 64);
+  EXPECT_EQ(device_->writes_refused(), 1u);
+  for (int i = 0; i < 3; ++i) {
+    const std::vector<uint8_t> f = c.Grab(3000, nullptr, &width);
+    EXPECT_EQ(f.size(), 64u * 48 * 2);
+    EXPECT_EQ(width, 64);
+  }
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr);
+  arv_camera_set_region(c.camera(), 8, 4, 32, 24, &e);
+  ASSERT_EQ(e, nullptr);
+  Start(c);
+  EXPECT_EQ(device_->writes_refused(), 1u);
+  EXPECT_EQ(ReadInt(c, "Width"), 32);
+  // Frames of the first acquisition may still be queued: the next ones have the new window.
+  bool arrived = false;
+  for (int i = 0; i < 8 && !arrived; ++i) {
+    const std::vector<uint8_t> f = c.Grab(3000, nullptr, &width);
+    if (width == 32) {
+      arrived = true;
+      EXPECT_EQ(f.size(), 32u * 24 * 2);
+    }
+  }
+  EXPECT_TRUE(arrived);
+  EXPECT_EQ(device_->CheckInvariants(), "");
 }
 
 TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
