@@ -368,10 +368,15 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   }
   if (!io::WriteTextFile(xml_path_, xml, error)) return false;
 
-  if (!FakeCameraHooksInForce()) {
-    *error = "the hooks on Aravis's fake camera memory are not linked in (genicam/fake_camera_hooks.cc): without "
-             "them one GVCP packet outside the memory map would crash the camera, and writes to the window "
-             "during acquisition would not be refused; link camsim_genicam statically into the executable";
+  // Tried on a camera that serves nothing, before one that does.
+  ArvFakeCamera* trial = arv_fake_camera_new_full(o.serial.c_str(), xml_path_.c_str());
+  const bool hooked = trial != nullptr && FakeCameraHooksInForce(trial);
+  if (trial != nullptr) g_object_unref(trial);
+  if (!hooked) {
+    *error = "libaravis's accesses to the fake camera's memory do not go through camsim's hooks "
+             "(genicam/fake_camera_hooks.cc: camsim_genicam linked into a shared library, or a libaravis "
+             "linked with -Bsymbolic): without them one GVCP packet outside the memory map would crash the "
+             "camera, and writes to the window during acquisition would not be refused";
     return false;
   }
   if (o.serve) {
@@ -589,26 +594,51 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
   return true;
 }
 
-// A client's change of the payload's registers while acquiring or while
-// TLParamsLocked is 1 is refused as it arrives, in the order the client's
-// writes came: a window written before AcquisitionStart (even in the same
-// millisecond) is taken, and a refused one never reaches the fake camera's
-// stream. Writing the value in use changes nothing and passes.
-bool GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, const uint8_t* data) {
+// A client's write, as it arrives (in the order the client's writes came).
+// AcquisitionStart and AcquisitionStop (value 1) set or clear the fake
+// camera's acquisition register and are not stored, so each reads back 0.
+// A change of the payload's registers while acquiring or while
+// TLParamsLocked is 1 (before this write, and still with it: a block that
+// also stops the acquisition is taken) is set back to the value in use, the
+// rest of the write stored: a window written before AcquisitionStart (even
+// in the same millisecond) is taken, and a refused one never reaches the fake
+// camera's stream. Writing the value in use changes nothing and passes.
+WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data) {
   auto* d = static_cast<GigeDevice*>(self);
-  if (d->Read(reg::kAcquisition) == 0 && d->Read(reg::kTLParamsLocked) != 1) return true;
-  for (uint32_t g : kGeometryRegisters) {
-    const uint32_t now = d->Read(g);
-    for (uint32_t b = 0; b < 4; ++b) {
-      const uint64_t at = uint64_t{g} + b;
-      if (at < address || at >= uint64_t{address} + size) continue;
-      if (data[at - address] != static_cast<uint8_t>(now >> (24 - 8 * b))) {
-        ++d->writes_refused_;
-        return false;
-      }
+  // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
+  const auto covers = [&](uint32_t r) { return address <= r && uint64_t{r} + 4 <= uint64_t{address} + size; };
+  const auto value = [&](uint32_t r) {
+    const uint8_t* v = data + (r - address);
+    return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
+  };
+  for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop}) {
+    if (!covers(command)) continue;
+    if (size != 4 || value(command) != 1) {
+      ++d->writes_refused_;
+      return WriteVerdict::kRefused;
     }
+    d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
+    return WriteVerdict::kDone;
   }
-  return true;
+  bool geometry = false;
+  for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
+  if (!geometry) return WriteVerdict::kStored;
+  const bool acquiring = (d->Read(reg::kAcquisition) != 0 || d->restarting_) &&
+                         (!covers(reg::kAcquisition) || value(reg::kAcquisition) != 0);
+  const bool tl_locked = d->Read(reg::kTLParamsLocked) == 1 &&
+                         (!covers(reg::kTLParamsLocked) || value(reg::kTLParamsLocked) == 1);
+  if (!acquiring && !tl_locked) return WriteVerdict::kStored;
+  bool refused = false;
+  for (uint32_t g : kGeometryRegisters) {
+    if (!covers(g)) continue;
+    const uint32_t now = d->Read(g);
+    if (value(g) == now) continue;
+    for (uint32_t b = 0; b < 4; ++b) data[g - address + b] = static_cast<uint8_t>(now >> (24 - 8 * b));
+    refused = true;
+  }
+  if (!refused) return WriteVerdict::kStored;
+  ++d->writes_refused_;
+  return WriteVerdict::kPartlyRefused;
 }
 
 void GigeDevice::Sync() {
@@ -619,9 +649,10 @@ void GigeDevice::Sync() {
   // while acquisition or privilege is 0.
   const uint64_t dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
   const bool controlled = Read(kControlChannelPrivilege) != 0;
-  if (acquiring && !controlled) {
-    // The controller's heartbeat timed out: stop, so the next client does
-    // not find a stream running.
+  if (!controlled && (acquiring || Read(kTLParamsLocked) != 0)) {
+    // The controller's heartbeat timed out (or it let go): stop, and unlock
+    // the window, so the next client finds neither a stream running nor its
+    // window writes refused.
     Write(kAcquisition, 0);
     Write(kTLParamsLocked, 0);
     applied_[kTLParamsLocked] = 0;
@@ -793,15 +824,16 @@ void GigeDevice::RestartStream() {
   // if Acquisition still reads 0, it ran with 0 and the stream is dropped.
   // A client that wrote AcquisitionStart meanwhile (it reads 1) costs a
   // round. The thread can be busy rendering: each answer may take a while.
-  for (int round = 0; round < kRestartRounds; ++round) {
+  restarting_ = true;  // the window stays locked (FilterClientWrite)
+  bool dropped = false;
+  for (int round = 0; round < kRestartRounds && !dropped; ++round) {
     Write(kAcquisition, 0);
-    if (GvcpRoundTrip(address_, kRestartAnswerMs) && GvcpRoundTrip(address_, kRestartAnswerMs) &&
-        Read(kAcquisition) == 0) {
-      Write(kAcquisition, 1);
-      return;
-    }
+    dropped = GvcpRoundTrip(address_, kRestartAnswerMs) && GvcpRoundTrip(address_, kRestartAnswerMs) &&
+              Read(kAcquisition) == 0;
   }
   if (Read(kAcquisition) == 0) Write(kAcquisition, 1);
+  restarting_ = false;
+  if (dropped) return;
   std::lock_guard<std::mutex> lock(mutex_);
   LogOnce("restart-stream", "camsim-gige: could not make the fake camera drop a killed client's stream");
 }

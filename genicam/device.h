@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "core/control/auto_exposure.h"
+#include "genicam/fake_camera_hooks.h"
 #include "genicam/register_table.h"
 #include "hal/gpio.h"
 #include "host_tools/config.h"
@@ -184,7 +185,7 @@ class GigeDevice {
   void TriggerLoop();
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
   // The write filter (fake_camera_hooks.h) on clients' writes, as they arrive.
-  static bool FilterClientWrite(void* self, uint32_t address, uint32_t size, const uint8_t* data);
+  static WriteVerdict FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data);
 
   std::vector<Feature> table_;
   std::vector<Feature> registers_;  // FeatureRegisters(table_): what Sync reads and checks
@@ -246,6 +247,8 @@ class GigeDevice {
   uint64_t stream_dest_ = 0;         // stream destination at the last sync
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
   bool restart_stream_ = false;
+  // RestartStream clears the acquisition register for a moment: the window stays locked.
+  std::atomic<bool> restarting_{false};
   std::string address_;
   bool prime_first_frame_ = true;
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to

@@ -6,14 +6,17 @@
 // through to libaravis's own functions (dlsym RTLD_NEXT).
 //
 // Range checks: libaravis does its range arithmetic in 32 bits and does not
-// check a read past the GenICam XML, so one GVCP packet (READREG 0x20000,
-// READMEM 0xFFFFFFF0, WRITEREG 0xFFFFFFFC, or a WRITEMEM whose length field
-// is below 4) made it copy gigabytes and killed the camera. Here each range
-// is checked in 64 bits against the memory map (ARV_FAKE_CAMERA_MEMORY_SIZE
-// bytes of registers, then the read-only XML). Outside it a read gives zeros
-// and a write changes nothing; both return FALSE (the fake camera still
-// acknowledges the packet, where a real camera answers
-// GEV_STATUS_INVALID_ADDRESS).
+// check a read past the GenICam XML, so one GVCP packet killed the camera:
+// READREG 0x20000 or a WRITEMEM whose length field is below 4 (a copy of
+// about 4 GiB), READREG 0xFFFFFFFC or READMEM 0xFFFFFFF0 (a copy from a
+// wild pointer), WRITEREG 0xFFFFFFFC (a write 4 GiB past the registers).
+// Here each range is checked in 64 bits against the memory map
+// (ARV_FAKE_CAMERA_MEMORY_SIZE bytes of registers, then the read-only XML).
+// Outside it a read gives zeros and a write changes nothing; both return
+// FALSE (the fake camera still acknowledges the packet, where a real camera
+// answers GEV_STATUS_INVALID_ADDRESS). libaravis takes a WRITEMEM's length
+// from its header, not from the packet received, so a client write longer
+// than GVCP allows (kMaxClientWrite) or not in whole registers is refused.
 //
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
@@ -54,21 +57,14 @@ struct Filter {
 std::mutex g_filters_mutex;  // held while a filter runs
 std::vector<Filter> g_filters;
 thread_local int t_device_writes = 0;
-
-// The camera's filter's verdict on a write (true without a filter).
-bool Allowed(ArvFakeCamera* camera, guint32 address, guint32 size, const void* buffer) {
-  if (t_device_writes > 0) return true;
-  std::lock_guard<std::mutex> lock(g_filters_mutex);
-  for (const Filter& f : g_filters)
-    if (f.camera == camera) return f.filter(f.owner, address, size, static_cast<const uint8_t*>(buffer));
-  return true;
-}
+thread_local uint64_t t_reads = 0, t_writes = 0;  // calls of the hooks on this thread (FakeCameraHooksInForce)
 
 }  // namespace
 
 extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 address, guint32 size,
                                                 void* buffer) {
   static const ReadFn next = Next<ReadFn>("arv_fake_camera_read_memory");
+  ++t_reads;
   if (buffer == nullptr || size == 0) return FALSE;
   const uint64_t end = camera != nullptr ? MapEnd(camera) : 0;
   if (next == nullptr || address >= end) {
@@ -85,23 +81,42 @@ extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 a
 
 extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 address, guint32 size,
                                                  const void* buffer) {
+  using camsim::genicam::WriteVerdict;
   static const WriteFn next = Next<WriteFn>("arv_fake_camera_write_memory");
+  ++t_writes;
   // Only the registers are writable (the XML after them is read-only).
   if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0 ||
-      uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE || !Allowed(camera, address, size, buffer))
+      uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE)
     return FALSE;
-  return next(camera, address, size, buffer);
+  if (t_device_writes > 0) return next(camera, address, size, buffer);
+  if (size > camsim::genicam::kMaxClientWrite || size % 4 != 0 || address % 4 != 0) return FALSE;
+  uint8_t data[camsim::genicam::kMaxClientWrite];
+  std::memcpy(data, buffer, size);
+  WriteVerdict verdict = WriteVerdict::kStored;
+  {
+    std::lock_guard<std::mutex> lock(g_filters_mutex);
+    for (const Filter& f : g_filters)
+      if (f.camera == camera) {
+        verdict = f.filter(f.owner, address, size, data);
+        break;
+      }
+  }
+  switch (verdict) {
+    case WriteVerdict::kStored: return next(camera, address, size, data);
+    case WriteVerdict::kPartlyRefused: next(camera, address, size, data); return FALSE;
+    case WriteVerdict::kDone: return TRUE;
+    case WriteVerdict::kRefused: break;
+  }
+  return FALSE;
 }
 
 namespace camsim::genicam {
 
-bool FakeCameraHooksInForce() {
-  const void* read = dlsym(RTLD_DEFAULT, "arv_fake_camera_read_memory");
-  const void* write = dlsym(RTLD_DEFAULT, "arv_fake_camera_write_memory");
-  return read == reinterpret_cast<const void*>(&arv_fake_camera_read_memory) &&
-         write == reinterpret_cast<const void*>(&arv_fake_camera_write_memory) &&
-         Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
-         Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
+bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
+  DeviceWrites own;
+  const uint64_t reads = t_reads, writes = t_writes;
+  arv_fake_camera_set_control_channel_privilege(camera, arv_fake_camera_get_control_channel_privilege(camera));
+  return t_reads > reads && t_writes > writes;
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {

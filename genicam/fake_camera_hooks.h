@@ -10,15 +10,28 @@
 
 namespace camsim::genicam {
 
-// True when the hooks stand in for Aravis's functions in this process.
+// True when libaravis's own accesses to `camera`'s memory go through the
+// hooks (tried with a read and a write of its control privilege register).
 // Without them one GVCP packet outside the memory map would crash the
-// camera, and no filter runs: GigeDevice::Start refuses to serve then.
-bool FakeCameraHooksInForce();
+// camera, and no filter runs: GigeDevice::Init refuses to start then.
+bool FakeCameraHooksInForce(ArvFakeCamera* camera);
+
+// Client writes reach a filter as GVCP's WRITEMEM allows them: a 4-aligned
+// address and length, at most this many bytes; other client writes are
+// refused before (a WRITEMEM length field is not checked against the packet).
+inline constexpr uint32_t kMaxClientWrite = 536;
+
+// A filter's verdict on a write: store it (kStored), store it with the bytes
+// the filter set back to the memory's values (kPartlyRefused), leave the
+// memory unchanged as a command the filter carried out (kDone), or refuse it
+// (kRefused). The write function returns TRUE for kStored and kDone (over
+// GVCP the fake camera acknowledges every write).
+enum class WriteVerdict { kStored, kPartlyRefused, kDone, kRefused };
 
 // Called before each write to a camera's memory, except those made on a
-// thread inside a DeviceWrites scope; false leaves the memory unchanged.
-// `data` holds `size` bytes for `address` (big-endian registers).
-using WriteFilter = bool (*)(void* owner, uint32_t address, uint32_t size, const uint8_t* data);
+// thread inside a DeviceWrites scope, with a copy of the `size` bytes for
+// `address` (big-endian registers) that the filter may change.
+using WriteFilter = WriteVerdict (*)(void* owner, uint32_t address, uint32_t size, uint8_t* data);
 
 // Sets the filter of `camera` (nullptr removes it). Removing it waits for a
 // call in progress, so `owner` may go away after.

@@ -189,9 +189,10 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Number of frames to acquire after AcquisitionStart."));
   t.push_back(Int("AcquisitionFrameCount", ac, kAcquisitionFrameCount, true, 1, 65535, 1,
                   "Frames to acquire in MultiFrame mode."));
-  t.push_back(Cmd("AcquisitionStart", ac, kAcquisition, 1, "Starts the acquisition."));
-  t.push_back(Alias(t.back(), "AcquisitionStop", "Stops the acquisition."));
-  t.back().command_value = 0;
+  // Each reads 0 once executed, so GenApi's IsDone (the value read back
+  // differs from CommandValue) is true at once.
+  t.push_back(Cmd("AcquisitionStart", ac, kAcquisitionStart, 1, "Starts the acquisition."));
+  t.push_back(Cmd("AcquisitionStop", ac, kAcquisitionStop, 1, "Stops the acquisition."));
   t.push_back(Flt("AcquisitionFrameRate", ac, kAcquisitionFrameRate, 0.1, 1000.0,
                   "Free-run frame rate when AcquisitionFrameRateEnable is on.", "Hz"));
   t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,

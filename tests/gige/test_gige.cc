@@ -703,6 +703,79 @@ TEST(GigeRegisters, StopWindowStartBetweenTwoSyncsTakesTheWindow) {
   EXPECT_EQ(frame, ReferenceFrame(o, 1, genicam::BayerCode(Cfa::kBayerRG, 8), 8, 0, 16, 48));
 }
 
+// AcquisitionStart and AcquisitionStop have a register each that reads 0
+// once the command ran, so GenApi's IsDone (the value read back differs from
+// CommandValue) is true at once; until 2026-11-27 both were the acquisition
+// register with values 1 and 0, and a WaitUntilDone never returned.
+TEST(GigeRegisters, AcquisitionCommandsReadBackDone) {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const genicam::Feature* start = genicam::FindFeature(d->table(), "AcquisitionStart");
+  const genicam::Feature* stop = genicam::FindFeature(d->table(), "AcquisitionStop");
+  ASSERT_NE(start, nullptr);
+  ASSERT_NE(stop, nullptr);
+  EXPECT_NE(start->address, stop->address);
+  EXPECT_EQ(start->command_value, 1);
+  EXPECT_EQ(stop->command_value, 1);
+  WriteReg(*d, start->address, Be32(1));
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 1u);
+  EXPECT_EQ(ReadReg32(*d, start->address), 0u);
+  WriteRegRefused(*d, reg::kWidth, Be32(32));  // after the start: the window is locked
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 64u);
+  WriteReg(*d, stop->address, Be32(1));
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 0u);
+  EXPECT_EQ(ReadReg32(*d, stop->address), 0u);
+  const uint64_t refused = d->writes_refused();
+  WriteRegRefused(*d, start->address, Be32(2));  // another value: not the command
+  WriteRegRefused(*d, start->address + 2, {0, 1});  // half a register: not a GVCP write
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 0u);
+  EXPECT_EQ(ReadReg32(*d, start->address), 0u);
+  EXPECT_EQ(d->writes_refused(), refused + 1);
+}
+
+// One write of several registers while acquiring: the window's registers go
+// back to the values in use, the others are taken; with the acquisition
+// register cleared in the same block (a stop), the window is taken too.
+TEST(GigeRegisters, ABlockWriteKeepsWhatItMayChange) {
+  static_assert(reg::kPixelFormat == reg::kAcquisition + 4 && reg::kAcquisitionMode == reg::kPixelFormat + 4);
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));
+  WriteReg(*d, reg::kAcquisition, Be32(1));
+  const uint32_t format12 = genicam::BayerCode(Cfa::kBayerRG, 12), format8 = genicam::BayerCode(Cfa::kBayerRG, 8);
+  auto block = [](std::vector<uint32_t> words) {
+    std::vector<uint8_t> b;
+    for (uint32_t w : words)
+      for (uint8_t x : Be32(w)) b.push_back(x);
+    return b;
+  };
+  WriteRegRefused(*d, reg::kPixelFormat, block({format8, genicam::kSingleFrame}));  // partly
+  EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format12);
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
+  EXPECT_EQ(d->writes_refused(), 1u);
+  WriteRegRefused(*d, reg::kAcquisition, block({1, format8}));  // still acquiring
+  EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format12);
+  EXPECT_EQ(d->writes_refused(), 2u);
+  WriteReg(*d, reg::kAcquisition, block({0, format8}));  // a stop and a format
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 0u);
+  EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format8);
+  EXPECT_EQ(d->writes_refused(), 2u);
+}
+
+// FakeCameraHooksInForce sees libaravis's own register accesses pass
+// through the hooks (GigeDevice::Init refuses to start without them).
+TEST(GigeRegisters, TheHooksAreInForce) {
+  ArvFakeCamera* camera = arv_fake_camera_new_full("CSHOOK", nullptr);
+  ASSERT_NE(camera, nullptr);
+  EXPECT_TRUE(genicam::FakeCameraHooksInForce(camera));
+  g_object_unref(camera);
+}
+
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
 // from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
@@ -710,6 +783,7 @@ TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
   o.serve = false;
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));  // a controlling client (without one the sync unlocks)
   WriteReg(*d, reg::kWidth, Be32(32));  // found together with the lock: taken
   WriteReg(*d, reg::kTLParamsLocked, Be32(1));
   d->SyncNow();
@@ -728,6 +802,16 @@ TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
   WriteReg(*d, reg::kWidth, Be32(16));
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 16u);
+  EXPECT_EQ(d->writes_refused(), 2u);
+  // A client that locks and goes away: with no client in control the sync
+  // unlocks, and the next client's window is taken.
+  WriteReg(*d, reg::kTLParamsLocked, Be32(1));
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(0));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, reg::kTLParamsLocked), 0u);
+  WriteReg(*d, reg::kWidth, Be32(32));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
   EXPECT_EQ(d->writes_refused(), 2u);
 }
 
@@ -1359,7 +1443,6 @@ TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
 TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   device_ = StartDevice(SmallDevice());
   ASSERT_NE(device_, nullptr);
-  ASSERT_TRUE(genicam::FakeCameraHooksInForce());
   std::ifstream file(device_->xml_path(), std::ios::binary);
   const std::string xml((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
   ASSERT_FALSE(xml.empty());
@@ -1394,6 +1477,16 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   // A length field below 4 leaves a data length of about 4 GiB.
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 2}, 2));
   EXPECT_TRUE(raw.WriteMemory(xml_start, {'x', 'x', 'x', 'x'}, 8));  // the XML is read-only
+  // A length field far beyond the packet: the fake camera would copy what
+  // its 64 KiB receive buffer held before (and 7 bytes past it) over the
+  // registers (the bootstrap's XML URL at 0x200, control, stream).
+  std::vector<uint8_t> url_before, url_after;
+  ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_before));
+  EXPECT_TRUE(raw.WriteMemory(0, {1, 2, 3, 4}, 0xffff));
+  ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_after));
+  EXPECT_EQ(url_after, url_before);
+  ASSERT_TRUE(raw.Read(kControlChannelPrivilege, &value));
+  EXPECT_EQ(value, 2u);
   ASSERT_TRUE(raw.Read(xml_start, &value));
   EXPECT_NE(value, 0x78787878u);
   value = 0;
