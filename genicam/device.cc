@@ -595,14 +595,16 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 }
 
 // A client's write, as it arrives (in the order the client's writes came).
-// AcquisitionStart and AcquisitionStop (value 1) set or clear the fake
-// camera's acquisition register and are not stored, so each reads back 0.
-// A change of the payload's registers while acquiring or while
-// TLParamsLocked is 1 (before this write, and still with it: a block that
-// also stops the acquisition is taken) is set back to the value in use, the
-// rest of the write stored: a window written before AcquisitionStart (even
-// in the same millisecond) is taken, and a refused one never reaches the fake
-// camera's stream. Writing the value in use changes nothing and passes.
+// AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
+// clear the fake camera's acquisition register and are not stored, so each
+// reads back 0. Control privilege 0 (the client lets go, or libaravis ends
+// it at a heartbeat timeout, maybe inside the packet that hands control to
+// the next client) clears TLParamsLocked. A change of the payload's
+// registers while acquiring or while TLParamsLocked is 1 (a block that also
+// clears the acquisition register is a stop, and taken) is set back to the
+// value in use, the rest of the write stored: a window written before
+// AcquisitionStart (even in the same millisecond) is taken, and a refused one
+// never reaches the fake camera's stream. Writing the value in use passes.
 WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data) {
   auto* d = static_cast<GigeDevice*>(self);
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
@@ -611,22 +613,26 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     const uint8_t* v = data + (r - address);
     return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
   };
-  for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop}) {
+  for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop, reg::kAcquisitionAbort}) {
     if (!covers(command)) continue;
     if (size != 4 || value(command) != 1) {
       ++d->writes_refused_;
       return WriteVerdict::kRefused;
     }
+    if (command != reg::kAcquisitionStart) ++d->acquisition_stops_;
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
     return WriteVerdict::kDone;
   }
+  if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
+  if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
+    d->Write(reg::kTLParamsLocked, 0);
   bool geometry = false;
   for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
   if (!geometry) return WriteVerdict::kStored;
+  // (TLParamsLocked, at 0x80a0, is never in one block with the window.)
   const bool acquiring = (d->Read(reg::kAcquisition) != 0 || d->restarting_) &&
                          (!covers(reg::kAcquisition) || value(reg::kAcquisition) != 0);
-  const bool tl_locked = d->Read(reg::kTLParamsLocked) == 1 &&
-                         (!covers(reg::kTLParamsLocked) || value(reg::kTLParamsLocked) == 1);
+  const bool tl_locked = d->Read(reg::kTLParamsLocked) == 1;
   if (!acquiring && !tl_locked) return WriteVerdict::kStored;
   bool refused = false;
   for (uint32_t g : kGeometryRegisters) {
@@ -824,16 +830,20 @@ void GigeDevice::RestartStream() {
   // if Acquisition still reads 0, it ran with 0 and the stream is dropped.
   // A client that wrote AcquisitionStart meanwhile (it reads 1) costs a
   // round. The thread can be busy rendering: each answer may take a while.
+  // A client's stop meanwhile (acquisition_stops_) ends it: the acquisition
+  // is not set again over the stop.
   restarting_ = true;  // the window stays locked (FilterClientWrite)
+  const uint64_t stops = acquisition_stops_;
   bool dropped = false;
-  for (int round = 0; round < kRestartRounds && !dropped; ++round) {
+  for (int round = 0; round < kRestartRounds && !dropped && acquisition_stops_ == stops; ++round) {
     Write(kAcquisition, 0);
     dropped = GvcpRoundTrip(address_, kRestartAnswerMs) && GvcpRoundTrip(address_, kRestartAnswerMs) &&
               Read(kAcquisition) == 0;
   }
-  if (Read(kAcquisition) == 0) Write(kAcquisition, 1);
+  const bool stopped = acquisition_stops_ != stops;
+  if (!stopped && Read(kAcquisition) == 0) Write(kAcquisition, 1);
   restarting_ = false;
-  if (dropped) return;
+  if (dropped || stopped) return;
   std::lock_guard<std::mutex> lock(mutex_);
   LogOnce("restart-stream", "camsim-gige: could not make the fake camera drop a killed client's stream");
 }

@@ -249,6 +249,7 @@ class GigeDevice {
   bool restart_stream_ = false;
   // RestartStream clears the acquisition register for a moment: the window stays locked.
   std::atomic<bool> restarting_{false};
+  std::atomic<uint64_t> acquisition_stops_{0};  // clients' stops (FilterClientWrite)
   std::string address_;
   bool prime_first_frame_ = true;
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to

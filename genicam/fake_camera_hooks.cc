@@ -113,10 +113,13 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
 namespace camsim::genicam {
 
 bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
+  // (A libaravis that bound these calls inside arvfakecamera.c but not
+  // those of its GVCP thread would be refused too: that fails safe.)
   DeviceWrites own;
   const uint64_t reads = t_reads, writes = t_writes;
   arv_fake_camera_set_control_channel_privilege(camera, arv_fake_camera_get_control_channel_privilege(camera));
-  return t_reads > reads && t_writes > writes;
+  return t_reads > reads && t_writes > writes && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
+         Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {

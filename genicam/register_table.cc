@@ -193,6 +193,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   // differs from CommandValue) is true at once.
   t.push_back(Cmd("AcquisitionStart", ac, kAcquisitionStart, 1, "Starts the acquisition."));
   t.push_back(Cmd("AcquisitionStop", ac, kAcquisitionStop, 1, "Stops the acquisition."));
+  t.push_back(Cmd("AcquisitionAbort", ac, kAcquisitionAbort, 1,
+                  "Stops the acquisition, as AcquisitionStop does (a frame already being sent is finished)."));
   t.push_back(Flt("AcquisitionFrameRate", ac, kAcquisitionFrameRate, 0.1, 1000.0,
                   "Free-run frame rate when AcquisitionFrameRateEnable is on.", "Hz"));
   t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,

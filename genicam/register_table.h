@@ -80,9 +80,10 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
                           kSimStageSelector = 0x8094, kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4,
                           kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0;
-// AcquisitionStart and AcquisitionStop: self-clearing command registers in
-// front of the fake camera's acquisition register (GigeDevice::FilterClientWrite).
-inline constexpr uint32_t kAcquisitionStart = 0x80b4, kAcquisitionStop = 0x80b8;
+// AcquisitionStart, AcquisitionStop and AcquisitionAbort: command registers
+// in front of the fake camera's acquisition register that read back 0
+// (GigeDevice::FilterClientWrite).
+inline constexpr uint32_t kAcquisitionStart = 0x80b4, kAcquisitionStop = 0x80b8, kAcquisitionAbort = 0x80bc;
 // Selected features (Feature::selected_by): the register of selector value
 // v is at SelectedAddress(base, v). LineMode, LineSource and LineStatus: one
 // per line (LineSelector: 2); SimStageEnable: one per configured stage

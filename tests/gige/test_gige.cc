@@ -714,11 +714,18 @@ TEST(GigeRegisters, AcquisitionCommandsReadBackDone) {
   ASSERT_NE(d, nullptr);
   const genicam::Feature* start = genicam::FindFeature(d->table(), "AcquisitionStart");
   const genicam::Feature* stop = genicam::FindFeature(d->table(), "AcquisitionStop");
+  const genicam::Feature* abort = genicam::FindFeature(d->table(), "AcquisitionAbort");
   ASSERT_NE(start, nullptr);
   ASSERT_NE(stop, nullptr);
+  ASSERT_NE(abort, nullptr);
   EXPECT_NE(start->address, stop->address);
   EXPECT_EQ(start->command_value, 1);
   EXPECT_EQ(stop->command_value, 1);
+  EXPECT_EQ(abort->command_value, 1);
+  WriteReg(*d, start->address, Be32(1));
+  WriteReg(*d, abort->address, Be32(1));
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 0u);
+  EXPECT_EQ(ReadReg32(*d, abort->address), 0u);
   WriteReg(*d, start->address, Be32(1));
   EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 1u);
   EXPECT_EQ(ReadReg32(*d, start->address), 0u);
@@ -803,16 +810,27 @@ TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 16u);
   EXPECT_EQ(d->writes_refused(), 2u);
-  // A client that locks and goes away: with no client in control the sync
-  // unlocks, and the next client's window is taken.
+  // A client that locks and goes away: its control ends (privilege 0, here
+  // followed at once by the next client's request, as when the fake camera
+  // hands control over inside one packet), the lock with it, and the next
+  // client's window is taken.
   WriteReg(*d, reg::kTLParamsLocked, Be32(1));
+  d->SyncNow();
   WriteReg(*d, reg::kControlChannelPrivilege, Be32(0));
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kTLParamsLocked), 0u);
   WriteReg(*d, reg::kWidth, Be32(32));
   d->SyncNow();
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  // With no client in control, the sync unlocks too.
+  WriteReg(*d, reg::kControlChannelPrivilege, Be32(0));
+  d->SyncNow();
+  WriteReg(*d, reg::kTLParamsLocked, Be32(1));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, reg::kTLParamsLocked), 0u);
   EXPECT_EQ(d->writes_refused(), 2u);
+  EXPECT_EQ(d->CheckInvariants(), "");
 }
 
 TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
