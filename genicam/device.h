@@ -202,7 +202,6 @@ class GigeDevice {
   uint64_t seed_register_at_start_ = 0;
   std::vector<uint16_t> raw_;   // full-sensor taps
   std::vector<uint8_t> rgb_;
-  bool has_rgb_ = false;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   AutoExposureConfig auto_config_;  // its configuration (ranges narrowed by LimitAutoRange)
   std::set<std::string> logged_;    // LogOnce keys
