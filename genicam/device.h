@@ -131,7 +131,8 @@ class GigeDevice {
   // Last error of a GPIO line (empty when none).
   std::string line_error() const;
 
-  // Register access as a client's write would do it, one sync, one frame
+  // Register access as a client's would do it (false: refused, in part or
+  // whole, or outside the memory map), one sync, one frame
   // rendered into *frame (as the fake camera fills a buffer), and the device's
   // invariants (empty when they hold: every writable register holds its value
   // in use, every value in use is valid, the window is on the sensor, Gain

@@ -49,6 +49,14 @@ double MeanLevel12(const std::vector<uint8_t>& f) {
   return (sum / (f.size() / 2) - 64.0) / (4095.0 - 64.0);  // black level 64 DN (demo camera)
 }
 
+// A small device without network (DeviceOptions::serve false): the tests
+// drive it with WriteMemory, SyncNow and RenderNow.
+DeviceOptions OfflineDevice() {
+  DeviceOptions o = SmallDevice();
+  o.serve = false;
+  return o;
+}
+
 std::unique_ptr<GigeDevice> StartDevice(const DeviceOptions& o) {
   std::string error;
   auto d = GigeDevice::Start(o, &error);
@@ -536,8 +544,7 @@ TEST(GigeFramePacing, SlotsKeepTheCadenceAndNeverWaitForALaterOne) {
 }
 
 TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   const std::vector<std::pair<uint32_t, std::vector<uint8_t>>> bad = {
@@ -571,8 +578,7 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
 // refusing one of them (switching off the sensor, which raw formats need)
 // does not take the others with it, pipeline settings or not.
 TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   const uint32_t sensor_enable = StageEnableAddress(*d, "Stage_sensor");
@@ -602,8 +608,7 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
 // tap (one sample per pixel) overflowed. Now the cfa write is refused and
 // the others are taken.
 TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   const uint32_t cfa_enable = StageEnableAddress(*d, "Stage_cfa");
@@ -634,8 +639,7 @@ TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
 // refused with a message naming it (it used to start and overflow the raw
 // tap with the first frame).
 TEST(GigeRegisters, ADeviceWhoseStagesLeaveTheCfaOutDoesNotStart) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   o.overrides.push_back("pipeline.stages=[\"exposure\",\"sensor\"]");
   std::string error;
   EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
@@ -651,8 +655,7 @@ TEST(GigeRegisters, ADeviceWhoseStagesLeaveTheCfaOutDoesNotStart) {
 // The window came first and is taken; one written after the start is refused
 // as it arrives.
 TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));  // a controlling client
@@ -681,8 +684,7 @@ TEST(GigeRegisters, AWindowWrittenJustBeforeAcquisitionStartIsTaken) {
 // running before and after, and the window is still taken (until 2026-11-27
 // it was refused as a write during acquisition).
 TEST(GigeRegisters, StopWindowStartBetweenTwoSyncsTakesTheWindow) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));
@@ -708,8 +710,7 @@ TEST(GigeRegisters, StopWindowStartBetweenTwoSyncsTakesTheWindow) {
 // CommandValue) is true at once; until 2026-11-27 both were the acquisition
 // register with values 1 and 0, and a WaitUntilDone never returned.
 TEST(GigeRegisters, AcquisitionCommandsReadBackDone) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   const genicam::Feature* start = genicam::FindFeature(d->table(), "AcquisitionStart");
@@ -748,8 +749,7 @@ TEST(GigeRegisters, AcquisitionCommandsReadBackDone) {
 // register cleared in the same block (a stop), the window is taken too.
 TEST(GigeRegisters, ABlockWriteKeepsWhatItMayChange) {
   static_assert(reg::kPixelFormat == reg::kAcquisition + 4 && reg::kAcquisitionMode == reg::kPixelFormat + 4);
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));
@@ -786,8 +786,7 @@ TEST(GigeRegisters, TheHooksAreInForce) {
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
 // from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kControlChannelPrivilege, Be32(2));  // a controlling client (without one the sync unlocks)
@@ -834,8 +833,7 @@ TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
 }
 
 TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   // f/64 keeps the 2 s exposure below saturation, so 1 s and 2 s frames differ.
   o.overrides.insert(o.overrides.end(), {"exposure.exposure_time_us=2000000", "exposure.f_number=64"});
   auto d = StartDevice(o);
@@ -857,8 +855,7 @@ TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
 
 // SimAutoTarget takes what the controller uses (0.01 .. 0.9), and nothing more.
 TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kSimAutoTarget, Be64(0.95));
@@ -877,8 +874,7 @@ TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
 // range ends there: Once stops at the limit and turns Off, Continuous holds
 // there, and the refusal is logged once.
 TEST(GigeRegisters, AutoExposureStopsWhereThePipelineDoes) {
-  DeviceOptions o = SmallDevice();
-  o.serve = false;
+  DeviceOptions o = OfflineDevice();
   o.overrides.push_back("sensor.smear_row_transfer_us=1000");
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
@@ -932,8 +928,7 @@ TEST(GigeRegisters, LineStatusFollowsTheStrobe) {
     SCOPED_TRACE(stuck ? "stuck high" : "memory line");
     hal::MemoryLine memory("strobe");
     StuckHighLine stuck_line;
-    DeviceOptions o = SmallDevice();
-    o.serve = false;
+    DeviceOptions o = OfflineDevice();
     o.strobe = stuck ? static_cast<hal::OutputLine*>(&stuck_line) : &memory;
     auto d = StartDevice(o);
     ASSERT_NE(d, nullptr);
