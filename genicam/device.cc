@@ -592,14 +592,17 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // A client's write, as it arrives (in the order the client's writes came).
 // AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
 // clear the fake camera's acquisition register and are not stored, so each
-// reads back 0. Control privilege 0 (the client lets go, or libaravis ends
-// it at a heartbeat timeout, maybe inside the packet that hands control to
-// the next client) clears TLParamsLocked. A change of the payload's
-// registers while acquiring or while TLParamsLocked is 1 (a block that also
-// clears the acquisition register is a stop, and taken) is set back to the
-// value in use, the rest of the write stored: a window written before
-// AcquisitionStart (even in the same millisecond) is taken, and a refused one
-// never reaches the fake camera's stream. Writing the value in use passes.
+// reads back 0. A value a feature never takes (out of its range, not one of
+// its entries) is set back to the value in memory: invalid parameter.
+// Control privilege 0 (the client lets go, or libaravis ends it at a
+// heartbeat timeout, maybe inside the packet that hands control to the next
+// client) clears TLParamsLocked. A change of the payload's registers while
+// acquiring or while TLParamsLocked is 1 (a block that also clears the
+// acquisition register is a stop, and taken) is set back to the value in
+// use: access denied. A window written before AcquisitionStart (even in the
+// same millisecond) is taken, and a refused one never reaches the fake
+// camera's stream. Writing the value in use passes. What is not set back in
+// a block is stored.
 WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data) {
   auto* d = static_cast<GigeDevice*>(self);
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
@@ -608,38 +611,50 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     const uint8_t* v = data + (r - address);
     return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
   };
+  const auto set_back = [&](uint32_t r) {  // the register's value in memory
+    const uint32_t now = d->Read(r);
+    for (uint32_t b = 0; b < 4; ++b) data[r - address + b] = static_cast<uint8_t>(now >> (24 - 8 * b));
+  };
   for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop, reg::kAcquisitionAbort}) {
     if (!covers(command)) continue;
     if (size != 4 || value(command) != 1) {
       ++d->writes_refused_;
-      return WriteVerdict::kRefused;
+      return {false, GevStatus::kInvalidParameter};
     }
     if (command != reg::kAcquisitionStart) ++d->acquisition_stops_;
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
-    return WriteVerdict::kDone;
+    return {false, GevStatus::kSuccess};
+  }
+  WriteVerdict verdict;
+  for (const Feature& f : d->registers_) {
+    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
+        f.kind == Kind::kSwissKnife || f.address >= uint64_t{address} + size || f.address + f.length <= address)
+      continue;
+    // The feature's value after the write: the bytes written over those in memory.
+    uint64_t v = 0;
+    for (uint32_t r = f.address; r < f.address + f.length; r += 4) v = v << 32 | (covers(r) ? value(r) : d->Read(r));
+    if (d->Valid(f, v)) continue;
+    for (uint32_t r = f.address; r < f.address + f.length; r += 4)
+      if (covers(r)) set_back(r);
+    verdict.status = GevStatus::kInvalidParameter;
   }
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
   if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
     d->Write(reg::kTLParamsLocked, 0);
   bool geometry = false;
   for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
-  if (!geometry) return WriteVerdict::kStored;
   // (TLParamsLocked, at 0x80a0, is never in one block with the window.)
   const bool acquiring = (d->Read(reg::kAcquisition) != 0 || d->restarting_) &&
                          (!covers(reg::kAcquisition) || value(reg::kAcquisition) != 0);
-  const bool tl_locked = d->Read(reg::kTLParamsLocked) == 1;
-  if (!acquiring && !tl_locked) return WriteVerdict::kStored;
-  bool refused = false;
-  for (uint32_t g : kGeometryRegisters) {
-    if (!covers(g)) continue;
-    const uint32_t now = d->Read(g);
-    if (value(g) == now) continue;
-    for (uint32_t b = 0; b < 4; ++b) data[g - address + b] = static_cast<uint8_t>(now >> (24 - 8 * b));
-    refused = true;
+  if (geometry && (acquiring || d->Read(reg::kTLParamsLocked) == 1)) {
+    for (uint32_t g : kGeometryRegisters) {
+      if (!covers(g) || value(g) == d->Read(g)) continue;
+      set_back(g);
+      if (verdict.status == GevStatus::kSuccess) verdict.status = GevStatus::kAccessDenied;
+    }
   }
-  if (!refused) return WriteVerdict::kStored;
-  ++d->writes_refused_;
-  return WriteVerdict::kPartlyRefused;
+  if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
+  return verdict;
 }
 
 void GigeDevice::Sync() {
@@ -683,6 +698,8 @@ void GigeDevice::Sync() {
       continue;
     const uint64_t v = ReadFeature(f);
     if (v == applied_.at(f.address)) continue;
+    // (FilterClientWrite refuses invalid values as they arrive; this keeps
+    // the applied state valid whatever wrote the memory.)
     if (Valid(f, v)) {
       next[f.address] = v;
       changed.push_back(&f);

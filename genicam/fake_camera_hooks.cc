@@ -1,9 +1,9 @@
-// The hooks in front of Aravis's fake camera memory (Aravis 0.8.26,
-// Debian 12), by ELF symbol interposition: libaravis calls
-// arv_fake_camera_read_memory and _write_memory through its PLT (from its
-// GVCP thread, and from read_register / write_register), so these
+// The hooks in front of Aravis's fake camera (Aravis 0.8.26, Debian 12), by
+// ELF symbol interposition: libaravis calls arv_fake_camera_read_memory and
+// _write_memory through its PLT (from its GVCP thread, and from
+// read_register / write_register), and GLib's socket calls too, so these
 // definitions in the executable take their place, and pass what they let
-// through to libaravis's own functions (dlsym RTLD_NEXT).
+// through to the next definition (dlsym RTLD_NEXT: libaravis's, GLib's).
 //
 // Range checks: libaravis does its range arithmetic in 32 bits and does not
 // check a read past the GenICam XML, so one GVCP packet killed the camera:
@@ -13,14 +13,21 @@
 // Here each range is checked in 64 bits against the memory map
 // (ARV_FAKE_CAMERA_MEMORY_SIZE bytes of registers, then the read-only XML).
 // Outside it a read gives zeros and a write changes nothing; both return
-// FALSE (the fake camera still acknowledges the packet, where a real camera
-// answers GEV_STATUS_INVALID_ADDRESS). libaravis takes a WRITEMEM's length
-// from its header, not from the packet received, so a client write longer
-// than GVCP allows (kMaxClientWrite) or not in whole registers is refused.
+// FALSE. libaravis takes a WRITEMEM's length from its header, not from the
+// packet received, so a client write longer than GVCP allows
+// (kMaxClientWrite), not in whole registers, or longer than the packet
+// holds (it would store stale bytes of the receive buffer) is refused.
 //
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
 // its next register sync.
+//
+// Status: the fake camera acknowledges every access it answers as a
+// success. The control packet its thread received (g_socket_receive_message)
+// is kept until that thread sends the acknowledgement (g_socket_send_to on
+// the same socket, the command + 1 and the same request id); when an access
+// of that packet was refused, the acknowledgement goes out as GVCP's error
+// form instead: its status, and the header's first 4 bytes of data.
 
 #include <arv.h>
 #include <dlfcn.h>
@@ -49,6 +56,38 @@ uint64_t MapEnd(ArvFakeCamera* camera) {
   return uint64_t{ARV_FAKE_CAMERA_MEMORY_SIZE} + xml_size;
 }
 
+using camsim::genicam::GevStatus;
+
+// GVCP header: key or status (2 bytes), command (2), length (2), request id (2).
+constexpr size_t kGvcpHeader = 8;
+constexpr uint8_t kGvcpCommandKey = 0x42;
+uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] << 8 | p[1]); }
+
+// The control packet this thread received and has not acknowledged yet.
+struct ControlPacket {
+  GSocket* socket = nullptr;  // nullptr: none
+  const uint8_t* data = nullptr;
+  size_t received = 0, capacity = 0;  // bytes in the packet, and in its buffer
+  uint16_t command = 0, id = 0;
+  GevStatus status = GevStatus::kSuccess;  // the first refusal's
+};
+thread_local ControlPacket t_packet;
+
+// A refused access: its status goes into the acknowledgement of the control
+// packet this thread is answering, if any (the first refusal's).
+gboolean Refuse(GevStatus status) {
+  if (t_packet.socket != nullptr && t_packet.status == GevStatus::kSuccess) t_packet.status = status;
+  return FALSE;
+}
+
+// True when [p, p + size) starts in the received packet's buffer and runs
+// past the bytes received (a WRITEMEM whose length field claims more).
+bool PastThePacket(const void* p, uint32_t size) {
+  if (t_packet.socket == nullptr) return false;
+  const auto at = reinterpret_cast<uintptr_t>(p), start = reinterpret_cast<uintptr_t>(t_packet.data);
+  return at >= start && at - start < t_packet.capacity && at - start + size > t_packet.received;
+}
+
 struct Filter {
   ArvFakeCamera* camera;
   camsim::genicam::WriteFilter filter;
@@ -69,7 +108,7 @@ extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 a
   const uint64_t end = camera != nullptr ? MapEnd(camera) : 0;
   if (next == nullptr || address >= end) {
     std::memset(buffer, 0, size);
-    return FALSE;
+    return Refuse(GevStatus::kInvalidAddress);
   }
   // A block that runs past the end (a client reading the XML in blocks whose
   // length is a multiple of 4): what is inside, then zeros, as libaravis does
@@ -81,18 +120,20 @@ extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 a
 
 extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 address, guint32 size,
                                                  const void* buffer) {
-  using camsim::genicam::WriteVerdict;
   static const WriteFn next = Next<WriteFn>("arv_fake_camera_write_memory");
   ++t_writes;
+  if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0) return Refuse(GevStatus::kInvalidParameter);
+  const bool client = t_device_writes == 0;
+  if (client && (size > camsim::genicam::kMaxClientWrite || PastThePacket(buffer, size)))
+    return Refuse(GevStatus::kInvalidParameter);
+  if (client && (size % 4 != 0 || address % 4 != 0)) return Refuse(GevStatus::kBadAlignment);
   // Only the registers are writable (the XML after them is read-only).
-  if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0 ||
-      uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE)
-    return FALSE;
-  if (t_device_writes > 0) return next(camera, address, size, buffer);
-  if (size > camsim::genicam::kMaxClientWrite || size % 4 != 0 || address % 4 != 0) return FALSE;
+  if (uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE)
+    return Refuse(uint64_t{address} + size > MapEnd(camera) ? GevStatus::kInvalidAddress : GevStatus::kWriteProtect);
+  if (!client) return next(camera, address, size, buffer);
   uint8_t data[camsim::genicam::kMaxClientWrite];
   std::memcpy(data, buffer, size);
-  WriteVerdict verdict = WriteVerdict::kStored;
+  camsim::genicam::WriteVerdict verdict;
   {
     std::lock_guard<std::mutex> lock(g_filters_mutex);
     for (const Filter& f : g_filters)
@@ -101,13 +142,60 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
         break;
       }
   }
-  switch (verdict) {
-    case WriteVerdict::kStored: return next(camera, address, size, data);
-    case WriteVerdict::kPartlyRefused: next(camera, address, size, data); return FALSE;
-    case WriteVerdict::kDone: return TRUE;
-    case WriteVerdict::kRefused: break;
+  if (verdict.store) next(camera, address, size, data);
+  return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
+}
+
+// The fake camera's thread receives each control packet into one buffer.
+extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** address, GInputVector* vectors,
+                                           gint num_vectors, GSocketControlMessage*** messages, gint* num_messages,
+                                           gint* flags, GCancellable* cancellable, GError** error) {
+  using Fn = gssize (*)(GSocket*, GSocketAddress**, GInputVector*, gint, GSocketControlMessage***, gint*, gint*,
+                        GCancellable*, GError**);
+  static const Fn next = Next<Fn>("g_socket_receive_message");
+  t_packet = ControlPacket{};
+  if (next == nullptr) {
+    g_set_error_literal(error, G_IO_ERROR, G_IO_ERROR_FAILED, "camsim: no g_socket_receive_message");
+    return -1;
   }
-  return FALSE;
+  const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
+  if (got >= static_cast<gssize>(kGvcpHeader) && num_vectors == 1 && vectors != nullptr &&
+      vectors[0].buffer != nullptr) {
+    const auto* p = static_cast<const uint8_t*>(vectors[0].buffer);
+    if (p[0] == kGvcpCommandKey)
+      t_packet = {socket, p, static_cast<size_t>(got), vectors[0].size, Get16(p + 2), Get16(p + 6),
+                  GevStatus::kSuccess};
+  }
+  return got;
+}
+
+// The acknowledgement of the packet received: in GVCP's error form when one
+// of its accesses was refused.
+extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size,
+                                   GCancellable* cancellable, GError** error) {
+  using Fn = gssize (*)(GSocket*, GSocketAddress*, const gchar*, gsize, GCancellable*, GError**);
+  static const Fn next = Next<Fn>("g_socket_send_to");
+  if (next == nullptr) {
+    g_set_error_literal(error, G_IO_ERROR, G_IO_ERROR_FAILED, "camsim: no g_socket_send_to");
+    return -1;
+  }
+  if (t_packet.socket == nullptr || socket != t_packet.socket) return next(socket, address, buffer, size, cancellable, error);
+  const ControlPacket packet = t_packet;
+  t_packet = ControlPacket{};
+  const auto* ack = reinterpret_cast<const uint8_t*>(buffer);
+  if (packet.status == GevStatus::kSuccess || size < kGvcpHeader + 4 || Get16(ack) != 0 ||
+      Get16(ack + 2) != packet.command + 1 || Get16(ack + 6) != packet.id)
+    return next(socket, address, buffer, size, cancellable, error);
+  // Header with the status and a length of 4, then the data's first 4 bytes
+  // (the address of a memory access, the index of a register write).
+  gchar refused[kGvcpHeader + 4];
+  std::memcpy(refused, buffer, sizeof refused);
+  refused[0] = static_cast<gchar>(static_cast<uint16_t>(packet.status) >> 8);
+  refused[1] = static_cast<gchar>(static_cast<uint16_t>(packet.status) & 0xff);
+  refused[4] = 0;
+  refused[5] = 4;
+  const gssize sent = next(socket, address, refused, sizeof refused, cancellable, error);
+  return sent == static_cast<gssize>(sizeof refused) ? static_cast<gssize>(size) : sent;
 }
 
 namespace camsim::genicam {
@@ -118,7 +206,13 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
   DeviceWrites own;
   const uint64_t reads = t_reads, writes = t_writes;
   arv_fake_camera_set_control_channel_privilege(camera, arv_fake_camera_get_control_channel_privilege(camera));
-  return t_reads > reads && t_writes > writes && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
+  // libaravis calls GLib through its PLT, so a call resolves to the first
+  // definition in the process, the hooks' when they are exported.
+  const bool sockets =
+      dlsym(RTLD_DEFAULT, "g_socket_receive_message") == reinterpret_cast<void*>(&g_socket_receive_message) &&
+      dlsym(RTLD_DEFAULT, "g_socket_send_to") == reinterpret_cast<void*>(&g_socket_send_to) &&
+      dlsym(RTLD_NEXT, "g_socket_receive_message") != nullptr && dlsym(RTLD_NEXT, "g_socket_send_to") != nullptr;
+  return t_reads > reads && t_writes > writes && sockets && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
          Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
 }
 

@@ -1,7 +1,9 @@
-// What camsim puts in front of Aravis's fake camera memory
-// (arv_fake_camera_read_memory / _write_memory, which its GVCP thread and
-// every register access go through): range checks, and a filter a device
-// sets on the writes its clients make. fake_camera_hooks.cc says how.
+// What camsim puts in front of Aravis's fake camera: range checks on its
+// memory (arv_fake_camera_read_memory / _write_memory, which its GVCP thread
+// and every register access go through), a filter a device sets on the
+// writes its clients make, and the GVCP status of each refused access in the
+// acknowledgement (g_socket_receive_message / g_socket_send_to of its control
+// socket). fake_camera_hooks.cc says how.
 #pragma once
 
 #include <arv.h>
@@ -11,22 +13,38 @@
 namespace camsim::genicam {
 
 // True when libaravis's own accesses to `camera`'s memory go through the
-// hooks (tried with a read and a write of its control privilege register).
-// Without them one GVCP packet outside the memory map would crash the
-// camera, and no filter runs: GigeDevice::Init refuses to start then.
+// hooks (tried with a read and a write of its control privilege register),
+// and its socket calls too (they resolve to the hooks). Without them one GVCP
+// packet outside the memory map would crash the camera, no filter runs, and
+// refused writes are acknowledged: GigeDevice::Init refuses to start then.
 bool FakeCameraHooksInForce(ArvFakeCamera* camera);
 
 // Client writes reach a filter as GVCP's WRITEMEM allows them: a 4-aligned
-// address and length, at most this many bytes; other client writes are
-// refused before (a WRITEMEM length field is not checked against the packet).
+// address and length, at most this many bytes, all of them in the packet
+// received (its length field may claim more); other client writes are
+// refused before.
 inline constexpr uint32_t kMaxClientWrite = 536;
 
-// A filter's verdict on a write: store it (kStored), store it with the bytes
-// the filter set back to the memory's values (kPartlyRefused), leave the
-// memory unchanged as a command the filter carried out (kDone), or refuse it
-// (kRefused). The write function returns TRUE for kStored and kDone (over
-// GVCP the fake camera acknowledges every write).
-enum class WriteVerdict { kStored, kPartlyRefused, kDone, kRefused };
+// GigE Vision status codes (GVCP acknowledgement header) of refused accesses.
+enum class GevStatus : uint16_t {
+  kSuccess = 0x0000,
+  kInvalidParameter = 0x8002,  // a malformed command, or a value the register never takes
+  kInvalidAddress = 0x8003,    // outside the memory map
+  kWriteProtect = 0x8004,      // the GenICam XML
+  kBadAlignment = 0x8005,      // not whole 4-byte registers
+  kAccessDenied = 0x8006,      // a value the register does not take now (the window while acquiring)
+};
+
+// A filter's verdict on a write: whether the bytes (which the filter may
+// have set back to the memory's values) are stored, and the status the write
+// is acknowledged with. Stored with kSuccess: taken; stored with another
+// status: partly refused; not stored with kSuccess: a command the filter
+// carried out; not stored with another status: refused. The write function
+// returns TRUE for kSuccess.
+struct WriteVerdict {
+  bool store = true;
+  GevStatus status = GevStatus::kSuccess;
+};
 
 // Called before each write to a camera's memory, except those made on a
 // thread inside a DeviceWrites scope, with a copy of the `size` bytes for

@@ -108,7 +108,8 @@ std::vector<uint8_t> Be64(double x) {
 void WriteReg(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
   ASSERT_TRUE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
 }
-// A write the device refuses as it arrives (the payload's registers while acquiring).
+// A write the device refuses as it arrives (a value the feature never takes,
+// the payload's registers while acquiring).
 void WriteRegRefused(GigeDevice& d, uint32_t address, const std::vector<uint8_t>& bytes) {
   ASSERT_FALSE(d.WriteMemory(address, bytes.data(), static_cast<uint32_t>(bytes.size())));
 }
@@ -547,15 +548,38 @@ TEST(GigeRegisters, InvalidWritesAreRevertedAndValidOnesApplied) {
   DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  const std::vector<std::pair<uint32_t, std::vector<uint8_t>>> bad = {
-      {reg::kWidth, Be32(65)},        {reg::kWidth, Be32(0)},         {reg::kOffsetY, Be32(47)},
-      {reg::kPixelFormat, Be32(7)},   {reg::kGainRaw, Be32(481)},     {reg::kTriggerSource, Be32(5)},
-      {reg::kGain, Be64(48.5)},       {reg::kExposureTime, Be64(0.5)}, {reg::kSimFNumber, Be64(-1.0)},
-      {reg::kAcquisitionFrameRateEnable, Be32(2)}, {reg::kBlackLevel, Be64(1e300)}, {reg::kExposureTime, Be64(2e8)}};
-  for (const auto& w : bad) {
-    ASSERT_TRUE(d->WriteMemory(w.first, w.second.data(), static_cast<uint32_t>(w.second.size())));
+  // Values a feature never takes are refused as they arrive (the write
+  // returns false: a GVCP client gets invalid parameter); a window off the
+  // sensor (OffsetY 32 with Height 48) only by the next sync.
+  struct Bad {
+    uint32_t address;
+    std::vector<uint8_t> bytes;
+    bool refused_at_once;
+  };
+  const std::vector<Bad> bad = {{reg::kWidth, Be32(65), true},
+                                {reg::kWidth, Be32(0), true},
+                                {reg::kOffsetY, Be32(32), false},
+                                {reg::kPixelFormat, Be32(7), true},
+                                {reg::kGainRaw, Be32(481), true},
+                                {reg::kTriggerSource, Be32(5), true},
+                                {reg::kGain, Be64(48.5), true},
+                                {reg::kExposureTime, Be64(0.5), true},
+                                {reg::kSimFNumber, Be64(-1.0), true},
+                                {reg::kAcquisitionFrameRateEnable, Be32(2), true},
+                                {reg::kBlackLevel, Be64(1e300), true},
+                                {reg::kExposureTime, Be64(2e8), true}};
+  for (const Bad& w : bad) {
+    std::vector<uint8_t> before(w.bytes.size());
+    ASSERT_TRUE(d->ReadMemory(w.address, before.data(), static_cast<uint32_t>(before.size())));
+    EXPECT_EQ(d->WriteMemory(w.address, w.bytes.data(), static_cast<uint32_t>(w.bytes.size())), !w.refused_at_once)
+        << std::hex << w.address;
+    std::vector<uint8_t> now(w.bytes.size());
+    ASSERT_TRUE(d->ReadMemory(w.address, now.data(), static_cast<uint32_t>(now.size())));
+    EXPECT_EQ(now == before, w.refused_at_once) << std::hex << w.address;
     d->SyncNow();
-    EXPECT_EQ(d->CheckInvariants(), "") << std::hex << w.first;
+    EXPECT_EQ(d->CheckInvariants(), "") << std::hex << w.address;
+    ASSERT_TRUE(d->ReadMemory(w.address, now.data(), static_cast<uint32_t>(now.size())));
+    EXPECT_EQ(now, before) << std::hex << w.address;
   }
   EXPECT_EQ(d->writes_refused(), bad.size());
   std::vector<uint8_t> frame;
@@ -772,6 +796,11 @@ TEST(GigeRegisters, ABlockWriteKeepsWhatItMayChange) {
   EXPECT_EQ(ReadReg32(*d, reg::kAcquisition), 0u);
   EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format8);
   EXPECT_EQ(d->writes_refused(), 2u);
+  // A value no feature takes (AcquisitionMode 9) goes back; the format beside it stays.
+  WriteRegRefused(*d, reg::kPixelFormat, block({format12, 9}));
+  EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format12);
+  EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
+  EXPECT_EQ(d->writes_refused(), 3u);
 }
 
 // FakeCameraHooksInForce sees libaravis's own register accesses pass
@@ -858,7 +887,8 @@ TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  WriteReg(*d, reg::kSimAutoTarget, Be64(0.95));
+  WriteRegRefused(*d, reg::kSimAutoTarget, Be64(0.95));
+  EXPECT_EQ(d->writes_refused(), 1u);
   d->SyncNow();
   EXPECT_EQ(d->writes_refused(), 1u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimAutoTarget), 0.4);
@@ -1310,7 +1340,7 @@ class RawController {
     *value = Get32(ack, 8);
     return true;
   }
-  // READMEM_CMD (0x0084) of `size` bytes; true when acknowledged.
+  // READMEM_CMD (0x0084) of `size` bytes; true when acknowledged with them.
   bool ReadMemory(uint32_t address, uint16_t size, std::vector<uint8_t>* data) {
     std::vector<uint8_t> body, ack;
     Put32(&body, address);
@@ -1341,6 +1371,8 @@ class RawController {
     }
   }
   uint16_t sink_port() const { return sink_port_; }
+  // The GVCP status of the last acknowledgement (0: success).
+  uint16_t status() const { return status_; }
 
  private:
   static void Put32(std::vector<uint8_t>* b, uint32_t v) {
@@ -1373,11 +1405,12 @@ class RawController {
     if (got < 8 || (uint16_t(reply[2] << 8 | reply[3])) != command + 1 || (uint16_t(reply[6] << 8 | reply[7])) != id)
       return false;
     reply.resize(static_cast<size_t>(got));
+    status_ = static_cast<uint16_t>(reply[0] << 8 | reply[1]);
     if (ack != nullptr) *ack = reply;
     return true;
   }
   int fd_ = -1, sink_ = -1;
-  uint16_t sink_port_ = 0, id_ = 0;
+  uint16_t sink_port_ = 0, id_ = 0, status_ = 0;
 };
 
 constexpr int kTestHeartbeatMs = 1500;
@@ -1461,41 +1494,56 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   ASSERT_FALSE(xml.empty());
   const uint32_t xml_start = ARV_FAKE_CAMERA_MEMORY_SIZE, end = xml_start + static_cast<uint32_t>(xml.size());
 
+  // GVCP status codes (GigE Vision 2.x, table 19-1).
+  constexpr uint16_t kSuccess = 0, kInvalidParameter = 0x8002, kInvalidAddress = 0x8003, kWriteProtect = 0x8004,
+                     kBadAlignment = 0x8005;
   RawController raw;
   ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
+  EXPECT_EQ(raw.status(), kSuccess);
   uint32_t value = 1;
   EXPECT_TRUE(raw.Read(0x20000 + static_cast<uint32_t>(xml.size()), &value));  // past the XML
+  EXPECT_EQ(raw.status(), kInvalidAddress);
   EXPECT_EQ(value, 0u);
   value = 1;
   EXPECT_TRUE(raw.Read(0xFFFFFFFCu, &value));  // address + 4 wraps to 0
+  EXPECT_EQ(raw.status(), kInvalidAddress);
   EXPECT_EQ(value, 0u);
   std::vector<uint8_t> block;
-  EXPECT_TRUE(raw.ReadMemory(0xFFFFFFF0u, 32, &block));
-  EXPECT_EQ(block, std::vector<uint8_t>(32, 0));
+  EXPECT_FALSE(raw.ReadMemory(0xFFFFFFF0u, 32, &block));  // an error acknowledgement carries no data
+  EXPECT_EQ(raw.status(), kInvalidAddress);
   // A block that runs past the XML's end: its last bytes, then zeros.
   const uint32_t last = (end - 2) & ~3u;
   ASSERT_TRUE(raw.ReadMemory(last, 8, &block));
+  EXPECT_EQ(raw.status(), kSuccess);
   std::vector<uint8_t> expected(xml.begin() + (last - xml_start), xml.end());
   expected.resize(8, 0);
   EXPECT_EQ(block, expected);
   // The first bytes of the XML, read as a register.
   ASSERT_TRUE(raw.Read(xml_start, &value));
+  EXPECT_EQ(raw.status(), kSuccess);
   EXPECT_EQ(value, uint32_t{uint8_t(xml[0])} << 24 | uint32_t{uint8_t(xml[1])} << 16 |
                        uint32_t{uint8_t(xml[2])} << 8 | uint8_t(xml[3]));
 
   uint32_t width = 0;
   ASSERT_TRUE(raw.Read(reg::kWidth, &width));
   EXPECT_TRUE(raw.Write(0xFFFFFFFCu, 1));  // address + 4 wraps to 0
+  EXPECT_EQ(raw.status(), kInvalidAddress);
   EXPECT_TRUE(raw.WriteMemory(0xFFFFFFF8u, std::vector<uint8_t>(16, 0xff), 20));
+  EXPECT_EQ(raw.status(), kInvalidAddress);
   // A length field below 4 leaves a data length of about 4 GiB.
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 2}, 2));
+  EXPECT_EQ(raw.status(), kInvalidParameter);
   EXPECT_TRUE(raw.WriteMemory(xml_start, {'x', 'x', 'x', 'x'}, 8));  // the XML is read-only
+  EXPECT_EQ(raw.status(), kWriteProtect);
+  EXPECT_TRUE(raw.WriteMemory(reg::kWidth + 2, {0, 0, 0, 2}, 8));  // half of two registers
+  EXPECT_EQ(raw.status(), kBadAlignment);
   // A length field far beyond the packet: the fake camera would copy what
   // its 64 KiB receive buffer held before (and 7 bytes past it) over the
   // registers (the bootstrap's XML URL at 0x200, control, stream).
   std::vector<uint8_t> url_before, url_after;
   ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_before));
   EXPECT_TRUE(raw.WriteMemory(0, {1, 2, 3, 4}, 0xffff));
+  EXPECT_EQ(raw.status(), kInvalidParameter);
   ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_after));
   EXPECT_EQ(url_after, url_before);
   ASSERT_TRUE(raw.Read(kControlChannelPrivilege, &value));
@@ -1505,6 +1553,17 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   value = 0;
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, width);
+  // A length field that claims 8 bytes of a packet that carries 4: the
+  // receive buffer still holds the Height of the packet before, which would
+  // be stored with the Width.
+  ASSERT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 32, 0, 0, 0, 24}, 12));  // Width, Height
+  ASSERT_EQ(raw.status(), kSuccess);
+  EXPECT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 48}, 12));
+  EXPECT_EQ(raw.status(), kInvalidParameter);
+  ASSERT_TRUE(raw.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, 32u);
+  ASSERT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, uint8_t(width)}, 8));
+  EXPECT_EQ(raw.status(), kSuccess);
   ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
 
   Client client;
@@ -1584,8 +1643,9 @@ TEST_F(GigeE2E, TheWindowChangesBetweenAcquisitionsAndNotDuringOne) {
   EXPECT_FALSE(c.Grab(3000, nullptr, &width).empty());
   EXPECT_EQ(width, 64);
   GError* e = nullptr;
-  arv_camera_set_integer(c.camera(), "Width", 32, &e);  // acknowledged, not taken
-  EXPECT_EQ(e, nullptr);
+  arv_camera_set_integer(c.camera(), "Width", 32, &e);  // refused: access denied
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
   g_clear_error(&e);
   EXPECT_EQ(ReadInt(c, "Width"), 64);
   EXPECT_EQ(device_->writes_refused(), 1u);
@@ -1618,16 +1678,30 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
   ArvDevice* dev = c.device();
-  // Aravis's default range-check policy is off, so these reach the device.
-  SetFloat(c, "ExposureTime", 2e8);
-  SetFloat(c, "Gain", -3.0);
-  SetInt(c, "Width", 1000);
-  SetInt(c, "OffsetX", 3);  // off the Bayer increment
-  arv_device_write_register(dev, reg::kPixelFormat, 0x12345, nullptr);
-  arv_device_write_register(dev, reg::kAcquisitionMode, 9, nullptr);
+  // Aravis's default range-check policy is off, so these reach the device,
+  // which refuses each as it arrives: the client gets GVCP's invalid parameter.
+  GError* e = nullptr;
+  const auto refused = [&e](const char* what) {
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+        << what << ": " << (e != nullptr ? e->message : "no error");
+    g_clear_error(&e);
+  };
+  arv_camera_set_float(c.camera(), "ExposureTime", 2e8, &e);
+  refused("ExposureTime");
+  arv_camera_set_float(c.camera(), "Gain", -3.0, &e);
+  refused("Gain");
+  arv_camera_set_integer(c.camera(), "Width", 1000, &e);
+  refused("Width");
+  arv_camera_set_integer(c.camera(), "OffsetX", 3, &e);  // off the Bayer increment
+  refused("OffsetX");
+  arv_device_write_register(dev, reg::kPixelFormat, 0x12345, &e);
+  refused("PixelFormat");
+  arv_device_write_register(dev, reg::kAcquisitionMode, 9, &e);
+  refused("AcquisitionMode");
   uint8_t nan_bytes[8] = {0x7f, 0xf8, 0, 0, 0, 0, 0, 0};  // big-endian quiet NaN
-  arv_device_write_memory(dev, reg::kBlackLevel, 8, nan_bytes, nullptr);
-  Settle();
+  arv_device_write_memory(dev, reg::kBlackLevel, 8, nan_bytes, &e);
+  refused("BlackLevel");
+  EXPECT_EQ(device_->writes_refused(), 7u);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 10000.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 0.0);
   EXPECT_EQ(ReadInt(c, "Width"), 64);
@@ -1635,7 +1709,8 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "AcquisitionMode", nullptr), "Continuous");
   EXPECT_DOUBLE_EQ(ReadFloat(c, "BlackLevel"), 64.0);
-  // A window that fits alone but not with the offset: the offset is refused.
+  // A window that fits alone but not with the offset: the offset is refused
+  // by the next sync (the write itself is acknowledged).
   SetInt(c, "Width", 48);
   Settle();
   SetInt(c, "OffsetX", 32);
@@ -1643,10 +1718,9 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   EXPECT_EQ(ReadInt(c, "Width"), 48);
   EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
   SetInt(c, "Width", 64);
-  EXPECT_GE(device_->writes_refused(), 8u);
+  EXPECT_EQ(device_->writes_refused(), 8u);
   // With Aravis's range checks on, the XML's limits refuse on the client already.
   arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_ENABLE);
-  GError* e = nullptr;
   arv_camera_set_float(c.camera(), "ExposureTime", 2e8, &e);
   EXPECT_NE(e, nullptr);
   g_clear_error(&e);
@@ -1658,8 +1732,10 @@ TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   Start(c);
   const auto f = c.Grab(3000);
   EXPECT_TRUE(f == Reference(2, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
-  SetInt(c, "Width", 32);
-  Settle();
+  arv_camera_set_integer(c.camera(), "Width", 32, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
   EXPECT_EQ(ReadInt(c, "Width"), 64);
   EXPECT_FALSE(c.Grab(3000).empty());
 }
