@@ -593,7 +593,8 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
 // clear the fake camera's acquisition register and are not stored, so each
 // reads back 0. A value a feature never takes (out of its range, not one of
-// its entries) is set back to the value in memory: invalid parameter.
+// its entries), or a window that would leave the sensor, is set back to the
+// value in memory: invalid parameter; so is half of a Float: bad alignment.
 // Control privilege 0 (the client lets go, or libaravis ends it at a
 // heartbeat timeout, maybe inside the packet that hands control to the next
 // client) clears TLParamsLocked. A change of the payload's registers while
@@ -625,18 +626,36 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
     return {false, GevStatus::kSuccess};
   }
-  WriteVerdict verdict;
+  WriteVerdict verdict;  // its status: the first refusal's, in the order of the checks below
+  const auto refuse = [&verdict](GevStatus s) {
+    if (verdict.status == GevStatus::kSuccess) verdict.status = s;
+  };
   for (const Feature& f : d->registers_) {
     if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
         f.kind == Kind::kSwissKnife || f.address >= uint64_t{address} + size || f.address + f.length <= address)
       continue;
-    // The feature's value after the write: the bytes written over those in memory.
-    uint64_t v = 0;
-    for (uint32_t r = f.address; r < f.address + f.length; r += 4) v = v << 32 | (covers(r) ? value(r) : d->Read(r));
-    if (d->Valid(f, v)) continue;
+    bool whole = true;
+    for (uint32_t r = f.address; r < f.address + f.length; r += 4) whole = whole && covers(r);
+    uint64_t v = 0;  // the value written (a Float: its 8 bytes)
+    for (uint32_t r = f.address; whole && r < f.address + f.length; r += 4) v = v << 32 | value(r);
+    if (whole && d->Valid(f, v)) continue;
     for (uint32_t r = f.address; r < f.address + f.length; r += 4)
       if (covers(r)) set_back(r);
-    verdict.status = GevStatus::kInvalidParameter;
+    // Half of a Float's register would make a value of two writes.
+    refuse(whole ? GevStatus::kInvalidParameter : GevStatus::kBadAlignment);
+  }
+  // The window must stay on the sensor (SFNC's pMax: WidthMax - OffsetX,
+  // ...): a write that would move it off is set back, the offset first.
+  const std::pair<uint32_t, uint32_t> axes[2] = {{reg::kWidth, reg::kOffsetX}, {reg::kHeight, reg::kOffsetY}};
+  const int limits[2] = {d->sensor_.width, d->sensor_.height};
+  for (int a = 0; a < 2; ++a) {
+    const auto [extent, offset] = axes[a];
+    const auto after = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
+    if (!covers(extent) && !covers(offset)) continue;
+    if (after(extent) + after(offset) <= static_cast<uint64_t>(limits[a])) continue;
+    if (covers(offset)) set_back(offset);
+    if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
+    refuse(GevStatus::kInvalidParameter);
   }
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
   if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
@@ -650,7 +669,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     for (uint32_t g : kGeometryRegisters) {
       if (!covers(g) || value(g) == d->Read(g)) continue;
       set_back(g);
-      if (verdict.status == GevStatus::kSuccess) verdict.status = GevStatus::kAccessDenied;
+      refuse(GevStatus::kAccessDenied);
     }
   }
   if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
@@ -722,7 +741,8 @@ void GigeDevice::Sync() {
         if (f.address == a && f.alias_of.empty()) WriteFeature(f, applied_.at(a));
       ++writes_refused_;
     };
-    // The window must stay on the sensor: refuse the offset, then the size.
+    // The window must stay on the sensor: refuse the offset, then the size
+    // (FilterClientWrite does so as writes arrive; here whatever wrote them).
     const std::pair<uint32_t, uint32_t> axes[2] = {{kWidth, kOffsetX}, {kHeight, kOffsetY}};
     const int limits[2] = {sensor_.width, sensor_.height};
     for (int a = 0; a < 2; ++a) {

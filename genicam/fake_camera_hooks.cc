@@ -13,10 +13,16 @@
 // Here each range is checked in 64 bits against the memory map
 // (ARV_FAKE_CAMERA_MEMORY_SIZE bytes of registers, then the read-only XML).
 // Outside it a read gives zeros and a write changes nothing; both return
-// FALSE. libaravis takes a WRITEMEM's length from its header, not from the
-// packet received, so a client write longer than GVCP allows
-// (kMaxClientWrite), not in whole registers, or longer than the packet
-// holds (it would store stale bytes of the receive buffer) is refused.
+// FALSE. A client write longer than GVCP allows (kMaxClientWrite) or not in
+// whole registers is refused.
+//
+// Malformed packets: the fake camera parses each control packet from its
+// one receive buffer without looking at the bytes received, so a packet
+// shorter than its header or its fields, or than its length field claims,
+// would be completed with the previous packet's bytes (a WRITEMEM claiming
+// 536 bytes and carrying 4 stored 532 stale ones). The receive hook answers
+// such a packet with INVALID_PARAMETER itself and hides it from the fake
+// camera (a first byte other than the command key: it ignores the packet).
 //
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
@@ -27,7 +33,7 @@
 // is kept until that thread sends the acknowledgement (g_socket_send_to on
 // the same socket, the command + 1 and the same request id); when an access
 // of that packet was refused, the acknowledgement goes out as GVCP's error
-// form instead: its status, and the header's first 4 bytes of data.
+// form instead: the status, and 4 bytes of data (the ack's first 4).
 
 #include <arv.h>
 #include <dlfcn.h>
@@ -58,16 +64,37 @@ uint64_t MapEnd(ArvFakeCamera* camera) {
 
 using camsim::genicam::GevStatus;
 
-// GVCP header: key or status (2 bytes), command (2), length (2), request id (2).
-constexpr size_t kGvcpHeader = 8;
+// GVCP header: key or status (2 bytes), command (2), length (2), request id
+// (2). An error acknowledgement: the header and 4 bytes of data.
+constexpr size_t kGvcpHeader = 8, kGvcpErrorAck = kGvcpHeader + 4;
 constexpr uint8_t kGvcpCommandKey = 0x42;
 uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] << 8 | p[1]); }
+
+// The bytes after the header a command needs (its length field may not say
+// less): READREG an address, WRITEREG an address and a value, READMEM an
+// address and a count, WRITEMEM an address (then its data).
+size_t FixedFields(uint16_t command) {
+  switch (command) {
+    case 0x0080: return 4;  // READREG
+    case 0x0082: return 8;  // WRITEREG
+    case 0x0084: return 8;  // READMEM
+    case 0x0086: return 4;  // WRITEMEM
+    default: return 0;
+  }
+}
+
+// The header of an error acknowledgement of `command` / `id` (bytes 8..11: data).
+void ErrorAckHeader(gchar* ack, GevStatus status, uint16_t command, uint16_t id) {
+  const uint16_t fields[4] = {static_cast<uint16_t>(status), static_cast<uint16_t>(command + 1), 4, id};
+  for (int i = 0; i < 4; ++i) {
+    ack[2 * i] = static_cast<gchar>(fields[i] >> 8);
+    ack[2 * i + 1] = static_cast<gchar>(fields[i] & 0xff);
+  }
+}
 
 // The control packet this thread received and has not acknowledged yet.
 struct ControlPacket {
   GSocket* socket = nullptr;  // nullptr: none
-  const uint8_t* data = nullptr;
-  size_t received = 0, capacity = 0;  // bytes in the packet, and in its buffer
   uint16_t command = 0, id = 0;
   GevStatus status = GevStatus::kSuccess;  // the first refusal's
 };
@@ -78,14 +105,6 @@ thread_local ControlPacket t_packet;
 gboolean Refuse(GevStatus status) {
   if (t_packet.socket != nullptr && t_packet.status == GevStatus::kSuccess) t_packet.status = status;
   return FALSE;
-}
-
-// True when [p, p + size) starts in the received packet's buffer and runs
-// past the bytes received (a WRITEMEM whose length field claims more).
-bool PastThePacket(const void* p, uint32_t size) {
-  if (t_packet.socket == nullptr) return false;
-  const auto at = reinterpret_cast<uintptr_t>(p), start = reinterpret_cast<uintptr_t>(t_packet.data);
-  return at >= start && at - start < t_packet.capacity && at - start + size > t_packet.received;
 }
 
 struct Filter {
@@ -104,7 +123,7 @@ extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 a
                                                 void* buffer) {
   static const ReadFn next = Next<ReadFn>("arv_fake_camera_read_memory");
   ++t_reads;
-  if (buffer == nullptr || size == 0) return FALSE;
+  if (buffer == nullptr || size == 0) return Refuse(GevStatus::kInvalidParameter);
   const uint64_t end = camera != nullptr ? MapEnd(camera) : 0;
   if (next == nullptr || address >= end) {
     std::memset(buffer, 0, size);
@@ -124,8 +143,7 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   ++t_writes;
   if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0) return Refuse(GevStatus::kInvalidParameter);
   const bool client = t_device_writes == 0;
-  if (client && (size > camsim::genicam::kMaxClientWrite || PastThePacket(buffer, size)))
-    return Refuse(GevStatus::kInvalidParameter);
+  if (client && size > camsim::genicam::kMaxClientWrite) return Refuse(GevStatus::kInvalidParameter);
   if (client && (size % 4 != 0 || address % 4 != 0)) return Refuse(GevStatus::kBadAlignment);
   // Only the registers are writable (the XML after them is read-only).
   if (uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE)
@@ -135,18 +153,19 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   std::memcpy(data, buffer, size);
   camsim::genicam::WriteVerdict verdict;
   {
-    std::lock_guard<std::mutex> lock(g_filters_mutex);
+    std::lock_guard<std::mutex> lock(g_filters_mutex);  // the filter's decision and the store, together
     for (const Filter& f : g_filters)
       if (f.camera == camera) {
         verdict = f.filter(f.owner, address, size, data);
         break;
       }
+    if (verdict.store) next(camera, address, size, data);
   }
-  if (verdict.store) next(camera, address, size, data);
   return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
 }
 
 // The fake camera's thread receives each control packet into one buffer.
+// A malformed one is answered here and hidden from it.
 extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** address, GInputVector* vectors,
                                            gint num_vectors, GSocketControlMessage*** messages, gint* num_messages,
                                            gint* flags, GCancellable* cancellable, GError** error) {
@@ -159,13 +178,26 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
     return -1;
   }
   const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
-  if (got >= static_cast<gssize>(kGvcpHeader) && num_vectors == 1 && vectors != nullptr &&
-      vectors[0].buffer != nullptr) {
-    const auto* p = static_cast<const uint8_t*>(vectors[0].buffer);
-    if (p[0] == kGvcpCommandKey)
-      t_packet = {socket, p, static_cast<size_t>(got), vectors[0].size, Get16(p + 2), Get16(p + 6),
-                  GevStatus::kSuccess};
+  if (got <= 0 || num_vectors != 1 || vectors == nullptr || vectors[0].buffer == nullptr) return got;
+  auto* p = static_cast<uint8_t*>(vectors[0].buffer);
+  if (p[0] != kGvcpCommandKey) return got;
+  if (got < static_cast<gssize>(kGvcpHeader)) {  // the rest of its header would be the last packet's
+    p[0] = 0;
+    return got;
   }
+  const uint16_t command = Get16(p + 2), id = Get16(p + 6), length = Get16(p + 4);
+  if (length >= FixedFields(command) && static_cast<size_t>(got) >= kGvcpHeader + length) {
+    t_packet = {socket, command, id, GevStatus::kSuccess};
+    return got;
+  }
+  static const auto send = Next<gssize (*)(GSocket*, GSocketAddress*, const gchar*, gsize, GCancellable*, GError**)>(
+      "g_socket_send_to");
+  if (send != nullptr && address != nullptr && *address != nullptr) {
+    gchar ack[kGvcpErrorAck] = {};
+    ErrorAckHeader(ack, GevStatus::kInvalidParameter, command, id);
+    send(socket, *address, ack, sizeof ack, nullptr, nullptr);
+  }
+  p[0] = 0;
   return got;
 }
 
@@ -183,17 +215,12 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
   const ControlPacket packet = t_packet;
   t_packet = ControlPacket{};
   const auto* ack = reinterpret_cast<const uint8_t*>(buffer);
-  if (packet.status == GevStatus::kSuccess || size < kGvcpHeader + 4 || Get16(ack) != 0 ||
+  if (packet.status == GevStatus::kSuccess || size < kGvcpErrorAck || Get16(ack) != 0 ||
       Get16(ack + 2) != packet.command + 1 || Get16(ack + 6) != packet.id)
     return next(socket, address, buffer, size, cancellable, error);
-  // Header with the status and a length of 4, then the data's first 4 bytes
-  // (the address of a memory access, the index of a register write).
-  gchar refused[kGvcpHeader + 4];
+  gchar refused[kGvcpErrorAck];
   std::memcpy(refused, buffer, sizeof refused);
-  refused[0] = static_cast<gchar>(static_cast<uint16_t>(packet.status) >> 8);
-  refused[1] = static_cast<gchar>(static_cast<uint16_t>(packet.status) & 0xff);
-  refused[4] = 0;
-  refused[5] = 4;
+  ErrorAckHeader(refused, packet.status, packet.command, packet.id);
   const gssize sent = next(socket, address, refused, sizeof refused, cancellable, error);
   return sent == static_cast<gssize>(sizeof refused) ? static_cast<gssize>(size) : sent;
 }

@@ -20,18 +20,17 @@ namespace camsim::genicam {
 bool FakeCameraHooksInForce(ArvFakeCamera* camera);
 
 // Client writes reach a filter as GVCP's WRITEMEM allows them: a 4-aligned
-// address and length, at most this many bytes, all of them in the packet
-// received (its length field may claim more); other client writes are
-// refused before.
+// address and length, at most this many bytes, from a packet that holds
+// them all; other client writes are refused before.
 inline constexpr uint32_t kMaxClientWrite = 536;
 
 // GigE Vision status codes (GVCP acknowledgement header) of refused accesses.
 enum class GevStatus : uint16_t {
   kSuccess = 0x0000,
-  kInvalidParameter = 0x8002,  // a malformed command, or a value the register never takes
+  kInvalidParameter = 0x8002,  // a malformed packet, or a value the register never takes
   kInvalidAddress = 0x8003,    // outside the memory map
   kWriteProtect = 0x8004,      // the GenICam XML
-  kBadAlignment = 0x8005,      // not whole 4-byte registers
+  kBadAlignment = 0x8005,      // not whole registers
   kAccessDenied = 0x8006,      // a value the register does not take now (the window while acquiring)
 };
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Aravis's own command-line tool against camsim-gige: arv-tool-0.8 reads the
 # GenICam XML over GVCP, lists and reads every feature, writes some, and sees
-# out-of-range writes refused. (Debian 12's Aravis 0.8.26 has no arv-test-0.8,
+# out-of-range writes refused (GVCP's invalid parameter). (Debian 12's Aravis 0.8.26 has no arv-test-0.8,
 # Aravis's camera test suite: see docs/gige.md.)
 #   tests/gige/arv_tool_check.sh CAMSIM_GIGE
 # Exit 77 (ctest: skipped) without arv-tool-0.8.
@@ -55,7 +55,9 @@ check "control: writes read back" test "$(tool control Width Height PixelFormat 
 check "control: PayloadSize follows (320 x 240 x 1 B)" test "$(tool control PayloadSize)" = "PayloadSize = 76800"
 out=$(arv-tool-0.8 -a $addr --range-check=enable control Width=9999 2>&1)
 check "range check on: the XML's maximum refuses Width=9999" sh -c "echo '$out' | grep -q 'greater than allowed maximum'"
-tool control Width=9999 ExposureTime=-5 >/dev/null
+out=$(tool control Width=9999 ExposureTime=-5 2>&1)
+check "range check off: both writes fail with the device's invalid parameter" \
+  test "$(echo "$out" | grep -c 'write error.*(invalid-parameter)')" -eq 2
 settle
 check "range check off: the device refuses Width=9999 and ExposureTime=-5" test \
   "$(tool control Width ExposureTime | tr '\n' ' ')" = "Width = 320 px min:2 max:640 inc:2 ExposureTime = 2000 us min:1 max:1e+08 "
