@@ -29,7 +29,8 @@
 // its next register sync.
 //
 // Status: the fake camera acknowledges every access it answers as a
-// success. The control packet its thread received (g_socket_receive_message)
+// success, and does not answer a write from a client not in control or a
+// command it does not know (g_poll, below, answers those). The control packet its thread received (g_socket_receive_message)
 // is kept until that thread sends the acknowledgement (g_socket_send_to on
 // the same socket, the command + 1 and the same request id); when an access
 // of that packet was refused, the acknowledgement goes out as GVCP's error
@@ -37,6 +38,7 @@
 
 #include <arv.h>
 #include <dlfcn.h>
+#include <sys/socket.h>
 
 #include <cstdint>
 #include <cstring>
@@ -67,7 +69,9 @@ using camsim::genicam::GevStatus;
 // GVCP header: key or status (2 bytes), command (2), length (2), request id
 // (2). An error acknowledgement: the header and 4 bytes of data.
 constexpr size_t kGvcpHeader = 8, kGvcpErrorAck = kGvcpHeader + 4;
-constexpr uint8_t kGvcpCommandKey = 0x42;
+constexpr uint8_t kGvcpCommandKey = 0x42, kGvcpAckRequired = 0x01;  // byte 0; a flag of byte 1
+constexpr uint16_t kReadReg = 0x0080, kWriteReg = 0x0082, kReadMem = 0x0084, kWriteMem = 0x0086,
+                   kPacketResend = 0x0040;  // GVCP command codes
 uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] << 8 | p[1]); }
 
 // The bytes after the header a command needs (its length field may not say
@@ -75,10 +79,10 @@ uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] << 8 | p[1]
 // address and a count, WRITEMEM an address (then its data).
 size_t FixedFields(uint16_t command) {
   switch (command) {
-    case 0x0080: return 4;  // READREG
-    case 0x0082: return 8;  // WRITEREG
-    case 0x0084: return 8;  // READMEM
-    case 0x0086: return 4;  // WRITEMEM
+    case kReadReg: return 4;
+    case kWriteReg: return 8;
+    case kReadMem: return 8;
+    case kWriteMem: return 4;
     default: return 0;
   }
 }
@@ -92,13 +96,44 @@ void ErrorAckHeader(gchar* ack, GevStatus status, uint16_t command, uint16_t id)
   }
 }
 
+using SendToFn = gssize (*)(GSocket*, GSocketAddress*, const gchar*, gsize, GCancellable*, GError**);
+
 // The control packet this thread received and has not acknowledged yet.
 struct ControlPacket {
   GSocket* socket = nullptr;  // nullptr: none
   uint16_t command = 0, id = 0;
+  bool wants_ack = false;
   GevStatus status = GevStatus::kSuccess;  // the first refusal's
+  sockaddr_storage from{};                 // the client's address (native: no reference to hold)
+  gsize from_size = 0;
 };
 thread_local ControlPacket t_packet;
+
+// Sends an error acknowledgement (the header, 4 bytes of zeros).
+void SendErrorAck(GSocket* socket, GSocketAddress* to, GevStatus status, uint16_t command, uint16_t id) {
+  static const auto send = reinterpret_cast<SendToFn>(dlsym(RTLD_NEXT, "g_socket_send_to"));
+  if (send == nullptr || to == nullptr) return;
+  gchar ack[kGvcpErrorAck] = {};
+  ErrorAckHeader(ack, status, command, id);
+  send(socket, to, ack, sizeof ack, nullptr, nullptr);
+}
+
+// The packet this thread received, if the fake camera left it without an
+// acknowledgement, is answered as a camera would (when the client asked for
+// one): a write from a client not in control (the fake camera ignores it)
+// is denied, a command it does not know is not implemented; PACKETRESEND
+// has no acknowledgement. Called before the thread polls or receives again.
+void AnswerUnanswered() {
+  if (t_packet.socket == nullptr) return;
+  const ControlPacket packet = t_packet;
+  t_packet = ControlPacket{};
+  if (!packet.wants_ack || packet.command == kPacketResend || packet.from_size == 0) return;
+  const bool write = packet.command == kWriteReg || packet.command == kWriteMem;
+  GSocketAddress* to = g_socket_address_new_from_native(const_cast<sockaddr_storage*>(&packet.from), packet.from_size);
+  SendErrorAck(packet.socket, to, write ? GevStatus::kAccessDenied : GevStatus::kNotImplemented, packet.command,
+               packet.id);
+  if (to != nullptr) g_object_unref(to);
+}
 
 // A refused access: its status goes into the acknowledgement of the control
 // packet this thread is answering, if any (the first refusal's).
@@ -172,7 +207,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   using Fn = gssize (*)(GSocket*, GSocketAddress**, GInputVector*, gint, GSocketControlMessage***, gint*, gint*,
                         GCancellable*, GError**);
   static const Fn next = Next<Fn>("g_socket_receive_message");
-  t_packet = ControlPacket{};
+  AnswerUnanswered();
   if (next == nullptr) {
     g_set_error_literal(error, G_IO_ERROR, G_IO_ERROR_FAILED, "camsim: no g_socket_receive_message");
     return -1;
@@ -186,18 +221,19 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
     return got;
   }
   const uint16_t command = Get16(p + 2), id = Get16(p + 6), length = Get16(p + 4);
-  if (length >= FixedFields(command) && static_cast<size_t>(got) >= kGvcpHeader + length) {
-    t_packet = {socket, command, id, GevStatus::kSuccess};
+  GSocketAddress* from = address != nullptr ? *address : nullptr;
+  if (length < FixedFields(command) || static_cast<size_t>(got) < kGvcpHeader + length) {
+    SendErrorAck(socket, from, GevStatus::kInvalidParameter, command, id);
+    p[0] = 0;
     return got;
   }
-  static const auto send = Next<gssize (*)(GSocket*, GSocketAddress*, const gchar*, gsize, GCancellable*, GError**)>(
-      "g_socket_send_to");
-  if (send != nullptr && address != nullptr && *address != nullptr) {
-    gchar ack[kGvcpErrorAck] = {};
-    ErrorAckHeader(ack, GevStatus::kInvalidParameter, command, id);
-    send(socket, *address, ack, sizeof ack, nullptr, nullptr);
-  }
-  p[0] = 0;
+  t_packet.socket = socket;
+  t_packet.command = command;
+  t_packet.id = id;
+  t_packet.wants_ack = (p[1] & kGvcpAckRequired) != 0;
+  if (from != nullptr && g_socket_address_get_native_size(from) <= static_cast<gssize>(sizeof t_packet.from) &&
+      g_socket_address_to_native(from, &t_packet.from, sizeof t_packet.from, nullptr))
+    t_packet.from_size = static_cast<gsize>(g_socket_address_get_native_size(from));
   return got;
 }
 
@@ -205,8 +241,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
 // of its accesses was refused.
 extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size,
                                    GCancellable* cancellable, GError** error) {
-  using Fn = gssize (*)(GSocket*, GSocketAddress*, const gchar*, gsize, GCancellable*, GError**);
-  static const Fn next = Next<Fn>("g_socket_send_to");
+  static const SendToFn next = Next<SendToFn>("g_socket_send_to");
   if (next == nullptr) {
     g_set_error_literal(error, G_IO_ERROR, G_IO_ERROR_FAILED, "camsim: no g_socket_send_to");
     return -1;
@@ -225,6 +260,15 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
   return sent == static_cast<gssize>(sizeof refused) ? static_cast<gssize>(size) : sent;
 }
 
+// The fake camera's thread polls its sockets again once it has handled a
+// packet.
+extern "C" gint g_poll(GPollFD* fds, guint nfds, gint timeout) {
+  static const auto next = Next<gint (*)(GPollFD*, guint, gint)>("g_poll");
+  AnswerUnanswered();
+  if (next == nullptr) return -1;
+  return next(fds, nfds, timeout);
+}
+
 namespace camsim::genicam {
 
 bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
@@ -238,7 +282,9 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
   const bool sockets =
       dlsym(RTLD_DEFAULT, "g_socket_receive_message") == reinterpret_cast<void*>(&g_socket_receive_message) &&
       dlsym(RTLD_DEFAULT, "g_socket_send_to") == reinterpret_cast<void*>(&g_socket_send_to) &&
-      dlsym(RTLD_NEXT, "g_socket_receive_message") != nullptr && dlsym(RTLD_NEXT, "g_socket_send_to") != nullptr;
+      dlsym(RTLD_DEFAULT, "g_poll") == reinterpret_cast<void*>(&g_poll) &&
+      dlsym(RTLD_NEXT, "g_socket_receive_message") != nullptr && dlsym(RTLD_NEXT, "g_socket_send_to") != nullptr &&
+      dlsym(RTLD_NEXT, "g_poll") != nullptr;
   return t_reads > reads && t_writes > writes && sockets && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
          Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
 }

@@ -3,7 +3,8 @@
 // and every register access go through), a filter a device sets on the
 // writes its clients make, and the GVCP status of each refused access in the
 // acknowledgement (g_socket_receive_message / g_socket_send_to of its control
-// socket). fake_camera_hooks.cc says how.
+// socket, and g_poll for the packets it leaves unanswered).
+// fake_camera_hooks.cc says how.
 #pragma once
 
 #include <arv.h>
@@ -27,11 +28,12 @@ inline constexpr uint32_t kMaxClientWrite = 536;
 // GigE Vision status codes (GVCP acknowledgement header) of refused accesses.
 enum class GevStatus : uint16_t {
   kSuccess = 0x0000,
+  kNotImplemented = 0x8001,    // a command the fake camera does not know
   kInvalidParameter = 0x8002,  // a malformed packet, or a value the register never takes
   kInvalidAddress = 0x8003,    // outside the memory map
   kWriteProtect = 0x8004,      // the GenICam XML
   kBadAlignment = 0x8005,      // not whole registers
-  kAccessDenied = 0x8006,      // a value the register does not take now (the window while acquiring)
+  kAccessDenied = 0x8006,      // not now: the window while acquiring, a write from a client not in control
 };
 
 // A filter's verdict on a write: whether the bytes (which the filter may

@@ -1385,6 +1385,8 @@ class RawController {
   static uint32_t Get32(const std::vector<uint8_t>& b, size_t at) {
     return uint32_t{b[at]} << 24 | uint32_t{b[at + 1]} << 16 | uint32_t{b[at + 2]} << 8 | b[at + 3];
   }
+
+ public:
   // Sends a GVCP command (header: key 0x42, flag "acknowledge", command,
   // length of body, request id) and waits for its acknowledgement (command
   // + 1, same request id). length < 0: the body's length.
@@ -1414,6 +1416,8 @@ class RawController {
     if (ack != nullptr) *ack = reply;
     return true;
   }
+
+ private:
   int fd_ = -1, sink_ = -1;
   uint16_t sink_port_ = 0, id_ = 0, status_ = 0;
 };
@@ -1591,6 +1595,42 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   EXPECT_EQ(arv_camera_get_integer(client.camera(), "Width", &error), static_cast<gint64>(width));
   EXPECT_EQ(error, nullptr);
   g_clear_error(&error);
+}
+
+// What Aravis's fake camera leaves unanswered gets a camera's answer: a
+// write from a client not in control is denied (the fake camera dropped it,
+// so the client waited for its timeout and retried), a command it does not
+// know is not implemented; PACKETRESEND and a packet without the
+// acknowledge flag get no answer (GVCP).
+TEST_F(GigeE2E, UnansweredCommandsGetACamerasAnswer) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr uint16_t kNotImplemented = 0x8001, kAccessDenied = 0x8006;
+  RawController owner, other;
+  ASSERT_TRUE(owner.Write(kControlChannelPrivilege, 2));
+  ASSERT_EQ(owner.status(), 0);
+  ASSERT_TRUE(owner.Write(kHeartbeatTimeout, 30000));  // the owner sends no heartbeat
+  uint32_t width = 0, value = 0;
+  ASSERT_TRUE(other.Read(reg::kWidth, &width));  // reads are open to every client
+  EXPECT_EQ(other.status(), 0);
+  EXPECT_TRUE(other.Write(reg::kWidth, 32));
+  EXPECT_EQ(other.status(), kAccessDenied);
+  EXPECT_TRUE(other.WriteMemory(reg::kWidth, {0, 0, 0, 32}, 8));
+  EXPECT_EQ(other.status(), kAccessDenied);
+  EXPECT_TRUE(other.Write(kControlChannelPrivilege, 2));  // no takeover while the owner is alive
+  EXPECT_EQ(other.status(), kAccessDenied);
+  ASSERT_TRUE(owner.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, width);
+  EXPECT_TRUE(other.Command(0x0100, std::vector<uint8_t>(12, 0), nullptr));  // ACTION_CMD
+  EXPECT_EQ(other.status(), kNotImplemented);
+  // PACKETRESEND (stream channel 0, block 1, packets 1..2), then a write
+  // without the acknowledge flag: no answer to either.
+  EXPECT_FALSE(other.SendRaw({0x42, 0x01, 0x00, 0x40, 0x00, 0x0c, 0x00, 0x70, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 2}, 300));
+  EXPECT_FALSE(other.SendRaw({0x42, 0x00, 0x00, 0x82, 0x00, 0x08, 0x00, 0x71, 0, 0, 0x01, 0x00, 0, 0, 0, 32}, 300));
+  ASSERT_TRUE(owner.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, width);
+  ASSERT_TRUE(owner.Write(kControlChannelPrivilege, 0));
+  EXPECT_EQ(owner.status(), 0);
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
