@@ -20,7 +20,8 @@ const char kUsage[] =
     "                   [--strobe-line CHIP:OFFSET|unix:DIR] [--threads N] [--xml-out FILE] [--frames N]\n"
     "  Serves the pipeline's frames as an Aravis fake GigE Vision camera on ADDRESS\n"
     "  (connect by that address). NAME: gradient, checker, flat (size from [sensor]\n"
-    "  width/height, else 640x480). --frames N: exit after N frames (0 = run until\n"
+    "  width/height, else 640x480; depth: a plane from 0.5 m at the left edge to\n"
+    "  8 m at the right). --frames N: exit after N frames (0 = run until\n"
     "  SIGINT/SIGTERM). Lines: a GPIO line (libgpiod) or unix:DIR, a loopback trigger\n"
     "  bus shared by a rig of cameras (fire it with camsim-trigger). Receivers at\n"
     "  1080p need a 4 MiB socket buffer: see docs/gige.md.\n";

@@ -24,8 +24,8 @@ namespace camsim::genicam {
 namespace {
 
 // Registers the pipeline depends on: a change reconfigures it.
-constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain, reg::kBlackLevel, reg::kSimFNumber,
-                                           reg::kSimSeed};
+constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg::kBlackLevel,
+                                           reg::kSimFNumber,   reg::kSimSeed, reg::kSimFocusDistance};
 // The payload's registers: frozen while acquiring (the stream's buffers are
 // sized) and while TLParamsLocked is 1.
 constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
@@ -139,11 +139,12 @@ bool MakePatternScene(const std::string& name, int width, int height, io::SceneF
   s.height = height;
   s.source = "pattern:" + name;
   s.layout = "pattern";
-  for (io::FloatPlane* p : {&s.r, &s.g, &s.b}) {
+  for (io::FloatPlane* p : {&s.r, &s.g, &s.b, &s.depth}) {
     p->width = width;
     p->height = height;
     p->data.assign(static_cast<size_t>(width) * height, 0.0f);
   }
+  s.has_depth = true;
   // Radiance levels: mid grey 0.18 is a normal exposure for the demo camera;
   // the gradient's highlights (2.0) clip, so both ends of the range show.
   for (int y = 0; y < height; ++y)
@@ -165,6 +166,9 @@ bool MakePatternScene(const std::string& name, int width, int height, io::SceneF
       s.r.data[i] = r;
       s.g.data[i] = g;
       s.b.data[i] = b;
+      // Depth (for the dof stage): a plane that recedes from 0.5 m at the
+      // left edge to 8 m at the right.
+      s.depth.data[i] = 0.5f + 7.5f * static_cast<float>(x) / static_cast<float>(width - 1);
     }
   *out = std::move(s);
   return true;
@@ -446,6 +450,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimSceneFrame, 0},
       {kSimFrameIndex, 0},
       {kSimFNumber, DoubleBits(c.exposure.f_number)},
+      // (Unchecked while the dof stage is off: kept in the XML's range.)
+      {kSimFocusDistance, DoubleBits(std::clamp(c.dof.focus_distance_m, kMinFocusDistanceM, kMaxFocusDistanceM))},
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
@@ -554,6 +560,7 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
   host::RunConfig rc = base_config_;
   rc.core.exposure.exposure_time_us = BitsDouble(r.at(kExposureTime));
   rc.core.exposure.f_number = BitsDouble(r.at(kSimFNumber));
+  rc.core.dof.focus_distance_m = BitsDouble(r.at(kSimFocusDistance));
   rc.core.sensor.gain_db = BitsDouble(r.at(kGain));
   rc.core.sensor.black_level_dn = BitsDouble(r.at(kBlackLevel));
   if (r.at(kSimSeed) != seed_register_at_start_) rc.core.seed = r.at(kSimSeed);

@@ -260,6 +260,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("SimFrameIndex", sim, kSimFrameIndex, true, 0, 0x7fffffff, 1,
                   "Frame index of the next frame (keys the noise; `camsim run --first-frame`)."));
   t.push_back(Flt("SimFNumber", sim, kSimFNumber, 0.5, 128.0, "Lens f-number.", ""));
+  t.push_back(Flt("SimFocusDistance", sim, kSimFocusDistance, kMinFocusDistanceM, kMaxFocusDistanceM,
+                  "Focus distance of the depth of field (the dof stage; it must exceed the focal length).", "m"));
   t.push_back(Int("SimSeed", sim, kSimSeed, true, 0, 0x7fffffff, 1, "Seed of all randomness."));
   std::vector<EnumEntry> stages;
   for (size_t i = 0; i < s.stage_names.size(); ++i)

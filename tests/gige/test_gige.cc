@@ -867,6 +867,34 @@ TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
 }
 
 // SimAutoTarget takes what the controller uses (0.01 .. 0.9), and nothing more.
+// SimFocusDistance is dof.focus_distance_m: the frames follow it as the
+// core renders them with that setting (the pattern's depth is a plane from
+// 0.5 m to 8 m), and a distance the lens cannot focus at (not beyond its
+// focal length) is refused by the pipeline.
+TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
+  DeviceOptions o = OfflineDevice();
+  o.pattern = "checker";
+  o.overrides.push_back("dof.method=diffusion");
+  o.overrides.push_back("dof.focus_distance_m=1.0");
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 1.0);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, code, 0, 0, 64, 48));
+  WriteReg(*d, reg::kSimFocusDistance, Be64(6.0));
+  d->SyncNow();
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"dof.focus_distance_m=6.0"}));
+  EXPECT_NE(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48)) << "the focus distance changes nothing in this scene";
+  WriteReg(*d, reg::kSimFocusDistance, Be64(0.002));  // the demo lens's focal length is longer
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0);
+  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
