@@ -31,7 +31,6 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
 constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
                                            reg::kPixelFormat};
 using reg::kControlChannelPrivilege, reg::kStreamPort, reg::kStreamDestAddress;
-constexpr uint16_t kGvcpPort = 3956;  // GigE Vision control port
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
 constexpr double kTriggerPollHz = 1000.0;
@@ -685,6 +684,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
 
 void GigeDevice::Sync() {
   using namespace reg;
+  const ClientWritesHeld hold;  // one consistent state of the registers
   const bool acquiring = Read(kAcquisition) != 0;
   // Clients that go away. The fake camera picks its stream destination when
   // an acquisition starts and forgets it only when a control packet arrives

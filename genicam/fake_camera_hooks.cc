@@ -36,8 +36,12 @@
 // of that packet was refused, the acknowledgement goes out as GVCP's error
 // form instead: the status, and 4 bytes of data (the ack's first 4).
 
+#include <arpa/inet.h>
 #include <arv.h>
 #include <dlfcn.h>
+#include <ifaddrs.h>
+#include <net/if.h>
+#include <netinet/in.h>
 #include <sys/socket.h>
 
 #include <cstdint>
@@ -109,29 +113,63 @@ struct ControlPacket {
 };
 thread_local ControlPacket t_packet;
 
-// Sends an error acknowledgement (the header, 4 bytes of zeros).
-void SendErrorAck(GSocket* socket, GSocketAddress* to, GevStatus status, uint16_t command, uint16_t id) {
+// The local IPv4 address of a socket bound to GVCP's port (a fake camera's
+// control or discovery socket), or false.
+bool GvcpSocketAddress(GSocket* socket, in_addr* address) {
+  sockaddr_in a{};
+  socklen_t n = sizeof a;
+  if (getsockname(g_socket_get_fd(socket), reinterpret_cast<sockaddr*>(&a), &n) != 0 || a.sin_family != AF_INET ||
+      ntohs(a.sin_port) != camsim::genicam::kGvcpPort)
+    return false;
+  *address = a.sin_addr;
+  return true;
+}
+
+// True when `socket` is bound to a broadcast address (the fake camera's
+// global or subnet discovery socket).
+bool BroadcastSocket(GSocket* socket) {
+  in_addr local{};
+  if (!GvcpSocketAddress(socket, &local)) return false;
+  if (local.s_addr == htonl(INADDR_BROADCAST)) return true;
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) return true;  // unknown: stay silent
+  bool broadcast = false;
+  for (const ifaddrs* i = list; i != nullptr && !broadcast; i = i->ifa_next)
+    broadcast = (i->ifa_flags & IFF_BROADCAST) != 0 && i->ifa_broadaddr != nullptr &&
+                i->ifa_broadaddr->sa_family == AF_INET &&
+                reinterpret_cast<const sockaddr_in*>(i->ifa_broadaddr)->sin_addr.s_addr == local.s_addr;
+  freeifaddrs(list);
+  return broadcast;
+}
+
+// Sends an error acknowledgement (the header, 4 bytes of zeros) of a
+// command the client asked to acknowledge, as a camera would: not to a
+// command that came by broadcast (a FORCEIP or ACTION_CMD meant for another
+// camera, say), and never to PACKETRESEND (GVCP answers it with the resent
+// packets).
+void SendErrorAck(GSocket* socket, GSocketAddress* to, bool wants_ack, GevStatus status, uint16_t command,
+                  uint16_t id) {
   static const auto send = reinterpret_cast<SendToFn>(dlsym(RTLD_NEXT, "g_socket_send_to"));
-  if (send == nullptr || to == nullptr) return;
+  if (send == nullptr || to == nullptr || !wants_ack || command == kPacketResend || BroadcastSocket(socket)) return;
   gchar ack[kGvcpErrorAck] = {};
   ErrorAckHeader(ack, status, command, id);
   send(socket, to, ack, sizeof ack, nullptr, nullptr);
 }
 
 // The packet this thread received, if the fake camera left it without an
-// acknowledgement, is answered as a camera would (when the client asked for
-// one): a write from a client not in control (the fake camera ignores it)
-// is denied, a command it does not know is not implemented; PACKETRESEND
-// has no acknowledgement. Called before the thread polls or receives again.
+// acknowledgement, is answered: a write from a client not in control (the
+// fake camera ignores it) is denied, a command it does not know is not
+// implemented. Called when the thread receives again (the fake camera reads
+// each of its sockets in turn) and before it polls.
 void AnswerUnanswered() {
   if (t_packet.socket == nullptr) return;
   const ControlPacket packet = t_packet;
   t_packet = ControlPacket{};
-  if (!packet.wants_ack || packet.command == kPacketResend || packet.from_size == 0) return;
+  if (packet.from_size == 0) return;
   const bool write = packet.command == kWriteReg || packet.command == kWriteMem;
   GSocketAddress* to = g_socket_address_new_from_native(const_cast<sockaddr_storage*>(&packet.from), packet.from_size);
-  SendErrorAck(packet.socket, to, write ? GevStatus::kAccessDenied : GevStatus::kNotImplemented, packet.command,
-               packet.id);
+  SendErrorAck(packet.socket, to, packet.wants_ack, write ? GevStatus::kAccessDenied : GevStatus::kNotImplemented,
+               packet.command, packet.id);
   if (to != nullptr) g_object_unref(to);
 }
 
@@ -215,22 +253,24 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
   if (got <= 0 || num_vectors != 1 || vectors == nullptr || vectors[0].buffer == nullptr) return got;
   auto* p = static_cast<uint8_t*>(vectors[0].buffer);
-  if (p[0] != kGvcpCommandKey) return got;
+  in_addr local{};
+  if (p[0] != kGvcpCommandKey || !GvcpSocketAddress(socket, &local)) return got;  // not a command to a camera
   if (got < static_cast<gssize>(kGvcpHeader)) {  // the rest of its header would be the last packet's
     p[0] = 0;
     return got;
   }
   const uint16_t command = Get16(p + 2), id = Get16(p + 6), length = Get16(p + 4);
   GSocketAddress* from = address != nullptr ? *address : nullptr;
+  const bool wants_ack = (p[1] & kGvcpAckRequired) != 0;
   if (length < FixedFields(command) || static_cast<size_t>(got) < kGvcpHeader + length) {
-    SendErrorAck(socket, from, GevStatus::kInvalidParameter, command, id);
+    SendErrorAck(socket, from, wants_ack, GevStatus::kInvalidParameter, command, id);
     p[0] = 0;
     return got;
   }
   t_packet.socket = socket;
   t_packet.command = command;
   t_packet.id = id;
-  t_packet.wants_ack = (p[1] & kGvcpAckRequired) != 0;
+  t_packet.wants_ack = wants_ack;
   if (from != nullptr && g_socket_address_get_native_size(from) <= static_cast<gssize>(sizeof t_packet.from) &&
       g_socket_address_to_native(from, &t_packet.from, sizeof t_packet.from, nullptr))
     t_packet.from_size = static_cast<gsize>(g_socket_address_get_native_size(from));
@@ -298,6 +338,9 @@ void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
     }
   if (filter != nullptr) g_filters.push_back({camera, filter, owner});
 }
+
+ClientWritesHeld::ClientWritesHeld() { g_filters_mutex.lock(); }
+ClientWritesHeld::~ClientWritesHeld() { g_filters_mutex.unlock(); }
 
 DeviceWrites::DeviceWrites() { ++t_device_writes; }
 DeviceWrites::~DeviceWrites() { --t_device_writes; }

@@ -13,6 +13,8 @@
 
 namespace camsim::genicam {
 
+inline constexpr uint16_t kGvcpPort = 3956;  // GigE Vision's control port
+
 // True when libaravis's own accesses to `camera`'s memory go through the
 // hooks (tried with a read and a write of its control privilege register),
 // and its socket calls too (they resolve to the hooks). Without them one GVCP
@@ -55,6 +57,19 @@ using WriteFilter = WriteVerdict (*)(void* owner, uint32_t address, uint32_t siz
 // Sets the filter of `camera` (nullptr removes it). Removing it waits for a
 // call in progress, so `owner` may go away after.
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner);
+
+// While one lives, client writes wait (a filter's decision and the store
+// are made under the same lock), so the device's sync reads the registers
+// in one consistent state: not a Width from before a client's write and an
+// OffsetX from after the next. Taken inside a device's lock, never the
+// other way round (a filter runs under it and takes no device lock).
+class ClientWritesHeld {
+ public:
+  ClientWritesHeld();
+  ~ClientWritesHeld();
+  ClientWritesHeld(const ClientWritesHeld&) = delete;
+  ClientWritesHeld& operator=(const ClientWritesHeld&) = delete;
+};
 
 // The device's own writes (initial values, reverting a refused value): the
 // filter does not see the writes made on this thread while one lives.

@@ -1607,6 +1607,10 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   EXPECT_EQ(raw.status(), kInvalidParameter);
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, 32u);
+  // The same without the acknowledge flag: refused, and not answered.
+  EXPECT_FALSE(raw.SendRaw({0x42, 0x00, 0x00, 0x86, 0x00, 0x0c, 0x00, 0x60, 0, 0, 0x01, 0x00, 0, 0, 0, 48}, 300));
+  ASSERT_TRUE(raw.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, 32u);
   // A datagram shorter than a header: the last command (Width 32 again) would run.
   ASSERT_TRUE(raw.Write(reg::kWidth, 32));
   ASSERT_TRUE(device_->WriteMemory(reg::kWidth, be32(width).data(), 4));
