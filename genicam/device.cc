@@ -449,8 +449,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimSceneFrame, 0},
       {kSimFrameIndex, 0},
       {kSimFNumber, DoubleBits(c.exposure.f_number)},
-      // (Unchecked while the dof stage is off: kept in the XML's range.)
-      {kSimFocusDistance, DoubleBits(std::clamp(c.dof.focus_distance_m, kMinFocusDistanceM, kMaxFocusDistanceM))},
+      // (Unchecked while dof.method is off: kept in the XML's range.)
+      {kSimFocusDistance, DoubleBits(std::isfinite(c.dof.focus_distance_m)
+                                         ? std::clamp(c.dof.focus_distance_m, kMinFocusDistanceM, kMaxFocusDistanceM)
+                                         : kMaxFocusDistanceM)},
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
@@ -684,7 +686,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
 
 void GigeDevice::Sync() {
   using namespace reg;
-  const ClientWritesHeld hold;  // one consistent state of the registers
+  const ClientWritesHeld hold(fake_);  // one consistent state of the registers
   const bool acquiring = Read(kAcquisition) != 0;
   // Clients that go away. The fake camera picks its stream destination when
   // an acquisition starts and forgets it only when a control packet arrives

@@ -46,8 +46,8 @@
 
 #include <cstdint>
 #include <cstring>
+#include <list>
 #include <mutex>
-#include <vector>
 
 #include "genicam/fake_camera_hooks.h"
 
@@ -126,20 +126,25 @@ bool GvcpSocketAddress(GSocket* socket, in_addr* address) {
 }
 
 // True when `socket` is bound to a broadcast address (the fake camera's
-// global or subnet discovery socket).
+// global or subnet discovery socket), not to an interface's own address
+// (its control socket; a /32 address may be its own broadcast address).
 bool BroadcastSocket(GSocket* socket) {
   in_addr local{};
   if (!GvcpSocketAddress(socket, &local)) return false;
   if (local.s_addr == htonl(INADDR_BROADCAST)) return true;
   ifaddrs* list = nullptr;
-  if (getifaddrs(&list) != 0) return true;  // unknown: stay silent
-  bool broadcast = false;
-  for (const ifaddrs* i = list; i != nullptr && !broadcast; i = i->ifa_next)
-    broadcast = (i->ifa_flags & IFF_BROADCAST) != 0 && i->ifa_broadaddr != nullptr &&
-                i->ifa_broadaddr->sa_family == AF_INET &&
-                reinterpret_cast<const sockaddr_in*>(i->ifa_broadaddr)->sin_addr.s_addr == local.s_addr;
+  if (getifaddrs(&list) != 0) return false;
+  const auto is = [&local](const sockaddr* a) {
+    return a != nullptr && a->sa_family == AF_INET &&
+           reinterpret_cast<const sockaddr_in*>(a)->sin_addr.s_addr == local.s_addr;
+  };
+  bool own = false, broadcast = false;
+  for (const ifaddrs* i = list; i != nullptr; i = i->ifa_next) {
+    own = own || is(i->ifa_addr);
+    broadcast = broadcast || ((i->ifa_flags & IFF_BROADCAST) != 0 && is(i->ifa_broadaddr));
+  }
   freeifaddrs(list);
-  return broadcast;
+  return broadcast && !own;
 }
 
 // Sends an error acknowledgement (the header, 4 bytes of zeros) of a
@@ -181,12 +186,24 @@ gboolean Refuse(GevStatus status) {
 }
 
 struct Filter {
-  ArvFakeCamera* camera;
-  camsim::genicam::WriteFilter filter;
-  void* owner;
+  ArvFakeCamera* camera = nullptr;
+  camsim::genicam::WriteFilter filter = nullptr;
+  void* owner = nullptr;
+  std::mutex writes;  // held while the filter decides on a write and it is stored, and by ClientWritesHeld
 };
-std::mutex g_filters_mutex;  // held while a filter runs
-std::vector<Filter> g_filters;
+std::mutex g_filters_mutex;  // guards the list (held only to find or change an entry)
+std::list<Filter> g_filters;
+
+// The filter of `camera` with its `writes` lock taken, or nullptr.
+Filter* LockFilter(ArvFakeCamera* camera) {
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  for (Filter& f : g_filters)
+    if (f.camera == camera) {
+      f.writes.lock();
+      return &f;
+    }
+  return nullptr;
+}
 thread_local int t_device_writes = 0;
 thread_local uint64_t t_reads = 0, t_writes = 0;  // calls of the hooks on this thread (FakeCameraHooksInForce)
 
@@ -225,15 +242,10 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   uint8_t data[camsim::genicam::kMaxClientWrite];
   std::memcpy(data, buffer, size);
   camsim::genicam::WriteVerdict verdict;
-  {
-    std::lock_guard<std::mutex> lock(g_filters_mutex);  // the filter's decision and the store, together
-    for (const Filter& f : g_filters)
-      if (f.camera == camera) {
-        verdict = f.filter(f.owner, address, size, data);
-        break;
-      }
-    if (verdict.store) next(camera, address, size, data);
-  }
+  Filter* f = LockFilter(camera);  // the filter's decision and the store, together
+  if (f != nullptr) verdict = f->filter(f->owner, address, size, data);
+  if (verdict.store) next(camera, address, size, data);
+  if (f != nullptr) f->writes.unlock();
   return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
 }
 
@@ -330,17 +342,27 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
-  std::lock_guard<std::mutex> lock(g_filters_mutex);
-  for (size_t i = 0; i < g_filters.size(); ++i)
-    if (g_filters[i].camera == camera) {
-      g_filters.erase(g_filters.begin() + static_cast<std::ptrdiff_t>(i));
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  for (auto f = g_filters.begin(); f != g_filters.end(); ++f)
+    if (f->camera == camera) {
+      // Waits for a write or a ClientWritesHeld in progress; no new one can
+      // find the entry while the list is held.
+      f->writes.lock();
+      f->writes.unlock();
+      g_filters.erase(f);
       break;
     }
-  if (filter != nullptr) g_filters.push_back({camera, filter, owner});
+  if (filter == nullptr) return;
+  Filter& added = g_filters.emplace_back();
+  added.camera = camera;
+  added.filter = filter;
+  added.owner = owner;
 }
 
-ClientWritesHeld::ClientWritesHeld() { g_filters_mutex.lock(); }
-ClientWritesHeld::~ClientWritesHeld() { g_filters_mutex.unlock(); }
+ClientWritesHeld::ClientWritesHeld(ArvFakeCamera* camera) : held_(LockFilter(camera)) {}
+ClientWritesHeld::~ClientWritesHeld() {
+  if (held_ != nullptr) static_cast<Filter*>(held_)->writes.unlock();
+}
 
 DeviceWrites::DeviceWrites() { ++t_device_writes; }
 DeviceWrites::~DeviceWrites() { --t_device_writes; }

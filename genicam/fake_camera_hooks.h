@@ -55,20 +55,24 @@ struct WriteVerdict {
 using WriteFilter = WriteVerdict (*)(void* owner, uint32_t address, uint32_t size, uint8_t* data);
 
 // Sets the filter of `camera` (nullptr removes it). Removing it waits for a
-// call in progress, so `owner` may go away after.
+// call or a ClientWritesHeld in progress, so `owner` may go away after.
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner);
 
-// While one lives, client writes wait (a filter's decision and the store
-// are made under the same lock), so the device's sync reads the registers
-// in one consistent state: not a Width from before a client's write and an
-// OffsetX from after the next. Taken inside a device's lock, never the
-// other way round (a filter runs under it and takes no device lock).
+// While one lives, client writes to `camera` wait (its filter's decision
+// and the store are made under the same lock), so the device's sync reads
+// the registers in one consistent state: not a Width from before a client's
+// write and an OffsetX from after the next. Other cameras' writes go on.
+// Taken inside a device's lock, never the other way round (a filter runs
+// under it and takes no device lock). Nothing is held without a filter.
 class ClientWritesHeld {
  public:
-  ClientWritesHeld();
+  explicit ClientWritesHeld(ArvFakeCamera* camera);
   ~ClientWritesHeld();
   ClientWritesHeld(const ClientWritesHeld&) = delete;
   ClientWritesHeld& operator=(const ClientWritesHeld&) = delete;
+
+ private:
+  void* held_;  // the camera's filter entry, its lock taken
 };
 
 // The device's own writes (initial values, reverting a refused value): the
