@@ -30,6 +30,13 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
 // sized) and while TLParamsLocked is 1.
 constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
                                            reg::kPixelFormat};
+
+// A feature whose value the device checks: writable, its register's own
+// (not an alias), and a value (not a string, command or formula).
+bool Checked(const Feature& f) {
+  return f.writable && f.alias_of.empty() && f.kind != Kind::kString && f.kind != Kind::kCommand &&
+         f.kind != Kind::kSwissKnife;
+}
 using reg::kControlChannelPrivilege, reg::kStreamPort, reg::kStreamDestAddress;
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
@@ -376,10 +383,11 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   const bool hooked = trial != nullptr && FakeCameraHooksInForce(trial);
   if (trial != nullptr) g_object_unref(trial);
   if (!hooked) {
-    *error = "libaravis's accesses to the fake camera's memory do not go through camsim's hooks "
-             "(genicam/fake_camera_hooks.cc: camsim_genicam linked into a shared library, or a libaravis "
-             "linked with -Bsymbolic): without them one GVCP packet outside the memory map would crash the "
-             "camera, and writes to the window during acquisition would not be refused";
+    *error = "libaravis's accesses to the fake camera's memory, or its GLib socket calls, do not go through "
+             "camsim's hooks (genicam/fake_camera_hooks.cc: camsim_genicam linked into a shared library, or a "
+             "libaravis linked with -Bsymbolic): without them one GVCP packet outside the memory map would crash "
+             "the camera, refused writes would not be refused as they arrive, and clients would see them "
+             "acknowledged as successes";
     return false;
   }
   if (o.serve) {
@@ -515,9 +523,7 @@ bool GigeDevice::RenderNow(std::vector<uint8_t>* frame) {
 std::string GigeDevice::CheckInvariants() const {
   std::lock_guard<std::mutex> lock(mutex_);
   for (const Feature& f : registers_) {
-    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
-        f.kind == Kind::kSwissKnife)
-      continue;
+    if (!Checked(f)) continue;
     const uint64_t in_use = applied_.at(f.address);
     if (!Valid(f, in_use)) return f.name + ": the value in use is invalid";
     if (ReadFeature(f) != in_use) return f.name + ": the register differs from the value in use";
@@ -601,8 +607,9 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
 // clear the fake camera's acquisition register and are not stored, so each
 // reads back 0. A value a feature never takes (out of its range, not one of
-// its entries), or a window that would leave the sensor, is set back to the
-// value in memory: invalid parameter; so is half of a Float: bad alignment.
+// its entries), a window that would leave the sensor, or a source for the
+// input Line0 is set back to the value in memory: invalid parameter; so is
+// half of a Float: bad alignment.
 // Control privilege 0 (the client lets go, or libaravis ends it at a
 // heartbeat timeout, maybe inside the packet that hands control to the next
 // client) clears TLParamsLocked. A change of the payload's registers while
@@ -639,9 +646,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
   };
   for (const Feature& f : d->registers_) {
-    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
-        f.kind == Kind::kSwissKnife || f.address >= uint64_t{address} + size || f.address + f.length <= address)
-      continue;
+    if (!Checked(f) || f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     bool whole = true;
     for (uint32_t r = f.address; r < f.address + f.length; r += 4) whole = whole && covers(r);
     uint64_t v = 0;  // the value written (a Float: its 8 bytes)
@@ -663,6 +668,12 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (after(extent) + after(offset) <= static_cast<uint64_t>(limits[a])) continue;
     if (covers(offset)) set_back(offset);
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
+    refuse(GevStatus::kInvalidParameter);
+  }
+  // Line0 is an input: nothing drives it.
+  const uint32_t line0_source = reg::SelectedAddress(reg::kLineSource, 0);
+  if (covers(line0_source) && value(line0_source) != kLineSourceOff) {
+    set_back(line0_source);
     refuse(GevStatus::kInvalidParameter);
   }
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
@@ -721,9 +732,7 @@ void GigeDevice::Sync() {
   Registers next = applied_;
   std::vector<const Feature*> changed;
   for (const Feature& f : registers_) {
-    if (!f.writable || !f.alias_of.empty() || f.kind == Kind::kString || f.kind == Kind::kCommand ||
-        f.kind == Kind::kSwissKnife)
-      continue;
+    if (!Checked(f)) continue;
     const uint64_t v = ReadFeature(f);
     if (v == applied_.at(f.address)) continue;
     // (FilterClientWrite refuses invalid values as they arrive; this keeps
@@ -751,7 +760,8 @@ void GigeDevice::Sync() {
       ++writes_refused_;
     };
     // The window must stay on the sensor: refuse the offset, then the size
-    // (FilterClientWrite does so as writes arrive; here whatever wrote them).
+    // (FilterClientWrite does this and the Line0 rule as writes arrive; here
+    // whatever wrote the registers).
     const std::pair<uint32_t, uint32_t> axes[2] = {{kWidth, kOffsetX}, {kHeight, kOffsetY}};
     const int limits[2] = {sensor_.width, sensor_.height};
     for (int a = 0; a < 2; ++a) {

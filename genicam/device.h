@@ -1,13 +1,15 @@
 // camsim-gige's device: an Aravis fake GigE Vision camera (GVCP + GVSP on
 // one address) whose frames come from the core pipeline.
 //
-// Register writes arrive at the fake camera's memory without a hook, so the
-// device checks them itself: a sync step (every kSyncPeriodMs, and before
-// every frame) compares each writable register with the setting in use,
-// takes valid new values and writes the old value back over invalid ones
-// (out of range, off the increment, not an enum entry, NaN, a geometry change
-// once a sync has seen the acquisition running). A refused write therefore reads back as the previous
-// value and never reaches the pipeline. Settings apply from the next frame.
+// Register writes: a client's write reaches the device's write filter
+// (FilterClientWrite, behind genicam/fake_camera_hooks.h) as it arrives, and
+// a value a feature never takes, a window off the sensor or a window change
+// while acquiring is refused there with its GVCP status. A sync step (every
+// kSyncPeriodMs, and before every frame) takes the new values, rebuilds the
+// pipeline for pipeline settings and writes the old value back over what
+// the pipeline refuses (a combination it cannot run). A refused write reads
+// back as the previous value and never reaches the pipeline. Settings apply
+// from the next frame.
 //
 // Frames: the whole sensor is rendered (FrameRenderer, the code `camsim run`
 // uses) and the Width x Height window at OffsetX/OffsetY is sent. Raw formats

@@ -1,7 +1,8 @@
 // The hooks in front of Aravis's fake camera (Aravis 0.8.26, Debian 12), by
 // ELF symbol interposition: libaravis calls arv_fake_camera_read_memory and
 // _write_memory through its PLT (from its GVCP thread, and from
-// read_register / write_register), and GLib's socket calls too, so these
+// read_register / write_register), and GLib's g_socket_receive_message,
+// g_socket_send_to and g_poll too (its GVCP thread's), so these
 // definitions in the executable take their place, and pass what they let
 // through to the next definition (dlsym RTLD_NEXT: libaravis's, GLib's).
 //
@@ -20,21 +21,24 @@
 // one receive buffer without looking at the bytes received, so a packet
 // shorter than its header or its fields, or than its length field claims,
 // would be completed with the previous packet's bytes (a WRITEMEM claiming
-// 536 bytes and carrying 4 stored 532 stale ones). The receive hook answers
-// such a packet with INVALID_PARAMETER itself and hides it from the fake
-// camera (a first byte other than the command key: it ignores the packet).
+// 536 bytes and carrying 4 stored 532 stale ones). The receive hook hides
+// such a packet from the fake camera (a first byte other than the command
+// key: it ignores the packet) and answers it with INVALID_PARAMETER, unless
+// it is shorter than a header (no request id to answer).
 //
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
 // its next register sync.
 //
 // Status: the fake camera acknowledges every access it answers as a
-// success, and does not answer a write from a client not in control or a
-// command it does not know (g_poll, below, answers those). The control packet its thread received (g_socket_receive_message)
+// success. The control packet its thread received (g_socket_receive_message)
 // is kept until that thread sends the acknowledgement (g_socket_send_to on
 // the same socket, the command + 1 and the same request id); when an access
 // of that packet was refused, the acknowledgement goes out as GVCP's error
-// form instead: the status, and 4 bytes of data (the ack's first 4).
+// form instead: the status, and 4 bytes of data (the ack's first 4). A
+// write from a client not in control and a command it does not know get no
+// acknowledgement from it: the hooks answer those when the thread receives
+// again or polls (AnswerUnanswered).
 
 #include <arpa/inet.h>
 #include <arv.h>
@@ -124,6 +128,10 @@ bool GvcpSocketAddress(GSocket* socket, in_addr* address) {
   *address = a.sin_addr;
   return true;
 }
+bool OnGvcpPort(GSocket* socket) {
+  in_addr unused{};
+  return GvcpSocketAddress(socket, &unused);
+}
 
 // True when `socket` is bound to a broadcast address (the fake camera's
 // global or subnet discovery socket), not to an interface's own address
@@ -154,7 +162,7 @@ bool BroadcastSocket(GSocket* socket) {
 // packets).
 void SendErrorAck(GSocket* socket, GSocketAddress* to, bool wants_ack, GevStatus status, uint16_t command,
                   uint16_t id) {
-  static const auto send = reinterpret_cast<SendToFn>(dlsym(RTLD_NEXT, "g_socket_send_to"));
+  static const SendToFn send = Next<SendToFn>("g_socket_send_to");
   if (send == nullptr || to == nullptr || !wants_ack || command == kPacketResend || BroadcastSocket(socket)) return;
   gchar ack[kGvcpErrorAck] = {};
   ErrorAckHeader(ack, status, command, id);
@@ -191,7 +199,7 @@ struct Filter {
   void* owner = nullptr;
   std::mutex writes;  // held while the filter decides on a write and it is stored, and by ClientWritesHeld
 };
-std::mutex g_filters_mutex;  // guards the list (held only to find or change an entry)
+std::mutex g_filters_mutex;  // guards the list (held to find, add or remove an entry; never while a filter runs)
 std::list<Filter> g_filters;
 
 // The filter of `camera` with its `writes` lock taken, or nullptr.
@@ -265,8 +273,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
   if (got <= 0 || num_vectors != 1 || vectors == nullptr || vectors[0].buffer == nullptr) return got;
   auto* p = static_cast<uint8_t*>(vectors[0].buffer);
-  in_addr local{};
-  if (p[0] != kGvcpCommandKey || !GvcpSocketAddress(socket, &local)) return got;  // not a command to a camera
+  if (p[0] != kGvcpCommandKey || !OnGvcpPort(socket)) return got;  // not a command to a camera
   if (got < static_cast<gssize>(kGvcpHeader)) {  // the rest of its header would be the last packet's
     p[0] = 0;
     return got;
@@ -335,8 +342,8 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
       dlsym(RTLD_DEFAULT, "g_socket_receive_message") == reinterpret_cast<void*>(&g_socket_receive_message) &&
       dlsym(RTLD_DEFAULT, "g_socket_send_to") == reinterpret_cast<void*>(&g_socket_send_to) &&
       dlsym(RTLD_DEFAULT, "g_poll") == reinterpret_cast<void*>(&g_poll) &&
-      dlsym(RTLD_NEXT, "g_socket_receive_message") != nullptr && dlsym(RTLD_NEXT, "g_socket_send_to") != nullptr &&
-      dlsym(RTLD_NEXT, "g_poll") != nullptr;
+      Next<void*>("g_socket_receive_message") != nullptr && Next<void*>("g_socket_send_to") != nullptr &&
+      Next<void*>("g_poll") != nullptr;
   return t_reads > reads && t_writes > writes && sockets && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
          Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
 }

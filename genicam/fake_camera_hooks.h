@@ -31,7 +31,7 @@ inline constexpr uint32_t kMaxClientWrite = 536;
 enum class GevStatus : uint16_t {
   kSuccess = 0x0000,
   kNotImplemented = 0x8001,    // a command the fake camera does not know
-  kInvalidParameter = 0x8002,  // a malformed packet, or a value the register never takes
+  kInvalidParameter = 0x8002,  // a malformed packet, 0 or over 536 bytes, a value the register never takes
   kInvalidAddress = 0x8003,    // outside the memory map
   kWriteProtect = 0x8004,      // the GenICam XML
   kBadAlignment = 0x8005,      // not whole registers
@@ -61,7 +61,9 @@ void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner);
 // While one lives, client writes to `camera` wait (its filter's decision
 // and the store are made under the same lock), so the device's sync reads
 // the registers in one consistent state: not a Width from before a client's
-// write and an OffsetX from after the next. Other cameras' writes go on.
+// write and an OffsetX from after the next. Other cameras' writes go on;
+// this camera's wait as long as it lives (a sync that rebuilds the pipeline
+// holds it for that time, so the GVCP thread answers that much later).
 // Taken inside a device's lock, never the other way round (a filter runs
 // under it and takes no device lock). Nothing is held without a filter.
 class ClientWritesHeld {
