@@ -554,6 +554,21 @@ void GigeDevice::WriteDerived() {
   Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
   WriteLineStatus();
   Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
+  WriteResultingFrameRate();
+}
+
+// The free-run period the settings give (FramePeriod, or the exposure time
+// without AcquisitionFrameRate), at least the last frame's rendering time.
+void GigeDevice::WriteResultingFrameRate() {
+  using namespace reg;
+  const double exposure_s = AppliedDouble(kExposureTime) * 1e-6;
+  double period_s =
+      Applied(kAcquisitionFrameRateEnable) != 0
+          ? std::chrono::duration<double>(FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime)))
+                .count()
+          : exposure_s;
+  period_s = std::max(period_s, last_render_s_);
+  WriteDouble(kAcquisitionResultingFrameRate, std::min(1.0 / period_s, 1e6));
 }
 
 void GigeDevice::WriteLineStatus() {
@@ -609,7 +624,8 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // reads back 0. A value a feature never takes (out of its range, not one of
 // its entries), a window that would leave the sensor, or a source for the
 // input Line0 is set back to the value in memory: invalid parameter; so is
-// half of a Float: bad alignment.
+// half of a Float: bad alignment, and a read-only feature's register:
+// write protect.
 // Control privilege 0 (the client lets go, or libaravis ends it at a
 // heartbeat timeout, maybe inside the packet that hands control to the next
 // client) clears TLParamsLocked. A change of the payload's registers while
@@ -646,7 +662,14 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
   };
   for (const Feature& f : d->registers_) {
-    if (!Checked(f) || f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
+    if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
+    if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
+      for (uint32_t r = f.address; r < f.address + f.length; r += 4)
+        if (covers(r)) set_back(r);
+      refuse(GevStatus::kWriteProtect);
+      continue;
+    }
+    if (!Checked(f)) continue;
     bool whole = true;
     for (uint32_t r = f.address; r < f.address + f.length; r += 4) whole = whole && covers(r);
     uint64_t v = 0;  // the value written (a Float: its 8 bytes)
@@ -1235,8 +1258,11 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     }
   };
   if (strobe) set_strobe(true);
+  const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
+  last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   if (strobe) set_strobe(false);
+  WriteResultingFrameRate();
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
 
   // Mean raw level in the window, for the Auto features.

@@ -167,6 +167,7 @@ class GigeDevice {
   bool Reconfigure(const Registers& r, std::string* error);  // PlanFor, then Install; under mutex_
   bool Install(host::PlannedPipeline planned, std::string* error);  // puts a plan in use; under mutex_
   void WriteDerived();  // registers that follow from the applied values
+  void WriteResultingFrameRate();  // AcquisitionResultingFrameRate
   void WriteLineStatus();  // each line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   void WaitForFrameSlot();  // free run at AcquisitionFrameRate (NextFrameSlot), outside mutex_
@@ -254,6 +255,7 @@ class GigeDevice {
   std::atomic<uint64_t> acquisition_stops_{0};  // clients' stops (FilterClientWrite)
   std::string address_;
   bool prime_first_frame_ = true;
+  double last_render_s_ = 0;  // the last frame's rendering time (0: none yet)
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
 };
 

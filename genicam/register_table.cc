@@ -199,6 +199,12 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                   "Free-run frame rate when AcquisitionFrameRateEnable is on.", "Hz"));
   t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,
                    "On: free-run at AcquisitionFrameRate; off: as fast as frames are rendered."));
+  Feature resulting = Flt("AcquisitionResultingFrameRate", ac, kAcquisitionResultingFrameRate, 0.0, 1e6,
+                          "Frame rate of free run now: AcquisitionFrameRate (when enabled) or 1 / ExposureTime, "
+                          "whichever is lower, and at most 1 / the last frame's rendering time.",
+                          "Hz");
+  resulting.writable = false;
+  t.push_back(resulting);
   // The core's whole range (core/aperture/exposure.cc): any configured exposure is reported as rendered.
   t.push_back(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8, "Exposure time.", "us"));
   t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));

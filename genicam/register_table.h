@@ -79,7 +79,8 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kSimSceneFrame = 0x8080,
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
                           kSimStageSelector = 0x8094, kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4,
-                          kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0, kSimFocusDistance = 0x80c0;
+                          kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0, kSimFocusDistance = 0x80c0,
+                          kAcquisitionResultingFrameRate = 0x80c8;
 // SimFocusDistance's range (metres): the core takes up to 1e6 m, and more
 // than the focal length (checked when the pipeline is planned).
 inline constexpr double kMinFocusDistanceM = 0.001, kMaxFocusDistanceM = 1e6;

@@ -867,6 +867,34 @@ TEST(GigeRegisters, ConfiguredExposureIsReportedAndKeptAsRendered) {
   EXPECT_TRUE(frame == ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"sensor.gain_db=1.0"})) << "exposure changed";
 }
 
+// AcquisitionResultingFrameRate: AcquisitionFrameRate or 1 / ExposureTime,
+// whichever is lower (FramePeriod), and no more than 1 / the last frame's
+// rendering time (a 64 x 48 frame renders in well under 200 ms).
+TEST(GigeRegisters, ResultingFrameRateFollowsRateExposureAndRendering) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAcquisitionResultingFrameRate), 25.0);  // 25 Hz, 10 ms exposure
+  WriteReg(*d, reg::kAcquisitionFrameRate, Be64(5.0));
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAcquisitionResultingFrameRate), 5.0);
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAcquisitionResultingFrameRate), 5.0);
+  WriteReg(*d, reg::kExposureTime, Be64(1e6));
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAcquisitionResultingFrameRate), 1.0);
+  // Without AcquisitionFrameRate: the exposure (1 ms: 1000 Hz) or the rendering, whichever is slower.
+  WriteReg(*d, reg::kAcquisitionFrameRateEnable, Be32(0));
+  WriteReg(*d, reg::kExposureTime, Be64(1000.0));
+  d->SyncNow();
+  ASSERT_TRUE(d->RenderNow(&frame));
+  const double rate = ReadRegDouble(*d, reg::kAcquisitionResultingFrameRate);
+  EXPECT_GT(rate, 5.0);
+  EXPECT_LE(rate, 1000.0);
+  // Read-only: a client's write is refused.
+  WriteRegRefused(*d, reg::kAcquisitionResultingFrameRate, Be64(3.0));
+}
+
 // SimFocusDistance is dof.focus_distance_m: the frames follow it as the
 // core renders them with that setting (the pattern's depth is a plane from
 // 0.5 m to 8 m), and a distance the lens cannot focus at (not beyond its
@@ -1570,6 +1598,12 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   EXPECT_EQ(raw.status(), kInvalidParameter);
   EXPECT_TRUE(raw.WriteMemory(xml_start, {'x', 'x', 'x', 'x'}, 8));  // the XML is read-only
   EXPECT_EQ(raw.status(), kWriteProtect);
+  uint32_t scenes = 0;
+  ASSERT_TRUE(raw.Read(reg::kSimSceneCount, &scenes));
+  EXPECT_TRUE(raw.Write(reg::kSimSceneCount, scenes + 7));  // so is a read-only feature
+  EXPECT_EQ(raw.status(), kWriteProtect);
+  ASSERT_TRUE(raw.Read(reg::kSimSceneCount, &value));
+  EXPECT_EQ(value, scenes);
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth + 2, {0, 0, 0, 2}, 8));  // half of two registers
   EXPECT_EQ(raw.status(), kBadAlignment);
   // A length field far beyond the packet: the fake camera would copy what
