@@ -557,18 +557,18 @@ void GigeDevice::WriteDerived() {
   WriteResultingFrameRate();
 }
 
-// The free-run period the settings give (FramePeriod, or the exposure time
-// without AcquisitionFrameRate), at least the last frame's rendering time.
+// The free-run period: FramePeriod with AcquisitionFrameRate on (the device
+// waits for it), and at least the last frame's rendering and conversion
+// (without it, frames come as fast as that; before the first frame, the
+// XML's maximum). An upper bound: sending the frame is left out.
 void GigeDevice::WriteResultingFrameRate() {
   using namespace reg;
-  const double exposure_s = AppliedDouble(kExposureTime) * 1e-6;
-  double period_s =
-      Applied(kAcquisitionFrameRateEnable) != 0
-          ? std::chrono::duration<double>(FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime)))
-                .count()
-          : exposure_s;
-  period_s = std::max(period_s, last_render_s_);
-  WriteDouble(kAcquisitionResultingFrameRate, std::min(1.0 / period_s, 1e6));
+  double period_s = last_render_s_;
+  if (Applied(kAcquisitionFrameRateEnable) != 0)
+    period_s = std::max(period_s, std::chrono::duration<double>(FramePeriod(AppliedDouble(kAcquisitionFrameRate),
+                                                                            AppliedDouble(kExposureTime)))
+                                      .count());
+  WriteDouble(kAcquisitionResultingFrameRate, period_s > 1e-6 ? 1.0 / period_s : 1e6);
 }
 
 void GigeDevice::WriteLineStatus() {
@@ -1260,10 +1260,9 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   if (strobe) set_strobe(true);
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
-  last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   if (strobe) set_strobe(false);
-  WriteResultingFrameRate();
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
+  last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
 
   // Mean raw level in the window, for the Auto features.
   if (Applied(kExposureAuto) != kAutoOff || Applied(kGainAuto) != kAutoOff) {

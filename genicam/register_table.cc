@@ -200,8 +200,9 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Bool("AcquisitionFrameRateEnable", ac, kAcquisitionFrameRateEnable, true,
                    "On: free-run at AcquisitionFrameRate; off: as fast as frames are rendered."));
   Feature resulting = Flt("AcquisitionResultingFrameRate", ac, kAcquisitionResultingFrameRate, 0.0, 1e6,
-                          "Frame rate of free run now: AcquisitionFrameRate (when enabled) or 1 / ExposureTime, "
-                          "whichever is lower, and at most 1 / the last frame's rendering time.",
+                          "Frame rate of free run now: with AcquisitionFrameRateEnable, AcquisitionFrameRate or "
+                          "1 / ExposureTime, whichever is lower; and at most 1 / the last frame's rendering time "
+                          "(without a frame rendered yet and without AcquisitionFrameRateEnable: the maximum).",
                           "Hz");
   resulting.writable = false;
   t.push_back(resulting);
