@@ -657,6 +657,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
     return {false, GevStatus::kSuccess};
   }
+  const auto set_back_feature = [&](const Feature& f) {  // the registers of `f` the write covers
+    for (uint32_t r = f.address; r < f.address + f.length; r += 4)
+      if (covers(r)) set_back(r);
+  };
   WriteVerdict verdict;  // its status: the first refusal's, in the order of the checks below
   const auto refuse = [&verdict](GevStatus s) {
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
@@ -664,8 +668,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   for (const Feature& f : d->registers_) {
     if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
-      for (uint32_t r = f.address; r < f.address + f.length; r += 4)
-        if (covers(r)) set_back(r);
+      set_back_feature(f);
       refuse(GevStatus::kWriteProtect);
       continue;
     }
@@ -675,8 +678,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     uint64_t v = 0;  // the value written (a Float: its 8 bytes)
     for (uint32_t r = f.address; whole && r < f.address + f.length; r += 4) v = v << 32 | value(r);
     if (whole && d->Valid(f, v)) continue;
-    for (uint32_t r = f.address; r < f.address + f.length; r += 4)
-      if (covers(r)) set_back(r);
+    set_back_feature(f);
     // Half of a Float's register would make a value of two writes.
     refuse(whole ? GevStatus::kInvalidParameter : GevStatus::kBadAlignment);
   }

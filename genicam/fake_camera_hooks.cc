@@ -117,20 +117,16 @@ struct ControlPacket {
 };
 thread_local ControlPacket t_packet;
 
-// The local IPv4 address of a socket bound to GVCP's port (a fake camera's
-// control or discovery socket), or false.
-bool GvcpSocketAddress(GSocket* socket, in_addr* address) {
+// Whether a socket is bound to GVCP's port (a fake camera's control or
+// discovery socket), and its local IPv4 address (address may be nullptr).
+bool GvcpSocketAddress(GSocket* socket, in_addr* address = nullptr) {
   sockaddr_in a{};
   socklen_t n = sizeof a;
   if (getsockname(g_socket_get_fd(socket), reinterpret_cast<sockaddr*>(&a), &n) != 0 || a.sin_family != AF_INET ||
       ntohs(a.sin_port) != camsim::genicam::kGvcpPort)
     return false;
-  *address = a.sin_addr;
+  if (address != nullptr) *address = a.sin_addr;
   return true;
-}
-bool OnGvcpPort(GSocket* socket) {
-  in_addr unused{};
-  return GvcpSocketAddress(socket, &unused);
 }
 
 // True when `socket` is bound to a broadcast address (the fake camera's
@@ -273,7 +269,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
   if (got <= 0 || num_vectors != 1 || vectors == nullptr || vectors[0].buffer == nullptr) return got;
   auto* p = static_cast<uint8_t*>(vectors[0].buffer);
-  if (p[0] != kGvcpCommandKey || !OnGvcpPort(socket)) return got;  // not a command to a camera
+  if (p[0] != kGvcpCommandKey || !GvcpSocketAddress(socket)) return got;  // not a command to a camera
   if (got < static_cast<gssize>(kGvcpHeader)) {  // the rest of its header would be the last packet's
     p[0] = 0;
     return got;
