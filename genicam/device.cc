@@ -37,6 +37,15 @@ bool Checked(const Feature& f) {
   return f.writable && f.alias_of.empty() && f.kind != Kind::kString && f.kind != Kind::kCommand &&
          f.kind != Kind::kSwissKnife;
 }
+// A client write of `size` bytes at `address` (whole registers,
+// fake_camera_hooks.h): whether it covers register r, and r's value in it.
+bool Covers(uint32_t address, uint32_t size, uint32_t r) {
+  return address <= r && uint64_t{r} + 4 <= uint64_t{address} + size;
+}
+uint32_t ValueAt(uint32_t address, const uint8_t* data, uint32_t r) {
+  const uint8_t* v = data + (r - address);
+  return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
+}
 using reg::kControlChannelPrivilege, reg::kStreamPort, reg::kStreamDestAddress;
 // The fake camera polls its software-trigger register at this rate when in
 // trigger mode (its own default is 25 Hz): 1 kHz keeps trigger latency ~1 ms.
@@ -625,7 +634,9 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // its entries), a window that would leave the sensor, or a source for the
 // input Line0 is set back to the value in memory: invalid parameter; so is
 // half of a Float: bad alignment, and a read-only feature's register:
-// write protect.
+// write protect. A change of the pipeline's registers that the pipeline
+// cannot run (a raw format without the sensor, RGB8 without the ISP, ...)
+// is set back: invalid parameter (the block's pipeline registers together).
 // Control privilege 0 (the client lets go, or libaravis ends it at a
 // heartbeat timeout, maybe inside the packet that hands control to the next
 // client) clears TLParamsLocked. A change of the payload's registers while
@@ -638,11 +649,8 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data) {
   auto* d = static_cast<GigeDevice*>(self);
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
-  const auto covers = [&](uint32_t r) { return address <= r && uint64_t{r} + 4 <= uint64_t{address} + size; };
-  const auto value = [&](uint32_t r) {
-    const uint8_t* v = data + (r - address);
-    return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
-  };
+  const auto covers = [&](uint32_t r) { return Covers(address, size, r); };
+  const auto value = [&](uint32_t r) { return ValueAt(address, data, r); };
   const auto set_back = [&](uint32_t r) {  // the register's value in memory
     const uint32_t now = d->Read(r);
     for (uint32_t b = 0; b < 4; ++b) data[r - address + b] = static_cast<uint8_t>(now >> (24 - 8 * b));
@@ -716,8 +724,61 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       refuse(GevStatus::kAccessDenied);
     }
   }
+  // The pipeline must run what the registers then ask for (raw formats need
+  // the sensor and the cfa, RGB8 the ISP, the focus lies beyond the focal
+  // length, ...): planned as the sync will plan it, without tables. The
+  // pipeline registers of one block are one request.
+  if (!d->PipelineTakes(address, size, data)) {
+    for (const Feature& f : d->registers_)
+      if (Checked(f) && d->IsPipelineRegister(f.address)) set_back_feature(f);
+    refuse(GevStatus::kInvalidParameter);
+  }
   if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
   return verdict;
+}
+
+bool GigeDevice::IsPipelineRegister(uint32_t address) const {
+  using namespace reg;
+  if (address == kPixelFormat || address == kGainRaw) return true;
+  for (uint32_t p : kPipelineRegisters)
+    if (address == p) return true;
+  return address >= kSimStageEnable && address < SelectedAddress(kSimStageEnable, configured_stages_.size());
+}
+
+// Under the camera's client-write lock: the registers (and applied_) stay as
+// they are, and so does the pipeline in use that the plan borrows from.
+bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* data) const {
+  using namespace reg;
+  const auto covers = [&](uint32_t r) { return Covers(address, size, r); };
+  const auto value = [&](uint32_t r) { return ValueAt(address, data, r); };
+  bool pipeline = false;
+  for (const Feature& f : registers_) pipeline = pipeline || (IsPipelineRegister(f.address) && covers(f.address));
+  if (!pipeline) return true;
+  Registers after;  // every checked register once the write is stored
+  bool changes = false;
+  for (const Feature& f : registers_) {
+    if (!Checked(f)) continue;
+    uint64_t v = 0;
+    bool written = false;
+    for (uint32_t r = f.address; r < f.address + f.length; r += 4) {
+      written = written || covers(r);
+      v = v << 32 | (covers(r) ? value(r) : Read(r));
+    }
+    after[f.address] = v;
+    changes = changes || (written && IsPipelineRegister(f.address) && v != ReadFeature(f));
+  }
+  if (!changes) return true;
+  // Gain and GainRaw as the sync will join them: a new Gain wins, else a new GainRaw sets it.
+  if (after[kGain] == applied_.at(kGain) && after[kGainRaw] != applied_.at(kGainRaw))
+    after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
+  host::PlannedPipeline unused;
+  std::string why;
+  if (PlanFor(after, &unused, &why)) return true;
+  std::string names;
+  for (const Feature& f : registers_)
+    if (Checked(f) && IsPipelineRegister(f.address) && covers(f.address)) names += (names.empty() ? "" : ", ") + f.name;
+  std::fprintf(stderr, "camsim-gige: refused %s: %s\n", names.c_str(), why.c_str());
+  return false;
 }
 
 void GigeDevice::Sync() {
@@ -804,63 +865,21 @@ void GigeDevice::Sync() {
       next[kGain] = DoubleBits(static_cast<double>(next[kGainRaw]) / 10.0);
       WriteDouble(kGain, BitsDouble(next[kGain]));
     }
-    auto is_pipeline = [&](uint32_t a) {
-      if (a == kPixelFormat || a == kGainRaw) return true;
-      for (uint32_t p : kPipelineRegisters)
-        if (a == p) return true;
-      return a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, configured_stages_.size());
-    };
     bool pipeline = false;
-    for (const Feature* f : changed) pipeline = pipeline || is_pipeline(f->address);
+    for (const Feature* f : changed) pipeline = pipeline || IsPipelineRegister(f->address);
     std::string error;
     const auto t_rc = std::chrono::steady_clock::now();
     if (pipeline && !Reconfigure(next, &error)) {
-      // The pipeline refuses the combination. The writes are a client's
-      // separate requests that only met in this sync, so each pipeline write
-      // is tried on its own, in table order, on top of those kept before it;
-      // the pipeline's refusals go back, every other write stays.
-      auto pipeline_as_applied = [&](Registers* r) {
-        for (const Feature* f : changed)
-          if (is_pipeline(f->address)) (*r)[f->address] = applied_.at(f->address);
-        (*r)[kGain] = applied_.at(kGain);  // Gain follows GainRaw
-      };
-      Registers kept = next;
-      pipeline_as_applied(&kept);
-      host::PlannedPipeline kept_plan;  // the plan of `kept` once a write is kept
-      for (const Feature* f : changed) {
-        if (!is_pipeline(f->address)) continue;
-        Registers trial = kept;
-        trial[f->address] = next[f->address];
-        if (f->address == kGain || f->address == kGainRaw) {  // one setting in two units
-          trial[kGain] = next[kGain];
-          trial[kGainRaw] = next[kGainRaw];
-        }
-        host::PlannedPipeline plan;
-        std::string why;
-        if (PlanFor(trial, &plan, &why)) {
-          kept = trial;
-          kept_plan = std::move(plan);
-          continue;
-        }
-        std::fprintf(stderr, "camsim-gige: refused %s: %s\n", f->name.c_str(), why.c_str());
-        WriteFeature(*f, applied_.at(f->address));
-        ++writes_refused_;
-      }
-      if (kept[kGainRaw] != next[kGainRaw]) {  // both units back
-        Write(kGainRaw, static_cast<uint32_t>(kept[kGainRaw]));
-        WriteDouble(kGain, BitsDouble(kept[kGain]));
-      }
-      // Planned above; installing builds the tables (the renderer kept the old
-      // ones). A failure is not expected: then back to the pipeline in use.
-      if (kept_plan.pipeline != nullptr && !Install(std::move(kept_plan), &error)) {
-        std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
-        for (const Feature* f : changed)
-          if (is_pipeline(f->address) && kept[f->address] != applied_.at(f->address)) refuse(f->address);
-        Write(kGainRaw, static_cast<uint32_t>(applied_.at(kGainRaw)));
-        WriteDouble(kGain, AppliedDouble(kGain));
-        pipeline_as_applied(&kept);
-      }
-      next = kept;
+      // FilterClientWrite planned every client write as it arrived, so only
+      // a failure to build the tables, or a write past the filter, ends up
+      // here: the pipeline's settings go back, every other write stays.
+      std::fprintf(stderr, "camsim-gige: refused: %s\n", error.c_str());
+      for (const Feature* f : changed)
+        if (IsPipelineRegister(f->address)) refuse(f->address);
+      next[kGain] = applied_.at(kGain);  // both units, one of them set above from the other
+      next[kGainRaw] = applied_.at(kGainRaw);
+      WriteDouble(kGain, AppliedDouble(kGain));
+      Write(kGainRaw, Applied(kGainRaw));
     }
     if (std::getenv("CAMSIM_GIGE_DEBUG"))
       std::fprintf(stderr, "camsim-gige: reconfigured in %.1f ms\n",
@@ -976,6 +995,9 @@ void GigeDevice::AutoAdjust(double frac) {
     auto_state_valid_ = false;
     return;
   }
+  // A client's write waits: its filter plans on the pipeline in use and the
+  // applied values, which this may replace.
+  const ClientWritesHeld hold(fake_);
   // The core's controller (core/control/auto_exposure.h) with the features
   // that are Off held at their current value. It keeps its state from frame
   // to frame; a change of mode, target or SimFNumber, or a host write of

@@ -165,6 +165,11 @@ class GigeDevice {
   // Reconfigure installs it.
   bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
   bool Reconfigure(const Registers& r, std::string* error);  // PlanFor, then Install; under mutex_
+  bool IsPipelineRegister(uint32_t address) const;  // a change reconfigures the pipeline
+  // Whether the pipeline can run the registers once a client's write (its
+  // bytes as the filter left them) is stored: true when it changes no
+  // pipeline register. Under the camera's client-write lock.
+  bool PipelineTakes(uint32_t address, uint32_t size, const uint8_t* data) const;
   bool Install(host::PlannedPipeline planned, std::string* error);  // puts a plan in use; under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void WriteResultingFrameRate();  // AcquisitionResultingFrameRate

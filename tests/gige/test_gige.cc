@@ -9,6 +9,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -582,9 +583,11 @@ TEST(GigeRegisters, InvalidWritesAreRefusedAndValidOnesApplied) {
                                   {"exposure.exposure_time_us=2000.0"}));
 }
 
-// Writes that meet in one sync are still separate requests: the pipeline
-// refusing one of them (switching off the sensor, which raw formats need)
-// does not take the others with it, pipeline settings or not.
+// Writes that meet in one sync are still separate requests: a write the
+// pipeline cannot run (switching off the sensor, which raw formats need) is
+// refused as it arrives, planned on the writes before it, and the others
+// are taken, pipeline settings or not. In one block, the pipeline's
+// registers go back together and the rest is stored.
 TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
   DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
@@ -592,29 +595,53 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
   const uint32_t sensor_enable = StageEnableAddress(*d, "Stage_sensor");
   ASSERT_NE(sensor_enable, 0u);
   WriteReg(*d, reg::kExposureTime, Be64(2000.0));
-  WriteReg(*d, sensor_enable, Be32(0));
+  WriteRegRefused(*d, sensor_enable, Be32(0));
+  EXPECT_EQ(ReadReg32(*d, sensor_enable), 1u) << "refused as it arrives";
+  EXPECT_EQ(d->writes_refused(), 1u);
   WriteReg(*d, reg::kGainRaw, Be32(60));
   WriteReg(*d, reg::kAcquisitionMode, Be32(genicam::kSingleFrame));
+  // One block over every SimStageEnable: vignetting and sensor off is
+  // refused as a whole, vignetting alone is taken.
+  const size_t stages = d->sensor().stage_names.size();
+  const uint32_t vignetting_enable = StageEnableAddress(*d, "Stage_vignetting");
+  ASSERT_NE(vignetting_enable, 0u);
+  const auto stage_block = [&](std::initializer_list<uint32_t> off) {
+    std::vector<uint8_t> block;
+    for (size_t i = 0; i < stages; ++i) {
+      const uint32_t a = genicam::reg::SelectedAddress(reg::kSimStageEnable, i);
+      for (uint8_t b : Be32(std::find(off.begin(), off.end(), a) == off.end() ? 1 : 0)) block.push_back(b);
+    }
+    return block;
+  };
+  WriteRegRefused(*d, reg::kSimStageEnable, stage_block({vignetting_enable, sensor_enable}));
+  EXPECT_EQ(ReadReg32(*d, vignetting_enable), 1u) << "the block's pipeline registers go back together";
+  EXPECT_EQ(d->writes_refused(), 2u);
+  WriteReg(*d, reg::kSimStageEnable, stage_block({vignetting_enable}));
+  EXPECT_EQ(ReadReg32(*d, vignetting_enable), 0u);
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
-  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(d->writes_refused(), 2u);
   EXPECT_EQ(ReadReg32(*d, sensor_enable), 1u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
   EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 60u);
   EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0);
   EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
+  std::string without_vignetting;  // pipeline.stages: the configured stages but the vignetting
+  for (const std::string& stage : d->sensor().stage_names)
+    if (stage != "vignetting") without_vignetting += (without_vignetting.empty() ? "\"" : ",\"") + stage + "\"";
   std::vector<uint8_t> frame;
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48,
-                                  {"exposure.exposure_time_us=2000.0", "sensor.gain_db=6.0"}));
+                                  {"exposure.exposure_time_us=2000.0", "sensor.gain_db=6.0",
+                                   "pipeline.stages=[" + without_vignetting + "]"}));
 }
 
 // The write combination the register fuzzer found (its seed cfa_off_crash):
 // the cfa and demosaic stages off, a smaller window, one sync. The cfa alone
 // was refused (the demosaic needs a mosaic); with the demosaic off as well,
 // nothing refused it, the sensor gave three samples per pixel and the raw
-// tap (one sample per pixel) overflowed. Now the cfa write is refused and
-// the others are taken.
+// tap (one sample per pixel) overflowed. Now the cfa write is refused as it
+// arrives, in either order, and the others are taken.
 TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
   DeviceOptions o = OfflineDevice();
   auto d = StartDevice(o);
@@ -626,12 +653,14 @@ TEST(GigeRegisters, TheCfaStageStaysOnSoTheRawFormatsKeepOneSamplePerPixel) {
   std::string without_demosaic;  // pipeline.stages: the configured stages but the demosaic
   for (const std::string& stage : d->sensor().stage_names)
     if (stage != "demosaic") without_demosaic += (without_demosaic.empty() ? "\"" : ",\"") + stage + "\"";
-  WriteReg(*d, cfa_enable, Be32(0));
+  WriteRegRefused(*d, cfa_enable, Be32(0));  // the demosaic needs a mosaic
   WriteReg(*d, demosaic_enable, Be32(0));
+  WriteRegRefused(*d, cfa_enable, Be32(0));  // the raw formats need one sample per pixel
   WriteReg(*d, reg::kHeight, Be32(6));
+  EXPECT_EQ(d->writes_refused(), 2u);
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
-  EXPECT_EQ(d->writes_refused(), 1u);
+  EXPECT_EQ(d->writes_refused(), 2u);
   EXPECT_EQ(ReadReg32(*d, cfa_enable), 1u);
   EXPECT_EQ(ReadReg32(*d, demosaic_enable), 0u);
   EXPECT_EQ(ReadReg32(*d, reg::kHeight), 6u);
@@ -898,7 +927,7 @@ TEST(GigeRegisters, ResultingFrameRateFollowsRateExposureAndRendering) {
 // SimFocusDistance is dof.focus_distance_m: the frames follow it as the
 // core renders them with that setting (the pattern's depth is a plane from
 // 0.5 m to 8 m), and a distance the lens cannot focus at (not beyond its
-// focal length) is refused by the pipeline.
+// focal length) is refused as it arrives: the pipeline's plan fails.
 TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   DeviceOptions o = OfflineDevice();
   o.pattern = "checker";
@@ -916,7 +945,9 @@ TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"dof.focus_distance_m=6.0"}));
   EXPECT_NE(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48)) << "the focus distance changes nothing in this scene";
-  WriteReg(*d, reg::kSimFocusDistance, Be64(0.002));  // the demo lens's focal length is longer
+  WriteRegRefused(*d, reg::kSimFocusDistance, Be64(0.002));  // the demo lens's focal length is longer
+  EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0) << "refused as it arrives";
+  EXPECT_EQ(d->writes_refused(), 1u);
   d->SyncNow();
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0);
   EXPECT_EQ(d->writes_refused(), 1u);
@@ -1998,9 +2029,14 @@ TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
   Client& c = *client_;
   Set(c, "SimStageSelector", "Stage_sensor");
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
-  arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
-  Settle();
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "SimStageEnable", false, &e);  // refused as it arrives
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr)) << "raw formats need the sensor";
+  Settle();
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr));
   Set(c, "SimStageSelector", "Stage_vignetting");
   arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
   Settle();
