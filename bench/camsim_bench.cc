@@ -299,6 +299,34 @@ BENCHMARK(BM_Configure)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// A configuration from scratch as `camsim run` and camsim-gige make it at
+// start (FrameRenderer::Configure: FinishConfig's validation, the pipeline
+// configured and initialised): configs/camera.toml with a Brown lens, at
+// 1920x1080, one thread; arg 2 = 1 adds auto exposure, whose range's
+// corners the validation configures too.
+void BM_HostConfigure(benchmark::State& state) {
+  const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  std::string lens = "[distortion]\nmodel = \"brown\"\nk1 = -0.28\nk2 = 0.07\np1 = 0.0012\n";
+  if (state.range(2) != 0) lens += "[auto_exposure]\nmode = \"continuous\"\n";
+  if (!host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error) ||
+      !host::ParseConfig(lens, "lens", &rc, &origins, &error)) {
+    state.SkipWithError(error.c_str());
+    return;
+  }
+  for (auto _ : state) {
+    host::FrameRenderer r(1, 0);
+    if (!r.Configure(rc, origins, w, h, nullptr, &error)) {
+      state.SkipWithError(error.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(&r);
+  }
+}
+BENCHMARK(BM_HostConfigure)->ArgsProduct({{1920}, {1080}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Each running stage of the sensor path alone (StageRunner, one thread), so
 // the rows of SensorPathStage/1920/1080/i add up to about SensorPath.
 void BM_SensorPathStage(benchmark::State& state) {

@@ -980,7 +980,7 @@ bool ResolveEnvironment(RunConfig* c, std::string* error) {
 }
 
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
-                  std::string* error, const Pipeline* previous) {
+                  std::string* error, const Pipeline* previous, std::unique_ptr<Pipeline>* configured) {
   PipelineConfig& p = c->core;
   if (c->width < 0 || c->height < 0) {
     *error = DescribeStatus(InvalidArgument(c->width < 0 ? "sensor.width" : "sensor.height", "must be >= 0"), origins);
@@ -1029,8 +1029,8 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
     p.sensor.defects = list->data();
     p.sensor.defect_count = static_cast<int>(list->size());
   }
-  Pipeline probe;
-  const Status s = probe.Configure(p, workers, !c->vignetting_mask.empty(), previous);
+  auto probe = std::make_unique<Pipeline>();
+  const Status s = probe->Configure(p, workers, !c->vignetting_mask.empty(), previous);
   if (!s.ok()) {
     *error = DescribeStatus(s, origins);
     return false;
@@ -1068,8 +1068,8 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
           q.exposure.exposure_time_us = t.value;
           q.sensor.gain_db = g.value;
           q.exposure.f_number = f.value;
-          Pipeline corner;
-          const Status cs = corner.Configure(q, workers, !c->vignetting_mask.empty(), previous);
+          Pipeline corner;  // borrows what the probe solved (the lens grid's band ranges)
+          const Status cs = corner.Configure(q, workers, !c->vignetting_mask.empty(), probe.get());
           if (cs.ok()) continue;
           std::string at = std::string(t.key) + " = " + FormatNumber(t.value) + ", " + g.key + " = " +
                            FormatNumber(g.value);
@@ -1079,6 +1079,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
           return false;
         }
   }
+  if (configured != nullptr) *configured = std::move(probe);
   return true;
 }
 

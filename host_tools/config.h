@@ -79,9 +79,12 @@ std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfi
 // Fills in derived values (focal length in pixels, sizes) once the input size
 // is known, then runs the core's validation; errors name the key and its origin.
 // previous: a pipeline in use whose results the validation may reuse
-// (Pipeline::Configure's `previous`), or nullptr.
+// (Pipeline::Configure's `previous`), or nullptr. configured (optional):
+// receives the pipeline the validation configured from the finished
+// configuration with `workers`, ready for Init.
 bool FinishConfig(RunConfig* config, int input_width, int input_height, const Origins& origins, int workers,
-                  std::string* error, const Pipeline* previous = nullptr);
+                  std::string* error, const Pipeline* previous = nullptr,
+                  std::unique_ptr<Pipeline>* configured = nullptr);
 
 // Text of a core Status, with the origin of its field when known.
 std::string DescribeStatus(const Status& status, const Origins& origins);

@@ -30,15 +30,9 @@ bool FrameRenderer::PlanPipeline(const RunConfig& config, const Origins& origins
                                  int scene_height, PlannedPipeline* planned, std::string* error) const {
   planned->finished = config;
   RunConfig& rc = planned->finished;
-  // The pipeline in use lends what the new one computes the same (Pipeline::Configure).
-  if (!FinishConfig(&rc, scene_width, scene_height, origins, threads_, error, pipeline_.get())) return false;
-  planned->pipeline.reset(new Pipeline);
-  const Status s = planned->pipeline->Configure(rc.core, threads_, !rc.vignetting_mask.empty(), pipeline_.get());
-  if (!s.ok()) {
-    *error = DescribeStatus(s, origins);
-    return false;
-  }
-  return true;
+  // The pipeline in use lends what the new one computes the same
+  // (Pipeline::Configure); the validation's pipeline is the one planned.
+  return FinishConfig(&rc, scene_width, scene_height, origins, threads_, error, pipeline_.get(), &planned->pipeline);
 }
 
 bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std::string* error) {

@@ -1030,6 +1030,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   geometry_ = g;
   site_only_ = false;
   fast_path_ = false;
+  bands_borrowed_ = false;
   table_ = nullptr;
   weights_ = nullptr;
   const LensModel& m = config_.lens;
@@ -1114,12 +1115,13 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
                            "the radial model folds over (stops increasing) inside the frame, so those pixels "
                            "have no unique source: check k1..k6 (fisheye: k1..k4) and fx, fy");
 
-  if (previous != nullptr && SameTables(*previous)) {
+  if (previous != nullptr && SameGrid(*previous)) {
     for (int j = 0; j < grid_h_; ++j) {
       band_first_[j] = previous->band_first_[j];
       band_last_[j] = previous->band_last_[j];
     }
     max_window_ = previous->max_window_;
+    bands_borrowed_ = true;
     return Status::Ok();
   }
 
@@ -1283,14 +1285,14 @@ uint64_t DistortionStage::MeshDigest(const DisplacementMesh& mesh) {
   return h;
 }
 
-bool DistortionStage::SameTables(const DistortionStage& o) const {
+bool DistortionStage::SameGrid(const DistortionStage& o) const {
   const DistortionConfig &a = config_, &b = o.config_;
   for (int i = 0; i < 3; ++i)
     if (!SameBits(a.chromatic_scale[i], b.chromatic_scale[i])) return false;
   const bool same_mesh = (a.mesh.dxdy == nullptr) == (b.mesh.dxdy == nullptr) && a.mesh.cols == b.mesh.cols &&
                          a.mesh.rows == b.mesh.rows && SameBits(a.mesh.step, b.mesh.step) &&
                          mesh_digest_ == o.mesh_digest_;
-  return &o != this && o.table_ != nullptr && geometry_ == o.geometry_ && a.filter == b.filter &&
+  return &o != this && geometry_ == o.geometry_ && a.filter == b.filter &&
          a.phases == b.phases && a.grid_step == b.grid_step && SameLens(a.lens, b.lens) && same_mesh;
 }
 

@@ -88,8 +88,8 @@ class DistortionStage final : public Stage {
   static constexpr int kMaxBands = 16384 / 4 + 2;
   static constexpr int kLaneTaps = 8;  // int32 weights per phase in wt_, the AVX2 lanes' table (>= taps)
 
-  // previous (optional): this stage of an initialised pipeline (Stage::InitFrom).
-  // With the same configuration and geometry its band ranges are taken
+  // previous (optional): this stage of a configured pipeline, initialised or
+  // not. With the same configuration and geometry its band ranges are taken
   // instead of solving the grid's nodes again.
   Status Configure(const DistortionConfig& config, const SensorGeometry& geometry,
                    const DistortionStage* previous = nullptr);
@@ -116,12 +116,16 @@ class DistortionStage final : public Stage {
   // Whether ProcessRow takes the 32-bit fast path (see "Fast path" in the
   // .cc); tests can force the general path to compare the two.
   bool fast_path() const { return fast_path_ && !force_general_; }
+  // Whether the last Configure took its band ranges from `previous`.
+  bool bands_borrowed() const { return bands_borrowed_; }
   void ForceGeneralPathForTest(bool force) { force_general_ = force; }
 
  private:
-  // Whether `other` was initialised from the same configuration and geometry
-  // (then its band ranges and tables are this stage's).
-  bool SameTables(const DistortionStage& other) const;
+  // Whether `other` was configured from the same configuration and geometry
+  // (then its band ranges are this stage's), and SameTables: initialised
+  // too (then its tables are).
+  bool SameGrid(const DistortionStage& other) const;
+  bool SameTables(const DistortionStage& other) const { return SameGrid(other) && other.table_ != nullptr; }
   static uint64_t MeshDigest(const DisplacementMesh& mesh);
   // Init; copies every table from `same` when it is not null (SameTables).
   Status Build(Arena& tables, const DistortionStage* same);
@@ -161,6 +165,7 @@ class DistortionStage final : public Stage {
   int16_t band_last_[kMaxBands] = {};
   int max_window_ = 1;
   uint64_t mesh_digest_ = 0;   // MeshDigest of the configured mesh
+  bool bands_borrowed_ = false;
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
   int32_t* wt_ = nullptr;      // the same as int32, phases x kLaneTaps (AVX2 lanes)

@@ -249,6 +249,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
                            const Pipeline* previous) {
   if (previous == this) previous = nullptr;  // its state is about to be replaced
   initialised_ = false;
+  configured_ = false;
   config_ = config;
   const SensorGeometry& g = config.geometry;
   if (g.width < 1 || g.width > kMaxDimension) return InvalidArgument("sensor.width", "must be in [1, 16384]");
@@ -266,8 +267,10 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(dof_rows_.Configure(config.dof, g, config.exposure.f_number));
   CAMSIM_TRY(dof_columns_.Configure(config.dof, g, &dof_rows_));
   CAMSIM_TRY(motion_blur_.Configure(config.motion_blur, g, config.exposure.exposure_time_us));
-  const Stage* previous_distortion = previous != nullptr ? previous->InitialisedStage(StageId::kDistortion) : nullptr;
-  CAMSIM_TRY(distortion_.Configure(config.distortion, g, static_cast<const DistortionStage*>(previous_distortion)));
+  // A configured pipeline (initialised or not) lends its band ranges.
+  const DistortionStage* previous_distortion =
+      previous != nullptr && previous->configured_ ? &previous->distortion_ : nullptr;
+  CAMSIM_TRY(distortion_.Configure(config.distortion, g, previous_distortion));
   CAMSIM_TRY(flare_.Configure(config.flare, g));
   CAMSIM_TRY(exposure_.Configure(config.exposure));
   CAMSIM_TRY(vignetting_.Configure(config.vignetting, g, has_vignetting_mask));
@@ -385,6 +388,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   worker.AddBytes(state_bytes_);
   worker.Add<RowIn>(static_cast<size_t>(max_window_));
   worker_bytes_ = worker.raw_bytes();
+  configured_ = true;
   return Status::Ok();
 }
 

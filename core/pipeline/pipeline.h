@@ -238,6 +238,7 @@ class Pipeline {
   size_t table_bytes_ = 0;
   size_t worker_bytes_ = 0;
   uint8_t* workers_base_ = nullptr;
+  bool configured_ = false;   // the last Configure succeeded
   bool initialised_ = false;
   int copied_tables_[kStageCount] = {};  // per running stage, at Init
 

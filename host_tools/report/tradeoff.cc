@@ -149,13 +149,10 @@ const char* UnitName(Domain d) {
 // then one untimed run with every stage tapped for the errors.
 bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, const io::FloatPlane* mask, int frames,
              Setting* out, std::string* error) {
-  if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error)) return false;
-  Pipeline p;
-  const Status s = p.Configure(rc.core, 1, mask != nullptr);
-  if (!s.ok()) {
-    *error = DescribeStatus(s, origins);
-    return false;
-  }
+  // (mask is the file rc.vignetting_mask names, so the validation's pipeline is configured for it.)
+  std::unique_ptr<Pipeline> configured;
+  if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error, nullptr, &configured)) return false;
+  Pipeline& p = *configured;
   std::vector<uint8_t> workspace(p.WorkspaceBytes());
   if (!p.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) {
     *error = "workspace";

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/lens/distortion.h"
 #include "core/pipeline/pipeline.h"
 #include "host_tools/config.h"
 #include "host_tools/render.h"
@@ -121,6 +122,14 @@ int Expected(const Change& c, const char* stage) {
   return 0;
 }
 
+// The running distortion stage of `p`, or nullptr.
+const DistortionStage* RunningDistortion(const Pipeline& p) {
+  for (int i = 0; i < p.plan().running; ++i)
+    if (std::string(p.running_stage(i).name()) == "distortion")
+      return static_cast<const DistortionStage*>(&p.running_stage(i));
+  return nullptr;
+}
+
 TEST(Reconfigure, CopiedTablesGiveTheBytesOfAPipelineBuiltFromScratch) {
   for (const Change& change : Changes()) {
     SCOPED_TRACE(change.what);
@@ -143,6 +152,10 @@ TEST(Reconfigure, CopiedTablesGiveTheBytesOfAPipelineBuiltFromScratch) {
       EXPECT_EQ(reused->pipeline.CopiedTables(i), Expected(change, name)) << name;
       EXPECT_EQ(fresh->pipeline.CopiedTables(i), 0) << name;
     }
+    // Configure borrows the lens's band ranges exactly when Init copies its tables.
+    ASSERT_NE(RunningDistortion(reused->pipeline), nullptr);
+    EXPECT_EQ(RunningDistortion(reused->pipeline)->bands_borrowed(), Expected(change, "distortion") == 4);
+    EXPECT_FALSE(RunningDistortion(fresh->pipeline)->bands_borrowed());
     for (uint32_t frame : {0u, 7u}) {
       const std::vector<uint32_t> want = test::RunFrame(*fresh, scene, frame, 13);
       ASSERT_EQ(test::UnwrittenCount(want), 0u);
@@ -152,6 +165,8 @@ TEST(Reconfigure, CopiedTablesGiveTheBytesOfAPipelineBuiltFromScratch) {
 }
 
 // Only an initialised pipeline lends its tables, and only for stages it ran.
+// A pipeline only configured lends the lens's band ranges to Configure; one
+// whose Configure failed lends nothing.
 TEST(Reconfigure, OnlyStagesThatRanInAnInitialisedPipelineLendTheirTables) {
   Base base;
   Pipeline configured_only;
@@ -159,6 +174,15 @@ TEST(Reconfigure, OnlyStagesThatRanInAnInitialisedPipelineLendTheirTables) {
   auto b = BuildFrom(base.config, &configured_only, 0);
   ASSERT_TRUE(b->status.ok());
   for (int i = 0; i < b->pipeline.plan().running; ++i) EXPECT_EQ(b->pipeline.CopiedTables(i), 0);
+  ASSERT_NE(RunningDistortion(b->pipeline), nullptr);
+  EXPECT_TRUE(RunningDistortion(b->pipeline)->bands_borrowed());
+  PipelineConfig broken = base.config;
+  broken.gamma.gamma = -1.0;  // refused after the lens is configured
+  broken.gamma.curve = GammaCurve::kPower;
+  ASSERT_FALSE(configured_only.Configure(broken, 1, false).ok());
+  auto after_failure = BuildFrom(base.config, &configured_only, 0);
+  ASSERT_TRUE(after_failure->status.ok());
+  EXPECT_FALSE(RunningDistortion(after_failure->pipeline)->bands_borrowed());
 
   PipelineConfig linear = base.config;
   linear.gamma.curve = GammaCurve::kLinear;  // left out: its stage has no table
@@ -240,6 +264,44 @@ TEST(Reconfigure, TheRendererKeepsItsSceneAndCopiesTheLensTables) {
   ASSERT_TRUE(fresh.Configure(longer, origins, kW, kH, nullptr, &error)) << error;
   ASSERT_TRUE(fresh.SetScene(scene, &error)) << error;
   EXPECT_EQ(RenderRgb(fresh), second);
+}
+
+// FinishConfig hands out the pipeline it configured to check the
+// configuration (FrameRenderer::PlanPipeline installs it instead of
+// configuring another): it solved the lens's band ranges itself (the auto
+// exposure's corner checks borrow them), has the workers asked for, and
+// gives the frame of a pipeline configured afresh from the finished
+// configuration.
+TEST(Reconfigure, TheValidationsPipelineIsTheOnePlanned) {
+  host::RunConfig rc;
+  host::Origins origins;
+  std::string error;
+  ASSERT_TRUE(host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/camera.toml", &rc, &origins, &error)) << error;
+  ASSERT_TRUE(host::ParseConfig("[distortion]\nmodel = \"brown\"\nk1 = -0.28\nk2 = 0.07\n"
+                                "[auto_exposure]\nmode = \"continuous\"\n",
+                                "lens", &rc, &origins, &error))
+      << error;
+  std::unique_ptr<Pipeline> configured;
+  ASSERT_TRUE(host::FinishConfig(&rc, kW, kH, origins, 2, &error, nullptr, &configured)) << error;
+  ASSERT_NE(configured, nullptr);
+  ASSERT_NE(RunningDistortion(*configured), nullptr);
+  EXPECT_FALSE(RunningDistortion(*configured)->bands_borrowed());
+  auto fresh = test::Build(rc.core, 2);
+  ASSERT_TRUE(fresh->status.ok()) << fresh->status.message();
+  ASSERT_EQ(configured->WorkspaceBytes(), fresh->pipeline.WorkspaceBytes());
+  std::vector<uint8_t> workspace(configured->WorkspaceBytes(), 0xA5);
+  ASSERT_TRUE(configured->Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok());
+  const test::Scene scene = test::TexturedScene(kW, kH);
+  std::vector<uint32_t> out(static_cast<size_t>(kW) * kH * configured->plan().output.channels, test::kUnwritten);
+  Tap tap;
+  tap.stage = -1;
+  tap.format = TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = static_cast<ptrdiff_t>(kW) * configured->plan().output.channels;
+  const FrameInput in = scene.View();
+  configured->ProcessStrip(in, 3, 0, kH / 2, 0, &tap, 1, nullptr, nullptr);
+  configured->ProcessStrip(in, 3, kH / 2, kH, 1, &tap, 1, nullptr, nullptr);  // worker 1 exists
+  EXPECT_EQ(out, test::RunFrame(*fresh, scene, 3, 16));
 }
 
 // A prepared scene holds only while the sensor's size and the scene fit do:
