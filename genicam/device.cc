@@ -319,6 +319,15 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
 
 bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   if (!LoadDeviceScenes(o, &base_config_, &origins_, &scenes_, error)) return false;
+  // PlanFor's settings come from the registers, whatever the file said.
+  register_origins_ = origins_;
+  register_origins_["exposure.exposure_time_us"] = "ExposureTime";
+  register_origins_["exposure.f_number"] = "SimFNumber";
+  register_origins_["dof.focus_distance_m"] = "SimFocusDistance";
+  register_origins_["sensor.gain_db"] = "Gain";
+  register_origins_["sensor.black_level_dn"] = "BlackLevel";
+  register_origins_["pipeline.seed"] = "SimSeed";
+  register_origins_["pipeline.stages"] = "SimStageEnable";
   address_ = o.address;
   prime_first_frame_ = o.prime_first_frame;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
@@ -475,6 +484,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
   };
   std::lock_guard<std::mutex> lock(mutex_);
+  // A client's write (the GVCP thread may already serve) waits for the
+  // values in use: its filter plans on them.
+  const ClientWritesHeld hold(fake_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
   for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SelectedAddress(kSimStageEnable, i), 1);
   seed_register_at_start_ = applied_[kSimSeed];
@@ -600,7 +612,8 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
     if (r.at(SelectedAddress(kSimStageEnable, i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
   // Plan only (no tables): the running renderer stays as it is on failure,
   // and Reconfigure installs this plan.
-  if (!renderer_->PlanPipeline(rc, origins_, scenes_[0].width, scenes_[0].height, planned, error)) return false;
+  if (!renderer_->PlanPipeline(rc, register_origins_, scenes_[0].width, scenes_[0].height, planned, error))
+    return false;
   const Plan& plan = planned->pipeline->plan();
   const LineFormat out = plan.output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
@@ -737,6 +750,17 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   return verdict;
 }
 
+std::string GigeDevice::RegisterName(const Feature& r) const {
+  for (const Feature& f : table_) {
+    if (f.selected_by.empty() || r.address < f.address || r.address >= f.address + 4 * f.selections) continue;
+    const Feature* selector = FindFeature(table_, f.selected_by);
+    const int64_t value = (r.address - f.address) / 4;
+    for (size_t e = 0; selector != nullptr && e < selector->entries.size(); ++e)
+      if (selector->entries[e].value == value) return f.name + "[" + selector->entries[e].name + "]";
+  }
+  return r.name;
+}
+
 bool GigeDevice::IsPipelineRegister(uint32_t address) const {
   using namespace reg;
   if (address == kPixelFormat || address == kGainRaw) return true;
@@ -754,8 +778,8 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
   bool pipeline = false;
   for (const Feature& f : registers_) pipeline = pipeline || (IsPipelineRegister(f.address) && covers(f.address));
   if (!pipeline) return true;
-  Registers after;  // every checked register once the write is stored
-  bool changes = false;
+  Registers after;    // every checked register once the write is stored
+  std::string names;  // the pipeline settings it changes
   for (const Feature& f : registers_) {
     if (!Checked(f)) continue;
     uint64_t v = 0;
@@ -765,18 +789,16 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
       v = v << 32 | (covers(r) ? value(r) : Read(r));
     }
     after[f.address] = v;
-    changes = changes || (written && IsPipelineRegister(f.address) && v != ReadFeature(f));
+    if (written && IsPipelineRegister(f.address) && v != ReadFeature(f))
+      names += (names.empty() ? "" : ", ") + RegisterName(f);
   }
-  if (!changes) return true;
+  if (names.empty()) return true;
   // Gain and GainRaw as the sync will join them: a new Gain wins, else a new GainRaw sets it.
   if (after[kGain] == applied_.at(kGain) && after[kGainRaw] != applied_.at(kGainRaw))
     after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
   host::PlannedPipeline unused;
   std::string why;
   if (PlanFor(after, &unused, &why)) return true;
-  std::string names;
-  for (const Feature& f : registers_)
-    if (Checked(f) && IsPipelineRegister(f.address) && covers(f.address)) names += (names.empty() ? "" : ", ") + f.name;
   std::fprintf(stderr, "camsim-gige: refused %s: %s\n", names.c_str(), why.c_str());
   return false;
 }
@@ -996,7 +1018,8 @@ void GigeDevice::AutoAdjust(double frac) {
     return;
   }
   // A client's write waits: its filter plans on the pipeline in use and the
-  // applied values, which this may replace.
+  // applied values, which this may replace. (A served camera fills frames on
+  // its GVCP thread, which also runs the filter; RenderNow may not.)
   const ClientWritesHeld hold(fake_);
   // The core's controller (core/control/auto_exposure.h) with the features
   // that are Off held at their current value. It keeps its state from frame

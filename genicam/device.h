@@ -3,13 +3,12 @@
 //
 // Register writes: a client's write reaches the device's write filter
 // (FilterClientWrite, behind genicam/fake_camera_hooks.h) as it arrives, and
-// a value a feature never takes, a window off the sensor or a window change
-// while acquiring is refused there with its GVCP status. A sync step (every
-// kSyncPeriodMs, and before every frame) takes the new values, rebuilds the
-// pipeline for pipeline settings and writes the old value back over what
-// the pipeline refuses (a combination it cannot run). A refused write reads
-// back as the previous value and never reaches the pipeline. Settings apply
-// from the next frame.
+// a value a feature never takes, a window off the sensor, a window change
+// while acquiring, or a pipeline setting the pipeline cannot run (planned
+// there) is refused with its GVCP status. A sync step (every kSyncPeriodMs,
+// and before every frame) takes the new values and rebuilds the pipeline for
+// pipeline settings. A refused write reads back as the previous value and
+// never reaches the pipeline. Settings apply from the next frame.
 //
 // Frames: the whole sensor is rendered (FrameRenderer, the code `camsim run`
 // uses) and the Width x Height window at OffsetX/OffsetY is sent. Raw formats
@@ -166,6 +165,9 @@ class GigeDevice {
   bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
   bool Reconfigure(const Registers& r, std::string* error);  // PlanFor, then Install; under mutex_
   bool IsPipelineRegister(uint32_t address) const;  // a change reconfigures the pipeline
+  // A register's feature for messages: a selected one by its selector's
+  // entry (SimStageEnable[Stage_demosaic]), not its index.
+  std::string RegisterName(const Feature& r) const;
   // Whether the pipeline can run the registers once a client's write (its
   // bytes as the filter left them) is stored: true when it changes no
   // pipeline register. Under the camera's client-write lock.
@@ -203,6 +205,7 @@ class GigeDevice {
   bool own_xml_ = false;
   host::RunConfig base_config_;  // as loaded (unfinished)
   host::Origins origins_;
+  host::Origins register_origins_;  // origins_ with the keys registers set named by register (PlanFor's errors)
   std::vector<io::SceneFrame> scenes_;
   int current_scene_ = -1;
   std::vector<StageId> configured_stages_;

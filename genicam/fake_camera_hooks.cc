@@ -48,6 +48,7 @@
 #include <netinet/in.h>
 #include <sys/socket.h>
 
+#include <condition_variable>
 #include <cstdint>
 #include <cstring>
 #include <list>
@@ -194,19 +195,38 @@ struct Filter {
   camsim::genicam::WriteFilter filter = nullptr;
   void* owner = nullptr;
   std::mutex writes;  // held while the filter decides on a write and it is stored, and by ClientWritesHeld
+  int users = 0;         // LockFilter callers holding or waiting for `writes` (under g_filters_mutex)
+  bool removed = false;  // SetWriteFilter waits for its users to go (under g_filters_mutex)
 };
-std::mutex g_filters_mutex;  // guards the list (held to find, add or remove an entry; never while a filter runs)
+// Guards the list and each entry's users and removed: held to find, add or
+// remove an entry, never while waiting for an entry's `writes`, so one
+// camera's filter or sync does not hold up the others'.
+std::mutex g_filters_mutex;
+std::condition_variable g_filter_released;  // an entry's users went down
 std::list<Filter> g_filters;
 
-// The filter of `camera` with its `writes` lock taken, or nullptr.
+// The filter of `camera` with its `writes` lock taken, or nullptr. UnlockFilter releases it.
 Filter* LockFilter(ArvFakeCamera* camera) {
-  std::lock_guard<std::mutex> list(g_filters_mutex);
-  for (Filter& f : g_filters)
-    if (f.camera == camera) {
-      f.writes.lock();
-      return &f;
-    }
-  return nullptr;
+  Filter* found = nullptr;
+  {
+    std::lock_guard<std::mutex> list(g_filters_mutex);
+    for (Filter& f : g_filters)
+      if (f.camera == camera && !f.removed) {
+        ++f.users;
+        found = &f;
+        break;
+      }
+  }
+  if (found != nullptr) found->writes.lock();
+  return found;
+}
+void UnlockFilter(Filter* f) {
+  f->writes.unlock();
+  {
+    std::lock_guard<std::mutex> list(g_filters_mutex);
+    --f->users;
+  }
+  g_filter_released.notify_all();
 }
 thread_local int t_device_writes = 0;
 thread_local uint64_t t_reads = 0, t_writes = 0;  // calls of the hooks on this thread (FakeCameraHooksInForce)
@@ -249,7 +269,7 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   Filter* f = LockFilter(camera);  // the filter's decision and the store, together
   if (f != nullptr) verdict = f->filter(f->owner, address, size, data);
   if (verdict.store) next(camera, address, size, data);
-  if (f != nullptr) f->writes.unlock();
+  if (f != nullptr) UnlockFilter(f);
   return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
 }
 
@@ -345,13 +365,12 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
-  std::lock_guard<std::mutex> list(g_filters_mutex);
+  std::unique_lock<std::mutex> list(g_filters_mutex);
   for (auto f = g_filters.begin(); f != g_filters.end(); ++f)
-    if (f->camera == camera) {
-      // Waits for a write or a ClientWritesHeld in progress; no new one can
-      // find the entry while the list is held.
-      f->writes.lock();
-      f->writes.unlock();
+    if (f->camera == camera && !f->removed) {
+      // No new write or ClientWritesHeld finds it now; wait for those in progress.
+      f->removed = true;
+      g_filter_released.wait(list, [&f] { return f->users == 0; });
       g_filters.erase(f);
       break;
     }
@@ -364,7 +383,7 @@ void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
 
 ClientWritesHeld::ClientWritesHeld(ArvFakeCamera* camera) : held_(LockFilter(camera)) {}
 ClientWritesHeld::~ClientWritesHeld() {
-  if (held_ != nullptr) static_cast<Filter*>(held_)->writes.unlock();
+  if (held_ != nullptr) UnlockFilter(static_cast<Filter*>(held_));
 }
 
 DeviceWrites::DeviceWrites() { ++t_device_writes; }

@@ -636,6 +636,39 @@ TEST(GigeRegisters, ARefusedWriteDoesNotTakeItsSyncsOtherWritesWithIt) {
                                    "pipeline.stages=[" + without_vignetting + "]"}));
 }
 
+// A pipeline write is planned on the client's earlier writes, synced or not:
+// with the demosaic switched off, RGB8 (which needs the ISP) is refused, and
+// the other way round. In a block, the pipeline's registers go back and the
+// others (AcquisitionMode, after PixelFormat) are stored.
+TEST(GigeRegisters, APipelineWriteIsPlannedOnTheWritesBeforeIt) {
+  DeviceOptions o = OfflineDevice();
+  for (const bool format_first : {false, true}) {
+    SCOPED_TRACE(format_first ? "RGB8 first" : "demosaic off first");
+    auto d = StartDevice(o);
+    ASSERT_NE(d, nullptr);
+    const uint32_t demosaic_enable = StageEnableAddress(*d, "Stage_demosaic");
+    ASSERT_NE(demosaic_enable, 0u);
+    std::vector<uint8_t> block = Be32(genicam::kRGB8);  // PixelFormat, AcquisitionMode
+    for (uint8_t b : Be32(genicam::kSingleFrame)) block.push_back(b);
+    if (format_first) {
+      WriteReg(*d, reg::kPixelFormat, block);
+      WriteRegRefused(*d, demosaic_enable, Be32(0));  // not synced yet: RGB8 is still only in memory
+      EXPECT_EQ(ReadReg32(*d, demosaic_enable), 1u);
+    } else {
+      WriteReg(*d, demosaic_enable, Be32(0));
+      WriteRegRefused(*d, reg::kPixelFormat, block);
+      EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), genicam::BayerCode(Cfa::kBayerRG, 12));
+    }
+    EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
+    EXPECT_EQ(d->writes_refused(), 1u);
+    d->SyncNow();
+    EXPECT_EQ(d->CheckInvariants(), "");
+    EXPECT_EQ(d->writes_refused(), 1u) << "the sync refuses nothing more";
+    EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), format_first ? genicam::kRGB8 : genicam::BayerCode(Cfa::kBayerRG, 12));
+    EXPECT_EQ(ReadReg32(*d, demosaic_enable), format_first ? 1u : 0u);
+  }
+}
+
 // The write combination the register fuzzer found (its seed cfa_off_crash):
 // the cfa and demosaic stages off, a smaller window, one sync. The cfa alone
 // was refused (the demosaic needs a mosaic); with the demosaic off as well,
