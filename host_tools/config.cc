@@ -981,6 +981,7 @@ bool ResolveEnvironment(RunConfig* c, std::string* error) {
 
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error, const Pipeline* previous, std::unique_ptr<Pipeline>* configured) {
+  if (configured != nullptr) configured->reset();
   PipelineConfig& p = c->core;
   if (c->width < 0 || c->height < 0) {
     *error = DescribeStatus(InvalidArgument(c->width < 0 ? "sensor.width" : "sensor.height", "must be >= 0"), origins);

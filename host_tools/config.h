@@ -81,7 +81,8 @@ std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfi
 // previous: a pipeline in use whose results the validation may reuse
 // (Pipeline::Configure's `previous`), or nullptr. configured (optional):
 // receives the pipeline the validation configured from the finished
-// configuration with `workers`, ready for Init.
+// configuration with `workers`, ready for Init (null on failure); it reads
+// data `*config` holds (defect list, mesh, maps), so keep that alive.
 bool FinishConfig(RunConfig* config, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error, const Pipeline* previous = nullptr,
                   std::unique_ptr<Pipeline>* configured = nullptr);

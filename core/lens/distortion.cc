@@ -1031,6 +1031,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   site_only_ = false;
   fast_path_ = false;
   bands_borrowed_ = false;
+  configured_ = false;
   table_ = nullptr;
   weights_ = nullptr;
   const LensModel& m = config_.lens;
@@ -1056,7 +1057,10 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
         return InvalidArgument("distortion.mesh", "displacements must be finite, within 4096 pixels");
   }
   mesh_digest_ = MeshDigest(mesh);
-  if (IdentityReason() != nullptr) return Status::Ok();
+  if (IdentityReason() != nullptr) {
+    configured_ = true;
+    return Status::Ok();
+  }
   if (m.model == DistortionModel::kOff && m.fx == 0.0 && m.fy == 0.0) {
     // Mesh or chromatic aberration alone: the centre defaults to the frame's.
     config_.lens.fx = config_.lens.fy = 1.0;
@@ -1122,6 +1126,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
     }
     max_window_ = previous->max_window_;
     bands_borrowed_ = true;
+    configured_ = true;
     return Status::Ok();
   }
 
@@ -1174,6 +1179,7 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
     return InvalidArgument("distortion.k1",
                            "the distortion bends one output row over more than 1024 input rows, beyond the "
                            "streaming driver's window; the lens is too strong for this frame height");
+  configured_ = true;
   return Status::Ok();
 }
 
@@ -1292,7 +1298,7 @@ bool DistortionStage::SameGrid(const DistortionStage& o) const {
   const bool same_mesh = (a.mesh.dxdy == nullptr) == (b.mesh.dxdy == nullptr) && a.mesh.cols == b.mesh.cols &&
                          a.mesh.rows == b.mesh.rows && SameBits(a.mesh.step, b.mesh.step) &&
                          mesh_digest_ == o.mesh_digest_;
-  return &o != this && geometry_ == o.geometry_ && a.filter == b.filter &&
+  return &o != this && o.configured_ && geometry_ == o.geometry_ && a.filter == b.filter &&
          a.phases == b.phases && a.grid_step == b.grid_step && SameLens(a.lens, b.lens) && same_mesh;
 }
 

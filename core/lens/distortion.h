@@ -166,6 +166,7 @@ class DistortionStage final : public Stage {
   int max_window_ = 1;
   uint64_t mesh_digest_ = 0;   // MeshDigest of the configured mesh
   bool bands_borrowed_ = false;
+  bool configured_ = false;  // the last Configure succeeded (SameGrid lends only then)
   int32_t* table_ = nullptr;   // grid_h_ x grid_w_ x (dx, dy), Q15.16
   int16_t* weights_ = nullptr; // phases x taps, Q1.14
   int32_t* wt_ = nullptr;      // the same as int32, phases x kLaneTaps (AVX2 lanes)

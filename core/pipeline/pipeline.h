@@ -150,12 +150,12 @@ class Pipeline {
  public:
   // Validates every configured stage, plans, and sizes the workspace. The only
   // step besides Init that can fail.
-  // previous (optional, a reconfiguration): another pipeline, initialised,
-  // its workspace still alive, and unchanged while the call runs (a pipeline
-  // cannot tell that its workspace was freed); a stage whose configuration equals its
-  // counterpart's there takes what that computed instead of computing it
-  // again (Stage::InitFrom). The bytes are those of a pipeline configured
-  // without it.
+  // previous (optional, a reconfiguration): another pipeline, configured
+  // (the lens's band ranges) or also initialised (its workspace still alive:
+  // a pipeline cannot tell that its workspace was freed), and unchanged while
+  // the call runs; a stage whose configuration equals its counterpart's there
+  // takes what that computed instead of computing it again (Stage::InitFrom).
+  // The bytes are those of a pipeline configured without it.
   Status Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask,
                    const Pipeline* previous = nullptr);
   const Plan& plan() const { return plan_; }
