@@ -484,9 +484,6 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
   };
   std::lock_guard<std::mutex> lock(mutex_);
-  // A client's write (the GVCP thread may already serve) waits for the
-  // values in use: its filter plans on them.
-  const ClientWritesHeld hold(fake_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
   for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SelectedAddress(kSimStageEnable, i), 1);
   seed_register_at_start_ = applied_[kSimSeed];
@@ -495,6 +492,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   Write(kAcquisition, 0);
   Write(kTriggerSoftware, 0);
   WriteDerived();
+  ready_ = true;  // the values in use are set: the filter may plan on them
   arv_fake_camera_set_fill_pattern(fake_, &GigeDevice::FillThunk, this);
   if (!o.serve) return true;
   sync_thread_ = std::thread([this] { SyncLoop(); });
@@ -661,6 +659,9 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // a block is stored.
 WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data) {
   auto* d = static_cast<GigeDevice*>(self);
+  // Before Init has set the values in use (the GVCP thread may already
+  // serve): not yet.
+  if (!d->ready_) return {false, GevStatus::kAccessDenied};
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
   const auto covers = [&](uint32_t r) { return Covers(address, size, r); };
   const auto value = [&](uint32_t r) { return ValueAt(address, data, r); };

@@ -238,6 +238,7 @@ class GigeDevice {
   mutable std::mutex mutex_;
   std::thread sync_thread_, trigger_thread_;
   std::atomic<bool> stop_{false};
+  std::atomic<bool> ready_{false};  // Init has set the values in use (FilterClientWrite refuses writes before)
   std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0}, triggers_dropped_{0}, trigger_edges_{0};
   // The trigger thread takes edges under its own lock, never waiting for a
   // frame being rendered (mutex_): the line's queue stays drained.

@@ -366,19 +366,19 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
   std::unique_lock<std::mutex> list(g_filters_mutex);
-  for (auto f = g_filters.begin(); f != g_filters.end(); ++f)
-    if (f->camera == camera && !f->removed) {
-      // No new write or ClientWritesHeld finds it now; wait for those in progress.
-      f->removed = true;
-      g_filter_released.wait(list, [&f] { return f->users == 0; });
-      g_filters.erase(f);
-      break;
-    }
-  if (filter == nullptr) return;
-  Filter& added = g_filters.emplace_back();
-  added.camera = camera;
-  added.filter = filter;
-  added.owner = owner;
+  auto old = g_filters.begin();
+  while (old != g_filters.end() && (old->camera != camera || old->removed)) ++old;
+  if (filter != nullptr) {  // in front of the old one: new writes find it from now on
+    Filter& added = g_filters.emplace_front();
+    added.camera = camera;
+    added.filter = filter;
+    added.owner = owner;
+  }
+  if (old == g_filters.end()) return;
+  // No new write or ClientWritesHeld finds the old one now; wait for those in progress.
+  old->removed = true;
+  g_filter_released.wait(list, [&old] { return old->users == 0; });
+  g_filters.erase(old);
 }
 
 ClientWritesHeld::ClientWritesHeld(ArvFakeCamera* camera) : held_(LockFilter(camera)) {}

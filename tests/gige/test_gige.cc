@@ -650,6 +650,7 @@ TEST(GigeRegisters, APipelineWriteIsPlannedOnTheWritesBeforeIt) {
     ASSERT_NE(demosaic_enable, 0u);
     std::vector<uint8_t> block = Be32(genicam::kRGB8);  // PixelFormat, AcquisitionMode
     for (uint8_t b : Be32(genicam::kSingleFrame)) block.push_back(b);
+    testing::internal::CaptureStderr();
     if (format_first) {
       WriteReg(*d, reg::kPixelFormat, block);
       WriteRegRefused(*d, demosaic_enable, Be32(0));  // not synced yet: RGB8 is still only in memory
@@ -659,6 +660,11 @@ TEST(GigeRegisters, APipelineWriteIsPlannedOnTheWritesBeforeIt) {
       WriteRegRefused(*d, reg::kPixelFormat, block);
       EXPECT_EQ(ReadReg32(*d, reg::kPixelFormat), genicam::BayerCode(Cfa::kBayerRG, 12));
     }
+    // The line names the setting the write changes (a stage switch by its stage).
+    EXPECT_EQ(testing::internal::GetCapturedStderr(),
+              std::string("camsim-gige: refused ") +
+                  (format_first ? "SimStageEnable[Stage_demosaic]" : "PixelFormat") +
+                  ": the selected PixelFormat needs the ISP\n");
     EXPECT_EQ(ReadReg32(*d, reg::kAcquisitionMode), static_cast<uint32_t>(genicam::kSingleFrame));
     EXPECT_EQ(d->writes_refused(), 1u);
     d->SyncNow();
@@ -859,6 +865,40 @@ TEST(GigeRegisters, TheHooksAreInForce) {
   g_object_unref(camera);
 }
 
+// One camera's held writes (its sync rebuilding the pipeline, its filter
+// planning) do not hold up another camera's: a write to B is stored while
+// A's writes are held and another caller waits for them. (The waiter used
+// to wait holding the lock of every camera's filter list.)
+TEST(GigeRegisters, OneCamerasHeldWritesDoNotHoldUpAnothers) {
+  ArvFakeCamera* a = arv_fake_camera_new_full("CSHOOKA", nullptr);
+  ArvFakeCamera* b = arv_fake_camera_new_full("CSHOOKB", nullptr);
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  const genicam::WriteFilter pass = [](void*, uint32_t, uint32_t, uint8_t*) { return genicam::WriteVerdict{}; };
+  genicam::SetWriteFilter(a, pass, nullptr);
+  genicam::SetWriteFilter(b, pass, nullptr);
+  auto held = std::make_unique<genicam::ClientWritesHeld>(a);
+  std::thread waiter([a] { genicam::ClientWritesHeld wait_for_a(a); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the waiter waits for A by now
+  std::atomic<bool> written{false};
+  std::thread writer([b, &written] {
+    const uint8_t v[4] = {0, 0, 0, 32};
+    written = arv_fake_camera_write_memory(b, reg::kWidth, 4, v);
+  });
+  for (int i = 0; i < 200 && !written; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(written) << "B's write waited for A's";
+  held.reset();
+  waiter.join();
+  writer.join();
+  uint8_t width[4] = {};
+  ASSERT_TRUE(arv_fake_camera_read_memory(b, reg::kWidth, 4, width));
+  EXPECT_EQ(width[3], 32);
+  genicam::SetWriteFilter(a, nullptr, nullptr);
+  genicam::SetWriteFilter(b, nullptr, nullptr);
+  g_object_unref(a);
+  g_object_unref(b);
+}
+
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
 // from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
@@ -978,7 +1018,13 @@ TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"dof.focus_distance_m=6.0"}));
   EXPECT_NE(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48)) << "the focus distance changes nothing in this scene";
+  testing::internal::CaptureStderr();
   WriteRegRefused(*d, reg::kSimFocusDistance, Be64(0.002));  // the demo lens's focal length is longer
+  // The reason names the register the value came from, not the --set that started the device.
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(log.rfind("camsim-gige: refused SimFocusDistance: SimFocusDistance: dof.focus_distance_m must exceed", 0),
+            0u)
+      << log;
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0) << "refused as it arrives";
   EXPECT_EQ(d->writes_refused(), 1u);
   d->SyncNow();
