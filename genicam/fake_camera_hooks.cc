@@ -366,19 +366,31 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {
   std::unique_lock<std::mutex> list(g_filters_mutex);
-  auto old = g_filters.begin();
-  while (old != g_filters.end() && (old->camera != camera || old->removed)) ++old;
-  if (filter != nullptr) {  // in front of the old one: new writes find it from now on
-    Filter& added = g_filters.emplace_front();
+  auto entry = g_filters.begin();
+  while (entry != g_filters.end() && (entry->camera != camera || entry->removed)) ++entry;
+  if (entry == g_filters.end()) {
+    if (filter == nullptr) return;
+    Filter& added = g_filters.emplace_back();
     added.camera = camera;
     added.filter = filter;
     added.owner = owner;
+    return;
   }
-  if (old == g_filters.end()) return;
-  // No new write or ClientWritesHeld finds the old one now; wait for those in progress.
-  old->removed = true;
-  g_filter_released.wait(list, [&old] { return old->users == 0; });
-  g_filters.erase(old);
+  if (filter != nullptr) {
+    // Replaced in place, under the camera's write lock: one lock per camera
+    // throughout, and the next write sees the new filter.
+    ++entry->users;
+    list.unlock();
+    entry->writes.lock();
+    entry->filter = filter;
+    entry->owner = owner;
+    UnlockFilter(&*entry);
+    return;
+  }
+  // No new write or ClientWritesHeld finds it now; wait for those in progress.
+  entry->removed = true;
+  g_filter_released.wait(list, [&entry] { return entry->users == 0; });
+  g_filters.erase(entry);
 }
 
 ClientWritesHeld::ClientWritesHeld(ArvFakeCamera* camera) : held_(LockFilter(camera)) {}

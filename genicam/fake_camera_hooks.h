@@ -54,9 +54,10 @@ struct WriteVerdict {
 // `address` (big-endian registers) that the filter may change.
 using WriteFilter = WriteVerdict (*)(void* owner, uint32_t address, uint32_t size, uint8_t* data);
 
-// Sets the filter of `camera` (nullptr removes it). Writes find the new one
-// at once; this waits for a call of the old one or a ClientWritesHeld in
-// progress, so the old `owner` may go away after.
+// Sets the filter of `camera` (nullptr removes it). It waits for a call of
+// the old one or a ClientWritesHeld in progress, so the old `owner` may go
+// away after; so it must not be called from inside the camera's filter or
+// while this thread holds a ClientWritesHeld on the camera.
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner);
 
 // While one lives, client writes to `camera` wait (its filter's decision

@@ -981,7 +981,14 @@ bool ResolveEnvironment(RunConfig* c, std::string* error) {
 
 bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error, const Pipeline* previous, std::unique_ptr<Pipeline>* configured) {
-  if (configured != nullptr) configured->reset();
+  // On failure *configured ends empty (after any use of `previous`, which may be it).
+  struct EmptyOnFailure {
+    std::unique_ptr<Pipeline>* configured;
+    bool ok = false;
+    ~EmptyOnFailure() {
+      if (!ok && configured != nullptr) configured->reset();
+    }
+  } outcome{configured};
   PipelineConfig& p = c->core;
   if (c->width < 0 || c->height < 0) {
     *error = DescribeStatus(InvalidArgument(c->width < 0 ? "sensor.width" : "sensor.height", "must be >= 0"), origins);
@@ -1081,6 +1088,7 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
         }
   }
   if (configured != nullptr) *configured = std::move(probe);
+  outcome.ok = true;
   return true;
 }
 

@@ -899,6 +899,26 @@ TEST(GigeRegisters, OneCamerasHeldWritesDoNotHoldUpAnothers) {
   g_object_unref(b);
 }
 
+// A filter set in place of another decides the next write; removed, none does.
+TEST(GigeRegisters, AReplacedFilterDecidesTheNextWrite) {
+  ArvFakeCamera* camera = arv_fake_camera_new_full("CSHOOKR", nullptr);
+  ASSERT_NE(camera, nullptr);
+  const genicam::WriteFilter refuse = [](void*, uint32_t, uint32_t, uint8_t*) {
+    return genicam::WriteVerdict{false, genicam::GevStatus::kAccessDenied};
+  };
+  const genicam::WriteFilter pass = [](void*, uint32_t, uint32_t, uint8_t*) { return genicam::WriteVerdict{}; };
+  const uint8_t v[4] = {0, 0, 0, 48};
+  genicam::SetWriteFilter(camera, refuse, nullptr);
+  EXPECT_FALSE(arv_fake_camera_write_memory(camera, reg::kWidth, 4, v));
+  genicam::SetWriteFilter(camera, pass, nullptr);
+  EXPECT_TRUE(arv_fake_camera_write_memory(camera, reg::kWidth, 4, v));
+  genicam::SetWriteFilter(camera, refuse, nullptr);
+  EXPECT_FALSE(arv_fake_camera_write_memory(camera, reg::kWidth, 4, v));
+  genicam::SetWriteFilter(camera, nullptr, nullptr);
+  EXPECT_TRUE(arv_fake_camera_write_memory(camera, reg::kWidth, 4, v));
+  g_object_unref(camera);
+}
+
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
 // from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
