@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
     std::sort(ms.begin(), ms.end());
     std::sort(answer_ms.begin(), answer_ms.end());
     std::printf("%dx%d, %d thread(s): %.2f ms per ExposureTime write, %.2f ms of it before the write's answer "
-                "(medians of %d, the pipeline planned as the write arrives and rebuilt by the sync)\n",
+                "(medians of %d, the pipeline planned as the write arrives, its tables built by the sync)\n",
                 width, height, o.threads, ms[ms.size() / 2], answer_ms[answer_ms.size() / 2], reconfigures);
   }
   GError* e = nullptr;

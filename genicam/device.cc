@@ -596,8 +596,10 @@ void GigeDevice::WriteLineStatus() {
   Write(SelectedAddress(kLineStatus, 1), strobe_level_ ? 1 : 0);
 }
 
+// PlanFor reads only these registers (PlanKey below lists them).
 bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const {
   using namespace reg;
+  ++pipelines_planned_;
   host::RunConfig rc = base_config_;
   rc.core.exposure.exposure_time_us = BitsDouble(r.at(kExposureTime));
   rc.core.exposure.f_number = BitsDouble(r.at(kSimFNumber));
@@ -627,9 +629,20 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
   return true;
 }
 
+std::vector<uint64_t> GigeDevice::PlanKey(const Registers& r) const {
+  using namespace reg;
+  std::vector<uint64_t> key = {r.at(kExposureTime), r.at(kSimFNumber), r.at(kSimFocusDistance), r.at(kGain),
+                               r.at(kBlackLevel),   r.at(kSimSeed),    r.at(kPixelFormat)};
+  for (size_t i = 0; i < configured_stages_.size(); ++i) key.push_back(r.at(SelectedAddress(kSimStageEnable, i)));
+  return key;
+}
+
 bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
   host::PlannedPipeline planned;
-  return PlanFor(r, &planned, error) && Install(std::move(planned), error);
+  const bool kept = kept_plan_ != nullptr && kept_plan_->key == PlanKey(r);
+  if (kept) planned = std::move(kept_plan_->planned);
+  kept_plan_.reset();
+  return (kept || PlanFor(r, &planned, error)) && Install(std::move(planned), error);
 }
 
 bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
@@ -797,9 +810,12 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
   // Gain and GainRaw as the sync will join them: a new Gain wins, else a new GainRaw sets it.
   if (after[kGain] == applied_.at(kGain) && after[kGainRaw] != applied_.at(kGainRaw))
     after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
-  host::PlannedPipeline unused;
+  host::PlannedPipeline planned;
   std::string why;
-  if (PlanFor(after, &unused, &why)) return true;
+  if (PlanFor(after, &planned, &why)) {
+    kept_plan_ = std::make_unique<KeptPlan>(KeptPlan{PlanKey(after), std::move(planned)});
+    return true;
+  }
   std::fprintf(stderr, "camsim-gige: refused %s: %s\n", names.c_str(), why.c_str());
   return false;
 }

@@ -129,6 +129,9 @@ class GigeDevice {
   uint64_t writes_refused() const { return writes_refused_.load(); }
   uint64_t triggers_dropped() const { return triggers_dropped_.load(); }
   uint64_t trigger_edges() const { return trigger_edges_.load(); }  // edges the trigger line delivered, handled
+  // Pipelines planned (a client's pipeline write, a sync or auto-exposure
+  // step that found no plan kept for its settings, an auto-exposure range check).
+  uint64_t pipelines_planned() const { return pipelines_planned_.load(); }
   // Last error of a GPIO line (empty when none).
   std::string line_error() const;
 
@@ -163,14 +166,19 @@ class GigeDevice {
   // and checked but without tables; the renderer in use is not touched.
   // Reconfigure installs it.
   bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
-  bool Reconfigure(const Registers& r, std::string* error);  // PlanFor, then Install; under mutex_
+  // The registers PlanFor reads, in a fixed order: equal keys, equal plans.
+  std::vector<uint64_t> PlanKey(const Registers& r) const;
+  // Installs the plan kept for r's key, or else PlanFor's; under mutex_ and
+  // the camera's client-write lock.
+  bool Reconfigure(const Registers& r, std::string* error);
   bool IsPipelineRegister(uint32_t address) const;  // a change reconfigures the pipeline
   // A register's feature for messages: a selected one by its selector's
   // entry (SimStageEnable[Stage_demosaic]), not its index.
   std::string RegisterName(const Feature& r) const;
   // Whether the pipeline can run the registers once a client's write (its
   // bytes as the filter left them) is stored: true when it changes no
-  // pipeline register. Under the camera's client-write lock.
+  // pipeline register. A plan it makes is kept for the sync (kept_plan_).
+  // Under the camera's client-write lock.
   bool PipelineTakes(uint32_t address, uint32_t size, const uint8_t* data) const;
   bool Install(host::PlannedPipeline planned, std::string* error);  // puts a plan in use; under mutex_
   void WriteDerived();  // registers that follow from the applied values
@@ -210,6 +218,15 @@ class GigeDevice {
   int current_scene_ = -1;
   std::vector<StageId> configured_stages_;
   std::unique_ptr<host::FrameRenderer> renderer_;
+  // The last plan the write filter made that the pipeline can run, for the
+  // sync that installs those settings (under the camera's client-write
+  // lock; Reconfigure takes it or drops it). A plan depends only on its
+  // key: the renderer in use lends copies of what would come out the same.
+  struct KeptPlan {
+    std::vector<uint64_t> key;
+    host::PlannedPipeline planned;
+  };
+  mutable std::unique_ptr<KeptPlan> kept_plan_;
   Registers applied_;
   uint64_t seed_register_at_start_ = 0;
   std::vector<uint16_t> raw_;   // full-sensor taps
@@ -240,6 +257,7 @@ class GigeDevice {
   std::atomic<bool> stop_{false};
   std::atomic<bool> ready_{false};  // Init has set the values in use (FilterClientWrite refuses writes before)
   std::atomic<uint64_t> frames_sent_{0}, writes_refused_{0}, triggers_dropped_{0}, trigger_edges_{0};
+  mutable std::atomic<uint64_t> pipelines_planned_{0};
   // The trigger thread takes edges under its own lock, never waiting for a
   // frame being rendered (mutex_): the line's queue stays drained.
   mutable std::mutex trigger_mutex_;

@@ -1053,6 +1053,52 @@ TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   EXPECT_EQ(d->CheckInvariants(), "");
 }
 
+// The filter plans a pipeline write as it arrives; the sync installs that
+// plan instead of planning again, but only while the registers still ask
+// for its settings.
+TEST(GigeRegisters, TheSyncInstallsThePlanTheWriteMade) {
+  DeviceOptions o = OfflineDevice();
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  std::vector<uint8_t> frame;
+  uint64_t planned = d->pipelines_planned();
+  WriteReg(*d, reg::kExposureTime, Be64(2500.0));
+  EXPECT_EQ(d->pipelines_planned(), ++planned) << "the write is planned as it arrives";
+  d->SyncNow();
+  EXPECT_EQ(d->pipelines_planned(), planned) << "the sync planned it again";
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, code, 0, 0, 64, 48, {"exposure.exposure_time_us=2500"}));
+
+  // A refused write plans too, and leaves the plan of the write before it.
+  WriteReg(*d, reg::kExposureTime, Be64(4000.0));
+  testing::internal::CaptureStderr();
+  const uint32_t cfa_enable = StageEnableAddress(*d, "Stage_cfa");
+  ASSERT_NE(cfa_enable, 0u);
+  WriteRegRefused(*d, cfa_enable, Be32(0));  // the raw format needs the mosaic
+  testing::internal::GetCapturedStderr();
+  planned += 2;
+  d->SyncNow();
+  EXPECT_EQ(d->pipelines_planned(), planned);
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"exposure.exposure_time_us=4000"}));
+
+  // A write the filter did not see (the device's own) changes the settings
+  // after the plan: the sync plans what the registers ask for.
+  WriteReg(*d, reg::kExposureTime, Be64(6000.0));
+  {
+    const genicam::DeviceWrites own;
+    const std::vector<uint8_t> t = Be64(3000.0);
+    ASSERT_TRUE(d->WriteMemory(reg::kExposureTime, t.data(), static_cast<uint32_t>(t.size())));
+  }
+  planned += 2;
+  d->SyncNow();
+  EXPECT_EQ(d->pipelines_planned(), planned);
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 2, code, 0, 0, 64, 48, {"exposure.exposure_time_us=3000"}));
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // SimAutoTarget takes what the controller uses (0.01 .. 0.9), and nothing more.
 TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   DeviceOptions o = OfflineDevice();
