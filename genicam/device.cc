@@ -408,6 +408,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
              "acknowledged as successes";
     return false;
   }
+  // The camera serves from its creation: client writes are refused until its
+  // filter is set (and this thread's writes are the device's).
+  const UnfilteredWritesRefused until_filtered;
   if (o.serve) {
     if (!CheckGvcpAddress(o.address, error)) return false;
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());

@@ -28,7 +28,8 @@
 //
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
-// its next register sync.
+// its next register sync. From a camera's creation until its filter is
+// set, UnfilteredWritesRefused refuses its clients' writes.
 //
 // Status: the fake camera acknowledges every access it answers as a
 // success. The control packet its thread received (g_socket_receive_message)
@@ -204,6 +205,11 @@ struct Filter {
 std::mutex g_filters_mutex;
 std::condition_variable g_filter_released;  // an entry's users went down
 std::list<Filter> g_filters;
+int g_unfiltered_refused = 0;  // UnfilteredWritesRefused alive (under g_filters_mutex)
+bool UnfilteredRefused() {
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  return g_unfiltered_refused > 0;
+}
 
 // The filter of `camera` with its `writes` lock taken, or nullptr. UnlockFilter releases it.
 Filter* LockFilter(ArvFakeCamera* camera) {
@@ -268,6 +274,7 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   camsim::genicam::WriteVerdict verdict;
   Filter* f = LockFilter(camera);  // the filter's decision and the store, together
   if (f != nullptr) verdict = f->filter(f->owner, address, size, data);
+  else if (UnfilteredRefused()) verdict = {false, GevStatus::kAccessDenied};
   if (verdict.store) next(camera, address, size, data);
   if (f != nullptr) UnlockFilter(f);
   return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
@@ -400,5 +407,14 @@ ClientWritesHeld::~ClientWritesHeld() {
 
 DeviceWrites::DeviceWrites() { ++t_device_writes; }
 DeviceWrites::~DeviceWrites() { --t_device_writes; }
+
+UnfilteredWritesRefused::UnfilteredWritesRefused() {
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  ++g_unfiltered_refused;
+}
+UnfilteredWritesRefused::~UnfilteredWritesRefused() {
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  --g_unfiltered_refused;
+}
 
 }  // namespace camsim::genicam

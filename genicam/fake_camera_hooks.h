@@ -89,4 +89,21 @@ class DeviceWrites {
   DeviceWrites& operator=(const DeviceWrites&) = delete;
 };
 
+// A fake camera serves from its creation, before its device can set its
+// filter. While one of these lives, a client write to a camera without a
+// filter is refused (access denied, not stored), so none lands unchecked in
+// between; a device holds one from before it creates its camera until its
+// filter is set. This thread's writes are the device's (DeviceWrites), so
+// the camera's own initial values are stored.
+class UnfilteredWritesRefused {
+ public:
+  UnfilteredWritesRefused();
+  ~UnfilteredWritesRefused();
+  UnfilteredWritesRefused(const UnfilteredWritesRefused&) = delete;
+  UnfilteredWritesRefused& operator=(const UnfilteredWritesRefused&) = delete;
+
+ private:
+  DeviceWrites own_;
+};
+
 }  // namespace camsim::genicam

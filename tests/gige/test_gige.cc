@@ -919,6 +919,39 @@ TEST(GigeRegisters, AReplacedFilterDecidesTheNextWrite) {
   g_object_unref(camera);
 }
 
+// A fake camera serves from its creation; until its device sets its filter,
+// a client's write is refused, and the creating thread's writes are stored.
+TEST(GigeRegisters, ClientWritesBeforeTheFilterIsSetAreRefused) {
+  const uint8_t v[4] = {0, 0, 0, 48};
+  const genicam::WriteFilter pass = [](void*, uint32_t, uint32_t, uint8_t*) { return genicam::WriteVerdict{}; };
+  ArvFakeCamera* camera = nullptr;
+  std::atomic<int> client_write{-1};  // a write from another thread (a GVCP thread's): 1 taken, 0 refused
+  const auto write_from_client = [&] {
+    std::thread t([&] { client_write = arv_fake_camera_write_memory(camera, reg::kWidth, 4, v) ? 1 : 0; });
+    t.join();
+    return client_write.load();
+  };
+  uint32_t width = 0;
+  {
+    const genicam::UnfilteredWritesRefused starting;
+    camera = arv_fake_camera_new_full("CSHOOKU", nullptr);
+    ASSERT_NE(camera, nullptr);
+    const uint8_t own[4] = {0, 0, 0, 64};
+    EXPECT_TRUE(arv_fake_camera_write_memory(camera, reg::kWidth, 4, own)) << "the device's own write";
+    EXPECT_EQ(write_from_client(), 0);
+    ASSERT_TRUE(arv_fake_camera_read_register(camera, reg::kWidth, &width));
+    EXPECT_EQ(width, 64u) << "the refused write was stored";
+    genicam::SetWriteFilter(camera, pass, nullptr);
+    EXPECT_EQ(write_from_client(), 1) << "the filter decides once it is set";
+    genicam::SetWriteFilter(camera, nullptr, nullptr);
+    EXPECT_EQ(write_from_client(), 0) << "no filter again while the device is still starting";
+  }
+  EXPECT_EQ(write_from_client(), 1) << "a camera without a device takes client writes";
+  ASSERT_TRUE(arv_fake_camera_read_register(camera, reg::kWidth, &width));
+  EXPECT_EQ(width, 48u);
+  g_object_unref(camera);
+}
+
 // SFNC's TLParamsLocked: a GenTL consumer sets it before AcquisitionStart;
 // from then on the payload's features are locked until it is cleared.
 TEST(GigeRegisters, TLParamsLockedLocksTheGeometry) {
