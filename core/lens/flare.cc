@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "core/base/detmath.h"
+#include "core/base/simd.h"
 #include "core/base/wide.h"
 #include "core/pipeline/pipeline.h"  // FrameInput
 
@@ -19,6 +20,57 @@ bool InRange(double v, double lo, double hi) { return v >= lo && v <= hi; }
 // The glare share of one sample: RoundShift(excess * f, 16), 0 below the threshold.
 inline uint32_t GlareShare(uint32_t v, uint32_t threshold, uint32_t f_q16) {
   return v > threshold ? static_cast<uint32_t>(RoundShiftU(static_cast<uint64_t>(v - threshold) * f_q16, 16)) : 0;
+}
+
+// out[x] = SatU32(out[x] + MulScaleU64(glare, UScale{k[x], 32})) for x < n.
+// With glare = gh 2^32 + gl, round(glare k / 2^32) (ties up) is
+// gh k + (gl k + 2^31) >> 32, as gl k + 2^31 < 2^64. For glare < 2^63 the
+// sum with out[x] stays below 2^63 + 2^33, and saturating it once gives
+// what saturating the product and then the sum gives. A source's glare is
+// below 2^47 (a tile's 256 shares below 2^32 each; an environment source's
+// at most kMaxEnvironmentExcess). In lanes per CPU tier (the same bits).
+CAMSIM_CPU_CLONES
+void AddGlareRow(uint32_t* out, const uint32_t* k, uint64_t glare, int n) {
+  const uint64_t gh = glare >> 32, gl = glare & 0xFFFFFFFFu;
+  for (int x = 0; x < n; ++x) {
+    const uint64_t kw = k[x];
+    const uint64_t sum = uint64_t{out[x]} + gh * kw + ((gl * kw + 0x80000000u) >> 32);
+    out[x] = sum > 0xFFFFFFFFu ? 0xFFFFFFFFu : static_cast<uint32_t>(sum);
+  }
+}
+
+// out[x] = SatU32(in[x] - GlareShare(in[x]) + haze) for x < n: the pixel's
+// own part. The share is at most in[x] - threshold (f <= 1.0, Q1.16), so
+// the difference fits 32 bits and one saturating add follows.
+CAMSIM_CPU_CLONES
+void OwnPartRow(const uint32_t* in, uint32_t* out, uint32_t threshold, uint32_t f_q16, uint32_t haze, int n) {
+  for (int x = 0; x < n; ++x) {
+    const uint32_t own = in[x] - GlareShare(in[x], threshold, f_q16);
+    const uint32_t sum = own + haze;
+    out[x] = sum < haze ? 0xFFFFFFFFu : sum;
+  }
+}
+
+// Whether a sample of the tile (x0, y0, w x h pixels) lies above the
+// threshold: compares only, in lanes, before a tile's sums.
+CAMSIM_CPU_CLONES
+bool TileAbove(const FrameInput& in, int x0, int y0, int w, int h, uint32_t threshold) {
+  uint32_t peak = 0;
+  for (int ch = 0; ch < 3; ++ch)
+    for (int y = y0; y < y0 + h; ++y) {
+      const uint32_t* row = in.radiance[ch].row(y) + x0;
+      for (int x = 0; x < w; ++x) peak = row[x] > peak ? row[x] : peak;
+    }
+  return peak > threshold;
+}
+
+// out[x] = SatU32(out[x] + v) for x < n, in 32-bit lanes.
+CAMSIM_CPU_CLONES
+void AddConstantRow(uint32_t* out, uint32_t v, int n) {
+  for (int x = 0; x < n; ++x) {
+    const uint32_t sum = out[x] + v;
+    out[x] = sum < v ? 0xFFFFFFFFu : sum;
+  }
 }
 
 constexpr int kMaxBlades = 16;
@@ -205,7 +257,7 @@ void FlareStage::ProcessRow(const RowArgs& a) const {
     const uint32_t* in = a.rows[0].ch[c];
     uint32_t* out = a.out[c];
     const uint32_t haze = SatU32(uint64_t{frame != nullptr ? frame->haze[c] : 0u} + env_haze_[c]);
-    for (int x = 0; x < W; ++x) out[x] = SatU32(uint64_t{in[x]} - GlareShare(in[x], threshold_, glare_q16_) + haze);
+    OwnPartRow(in, out, threshold_, glare_q16_, haze, W);
   }
   if (frame != nullptr && every_source_)
     for (int s = 0; s < frame->count; ++s) AddSource(frame->sources[s], a);
@@ -300,10 +352,7 @@ void FlareStage::AddSource(const FlareSource& src, const RowArgs& a) const {
     for (int c = 0; c < 3 && x0 <= x1; ++c) {
       if (src.glare[c] == 0) continue;
       uint32_t* out = a.out[c];
-      for (int x = x0; x <= x1; ++x) {
-        const uint32_t kw = krow[x - src.x + R];
-        if (kw != 0) out[x] = SatU32(uint64_t{out[x]} + MulScaleU64(src.glare[c], UScale{kw, 32}));
-      }
+      AddGlareRow(out + x0, krow + (x0 - src.x + R), src.glare[c], x1 - x0 + 1);
     }
   }
   // Ghosts: centre + scale * (source - centre).
@@ -318,9 +367,7 @@ void FlareStage::AddSource(const FlareSource& src, const RowArgs& a) const {
     if (x0 > x1) continue;
     for (int c = 0; c < 3; ++c) {
       const uint32_t v = MulScaleU64(src.excess[c], ghost_factor_[g][c]);
-      if (v == 0) continue;
-      uint32_t* out = a.out[c];
-      for (int x = x0; x <= x1; ++x) out[x] = SatU32(uint64_t{out[x]} + v);
+      if (v != 0) AddConstantRow(a.out[c] + x0, v, x1 - x0 + 1);
     }
   }
 }
@@ -339,6 +386,8 @@ void ComputeFlare(const FlareConfig& c, const SensorGeometry& g, const FrameInpu
   int count = 0;
   for (int ty = 0; ty < g.height; ty += kFlareTile)
     for (int tx = 0; tx < g.width; tx += kFlareTile) {
+      const int tw = g.width - tx < kFlareTile ? g.width - tx : kFlareTile;
+      if (!TileAbove(in, tx, ty, tw, g.height - ty < kFlareTile ? g.height - ty : kFlareTile, threshold)) continue;
       FlareSource s;
       uint64_t weight = 0, wx = 0, wy = 0;
       for (int y = ty; y < ty + kFlareTile && y < g.height; ++y)
