@@ -573,10 +573,10 @@ CAMSIM_AVX512_TARGET void ReadoutAvx512(const ReadoutIn& b, int count, uint32_t*
 // pixels consume them in three passes: each pixel's mean charge; the Poisson
 // draw's sigma for the whole block (PoissonTable::SigmaLanes, in lanes);
 // each pixel's draw and readout (G(p) is only used above 12 e-). In a row
-// without seeded or listed defects, passes 1 and 3 take the block's whole
-// groups of four pixels in AVX2 lanes where the CPU has them (sensor_lanes,
-// above; 37 -> 30 ms for a 1080p frame; pass 3 in AVX-512 lanes where it has
-// those) and the portable loops the rest. Lanes of a
+// without listed defects, passes 1 and 3 take the block's whole groups of
+// four pixels before its first seeded defect in AVX2 lanes where the CPU
+// has them (sensor_lanes, above; 37 -> 30 ms for a 1080p frame; pass 3 in
+// AVX-512 lanes where it has those) and the portable loops the rest. Lanes of a
 // last, partial block beyond the row's end are drawn and never used (every
 // word is a pure function of its key, so that changes nothing). Even and odd
 // columns have one CFA colour each (x0 is a multiple of kBlock, so column
@@ -652,8 +652,12 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       // portable loops (which start at an even pixel, lane lanes / 2).
       int lanes = 0;
 #ifdef CAMSIM_X86_AVX2
-      if (avx2_ && !force_portable_ && !defects && !row_listed) {
+      if (avx2_ && !force_portable_ && !row_listed) {
         lanes = n & ~3;
+        // Seeded defects: the lanes stop before the group of four that holds
+        // the block's first defect pixel (most blocks have none).
+        for (int i = 0; defects && i < lanes; ++i)
+          if (d.v[2 * (i & 1)][i >> 1] < stuck_below_) lanes = i & ~3;
         static_assert(sizeof(PatternEntry) == 2 * sizeof(int32_t), "(gain, DSNU) pairs");
         const sensor_lanes::MeanIn m{in,
                                      {qe[0], qe[1]},

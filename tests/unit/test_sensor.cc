@@ -220,13 +220,14 @@ std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uin
 // that push the output below 0 and above the ADC range, mosaic and 3-channel
 // sensors, widths that leave 1 to 3 pixels after the last group of four or
 // end a block on a masked group of four at any of AVX-512's positions (44,
-// 60: 12 and 28 pixels), and a listed defect (its row goes the portable way)
-// next to seeded defects.
+// 60: 12 and 28 pixels), a listed defect (its row goes the portable way),
+// and seeded defects (a block's lanes stop before its first defect pixel),
+// also with stored patterns, FPN and smear on a 3-channel sensor.
 TEST(Sensor, LanesGiveThePortableBytes) {
   const int h = 9;
   std::mt19937 rng(5);
   const DefectPixel listed[] = {{3, 4, DefectKind::kHot, -1.0}};
-  for (int variant = 0; variant < 8; ++variant)
+  for (int variant = 0; variant < 9; ++variant)
     for (const int w : {37, 70, 67, 44, 60}) {
       SensorConfig c;
       c.prnu_percent = 2.0;
@@ -239,7 +240,10 @@ TEST(Sensor, LanesGiveThePortableBytes) {
       if (variant == 5) c.prnu_percent = 50.0, c.fixed_pattern_table = true, c.full_well_e = 1e6;
       if (variant == 6) c.defects = listed, c.defect_count = 1;
       if (variant == 7) c.hot_pixel_fraction = c.dead_pixel_fraction = c.stuck_pixel_fraction = 0.01;
-      const int channels = variant == 5 ? 3 : 1;
+      if (variant == 8)
+        c.hot_pixel_fraction = c.dead_pixel_fraction = c.stuck_pixel_fraction = 0.003, c.fixed_pattern_table = true,
+        c.row_fpn_e = 40.0, c.column_fpn_e = 25.0, c.smear_row_transfer_us = 1.0;
+      const int channels = variant == 5 || variant == 8 ? 3 : 1;
       SensorStage s;
       ASSERT_TRUE(s.Configure(c, SensorGeometry{w, h, Cfa::kBayerGB, 12}, 1000.0, 99).ok()) << variant;
       s.SetInputChannels(channels);
