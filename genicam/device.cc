@@ -643,8 +643,10 @@ std::vector<uint64_t> GigeDevice::PlanKey(const Registers& r) const {
 bool GigeDevice::Reconfigure(const Registers& r, std::string* error) {
   host::PlannedPipeline planned;
   const bool kept = kept_plan_ != nullptr && kept_plan_->key == PlanKey(r);
-  if (kept) planned = std::move(kept_plan_->planned);
-  kept_plan_.reset();
+  if (kept) {
+    planned = std::move(kept_plan_->planned);
+    kept_plan_.reset();
+  }
   return (kept || PlanFor(r, &planned, error)) && Install(std::move(planned), error);
 }
 

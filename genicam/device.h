@@ -168,8 +168,8 @@ class GigeDevice {
   bool PlanFor(const Registers& r, host::PlannedPipeline* planned, std::string* error) const;
   // The registers PlanFor reads, in a fixed order: equal keys, equal plans.
   std::vector<uint64_t> PlanKey(const Registers& r) const;
-  // Installs the plan kept for r's key, or else PlanFor's; under mutex_ and
-  // the camera's client-write lock.
+  // Installs the plan kept for r's key (and lets it go), or else PlanFor's;
+  // under mutex_ and the camera's client-write lock.
   bool Reconfigure(const Registers& r, std::string* error);
   bool IsPipelineRegister(uint32_t address) const;  // a change reconfigures the pipeline
   // A register's feature for messages: a selected one by its selector's
@@ -220,8 +220,10 @@ class GigeDevice {
   std::unique_ptr<host::FrameRenderer> renderer_;
   // The last plan the write filter made that the pipeline can run, for the
   // sync that installs those settings (under the camera's client-write
-  // lock; Reconfigure takes it or drops it). A plan depends only on its
-  // key: the renderer in use lends copies of what would come out the same.
+  // lock; Reconfigure takes it when the keys match, and an auto-exposure
+  // step in between leaves it). A plan depends only on its key and the
+  // device's fixed configuration: the renderer in use lends copies of what
+  // would come out the same.
   struct KeptPlan {
     std::vector<uint64_t> key;
     host::PlannedPipeline planned;
