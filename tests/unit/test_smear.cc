@@ -60,6 +60,10 @@ TEST(Smear, PrePassMatchesReferenceForEveryLayout) {
   ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kBayerGB, true), s);
   ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kMono, true), s);
   ExpectPrePassMatchesReference(SmearPath(40, 30, Cfa::kBayerRG, false), s);  // one sensor per colour
+  // Wider than the pre-pass's blocks of 64 columns, the last one partial.
+  const test::Scene wide = test::TexturedScene(150, 12);
+  ExpectPrePassMatchesReference(SmearPath(150, 12, Cfa::kBayerGR, true), wide);
+  ExpectPrePassMatchesReference(SmearPath(150, 12, Cfa::kBayerGR, false), wide);
 }
 
 TEST(Smear, StreakIsUniformAlongLitColumnsOnly) {
@@ -159,6 +163,10 @@ TEST(Smear, FollowsTheVignettedColumnSums) {
     if (x == 0) edge = smear[x] / 256.0;
   }
   EXPECT_LT(edge, 0.5 * centre);  // the vignetting is really seen
+  // Across the pre-pass's blocks of 64 columns (each pixel's gain by its own column).
+  PipelineConfig wide = VignettedPath();
+  wide.geometry.width = 100;
+  ExpectPrePassMatchesReference(wide, test::FlatScene(100, 48, 1.0, 1.0, 1.0));
 }
 
 TEST(Smear, FollowsAVignettingMask) {
