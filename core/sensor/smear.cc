@@ -1,5 +1,7 @@
 #include "core/sensor/smear.h"
 
+#include <cstdint>
+
 #include "core/aperture/exposure.h"
 #include "core/base/wide.h"
 
@@ -16,7 +18,10 @@ bool HasStage(const PipelineConfig& c, StageId id) {
 
 bool SmearEnabled(const PipelineConfig& c) { return c.sensor.smear_row_transfer_us > 0; }
 
-int SmearEntries(const PipelineConfig& c) { return kMaxChannels * c.geometry.width; }
+// The output, then the column sums ([row parity][colour][x], uint64: 12
+// entries a column) and one entry that lets them start 8-byte aligned.
+constexpr int kSumEntriesPerColumn = 2 * 3 * 2;
+int SmearEntries(const PipelineConfig& c) { return (kMaxChannels + kSumEntriesPerColumn) * c.geometry.width + 1; }
 
 void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint32_t> out) {
   const SensorGeometry& g = config.geometry;
@@ -53,42 +58,45 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     const int64_t dx = 2 * static_cast<int64_t>(x) - (g.width - 1), dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
     return VignettingCurveGain(curve, rho_to_index, static_cast<uint32_t>(dx * dx + dy * dy));
   };
-  // Columns go in blocks of kColumns, summed row by row: each row's loads
-  // are contiguous (a column at a time strode across the whole frame).
-  // Integer sums: the order changes nothing.
-  constexpr int kColumns = 64;
-  for (int x0 = 0; x0 < g.width; x0 += kColumns) {
-    const int n = g.width - x0 < kColumns ? g.width - x0 : kColumns;
-    uint64_t sum[2][3][kColumns] = {};  // [row parity][colour][column - x0]
-    for (int y = 0; y < g.height; ++y) {
-      uint64_t(*part)[kColumns] = sum[y & 1];
-      if (vmode == VignettingMode::kOff) {
-        for (int c = 0; c < 3; ++c) {
-          const uint32_t* row = in.radiance[c].row(y) + x0;
-          for (int i = 0; i < n; ++i) part[c][i] += row[i];
-        }
-      } else {
-        uint32_t gain[kColumns];
-        for (int i = 0; i < n; ++i) gain[i] = gain_at(x0 + i, y);
-        for (int c = 0; c < 3; ++c) {
-          const uint32_t* row = in.radiance[c].row(y) + x0;
-          for (int i = 0; i < n; ++i) part[c][i] += (row[i] * uint64_t{gain[i]} + (1u << 13)) >> 14;
-        }
+  // The sums, row by row over the frame (contiguous loads); integer sums,
+  // so the order changes nothing.
+  const size_t width = static_cast<size_t>(g.width);
+  uint32_t* const scratch = out.data + kMaxChannels * width;
+  const size_t skip = reinterpret_cast<uintptr_t>(scratch) % alignof(uint64_t) != 0 ? 1 : 0;
+  uint64_t* const sums = reinterpret_cast<uint64_t*>(scratch + skip);  // zeroed with `out` above
+  constexpr int kColumns = 64;  // gains computed per run of columns, shared by the colours
+  for (int y = 0; y < g.height; ++y) {
+    uint64_t* const part = sums + static_cast<size_t>(y & 1) * 3 * width;
+    if (vmode == VignettingMode::kOff) {
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t* row = in.radiance[c].row(y);
+        uint64_t* sum = part + c * width;
+        for (int x = 0; x < g.width; ++x) sum[x] += row[x];
+      }
+      continue;
+    }
+    for (int x0 = 0; x0 < g.width; x0 += kColumns) {
+      const int n = g.width - x0 < kColumns ? g.width - x0 : kColumns;
+      uint32_t gain[kColumns];
+      for (int i = 0; i < n; ++i) gain[i] = gain_at(x0 + i, y);
+      for (int c = 0; c < 3; ++c) {
+        const uint32_t* row = in.radiance[c].row(y) + x0;
+        uint64_t* sum = part + c * width + x0;
+        for (int i = 0; i < n; ++i) sum[i] += (row[i] * uint64_t{gain[i]} + (1u << 13)) >> 14;
       }
     }
-    for (int i = 0; i < n; ++i) {
-      const int x = x0 + i;
-      if (!cfa) {
-        for (int c = 0; c < 3; ++c)
-          out[static_cast<size_t>(c) * g.width + x] = MulScaleU64(sum[0][c][i] + sum[1][c][i], f3[c]);
-      } else if (g.cfa == Cfa::kMono) {
-        uint64_t e = 0;
-        for (int c = 0; c < 3; ++c) e += MulScaleU64(sum[0][c][i] + sum[1][c][i], fmono[c]);
-        out[x] = SatU32(e);
-      } else {
-        const Colour c0 = CfaColour(g.cfa, x, 0), c1 = CfaColour(g.cfa, x, 1);
-        out[x] = SatU32(uint64_t{MulScaleU64(sum[0][c0][i], f3[c0])} + MulScaleU64(sum[1][c1][i], f3[c1]));
-      }
+  }
+  const auto sum = [&](int parity, int c, int x) { return sums[(static_cast<size_t>(parity) * 3 + c) * width + x]; };
+  for (int x = 0; x < g.width; ++x) {
+    if (!cfa) {
+      for (int c = 0; c < 3; ++c) out[static_cast<size_t>(c) * width + x] = MulScaleU64(sum(0, c, x) + sum(1, c, x), f3[c]);
+    } else if (g.cfa == Cfa::kMono) {
+      uint64_t e = 0;
+      for (int c = 0; c < 3; ++c) e += MulScaleU64(sum(0, c, x) + sum(1, c, x), fmono[c]);
+      out[x] = SatU32(e);
+    } else {
+      const Colour c0 = CfaColour(g.cfa, x, 0), c1 = CfaColour(g.cfa, x, 1);
+      out[x] = SatU32(uint64_t{MulScaleU64(sum(0, c0, x), f3[c0])} + MulScaleU64(sum(1, c1, x), f3[c1]));
     }
   }
 }
