@@ -51,17 +51,29 @@ void OwnPartRow(const uint32_t* in, uint32_t* out, uint32_t threshold, uint32_t 
   }
 }
 
-// Whether a sample of the tile (x0, y0, w x h pixels) lies above the
-// threshold: compares only, in lanes, before a tile's sums.
+// Up to kPeakTiles tiles of one tile row at a time: its rows are read
+// row by row, each over kPeakTiles * kFlareTile contiguous samples.
+constexpr int kPeakTiles = 64;
+
+// peak[t] = the largest sample of tile t of the `tiles` tiles from column
+// x0 in the rows [y0, y0 + h) (the last tile may end at `width`): compares
+// only, in lanes, so that a tile's sums are made only when it has a sample
+// above the threshold.
 CAMSIM_CPU_CLONES
-bool TileAbove(const FrameInput& in, int x0, int y0, int w, int h, uint32_t threshold) {
-  uint32_t peak = 0;
+void TilePeaks(const FrameInput& in, int x0, int y0, int h, int tiles, int width, uint32_t* peak) {
+  for (int t = 0; t < tiles; ++t) peak[t] = 0;
+  const int full = (width - x0) / kFlareTile < tiles ? (width - x0) / kFlareTile : tiles;
   for (int ch = 0; ch < 3; ++ch)
     for (int y = y0; y < y0 + h; ++y) {
       const uint32_t* row = in.radiance[ch].row(y) + x0;
-      for (int x = 0; x < w; ++x) peak = row[x] > peak ? row[x] : peak;
+      for (int t = 0; t < full; ++t) {
+        uint32_t m = peak[t];
+        for (int i = 0; i < kFlareTile; ++i) m = row[t * kFlareTile + i] > m ? row[t * kFlareTile + i] : m;
+        peak[t] = m;
+      }
+      for (int x = full * kFlareTile; full < tiles && x0 + x < width; ++x)
+        peak[full] = row[x] > peak[full] ? row[x] : peak[full];
     }
-  return peak > threshold;
 }
 
 // out[x] = SatU32(out[x] + v) for x < n, in 32-bit lanes.
@@ -384,10 +396,13 @@ void ComputeFlare(const FlareConfig& c, const SensorGeometry& g, const FrameInpu
   const uint32_t threshold = ThresholdQ16(c), f = GlareQ16(c);
   uint64_t total[3] = {};
   int count = 0;
+  uint32_t peak[kPeakTiles];
   for (int ty = 0; ty < g.height; ty += kFlareTile)
     for (int tx = 0; tx < g.width; tx += kFlareTile) {
-      const int tw = g.width - tx < kFlareTile ? g.width - tx : kFlareTile;
-      if (!TileAbove(in, tx, ty, tw, g.height - ty < kFlareTile ? g.height - ty : kFlareTile, threshold)) continue;
+      const int t = tx / kFlareTile % kPeakTiles;
+      if (t == 0)
+        TilePeaks(in, tx, ty, g.height - ty < kFlareTile ? g.height - ty : kFlareTile, kPeakTiles, g.width, peak);
+      if (peak[t] <= threshold) continue;
       FlareSource s;
       uint64_t weight = 0, wx = 0, wy = 0;
       for (int y = ty; y < ty + kFlareTile && y < g.height; ++y)

@@ -141,6 +141,34 @@ TEST(Flare, MatchesTheDoubleReference) {
   RecordProperty("max_abs_error", std::to_string(max_err));
 }
 
+// The pre-pass finds a tile with one sample above the threshold wherever
+// it is: its tile peaks go 64 tiles (1024 columns) at a time, the last tile
+// of a row and the last tile row may be partial. One bright sample per
+// tile gives a source at that sample, in tile order.
+TEST(Flare, ThePrePassFindsEveryBrightTile) {
+  constexpr int kW = 1100, kH = 40;  // 69 tile columns (the last 12 wide), 3 tile rows (the last 8 high)
+  FlareConfig f = Bare();
+  f.threshold = 2.0;
+  const PipelineConfig c = FlareOnly(kW, kH, f);
+  test::Scene s = test::FlatScene(kW, kH, 1.0, 1.0, 1.0);  // below the threshold
+  const int bright[][3] = {{0, 0, 0}, {1023, 5, 1}, {1024, 20, 2}, {1099, 39, 0}, {700, 33, 1}};
+  const uint32_t v = Q<16, 16>::FromDouble(5.0).raw, threshold = Q<16, 16>::FromDouble(2.0).raw;
+  for (const auto& b : bright) s.plane[b[2]][static_cast<size_t>(b[1]) * kW + b[0]] = v;
+  std::vector<FlareSource> storage(static_cast<size_t>(FlareMaxSources(c.geometry)));
+  FlareFrame frame;
+  ComputeFlare(c.flare, c.geometry, s.View(), Span<FlareSource>{storage.data(), storage.size()}, &frame);
+  // In tile order: tile row 0 (x 0, 1023), tile row 1 (x 1024), tile row 2 (x 700, 1099).
+  const int order[] = {0, 1, 2, 4, 3};
+  ASSERT_EQ(frame.count, 5);
+  for (int i = 0; i < 5; ++i) {
+    const auto& b = bright[order[i]];
+    SCOPED_TRACE(i);
+    EXPECT_EQ(frame.sources[i].x, b[0]);
+    EXPECT_EQ(frame.sources[i].y, b[1]);
+    for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(frame.sources[i].excess[ch], ch == b[2] ? v - threshold : 0u);
+  }
+}
+
 // ProcessRow visits only the sources whose glare or ghosts can reach the
 // row (by tile row); visiting every source gives the same bytes. Scenes
 // bright in many tiles, ghosts at every kind of scale (mirrored, zero,
