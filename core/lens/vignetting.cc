@@ -74,11 +74,11 @@ void ApplyRow(const RowArgs& a, int channels, const Gain* __restrict gain, int x
 
 // A block's curve gains from column k0 on, gain[k] for column x0 + k
 // (k0 <= k < n), and the same reversed, mirrored[n - 1 - k] = gain[k], for
-// the mirror image block.
+// the mirror image block (unless mirrored is null).
 void CurveGains(const uint16_t* curve, UScale rho_to_index, const uint32_t* dx2, uint32_t dy2, int k0, int n,
                 uint32_t* gain, uint32_t* mirrored) {
   for (int k = k0; k < n; ++k) gain[k] = VignettingCurveGain(curve, rho_to_index, dx2[k] + dy2);
-  for (int k = k0; k < n; ++k) mirrored[n - 1 - k] = gain[k];
+  for (int k = k0; mirrored != nullptr && k < n; ++k) mirrored[n - 1 - k] = gain[k];
 }
 
 #ifdef CAMSIM_X86_AVX2
@@ -115,12 +115,25 @@ CAMSIM_AVX2_TARGET void CurveGainsAvx2(const uint16_t* curve, UScale rho_to_inde
                                          _mm256_set1_epi32(0x8000));
     const __m256i g = _mm256_srli_epi32(sum, 16);
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(gain + k), g);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(mirrored + n - 8 - k), _mm256_permutevar8x32_epi32(g, reverse));
+    if (mirrored != nullptr)
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(mirrored + n - 8 - k), _mm256_permutevar8x32_epi32(g, reverse));
   }
 }
 #endif
 
 }  // namespace
+
+void VignettingCurveGains(const uint16_t* curve, UScale rho_to_index, const uint32_t* dx2, uint32_t dy2, int n,
+                          uint32_t* gain) {
+  int k0 = 0;
+#ifdef CAMSIM_X86_AVX2
+  if (CpuHasAvx2() && rho_to_index.shift >= 1 && rho_to_index.shift <= 63) {  // as VignettingStage::Init
+    k0 = n & ~7;
+    CurveGainsAvx2(curve, rho_to_index, dx2, dy2, k0, n, gain, nullptr);
+  }
+#endif
+  CurveGains(curve, rho_to_index, dx2, dy2, k0, n, gain, nullptr);
+}
 
 double ReferenceVignettingGain(const VignettingConfig& c, const SensorGeometry& g, int x, int y) {
   return CurveGainOf(c, g, Rho(g, x, y));

@@ -84,6 +84,11 @@ inline uint32_t VignettingCurveGain(const uint16_t* curve, UScale rho_to_index, 
   return (g0 * (0x10000 - f) + g1 * f + 0x8000) >> 16;  // Q2.14
 }
 
+// VignettingCurveGain for n columns, gain[k] for dx2[k] + dy2, in AVX2
+// lanes where the CPU has them (the same integers).
+void VignettingCurveGains(const uint16_t* curve, UScale rho_to_index, const uint32_t* dx2, uint32_t dy2, int n,
+                          uint32_t* gain);
+
 // Double reference: the gain at pixel (x, y) for this config (curve modes).
 double ReferenceVignettingGain(const VignettingConfig& config, const SensorGeometry& g, int x, int y);
 

@@ -53,11 +53,6 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
   UScale rho_to_index;
   if (vmode == VignettingMode::kCos4 || vmode == VignettingMode::kTable)
     if (!BuildVignettingCurve(config.vignetting, g, curve, &rho_to_index).ok()) return;  // Configure checked it
-  const auto gain_at = [&](int x, int y) -> uint32_t {
-    if (vmode == VignettingMode::kMask) return in.vignetting_mask.row(y)[x];
-    const int64_t dx = 2 * static_cast<int64_t>(x) - (g.width - 1), dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
-    return VignettingCurveGain(curve, rho_to_index, static_cast<uint32_t>(dx * dx + dy * dy));
-  };
   // The sums, row by row over the frame (contiguous loads); integer sums,
   // so the order changes nothing.
   const size_t width = static_cast<size_t>(g.width);
@@ -78,7 +73,17 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     for (int x0 = 0; x0 < g.width; x0 += kColumns) {
       const int n = g.width - x0 < kColumns ? g.width - x0 : kColumns;
       uint32_t gain[kColumns];
-      for (int i = 0; i < n; ++i) gain[i] = gain_at(x0 + i, y);
+      if (vmode == VignettingMode::kMask) {
+        for (int i = 0; i < n; ++i) gain[i] = in.vignetting_mask.row(y)[x0 + i];
+      } else {
+        uint32_t dx2[kColumns];
+        for (int i = 0; i < n; ++i) {
+          const int64_t dx = 2 * static_cast<int64_t>(x0 + i) - (g.width - 1);
+          dx2[i] = static_cast<uint32_t>(dx * dx);
+        }
+        const int64_t dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
+        VignettingCurveGains(curve, rho_to_index, dx2, static_cast<uint32_t>(dy * dy), n, gain);
+      }
       for (int c = 0; c < 3; ++c) {
         const uint32_t* row = in.radiance[c].row(y) + x0;
         uint64_t* sum = part + c * width + x0;
