@@ -7,14 +7,14 @@
 namespace camsim {
 namespace {
 
-// spill[x] |= 1 where in[x] reaches its column parity's threshold (t0 even,
-// t1 odd). A function of its own with __restrict pointers and the width a
-// parameter: in ProcessRow a store through the uint8_t flags may alias
-// anything (a.width, the row pointers), and the loop stayed scalar, 33 rows
-// a pixel at the default R. Compiled per CPU tier: the same flags.
+// last[x] = row where in[x] reaches its column parity's threshold (t0
+// even, t1 odd), else unchanged. A function of its own with __restrict
+// pointers and the width a parameter, so that the loop goes in lanes;
+// compiled per CPU tier (the same values).
 CAMSIM_CPU_CLONES
-void MarkOverWell(const uint32_t* __restrict in, uint8_t* __restrict spill, int width, uint32_t t0, uint32_t t1) {
-  for (int x = 0; x < width; ++x) spill[x] |= static_cast<uint8_t>(in[x] >= ((x & 1) ? t1 : t0));
+void MarkOverWell(const uint32_t* __restrict in, int32_t* __restrict last, int width, uint32_t t0, uint32_t t1,
+                  int32_t row) {
+  for (int x = 0; x < width; ++x) last[x] = in[x] >= ((x & 1) ? t1 : t0) ? row : last[x];
 }
 
 }  // namespace
@@ -44,6 +44,12 @@ Result<LineFormat> BloomingStage::Plan(LineFormat in) const {
   return in;
 }
 
+size_t BloomingStage::StateBytes(int width) const {
+  return sizeof(int32_t) * (1 + static_cast<size_t>(kMaxChannels) * static_cast<size_t>(width));
+}
+
+void BloomingStage::BeginStrip(uint8_t* state) const { reinterpret_cast<int32_t*>(state)[0] = -1; }
+
 const char* BloomingStage::IdentityReason() const {
   return config_.enabled ? nullptr : "blooming off (blooming.enabled = false)";
 }
@@ -56,21 +62,29 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
   const int n = last - first + 1;
   const int self = a.y - first;
   const uint64_t w = full_well_q8_;
-  uint8_t* spill_any = a.scratch;  // per column: some window pixel is above the well
+  // Strip state (BeginStrip): the row the strip's next call is for, then per
+  // channel and column the last row scanned that is over the well. A call
+  // that follows the strip's previous one scans only its window's new last
+  // row; any other scans the whole window.
+  int32_t* const state = reinterpret_cast<int32_t*>(a.state);
+  const bool follows = state[0] == a.y;
+  state[0] = a.y + 1;
   const int width = a.width;
   for (int c = 0; c < channels; ++c) {
     const uint32_t* const center = a.rows[R].ch[c];
     uint32_t* out = a.out[c];
-    std::memset(spill_any, 0, static_cast<size_t>(width));
-    for (int k = 0; k < n; ++k) {
-      const int row = first + k;
+    int32_t* const last_over = state + 1 + static_cast<size_t>(c) * width;
+    const int scan_from = follows ? a.y + R : first;  // (past `last` once the window reaches the frame's end)
+    if (!follows)
+      for (int x = 0; x < width; ++x) last_over[x] = -1;
+    for (int row = scan_from; row <= last; ++row) {
       // Thresholds of even and odd columns of this row.
       const uint32_t t0 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 0, row)];
       const uint32_t t1 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 1, row)];
-      MarkOverWell(a.rows[row - a.y + R].ch[c], spill_any, width, t0, t1);
+      MarkOverWell(a.rows[row - a.y + R].ch[c], last_over, width, t0, t1, row);
     }
     for (int x = 0; x < width; ++x) {
-      if (!spill_any[x]) {
+      if (last_over[x] < first) {  // no pixel of the window over the well
         out[x] = center[x];
         continue;
       }

@@ -18,8 +18,10 @@
 // than R rows away; the reference (blooming_ref.h) is the whole-column model,
 // and the tests check that they agree where spills stay inside the window.
 // Columns whose window holds no pixel above the full well are passed through
-// unchanged (exactly); they are found first, row by row over the window, by
-// comparing photons with a per-colour threshold (a vectorisable pass).
+// unchanged (exactly); they are found by comparing photons with a per-colour
+// threshold (a vectorisable pass), keeping per column the last row over it
+// in the strip's state: the first row of a strip scans its whole window,
+// each following row only the row that enters it.
 //
 // Formats: in/out Photons Q24.8, 1 channel (mosaic or mono) or 3.
 //          charge Q.8 electrons in uint64: photons * QE (Q1.16), rounded ties up;
@@ -47,7 +49,8 @@ class BloomingStage final : public Stage {
   const char* IdentityReason() const override;
   int RowsAbove() const override { return config_.enabled ? config_.rows : 0; }
   int RowsBelow() const override { return config_.enabled ? config_.rows : 0; }
-  size_t ScratchBytes(int width) const override { return static_cast<size_t>(width); }
+  size_t StateBytes(int width) const override;
+  void BeginStrip(uint8_t* state) const override;
   void ProcessRow(const RowArgs& args) const override;
 
  private:

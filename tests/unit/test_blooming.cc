@@ -4,6 +4,7 @@
 // out when off.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/sensor/blooming.h"
@@ -102,6 +103,52 @@ TEST(Blooming, MatchesWholeColumnReferenceAndConservesCharge) {
   EXPECT_LT(max_err, 0.01);
   EXPECT_NEAR(total_out, total_ref, 0.01 * kW * kH);
   RecordProperty("max_abs_error_e", std::to_string(max_err));
+}
+
+// The stage keeps, per strip, the last row over the well of each column,
+// and a following row scans only the row entering its window. A strip that
+// starts where another frame's strip ended must scan its whole window again
+// (BeginStrip): here frame A has nothing over the well, frame B a row of it
+// inside the first window, and B's rows come out as from a strip of its own.
+TEST(Blooming, AStripStartsAfreshWhereAnotherFramesStripEnded) {
+  constexpr int kW = 24, kH = 40, kR = 4;
+  BloomingConfig config;
+  config.enabled = true;
+  config.rows = kR;
+  SensorConfig sensor;
+  sensor.full_well_e = 1000.0;
+  BloomingStage stage;
+  ASSERT_TRUE(stage.Configure(config, sensor, SensorGeometry{kW, kH, Cfa::kMono, 12}).ok());
+  // Photons, Q24.8: 100 everywhere; frame B has 5000 (3250 e- at QE 0.65) in row 21.
+  std::vector<uint32_t> a(kW * kH, 256u * 100), b = a;
+  for (int x = 0; x < kW; ++x) b[21 * kW + x] = 256u * 5000;
+  std::vector<uint8_t> state(stage.StateBytes(kW), 0);
+  const auto row_of = [&](const std::vector<uint32_t>& image, int y) {
+    RowIn rows[2 * kR + 1];  // input rows y - kR .. y + kR, clamped (the stage reads those inside the frame)
+    for (int k = 0; k < 2 * kR + 1; ++k) rows[k].ch[0] = image.data() + std::clamp(y - kR + k, 0, kH - 1) * kW;
+    std::vector<uint32_t> out(kW);
+    RowArgs args;
+    args.y = y;
+    args.width = kW;
+    args.rows = rows;
+    args.first_row = y - kR;
+    args.row_count = 2 * kR + 1;
+    args.out[0] = out.data();
+    args.state = state.data();
+    stage.ProcessRow(args);
+    return out;
+  };
+  std::vector<std::vector<uint32_t>> want;  // B's rows 20..29 from a strip that starts at row 12
+  stage.BeginStrip(state.data());
+  for (int y = 12; y < 30; ++y) {
+    const auto out = row_of(b, y);
+    if (y >= 20) want.push_back(out);
+  }
+  EXPECT_NE(want[1], std::vector<uint32_t>(b.begin() + 21 * kW, b.begin() + 22 * kW)) << "no blooming";
+  stage.BeginStrip(state.data());
+  for (int y = 10; y < 20; ++y) row_of(a, y);  // frame A's strip ends at row 19
+  stage.BeginStrip(state.data());
+  for (int y = 20; y < 30; ++y) EXPECT_EQ(row_of(b, y), want[y - 20]) << "row " << y;
 }
 
 TEST(Blooming, ChargeIsConservedAwayFromTheBorders) {
