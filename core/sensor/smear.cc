@@ -1,12 +1,27 @@
 #include "core/sensor/smear.h"
 
 #include <cstdint>
+#include <cstring>
 
 #include "core/aperture/exposure.h"
 #include "core/base/wide.h"
 
 namespace camsim {
 namespace {
+
+// The column sums live in the caller's uint32 entries: they are read and
+// written only through this type, which may alias them (GCC and Clang).
+using AliasedU64 = uint64_t __attribute__((may_alias));
+
+// sum[x] += row[x], and the same of the vignetted radiance
+// RoundShift(row[x] * gain[x], 14), for x < n.
+void AddRow(AliasedU64* __restrict sum, const uint32_t* __restrict row, int n) {
+  for (int x = 0; x < n; ++x) sum[x] += row[x];
+}
+void AddVignettedRow(AliasedU64* __restrict sum, const uint32_t* __restrict row, const uint32_t* __restrict gain,
+                     int n) {
+  for (int x = 0; x < n; ++x) sum[x] += (row[x] * uint64_t{gain[x]} + (1u << 13)) >> 14;
+}
 
 bool HasStage(const PipelineConfig& c, StageId id) {
   for (int i = 0; i < c.order_count; ++i)
@@ -27,7 +42,8 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
   const SensorGeometry& g = config.geometry;
   const SensorConfig& s = config.sensor;
   CAMSIM_DCHECK(out.size >= static_cast<size_t>(SmearEntries(config)));
-  for (size_t i = 0; i < out.size; ++i) out[i] = 0;
+  const size_t width = static_cast<size_t>(g.width);
+  for (size_t i = 0; i < kMaxChannels * width; ++i) out[i] = 0;
   if (!SmearEnabled(config)) return;
   // Radiance Q16.16 -> electrons Q24.8 for leak * t_row / t_exp of the light:
   // a factor per (colour, weight); IEEE * and / only (the same everywhere).
@@ -55,19 +71,15 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     if (!BuildVignettingCurve(config.vignetting, g, curve, &rho_to_index).ok()) return;  // Configure checked it
   // The sums, row by row over the frame (contiguous loads); integer sums,
   // so the order changes nothing.
-  const size_t width = static_cast<size_t>(g.width);
   uint32_t* const scratch = out.data + kMaxChannels * width;
   const size_t skip = reinterpret_cast<uintptr_t>(scratch) % alignof(uint64_t) != 0 ? 1 : 0;
-  uint64_t* const sums = reinterpret_cast<uint64_t*>(scratch + skip);  // zeroed with `out` above
+  AliasedU64* const sums = reinterpret_cast<AliasedU64*>(scratch + skip);
+  std::memset(sums, 0, sizeof(uint64_t) * 2 * 3 * width);
   constexpr int kColumns = 64;  // gains computed per run of columns, shared by the colours
   for (int y = 0; y < g.height; ++y) {
-    uint64_t* const part = sums + static_cast<size_t>(y & 1) * 3 * width;
+    AliasedU64* const part = sums + static_cast<size_t>(y & 1) * 3 * width;
     if (vmode == VignettingMode::kOff) {
-      for (int c = 0; c < 3; ++c) {
-        const uint32_t* row = in.radiance[c].row(y);
-        uint64_t* sum = part + c * width;
-        for (int x = 0; x < g.width; ++x) sum[x] += row[x];
-      }
+      for (int c = 0; c < 3; ++c) AddRow(part + c * width, in.radiance[c].row(y), g.width);
       continue;
     }
     for (int x0 = 0; x0 < g.width; x0 += kColumns) {
@@ -84,11 +96,7 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
         const int64_t dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
         VignettingCurveGains(curve, rho_to_index, dx2, static_cast<uint32_t>(dy * dy), n, gain);
       }
-      for (int c = 0; c < 3; ++c) {
-        const uint32_t* row = in.radiance[c].row(y) + x0;
-        uint64_t* sum = part + c * width + x0;
-        for (int i = 0; i < n; ++i) sum[i] += (row[i] * uint64_t{gain[i]} + (1u << 13)) >> 14;
-      }
+      for (int c = 0; c < 3; ++c) AddVignettedRow(part + c * width + x0, in.radiance[c].row(y) + x0, gain, n);
     }
   }
   const auto sum = [&](int parity, int c, int x) { return sums[(static_cast<size_t>(parity) * 3 + c) * width + x]; };

@@ -225,7 +225,10 @@ TEST(Smear, RunPrepassesAttachesWhatTheConfigurationNeeds) {
     ASSERT_EQ(in.smear_e, smear.data());
     std::vector<uint32_t> direct(smear.size());
     ComputeSmear(c, s.View(), Span<uint32_t>{direct.data(), direct.size()});
-    EXPECT_EQ(smear, direct);
+    // The charges (the entries after them are ComputeSmear's column sums).
+    const size_t charges = static_cast<size_t>(kMaxChannels) * c.geometry.width;
+    EXPECT_EQ(std::vector<uint32_t>(smear.begin(), smear.begin() + charges),
+              std::vector<uint32_t>(direct.begin(), direct.begin() + charges));
   }
 }
 
