@@ -64,8 +64,8 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
   const uint64_t w = full_well_q8_;
   // Strip state (BeginStrip): the row the strip's next call is for, then per
   // channel and column the last row scanned that is over the well. A call
-  // that follows the strip's previous one scans only its window's new last
-  // row; any other scans the whole window.
+  // that follows the strip's previous one scans only the row entering its
+  // window; any other scans the whole window.
   int32_t* const state = reinterpret_cast<int32_t*>(a.state);
   const bool follows = state[0] == a.y;
   state[0] = a.y + 1;
