@@ -55,12 +55,13 @@ void OwnPartRow(const uint32_t* in, uint32_t* out, uint32_t threshold, uint32_t 
 // row by row, each over kPeakTiles * kFlareTile contiguous samples.
 constexpr int kPeakTiles = 64;
 
-// peak[t] = the largest sample of tile t of the `tiles` tiles from column
-// x0 in the rows [y0, y0 + h) (the last tile may end at `width`): compares
-// only, in lanes, so that a tile's sums are made only when it has a sample
-// above the threshold.
+// peak[t] = the largest sample of tile t of the kPeakTiles tiles from
+// column x0 in the rows [y0, y0 + h) (the last tile may end at `width`):
+// compares only, in lanes, so that a tile's sums are made only when it has
+// a sample above the threshold.
 CAMSIM_CPU_CLONES
-void TilePeaks(const FrameInput& in, int x0, int y0, int h, int tiles, int width, uint32_t* peak) {
+void TilePeaks(const FrameInput& in, int x0, int y0, int h, int width, uint32_t* peak) {
+  constexpr int tiles = kPeakTiles;
   for (int t = 0; t < tiles; ++t) peak[t] = 0;
   const int full = (width - x0) / kFlareTile < tiles ? (width - x0) / kFlareTile : tiles;
   for (int ch = 0; ch < 3; ++ch)
@@ -401,7 +402,7 @@ void ComputeFlare(const FlareConfig& c, const SensorGeometry& g, const FrameInpu
     for (int tx = 0; tx < g.width; tx += kFlareTile) {
       const int t = tx / kFlareTile % kPeakTiles;
       if (t == 0)
-        TilePeaks(in, tx, ty, g.height - ty < kFlareTile ? g.height - ty : kFlareTile, kPeakTiles, g.width, peak);
+        TilePeaks(in, tx, ty, g.height - ty < kFlareTile ? g.height - ty : kFlareTile, g.width, peak);
       if (peak[t] <= threshold) continue;
       FlareSource s;
       uint64_t weight = 0, wx = 0, wy = 0;

@@ -33,10 +33,12 @@ bool HasStage(const PipelineConfig& c, StageId id) {
 
 bool SmearEnabled(const PipelineConfig& c) { return c.sensor.smear_row_transfer_us > 0; }
 
-// The output, then the column sums ([row parity][colour][x], uint64: 12
-// entries a column) and one entry that lets them start 8-byte aligned.
+// The output, then each column's squared distance from the centre (the
+// vignetting curve's dx2), then the column sums ([row parity][colour][x],
+// uint64: 12 entries a column) and one entry that lets them start 8-byte
+// aligned.
 constexpr int kSumEntriesPerColumn = 2 * 3 * 2;
-int SmearEntries(const PipelineConfig& c) { return (kMaxChannels + kSumEntriesPerColumn) * c.geometry.width + 1; }
+int SmearEntries(const PipelineConfig& c) { return (kMaxChannels + 1 + kSumEntriesPerColumn) * c.geometry.width + 1; }
 
 void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint32_t> out) {
   const SensorGeometry& g = config.geometry;
@@ -71,7 +73,12 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
     if (!BuildVignettingCurve(config.vignetting, g, curve, &rho_to_index).ok()) return;  // Configure checked it
   // The sums, row by row over the frame (contiguous loads); integer sums,
   // so the order changes nothing.
-  uint32_t* const scratch = out.data + kMaxChannels * width;
+  uint32_t* const dx2 = out.data + kMaxChannels * width;  // (2x - (W - 1))^2, once per frame
+  for (int x = 0; x < g.width; ++x) {
+    const int64_t dx = 2 * static_cast<int64_t>(x) - (g.width - 1);
+    dx2[x] = static_cast<uint32_t>(dx * dx);
+  }
+  uint32_t* const scratch = dx2 + width;
   const size_t skip = reinterpret_cast<uintptr_t>(scratch) % alignof(uint64_t) != 0 ? 1 : 0;
   AliasedU64* const sums = reinterpret_cast<AliasedU64*>(scratch + skip);
   std::memset(sums, 0, sizeof(uint64_t) * 2 * 3 * width);
@@ -88,13 +95,8 @@ void ComputeSmear(const PipelineConfig& config, const FrameInput& in, Span<uint3
       if (vmode == VignettingMode::kMask) {
         for (int i = 0; i < n; ++i) gain[i] = in.vignetting_mask.row(y)[x0 + i];
       } else {
-        uint32_t dx2[kColumns];
-        for (int i = 0; i < n; ++i) {
-          const int64_t dx = 2 * static_cast<int64_t>(x0 + i) - (g.width - 1);
-          dx2[i] = static_cast<uint32_t>(dx * dx);
-        }
         const int64_t dy = 2 * static_cast<int64_t>(y) - (g.height - 1);
-        VignettingCurveGains(curve, rho_to_index, dx2, static_cast<uint32_t>(dy * dy), n, gain);
+        VignettingCurveGains(curve, rho_to_index, dx2 + x0, static_cast<uint32_t>(dy * dy), n, gain);
       }
       for (int c = 0; c < 3; ++c) AddVignettedRow(part + c * width + x0, in.radiance[c].row(y) + x0, gain, n);
     }

@@ -43,7 +43,8 @@ namespace camsim {
 bool SmearEnabled(const PipelineConfig& config);
 // Entries ComputeSmear uses: the charges, kMaxChannels * width (channel c at
 // [c * width + x]; a 1-channel sensor (mosaic or mono) uses channel 0), then
-// its column sums (12 width + 1 entries, 48 bytes a column).
+// its working space: each column's dx2 and sums (13 width + 1 entries, 52
+// bytes a column).
 int SmearEntries(const PipelineConfig& config);
 // The smear charge per column for one frame (Q24.8 electrons). `out` must have
 // SmearEntries() entries. The config must have passed Pipeline::Configure.
