@@ -7,6 +7,10 @@
 namespace camsim {
 namespace {
 
+// Columns per spill group: sixteen 64-bit lanes (two AVX-512 vectors, so
+// that two independent carry chains overlap; four AVX2 ones).
+constexpr int kLanes = 16;
+
 // last[x] = row where in[x] reaches its column parity's threshold (t0
 // even, t1 odd), else unchanged. A function of its own with __restrict
 // pointers and the width a parameter, so that the loop goes in lanes;
@@ -16,6 +20,58 @@ void MarkOverWell(const uint32_t* __restrict in, int32_t* __restrict last, int w
                   int32_t row) {
   for (int x = 0; x < width; ++x) last[x] = in[x] >= ((x & 1) ? t1 : t0) ? row : last[x];
 }
+
+// One group of kLanes columns: the two passes of the model (blooming.h) on
+// window rows window[0 .. n), each read at [x, x + kLanes), all lanes at
+// once. qe[k & 1][j] is the QE (Q1.16) of lane j in window row k. Writes
+// the centre row's (k = self) charge before and after, Q.8 electrons.
+// level and excess hold n * kLanes entries each. Plain loops over the
+// lanes, compiled per CPU tier: every copy gives the same integers.
+CAMSIM_CPU_CLONES
+void SpillGroup(const uint32_t* const* window, int x, int n, int self, const uint32_t (*qe)[kLanes], uint64_t w,
+                uint64_t* __restrict level, uint64_t* __restrict excess, uint64_t* __restrict before,
+                uint64_t* __restrict after) {
+  for (int k = 0; k < n; ++k) {
+    const uint32_t* in = window[k] + x;
+    const uint32_t* q = qe[k & 1];
+    uint64_t* lk = level + k * kLanes;
+    uint64_t* ek = excess + k * kLanes;
+    for (int j = 0; j < kLanes; ++j) {
+      const uint64_t m = RoundShiftU(static_cast<uint64_t>(in[j]) * q[j], 16);
+      lk[j] = m < w ? m : w;
+      ek[j] = m - lk[j];
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) before[j] = level[self * kLanes + j] + excess[self * kLanes + j];
+  uint64_t carry[kLanes] = {};
+  for (int k = 0; k < n; ++k) {  // down: each pixel takes what fits, then passes on half its excess
+    uint64_t* lk = level + k * kLanes;
+    const uint64_t* ek = excess + k * kLanes;
+#pragma GCC unroll 1  // unrolled whole, the lanes are no longer vectorised
+    for (int j = 0; j < kLanes; ++j) {
+      const uint64_t room = w - lk[j];
+      const uint64_t take = room < carry[j] ? room : carry[j];
+      lk[j] += take;
+      carry[j] = carry[j] - take + (ek[j] >> 1);
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) carry[j] = 0;
+  for (int k = n - 1; k >= self; --k) {  // up, with the other half; rows above `self` cannot change it
+    uint64_t* lk = level + k * kLanes;
+    const uint64_t* ek = excess + k * kLanes;
+#pragma GCC unroll 1  // unrolled whole, the lanes are no longer vectorised
+    for (int j = 0; j < kLanes; ++j) {
+      const uint64_t room = w - lk[j];
+      const uint64_t take = room < carry[j] ? room : carry[j];
+      lk[j] += take;
+      carry[j] = carry[j] - take + (ek[j] - (ek[j] >> 1));
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) after[j] = level[self * kLanes + j];
+}
+
+// Charge (Q.8 electrons) back to photons (Q24.8) at QE q > 0 (Q1.16): rounded, ties up, saturated.
+uint32_t ToPhotons(uint64_t charge, uint32_t q) { return SatU32(((charge << 16) + q / 2) / q); }
 
 }  // namespace
 
@@ -44,6 +100,12 @@ Result<LineFormat> BloomingStage::Plan(LineFormat in) const {
   return in;
 }
 
+// SpillGroup's level and excess, and the columns of a partial last group.
+size_t BloomingStage::ScratchBytes(int /*width*/) const {
+  const size_t rows = 2 * static_cast<size_t>(config_.rows) + 1;
+  return 2 * AlignUp(sizeof(uint64_t) * rows * kLanes) + AlignUp(sizeof(uint32_t) * rows * kLanes);
+}
+
 size_t BloomingStage::StateBytes(int width) const {
   return sizeof(int32_t) * (1 + static_cast<size_t>(kMaxChannels) * static_cast<size_t>(width));
 }
@@ -61,7 +123,12 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
   const int last = a.y + R >= geometry_.height ? geometry_.height - 1 : a.y + R;
   const int n = last - first + 1;
   const int self = a.y - first;
-  const uint64_t w = full_well_q8_;
+  // Scratch (ScratchBytes): SpillGroup's level and excess, then a partial group's columns.
+  const size_t group_rows = 2 * static_cast<size_t>(R) + 1;
+  const size_t lanes_u64 = AlignUp(sizeof(uint64_t) * group_rows * kLanes) / sizeof(uint64_t);
+  uint64_t* const level = reinterpret_cast<uint64_t*>(a.scratch);
+  uint64_t* const excess = level + lanes_u64;
+  uint32_t* const partial = reinterpret_cast<uint32_t*>(excess + lanes_u64);
   // Strip state (BeginStrip): the row the strip's next call is for, then per
   // channel and column the last row scanned that is over the well. A call
   // that follows the strip's previous one scans only the row entering its
@@ -83,55 +150,49 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
       const uint32_t t1 = over_[channels == 3 ? c : CfaColour(geometry_.cfa, 1, row)];
       MarkOverWell(a.rows[row - a.y + R].ch[c], last_over, width, t0, t1, row);
     }
-    for (int x = 0; x < width; ++x) {
-      if (last_over[x] < first) {  // no pixel of the window over the well
-        out[x] = center[x];
-        continue;
+    const uint32_t* window[2 * kMaxBloomingRows + 1];
+    for (int k = 0; k < n; ++k) window[k] = a.rows[first + k - a.y + R].ch[c];
+    // QE of each lane in window rows of each parity (groups start on even columns).
+    uint32_t qe[2][kLanes];
+    for (int p = 0; p < 2; ++p)
+      for (int j = 0; j < kLanes; ++j)
+        qe[p][j] = qe_q16_[channels == 3 ? c : CfaColour(geometry_.cfa, j & 1, first + p)];
+    // A full pixel's photons, even and odd columns of the centre row (most changed pixels are full).
+    const uint32_t full[2] = {qe[self & 1][0] != 0 ? ToPhotons(full_well_q8_, qe[self & 1][0]) : 0,
+                              qe[self & 1][1] != 0 ? ToPhotons(full_well_q8_, qe[self & 1][1]) : 0};
+    // The group of columns [x0, x0 + m), m <= kLanes; called with m = kLanes
+    // for whole groups, so that its loops and copy have a constant length.
+    const auto group = [&](int x0, int m) {
+      bool over = false;  // a pixel of some column's window is over the well
+      for (int j = 0; j < m; ++j) over |= last_over[x0 + j] >= first;
+      if (!over) {  // nothing spills: the input, exactly
+        std::memcpy(out + x0, center + x0, sizeof(uint32_t) * static_cast<size_t>(m));
+        return;
       }
-      // Charge of the window's pixels (Q.8 electrons) and whether any exceeds the well.
-      uint64_t level[2 * kMaxBloomingRows + 1];
-      uint64_t excess[2 * kMaxBloomingRows + 1];
-      uint32_t qe_self = 0;
-      uint64_t m_self = 0;
-      bool spill = false;
-      for (int k = 0; k < n; ++k) {
-        const int row = first + k;
-        const Colour colour = channels == 3 ? static_cast<Colour>(c) : CfaColour(geometry_.cfa, x, row);
-        const uint32_t qe = qe_q16_[colour];
-        const uint64_t m = RoundShiftU(static_cast<uint64_t>(a.rows[row - a.y + R].ch[c][x]) * qe, 16);
-        if (k == self) {
-          qe_self = qe;
-          m_self = m;
+      int x = x0;
+      if (m < kLanes) {  // the last group, partial: its columns, zero padded (lanes are independent)
+        for (int k = 0; k < n; ++k) {
+          uint32_t* row = partial + static_cast<size_t>(k) * kLanes;
+          for (int j = 0; j < kLanes; ++j) row[j] = j < m ? window[k][x0 + j] : 0;
+          window[k] = row;
         }
-        level[k] = m < w ? m : w;
-        excess[k] = m - level[k];
-        spill |= excess[k] != 0;
+        x = 0;
       }
-      if (!spill || qe_self == 0) {
-        out[x] = center[x];
-        continue;
+      uint64_t before[kLanes], after[kLanes];
+      SpillGroup(window, x, n, self, qe, full_well_q8_, level, excess, before, after);
+      for (int j = 0; j < m; ++j) {
+        // Back to photons of this pixel's colour (unchanged charge, or QE 0: the input, exactly).
+        const uint32_t q = qe[self & 1][j];
+        if (q == 0 || after[j] == before[j]) {
+          out[x0 + j] = center[x0 + j];
+        } else {
+          out[x0 + j] = after[j] == full_well_q8_ ? full[j & 1] : ToPhotons(after[j], q);
+        }
       }
-      uint64_t carry = 0;
-      for (int k = 0; k < n; ++k) {
-        const uint64_t room = w - level[k];
-        const uint64_t take = room < carry ? room : carry;
-        level[k] += take;
-        carry = carry - take + (excess[k] >> 1);
-      }
-      carry = 0;
-      for (int k = n - 1; k >= self; --k) {  // rows above `self` cannot change it in the up pass
-        const uint64_t room = w - level[k];
-        const uint64_t take = room < carry ? room : carry;
-        level[k] += take;
-        carry = carry - take + (excess[k] - (excess[k] >> 1));
-      }
-      // Back to photons of this pixel's colour (unchanged charge: the input, exactly).
-      if (level[self] == m_self) {
-        out[x] = center[x];
-        continue;
-      }
-      out[x] = SatU32(((level[self] << 16) + qe_self / 2) / qe_self);
-    }
+    };
+    const int whole = width - width % kLanes;
+    for (int x0 = 0; x0 < whole; x0 += kLanes) group(x0, kLanes);
+    if (whole < width) group(whole, width - whole);
   }
 }
 

@@ -17,16 +17,20 @@
 // whole-column model wherever no spill that reaches y starts, or travels, more
 // than R rows away; the reference (blooming_ref.h) is the whole-column model,
 // and the tests check that they agree where spills stay inside the window.
-// Columns whose window holds no pixel above the full well are passed through
-// unchanged (exactly); they are found by comparing photons with a per-colour
-// threshold (a vectorisable pass), keeping per column the last row over it
-// in the strip's state: the first row of a strip scans its whole window,
-// each following row only the row that enters it.
+// Columns go in groups of 16. A group whose windows hold no pixel above the
+// full well is passed through unchanged (exactly); such pixels are found by
+// comparing photons with a per-colour threshold (a vectorisable pass),
+// keeping per column the last row over it in the strip's state: the first
+// row of a strip scans its whole window, each following row only the row
+// that enters it. The other groups run the two passes in 64-bit lanes, one
+// column per lane (the same integers as column by column).
 //
 // Formats: in/out Photons Q24.8, 1 channel (mosaic or mono) or 3.
 //          charge Q.8 electrons in uint64: photons * QE (Q1.16), rounded ties up;
 //          back to photons: level * 2^16 / QE, rounded ties up, saturated at 2^32 - 1.
 //          A colour with QE 0 never saturates and receives no charge (spill into it is lost).
+// Scratch: the lanes' charge and excess, 2 x 8 x 16 bytes per window row, and
+// a partial last group's columns, 4 x 16 bytes per window row (2R + 1 rows).
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -49,6 +53,7 @@ class BloomingStage final : public Stage {
   const char* IdentityReason() const override;
   int RowsAbove() const override { return config_.enabled ? config_.rows : 0; }
   int RowsBelow() const override { return config_.enabled ? config_.rows : 0; }
+  size_t ScratchBytes(int width) const override;
   size_t StateBytes(int width) const override;
   void BeginStrip(uint8_t* state) const override;
   void ProcessRow(const RowArgs& args) const override;

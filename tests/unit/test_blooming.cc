@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "core/sensor/blooming.h"
 #include "core/sensor/blooming_ref.h"
@@ -123,6 +124,7 @@ TEST(Blooming, AStripStartsAfreshWhereAnotherFramesStripEnded) {
   std::vector<uint32_t> a(kW * kH, 256u * 100), b = a;
   for (int x = 0; x < kW; ++x) b[21 * kW + x] = 256u * 5000;
   std::vector<uint8_t> state(stage.StateBytes(kW), 0);
+  std::vector<uint64_t> scratch(stage.ScratchBytes(kW) / sizeof(uint64_t) + 1);
   const auto row_of = [&](const std::vector<uint32_t>& image, int y) {
     RowIn rows[2 * kR + 1];  // input rows y - kR .. y + kR, clamped (the stage reads those inside the frame)
     for (int k = 0; k < 2 * kR + 1; ++k) rows[k].ch[0] = image.data() + std::clamp(y - kR + k, 0, kH - 1) * kW;
@@ -135,6 +137,7 @@ TEST(Blooming, AStripStartsAfreshWhereAnotherFramesStripEnded) {
     args.row_count = 2 * kR + 1;
     args.out[0] = out.data();
     args.state = state.data();
+    args.scratch = reinterpret_cast<uint8_t*>(scratch.data());
     stage.ProcessRow(args);
     return out;
   };
@@ -149,6 +152,109 @@ TEST(Blooming, AStripStartsAfreshWhereAnotherFramesStripEnded) {
   for (int y = 10; y < 20; ++y) row_of(a, y);  // frame A's strip ends at row 19
   stage.BeginStrip(state.data());
   for (int y = 20; y < 30; ++y) EXPECT_EQ(row_of(b, y), want[y - 20]) << "row " << y;
+}
+
+// The model of blooming.h for one pixel, written column by column in the
+// stage's integers: charge Q.8 = photons * QE rounded, the down pass and the
+// up pass over the window clipped to the frame, back to photons rounded.
+uint32_t ModelPixel(const std::vector<uint32_t>& plane, int w, int h, int x, int y, int r,
+                    const std::function<uint32_t(int row)>& qe_of_row, uint64_t well) {
+  const int first = std::max(0, y - r), last = std::min(h - 1, y + r);
+  std::vector<uint64_t> level, excess;
+  for (int row = first; row <= last; ++row) {
+    const uint64_t m = (uint64_t{plane[row * w + x]} * qe_of_row(row) + (1u << 15)) >> 16;
+    level.push_back(std::min(m, well));
+    excess.push_back(m - level.back());
+  }
+  const size_t self = static_cast<size_t>(y - first);
+  const uint64_t m_self = level[self] + excess[self];
+  uint64_t carry = 0;
+  for (size_t k = 0; k < level.size(); ++k) {
+    const uint64_t take = std::min(well - level[k], carry);
+    level[k] += take;
+    carry = carry - take + excess[k] / 2;
+  }
+  carry = 0;
+  for (size_t k = level.size(); k-- > 0;) {
+    const uint64_t take = std::min(well - level[k], carry);
+    level[k] += take;
+    carry = carry - take + (excess[k] - excess[k] / 2);
+  }
+  const uint64_t q = qe_of_row(y);
+  if (q == 0 || level[self] == m_self) return plane[y * w + x];
+  return static_cast<uint32_t>(std::min<uint64_t>(((level[self] << 16) + q / 2) / q, 0xFFFFFFFFu));
+}
+
+// The stage runs columns in groups of 16 lanes. Against the column-by-column
+// model, byte for byte: a width of two whole groups and a partial one,
+// spills in a single column of a group, in a group's first and last columns
+// and in the partial group, at the frame's top and bottom, a colour with QE
+// 0 (it keeps its input), pixels so bright that the photons saturate, for a
+// Bayer mosaic and for three channels.
+TEST(Blooming, GroupsOfColumnsGiveTheColumnModelsBytes) {
+  constexpr int kW = 37, kH = 30, kR = 5;
+  for (const int channels : {1, 3}) {
+    SCOPED_TRACE(channels);
+    BloomingConfig config;
+    config.enabled = true;
+    config.rows = kR;
+    SensorConfig sensor;
+    sensor.full_well_e = 1000.0;
+    sensor.quantum_efficiency[0] = 0.0;  // red: no charge
+    sensor.quantum_efficiency[1] = 0.55;
+    sensor.quantum_efficiency[2] = 0.7;
+    const Cfa cfa = channels == 1 ? Cfa::kBayerGR : Cfa::kMono;
+    BloomingStage stage;
+    ASSERT_TRUE(stage.Configure(config, sensor, SensorGeometry{kW, kH, cfa, 12}).ok());
+    const auto qe_q16 = [&](int colour) {
+      return static_cast<uint32_t>(std::lround(sensor.quantum_efficiency[colour] * 65536));
+    };
+    // Photons, Q24.8: a textured background of 200..1000 photons, then blobs.
+    std::vector<std::vector<uint32_t>> planes(channels, std::vector<uint32_t>(kW * kH));
+    for (int c = 0; c < channels; ++c)
+      for (int i = 0; i < kW * kH; ++i) planes[c][i] = 256u * (200 + static_cast<uint32_t>((i * 7919 + c * 31) % 800));
+    const struct Blob {
+      int x, y, rows;
+      uint32_t photons;
+    } blobs[] = {{3, 12, 2, 6000},      {16, 0, 2, 9000},  {31, 28, 2, 5000}, {15, 20, 1, 4000},
+                 {34, 7, 3, 20000},     {36, 15, 1, 7000}, {22, 25, 1, 0xFFFFFFFFu / 256}};
+    for (const Blob& b : blobs)
+      for (int c = 0; c < channels; ++c)
+        for (int y = b.y; y < b.y + b.rows; ++y) planes[c][y * kW + b.x] = b.photons == 0xFFFFFFFFu / 256 ? 0xFFFFFFFFu : 256u * b.photons;
+    std::vector<uint8_t> state(stage.StateBytes(kW), 0);
+    std::vector<uint64_t> scratch(stage.ScratchBytes(kW) / sizeof(uint64_t) + 1);
+    stage.BeginStrip(state.data());
+    std::vector<std::vector<uint32_t>> out(channels, std::vector<uint32_t>(kW * kH));
+    for (int y = 0; y < kH; ++y) {
+      RowIn rows[2 * kR + 1];
+      for (int k = 0; k < 2 * kR + 1; ++k)
+        for (int c = 0; c < channels; ++c) rows[k].ch[c] = planes[c].data() + std::clamp(y - kR + k, 0, kH - 1) * kW;
+      RowArgs args;
+      args.y = y;
+      args.width = kW;
+      args.rows = rows;
+      args.first_row = y - kR;
+      args.row_count = 2 * kR + 1;
+      for (int c = 0; c < channels; ++c) args.out[c] = out[c].data() + y * kW;
+      args.state = state.data();
+      args.scratch = reinterpret_cast<uint8_t*>(scratch.data());
+      stage.ProcessRow(args);
+    }
+    int changed = 0;
+    for (int c = 0; c < channels; ++c)
+      for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+          const auto qe_of_row = [&](int row) { return qe_q16(channels == 3 ? c : CfaColour(cfa, x, row)); };
+          const uint32_t want = ModelPixel(planes[c], kW, kH, x, y, kR, qe_of_row, 1000u * 256);
+          ASSERT_EQ(out[c][y * kW + x], want) << "channel " << c << " x " << x << " y " << y;
+          changed += want != planes[c][y * kW + x];
+        }
+    EXPECT_GT(changed, 40) << "blooming happened";
+    if (channels == 1) {  // column 3 of BayerGR: red (QE 0) on even rows, green on odd ones
+      EXPECT_EQ(out[0][14 * kW + 3], planes[0][14 * kW + 3]) << "a QE-0 pixel the spill passes keeps its input";
+      EXPECT_NE(out[0][15 * kW + 3], planes[0][15 * kW + 3]) << "the spill passes it";
+    }
+  }
 }
 
 TEST(Blooming, ChargeIsConservedAwayFromTheBorders) {
