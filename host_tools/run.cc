@@ -308,6 +308,18 @@ bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const st
 // on at least kMinWorkedShare of them; with fewer, that cost is mostly the
 // skipping itself and the product means nothing (false).
 constexpr double kMinWorkedShare = 0.1;
+// Which pixels a stage counts as skipped (StageStats::skipped_px), as "pixels ...".
+const char* SkippedWhat(StageId id) {
+  switch (id) {
+    case StageId::kDofRows:
+    case StageId::kDofColumns: return "linked to no neighbour (CoC below dof.min_coc_px), not solved";
+    case StageId::kDofGather: return "in rows whose window holds no CoC of 2 px, copied";
+    case StageId::kMotionBlur: return "not moving, copied";
+    case StageId::kFlare: return "in tiles without a bright pixel, no glare or ghosts from them";
+    default: return "not needed";
+  }
+}
+
 bool TimeSavedMs(const StageStats& s, double frame_px, int frames, double* ms) {
   const double px = frame_px * frames, worked = px - static_cast<double>(s.skipped_px);
   if (s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
@@ -361,7 +373,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         const double frame_px = static_cast<double>(p.width()) * p.height();
         double saved = 0;
         j << ", \"skipped_fraction\": " << Num(s.skipped_px / (frame_px * frames))
-          << ", \"time_saved_ms_per_frame_estimate\": "
+          << ", \"skipped\": " << JsonString(SkippedWhat(e.id)) << ", \"time_saved_ms_per_frame_estimate\": "
           << (TimeSavedMs(s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
       }
       if (e.note[0] != '\0') j << ", \"moved_because\": " << JsonString(e.note);
@@ -422,8 +434,8 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
     if (s.skipped_px > 0) {
       const double frame_px = static_cast<double>(p.width()) * p.height();
       double saved = 0;
-      std::fprintf(stderr, "  skipped %.1f %% of pixels (not needed)",
-                   100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames));
+      std::fprintf(stderr, "  skipped %.1f %% of pixels: %s",
+                   100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames), SkippedWhat(e.id));
       if (TimeSavedMs(s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
     }
     if (e.id == StageId::kSensor) {

@@ -277,6 +277,26 @@ void FlareStage::ProcessRow(const RowArgs& a) const {
   else if (frame != nullptr)
     AddFrameSources(*frame, a);
   for (int s = 0; s < env_count_; ++s) AddSource(env_sources_[s], a);
+  if (a.stats != nullptr && frame != nullptr) a.stats->skipped_px += PixelsOutsideSources(*frame, a.y, W);
+}
+
+// The frame's sources are its bright tiles, one each, listed tile row by
+// tile row: those of y's tile row by binary search, then their widths.
+int FlareStage::PixelsOutsideSources(const FlareFrame& frame, int y, int width) {
+  const int row = y / kFlareTile;
+  const FlareSource* src = frame.sources;
+  int lo = 0, hi = frame.count;
+  while (lo < hi) {
+    const int mid = lo + (hi - lo) / 2;
+    if (src[mid].y / kFlareTile < row) lo = mid + 1;
+    else hi = mid;
+  }
+  int inside = 0;
+  for (int i = lo; i < frame.count && src[i].y / kFlareTile == row; ++i) {
+    const int x0 = src[i].x / kFlareTile * kFlareTile;
+    inside += width - x0 < kFlareTile ? width - x0 : kFlareTile;
+  }
+  return width - inside;
 }
 
 namespace {

@@ -32,7 +32,8 @@
 // refuses a plan with a running stage before it).
 // With no bright pixel the stage copies its input (the planner leaves it out
 // only when flare is off: which frames have bright pixels is not known at
-// configure time).
+// configure time). The pixels of tiles without a bright pixel source no glare
+// or ghosts: the stage counts them as skipped (StageStats::skipped_px).
 //
 // Formats: in/out Radiance Q16.16, 3 channels; excess and sums uint64 Q16.16;
 //          glare share per pixel RoundShift(excess * f_q16, 16) (the pre-pass
@@ -111,6 +112,9 @@ class FlareStage final : public Stage {
   // reach the row (found by tile row); tests can make it visit every source
   // to compare the two (the same bytes).
   void ForceEverySourceForTest(bool force) { every_source_ = force; }
+  // Pixels of row y in tiles without a bright pixel: no glare or ghosts come
+  // from them. ProcessRow adds them to StageStats::skipped_px.
+  static int PixelsOutsideSources(const FlareFrame& frame, int y, int width);
 
  private:
   FlareConfig config_;

@@ -117,12 +117,14 @@ TEST(Cli, DefaultStripsFollowTheThreadCount) {
 // leaves the in-focus part of the bundled scene unblurred (skipped, with an
 // estimate of the time saved); motion blur from the scene's vectors (nearly
 // all zero) skips over 99 % of the pixels, where a cost per worked pixel
-// means nothing, so the estimate is null.
+// means nothing, so the estimate is null; flare skips the tiles without a
+// bright pixel. Each says which pixels it skipped.
 TEST(Cli, ReportSaysWhatWasSkippedAndTheTimeSaved) {
   const std::string out = TempDir("savings");
   const Result r = Camsim("run --config " + std::string(CAMSIM_SOURCE_DIR) + "/configs/tradeoff.toml --input " +
                           kScene + " --out " + out + " --set exposure.f_number=4 --set dof.focus_distance_m=5" +
-                          " --set motion.source=\\\"vectors\\\" --report " + out + "/report.json");
+                          " --set motion.source=\\\"vectors\\\" --set flare.enabled=true --report " + out +
+                          "/report.json");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.err.find("skipped"), std::string::npos) << r.err;
   const std::string report = Slurp(out + "/report.json");
@@ -146,6 +148,14 @@ TEST(Cli, ReportSaysWhatWasSkippedAndTheTimeSaved) {
   ASSERT_NE(mf, std::string::npos) << motion;
   EXPECT_GT(std::atof(motion.c_str() + mf + 20), 0.99) << motion;
   EXPECT_NE(motion.find("\"time_saved_ms_per_frame_estimate\": null"), std::string::npos) << motion;
+  // Flare: the scene's few bright tiles source it; the rest are skipped (Flare.CountsThePixelsOfTilesWithoutABrightPixel).
+  const std::string flare = stage("flare");
+  const size_t ff = flare.find("\"skipped_fraction\": ");
+  ASSERT_NE(ff, std::string::npos) << flare;
+  EXPECT_GT(std::atof(flare.c_str() + ff + 20), 0.9) << flare;
+  EXPECT_LT(std::atof(flare.c_str() + ff + 20), 1.0) << flare;
+  EXPECT_NE(flare.find("\"skipped\": \"in tiles without a bright pixel"), std::string::npos) << flare;
+  EXPECT_NE(r.err.find("of pixels: in tiles without a bright pixel"), std::string::npos) << r.err;
 }
 
 TEST(Cli, SixteenBitOutputAndMonoSensor) {

@@ -22,7 +22,8 @@ PipelineConfig FlareOnly(int w, int h, const FlareConfig& f) {
 }
 
 // Runs the flare stage with its pre-pass; radiance out (interleaved, Q16.16).
-std::vector<uint32_t> RunFlare(const test::Built& b, const test::Scene& s, int strip_rows, int* sources = nullptr) {
+std::vector<uint32_t> RunFlare(const test::Built& b, const test::Scene& s, int strip_rows, int* sources = nullptr,
+                               WorkerStats* stats = nullptr) {
   const PipelineConfig& c = b.pipeline.config();
   std::vector<FlareSource> storage(static_cast<size_t>(FlareMaxSources(c.geometry)));
   FlareFrame frame;
@@ -36,7 +37,7 @@ std::vector<uint32_t> RunFlare(const test::Built& b, const test::Scene& s, int s
   t.format = TapFormat::kU32;
   t.data = out.data();
   t.stride = s.width * 3;
-  b.pipeline.ProcessFrame(in, 0, strip_rows, &t, 1, nullptr, nullptr);
+  b.pipeline.ProcessFrame(in, 0, strip_rows, &t, 1, stats, nullptr);
   return out;
 }
 
@@ -167,6 +168,32 @@ TEST(Flare, ThePrePassFindsEveryBrightTile) {
     EXPECT_EQ(frame.sources[i].y, b[1]);
     for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(frame.sources[i].excess[ch], ch == b[2] ? v - threshold : 0u);
   }
+}
+
+// The pixels of tiles without a bright pixel are counted as skipped (`camsim
+// run` reports them): whole tiles, a partial last tile column and row.
+TEST(Flare, CountsThePixelsOfTilesWithoutABrightPixel) {
+  constexpr int kW = 1100, kH = 40;  // the last tile column 12 wide, the last tile row 8 high
+  FlareConfig f;
+  f.enabled = true;
+  f.threshold = 2.0;
+  auto b = test::Build(FlareOnly(kW, kH, f));
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  test::Scene s = test::FlatScene(kW, kH, 1.0, 1.0, 1.0);
+  // Bright pixels in five tiles; two in one tile count it once.
+  const int bright[][2] = {{0, 0}, {5, 9}, {1023, 5}, {1024, 20}, {1099, 39}, {700, 33}};
+  for (const auto& p : bright) s.plane[1][static_cast<size_t>(p[1]) * kW + p[0]] = Q<16, 16>::FromDouble(5.0).raw;
+  const int64_t tiles = 16 * 16 + 16 * 16 + 16 * 16 + 12 * 8 + 16 * 8;
+  for (const int strip : {7, 40}) {
+    WorkerStats stats;
+    int sources = 0;
+    RunFlare(*b, s, strip, &sources, &stats);
+    EXPECT_EQ(sources, 5);
+    EXPECT_EQ(stats.stage[0].skipped_px, int64_t{kW} * kH - tiles) << "strip " << strip;
+  }
+  WorkerStats none;
+  RunFlare(*b, test::FlatScene(kW, kH, 1.0, 1.0, 1.0), 8, nullptr, &none);
+  EXPECT_EQ(none.stage[0].skipped_px, int64_t{kW} * kH) << "no bright pixel: every pixel";
 }
 
 // ProcessRow visits only the sources whose glare or ghosts can reach the
