@@ -413,6 +413,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   const UnfilteredWritesRefused until_filtered;
   if (o.serve) {
     if (!CheckGvcpAddress(o.address, error)) return false;
+    hooks_refused_before_ = WritesRefusedAt(o.address.c_str());  // an earlier camera's, at this address
     gv_ = arv_gv_fake_camera_new_full(o.address.c_str(), o.serial.c_str(), xml_path_.c_str());
     if (!gv_ || !arv_gv_fake_camera_is_running(gv_)) {
       *error = "cannot serve on " + o.address +
@@ -514,6 +515,11 @@ GigeDevice::~GigeDevice() {
 }
 
 // Ranges, the read-only XML and the client-write rules: fake_camera_hooks.cc.
+uint64_t GigeDevice::writes_refused() const {
+  const uint64_t hooks = gv_ != nullptr ? WritesRefusedAt(address_.c_str()) - hooks_refused_before_ : 0;
+  return writes_refused_.load() + hooks;
+}
+
 bool GigeDevice::WriteMemory(uint32_t address, const void* data, uint32_t size) {
   std::lock_guard<std::mutex> lock(mutex_);
   return arv_fake_camera_write_memory(fake_, address, size, data);

@@ -126,7 +126,9 @@ class GigeDevice {
   const std::string& xml_path() const { return xml_path_; }
   const SensorInfo& sensor() const { return sensor_; }
   uint64_t frames_sent() const { return frames_sent_.load(); }
-  uint64_t writes_refused() const { return writes_refused_.load(); }
+  // Client writes refused: by the device (values, the window, commands) and
+  // by the hooks in front of its camera (fake_camera_hooks.h, WritesRefusedAt).
+  uint64_t writes_refused() const;
   uint64_t triggers_dropped() const { return triggers_dropped_.load(); }
   uint64_t trigger_edges() const { return trigger_edges_.load(); }  // edges the trigger line delivered, handled
   // Pipelines planned (a client's pipeline write, a sync or auto-exposure
@@ -283,6 +285,7 @@ class GigeDevice {
   std::atomic<bool> restarting_{false};
   std::atomic<uint64_t> acquisition_stops_{0};  // clients' stops (FilterClientWrite)
   std::string address_;
+  uint64_t hooks_refused_before_ = 0;  // WritesRefusedAt(address_) before the camera served
   bool prime_first_frame_ = true;
   double last_render_s_ = 0;  // the last frame's rendering time (0: none yet)
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to

@@ -26,6 +26,12 @@
 // key: it ignores the packet) and answers it with INVALID_PARAMETER, unless
 // it is shorter than a header (no request id to answer).
 //
+// Counts: each client write the hooks refuse themselves is counted for the
+// local address of the socket its packet came to (WritesRefusedAt). The
+// fake camera acknowledges every write it carries out, with or without the
+// acknowledge flag, so a write still unanswered when its thread receives or
+// polls again is one it dropped (its client is not in control).
+//
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
 // its next register sync. From a camera's creation until its filter is
@@ -153,6 +159,26 @@ bool BroadcastSocket(GSocket* socket) {
   return broadcast && !own;
 }
 
+// Client writes the hooks refused, per local address of the socket their
+// packet came to (WritesRefusedAt).
+struct RefusedAt {
+  in_addr_t address;
+  uint64_t writes;
+};
+std::mutex g_refused_mutex;
+std::list<RefusedAt> g_refused;
+void CountRefusedWrite(GSocket* socket) {
+  in_addr local{};
+  if (socket == nullptr || !GvcpSocketAddress(socket, &local)) return;
+  std::lock_guard<std::mutex> lock(g_refused_mutex);
+  for (RefusedAt& r : g_refused)
+    if (r.address == local.s_addr) {
+      ++r.writes;
+      return;
+    }
+  g_refused.push_back({local.s_addr, 1});
+}
+
 // Sends an error acknowledgement (the header, 4 bytes of zeros) of a
 // command the client asked to acknowledge, as a camera would: not to a
 // command that came by broadcast (a FORCEIP or ACTION_CMD meant for another
@@ -176,8 +202,9 @@ void AnswerUnanswered() {
   if (t_packet.socket == nullptr) return;
   const ControlPacket packet = t_packet;
   t_packet = ControlPacket{};
-  if (packet.from_size == 0) return;
   const bool write = packet.command == kWriteReg || packet.command == kWriteMem;
+  if (write) CountRefusedWrite(packet.socket);
+  if (packet.from_size == 0) return;
   GSocketAddress* to = g_socket_address_new_from_native(const_cast<sockaddr_storage*>(&packet.from), packet.from_size);
   SendErrorAck(packet.socket, to, packet.wants_ack, write ? GevStatus::kAccessDenied : GevStatus::kNotImplemented,
                packet.command, packet.id);
@@ -189,6 +216,11 @@ void AnswerUnanswered() {
 gboolean Refuse(GevStatus status) {
   if (t_packet.socket != nullptr && t_packet.status == GevStatus::kSuccess) t_packet.status = status;
   return FALSE;
+}
+// A client write the hooks refuse themselves (a filter's refusals its device counts).
+gboolean RefuseClientWrite(GevStatus status) {
+  CountRefusedWrite(t_packet.socket);
+  return Refuse(status);
 }
 
 struct Filter {
@@ -261,13 +293,14 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
                                                  const void* buffer) {
   static const WriteFn next = Next<WriteFn>("arv_fake_camera_write_memory");
   ++t_writes;
-  if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0) return Refuse(GevStatus::kInvalidParameter);
   const bool client = t_device_writes == 0;
-  if (client && size > camsim::genicam::kMaxClientWrite) return Refuse(GevStatus::kInvalidParameter);
-  if (client && (size % 4 != 0 || address % 4 != 0)) return Refuse(GevStatus::kBadAlignment);
+  const auto refuse = client ? RefuseClientWrite : Refuse;
+  if (next == nullptr || camera == nullptr || buffer == nullptr || size == 0) return refuse(GevStatus::kInvalidParameter);
+  if (client && size > camsim::genicam::kMaxClientWrite) return refuse(GevStatus::kInvalidParameter);
+  if (client && (size % 4 != 0 || address % 4 != 0)) return refuse(GevStatus::kBadAlignment);
   // Only the registers are writable (the XML after them is read-only).
   if (uint64_t{address} + size > ARV_FAKE_CAMERA_MEMORY_SIZE)
-    return Refuse(uint64_t{address} + size > MapEnd(camera) ? GevStatus::kInvalidAddress : GevStatus::kWriteProtect);
+    return refuse(uint64_t{address} + size > MapEnd(camera) ? GevStatus::kInvalidAddress : GevStatus::kWriteProtect);
   if (!client) return next(camera, address, size, buffer);
   uint8_t data[camsim::genicam::kMaxClientWrite];
   std::memcpy(data, buffer, size);
@@ -277,7 +310,8 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   else if (UnfilteredRefused()) verdict = {false, GevStatus::kAccessDenied};
   if (verdict.store) next(camera, address, size, data);
   if (f != nullptr) UnlockFilter(f);
-  return verdict.status == GevStatus::kSuccess ? TRUE : Refuse(verdict.status);
+  if (verdict.status == GevStatus::kSuccess) return TRUE;
+  return f != nullptr ? Refuse(verdict.status) : RefuseClientWrite(verdict.status);
 }
 
 // The fake camera's thread receives each control packet into one buffer.
@@ -305,6 +339,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   GSocketAddress* from = address != nullptr ? *address : nullptr;
   const bool wants_ack = (p[1] & kGvcpAckRequired) != 0;
   if (length < FixedFields(command) || static_cast<size_t>(got) < kGvcpHeader + length) {
+    if (command == kWriteReg || command == kWriteMem) CountRefusedWrite(socket);
     SendErrorAck(socket, from, wants_ack, GevStatus::kInvalidParameter, command, id);
     p[0] = 0;
     return got;
@@ -407,6 +442,15 @@ ClientWritesHeld::~ClientWritesHeld() {
 
 DeviceWrites::DeviceWrites() { ++t_device_writes; }
 DeviceWrites::~DeviceWrites() { --t_device_writes; }
+
+uint64_t WritesRefusedAt(const char* address) {
+  in_addr a{};
+  if (address == nullptr || inet_pton(AF_INET, address, &a) != 1) return 0;
+  std::lock_guard<std::mutex> lock(g_refused_mutex);
+  for (const RefusedAt& r : g_refused)
+    if (r.address == a.s_addr) return r.writes;
+  return 0;
+}
 
 UnfilteredWritesRefused::UnfilteredWritesRefused() {
   std::lock_guard<std::mutex> list(g_filters_mutex);

@@ -79,6 +79,15 @@ class ClientWritesHeld {
   void* held_;  // the camera's filter entry, its lock taken
 };
 
+// Client writes the hooks refused themselves (a filter's refusals are its
+// device's to count), since the process started, on packets that came to
+// the GVCP socket bound to `address` (IPv4, dotted): malformed WRITEREG and
+// WRITEMEM packets, writes outside the memory map, to the XML, not in whole
+// registers or over kMaxClientWrite bytes, to a camera without a filter
+// (UnfilteredWritesRefused), and writes from a client not in control
+// (which the fake camera drops). One per packet.
+uint64_t WritesRefusedAt(const char* address);
+
 // The device's own writes (initial values, reverting a refused value): the
 // filter does not see the writes made on this thread while one lives.
 class DeviceWrites {

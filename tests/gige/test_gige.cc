@@ -1775,6 +1775,10 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   RawController raw;
   ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
   EXPECT_EQ(raw.status(), kSuccess);
+  // Each refused write counts once, whether the hooks refused it or the
+  // device's filter; refused reads do not.
+  uint64_t refused = 0;
+  const auto counted = [&] { return device_->writes_refused() == refused; };
   uint32_t value = 0;
   EXPECT_TRUE(raw.Read(0x20000 + static_cast<uint32_t>(xml.size()), &value));  // past the XML
   EXPECT_EQ(raw.status(), kInvalidAddress);
@@ -1796,25 +1800,38 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   EXPECT_EQ(value, uint32_t{uint8_t(xml[0])} << 24 | uint32_t{uint8_t(xml[1])} << 16 |
                        uint32_t{uint8_t(xml[2])} << 8 | uint8_t(xml[3]));
 
+  EXPECT_TRUE(counted()) << "reads are not writes";
   uint32_t width = 0;
   ASSERT_TRUE(raw.Read(reg::kWidth, &width));
   EXPECT_TRUE(raw.Write(0xFFFFFFFCu, 1));  // address + 4 wraps to 0
   EXPECT_EQ(raw.status(), kInvalidAddress);
+  ++refused;
+  EXPECT_TRUE(counted());
   EXPECT_TRUE(raw.WriteMemory(0xFFFFFFF8u, std::vector<uint8_t>(16, 0xff), 20));
   EXPECT_EQ(raw.status(), kInvalidAddress);
+  ++refused;
+  EXPECT_TRUE(counted());
   // A length field below 4 leaves a data length of about 4 GiB.
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth, {0, 0, 0, 2}, 2));
   EXPECT_EQ(raw.status(), kInvalidParameter);
+  ++refused;
+  EXPECT_TRUE(counted());
   EXPECT_TRUE(raw.WriteMemory(xml_start, {'x', 'x', 'x', 'x'}, 8));  // the XML is read-only
   EXPECT_EQ(raw.status(), kWriteProtect);
+  ++refused;
+  EXPECT_TRUE(counted());
   uint32_t scenes = 0;
   ASSERT_TRUE(raw.Read(reg::kSimSceneCount, &scenes));
-  EXPECT_TRUE(raw.Write(reg::kSimSceneCount, scenes + 7));  // so is a read-only feature
+  EXPECT_TRUE(raw.Write(reg::kSimSceneCount, scenes + 7));  // so is a read-only feature (the device's refusal)
   EXPECT_EQ(raw.status(), kWriteProtect);
+  ++refused;
+  EXPECT_TRUE(counted());
   ASSERT_TRUE(raw.Read(reg::kSimSceneCount, &value));
   EXPECT_EQ(value, scenes);
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth + 2, {0, 0, 0, 2}, 8));  // half of two registers
   EXPECT_EQ(raw.status(), kBadAlignment);
+  ++refused;
+  EXPECT_TRUE(counted());
   // A length field far beyond the packet: the fake camera would copy what
   // its 64 KiB receive buffer held before (and 7 bytes past it) over the
   // registers (the bootstrap's XML URL at 0x200, control, stream).
@@ -1822,6 +1839,8 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_before));
   EXPECT_TRUE(raw.WriteMemory(0, {1, 2, 3, 4}, 0xffff));
   EXPECT_EQ(raw.status(), kInvalidParameter);
+  ++refused;
+  EXPECT_TRUE(counted());
   ASSERT_TRUE(raw.ReadMemory(0x200, 64, &url_after));
   EXPECT_EQ(url_after, url_before);
   ASSERT_TRUE(raw.Read(kControlChannelPrivilege, &value));
@@ -1843,24 +1862,31 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   ASSERT_EQ(raw.status(), kSuccess);
   EXPECT_TRUE(raw.WriteMemory(reg::kWidth, be32(48), 12));
   EXPECT_EQ(raw.status(), kInvalidParameter);
+  ++refused;
+  EXPECT_TRUE(counted());
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, 32u);
   // WRITEREG with an address and no value, after one whose value (24) would be taken.
   ASSERT_TRUE(raw.Write(reg::kHeight, 24));
   EXPECT_TRUE(raw.WriteWithoutValue(reg::kWidth));
   EXPECT_EQ(raw.status(), kInvalidParameter);
+  ++refused;
+  EXPECT_TRUE(counted());
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, 32u);
   // The same without the acknowledge flag: refused, and not answered.
   EXPECT_FALSE(raw.SendRaw({0x42, 0x00, 0x00, 0x86, 0x00, 0x0c, 0x00, 0x60, 0, 0, 0x01, 0x00, 0, 0, 0, 48}, 300));
+  ++refused;
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, 32u);
+  EXPECT_TRUE(counted());
   // A datagram shorter than a header: the last command (Width 32 again) would run.
   ASSERT_TRUE(raw.Write(reg::kWidth, 32));
   ASSERT_TRUE(device_->WriteMemory(reg::kWidth, be32(width).data(), 4));
   EXPECT_FALSE(raw.SendRaw({0x42}, 200)) << "a 1-byte datagram was answered";
   ASSERT_TRUE(raw.Read(reg::kWidth, &value));
   EXPECT_EQ(value, width);
+  EXPECT_TRUE(counted()) << "no command, so no write: " << device_->writes_refused();
   ASSERT_TRUE(raw.Write(reg::kHeight, height));
   EXPECT_EQ(raw.status(), kSuccess);
   ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
@@ -1891,10 +1917,12 @@ TEST_F(GigeE2E, UnansweredCommandsGetACamerasAnswer) {
   EXPECT_EQ(other.status(), 0);
   EXPECT_TRUE(other.Write(reg::kWidth, 32));
   EXPECT_EQ(other.status(), kAccessDenied);
+  EXPECT_EQ(device_->writes_refused(), 1u) << "a write the fake camera dropped counts as refused";
   EXPECT_TRUE(other.WriteMemory(reg::kWidth, {0, 0, 0, 32}, 8));
   EXPECT_EQ(other.status(), kAccessDenied);
   EXPECT_TRUE(other.Write(kControlChannelPrivilege, 2));  // no takeover while the owner is alive
   EXPECT_EQ(other.status(), kAccessDenied);
+  EXPECT_EQ(device_->writes_refused(), 3u);
   ASSERT_TRUE(owner.Read(reg::kWidth, &value));
   EXPECT_EQ(value, width);
   EXPECT_TRUE(other.Command(0x0100, std::vector<uint8_t>(12, 0), nullptr));  // ACTION_CMD
@@ -1905,8 +1933,26 @@ TEST_F(GigeE2E, UnansweredCommandsGetACamerasAnswer) {
   EXPECT_FALSE(other.SendRaw({0x42, 0x00, 0x00, 0x82, 0x00, 0x08, 0x00, 0x71, 0, 0, 0x01, 0x00, 0, 0, 0, 32}, 300));
   ASSERT_TRUE(owner.Read(reg::kWidth, &value));
   EXPECT_EQ(value, width);
+  EXPECT_EQ(device_->writes_refused(), 4u) << "the unacknowledged write too, not the ACTION_CMD or PACKETRESEND";
+  // The owner's write without the acknowledge flag is taken, not refused
+  // (the fake camera acknowledges it all the same).
+  owner.SendRaw({0x42, 0x00, 0x00, 0x82, 0x00, 0x08, 0x00, 0x72, 0, 0, 0x01, 0x00, 0, 0, 0, 32}, 300);
+  ASSERT_TRUE(owner.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, 32u);
+  EXPECT_EQ(device_->writes_refused(), 4u);
+  ASSERT_TRUE(owner.Write(reg::kWidth, width));
   ASSERT_TRUE(owner.Write(kControlChannelPrivilege, 0));
   EXPECT_EQ(owner.status(), 0);
+  // A camera started again at the same address counts from its own start.
+  device_.reset();
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  EXPECT_EQ(device_->writes_refused(), 0u);
+  EXPECT_TRUE(other.Write(kControlChannelPrivilege, 2));  // the new camera has no controller
+  EXPECT_EQ(other.status(), 0);
+  ASSERT_TRUE(other.Write(kControlChannelPrivilege, 0));
+  EXPECT_EQ(other.status(), 0);
+  EXPECT_EQ(device_->writes_refused(), 0u);
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
