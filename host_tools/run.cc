@@ -313,16 +313,18 @@ const char* SkippedWhat(StageId id) {
   switch (id) {
     case StageId::kDofRows:
     case StageId::kDofColumns: return "linked to no neighbour (CoC below dof.min_coc_px), not solved";
-    case StageId::kDofGather: return "in rows whose window holds no CoC of 2 px, copied";
+    case StageId::kDofGather: return "in rows whose window holds no disc wider than a pixel (CoC < 1.75 px), copied";
     case StageId::kMotionBlur: return "not moving, copied";
     case StageId::kFlare: return "in tiles without a bright pixel, no glare or ghosts from them";
     default: return "not needed";
   }
 }
 
-bool TimeSavedMs(const StageStats& s, double frame_px, int frames, double* ms) {
+// Flare's skipped pixels still take its own part and haze, and its cost
+// follows its sources, not its worked pixels: no estimate.
+bool TimeSavedMs(StageId id, const StageStats& s, double frame_px, int frames, double* ms) {
   const double px = frame_px * frames, worked = px - static_cast<double>(s.skipped_px);
-  if (s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
+  if (id == StageId::kFlare || s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
   *ms = s.ticks / 1e6 / worked * static_cast<double>(s.skipped_px) / frames;
   return true;
 }
@@ -373,8 +375,8 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         const double frame_px = static_cast<double>(p.width()) * p.height();
         double saved = 0;
         j << ", \"skipped_fraction\": " << Num(s.skipped_px / (frame_px * frames))
-          << ", \"skipped\": " << JsonString(SkippedWhat(e.id)) << ", \"time_saved_ms_per_frame_estimate\": "
-          << (TimeSavedMs(s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
+          << ", \"skipped_pixels_are\": " << JsonString(SkippedWhat(e.id)) << ", \"time_saved_ms_per_frame_estimate\": "
+          << (TimeSavedMs(e.id, s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
       }
       if (e.note[0] != '\0') j << ", \"moved_because\": " << JsonString(e.note);
       if (e.id == StageId::kSensor) {
@@ -436,7 +438,7 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
       double saved = 0;
       std::fprintf(stderr, "  skipped %.1f %% of pixels: %s",
                    100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames), SkippedWhat(e.id));
-      if (TimeSavedMs(s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
+      if (TimeSavedMs(e.id, s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
     }
     if (e.id == StageId::kSensor) {
       std::fprintf(stderr, "  electrons");

@@ -101,9 +101,10 @@ struct StageStats {
   int64_t sum[3] = {};
   int64_t count[3] = {};
   int64_t aux_sum[3] = {};
-  // Pixels of running rows the stage copied through without its work because
-  // the scene did not need it there (e.g. no blur where the circle of
-  // confusion is negligible): the planner's savings within a frame.
+  // Pixels of running rows where the scene did not need (part of) the
+  // stage's work: copied through (e.g. no blur where the circle of
+  // confusion is negligible), or for flare the pixels that source no glare
+  // or ghosts: the planner's savings within a frame.
   int64_t skipped_px = 0;
   uint64_t ticks = 0;  // time spent, in the caller's clock units
 };

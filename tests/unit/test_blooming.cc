@@ -189,8 +189,8 @@ uint32_t ModelPixel(const std::vector<uint32_t>& plane, int w, int h, int x, int
 // model, byte for byte: a width of two whole groups and a partial one,
 // spills in a single column of a group, in a group's first and last columns
 // and in the partial group, at the frame's top and bottom, a colour with QE
-// 0 (it keeps its input), pixels so bright that the photons saturate, for a
-// Bayer mosaic and for three channels.
+// 0 (it keeps its input), input pixels at 2^32 - 1, for a Bayer mosaic and
+// for three channels.
 TEST(Blooming, GroupsOfColumnsGiveTheColumnModelsBytes) {
   constexpr int kW = 37, kH = 30, kR = 5;
   for (const int channels : {1, 3}) {

@@ -118,7 +118,8 @@ TEST(Cli, DefaultStripsFollowTheThreadCount) {
 // estimate of the time saved); motion blur from the scene's vectors (nearly
 // all zero) skips over 99 % of the pixels, where a cost per worked pixel
 // means nothing, so the estimate is null; flare skips the tiles without a
-// bright pixel. Each says which pixels it skipped.
+// bright pixel (no estimate: its cost follows its sources). Each says which
+// pixels it skipped.
 TEST(Cli, ReportSaysWhatWasSkippedAndTheTimeSaved) {
   const std::string out = TempDir("savings");
   const Result r = Camsim("run --config " + std::string(CAMSIM_SOURCE_DIR) + "/configs/tradeoff.toml --input " +
@@ -142,19 +143,22 @@ TEST(Cli, ReportSaysWhatWasSkippedAndTheTimeSaved) {
     const size_t t = s.find("\"time_saved_ms_per_frame_estimate\": ");
     ASSERT_NE(t, std::string::npos) << name;
     EXPECT_GT(std::atof(s.c_str() + t + 36), 0.0) << name << ": " << s;
+    EXPECT_NE(s.find("\"skipped_pixels_are\": \"linked to no neighbour"), std::string::npos) << name << ": " << s;
   }
   const std::string motion = stage("motion_blur");
   const size_t mf = motion.find("\"skipped_fraction\": ");
   ASSERT_NE(mf, std::string::npos) << motion;
   EXPECT_GT(std::atof(motion.c_str() + mf + 20), 0.99) << motion;
   EXPECT_NE(motion.find("\"time_saved_ms_per_frame_estimate\": null"), std::string::npos) << motion;
+  EXPECT_NE(motion.find("\"skipped_pixels_are\": \"not moving, copied\""), std::string::npos) << motion;
   // Flare: the scene's few bright tiles source it; the rest are skipped (Flare.CountsThePixelsOfTilesWithoutABrightPixel).
   const std::string flare = stage("flare");
   const size_t ff = flare.find("\"skipped_fraction\": ");
   ASSERT_NE(ff, std::string::npos) << flare;
   EXPECT_GT(std::atof(flare.c_str() + ff + 20), 0.9) << flare;
   EXPECT_LT(std::atof(flare.c_str() + ff + 20), 1.0) << flare;
-  EXPECT_NE(flare.find("\"skipped\": \"in tiles without a bright pixel"), std::string::npos) << flare;
+  EXPECT_NE(flare.find("\"skipped_pixels_are\": \"in tiles without a bright pixel"), std::string::npos) << flare;
+  EXPECT_NE(flare.find("\"time_saved_ms_per_frame_estimate\": null"), std::string::npos) << "flare's cost follows its sources";
   EXPECT_NE(r.err.find("of pixels: in tiles without a bright pixel"), std::string::npos) << r.err;
 }
 
