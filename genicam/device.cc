@@ -685,7 +685,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   auto* d = static_cast<GigeDevice*>(self);
   // Before Init has set the values in use (the GVCP thread may already
   // serve): not yet.
-  if (!d->ready_) return {false, GevStatus::kAccessDenied};
+  if (!d->ready_) {
+    ++d->writes_refused_;
+    return {false, GevStatus::kAccessDenied};
+  }
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
   const auto covers = [&](uint32_t r) { return Covers(address, size, r); };
   const auto value = [&](uint32_t r) { return ValueAt(address, data, r); };

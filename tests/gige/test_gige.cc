@@ -1832,6 +1832,12 @@ TEST_F(GigeE2E, AccessesOutsideTheMemoryMapLeaveTheCameraServing) {
   EXPECT_EQ(raw.status(), kBadAlignment);
   ++refused;
   EXPECT_TRUE(counted());
+  EXPECT_TRUE(raw.WriteMemory(reg::kWidth, std::vector<uint8_t>(540, 0), 544));  // over GVCP's 536 bytes
+  EXPECT_EQ(raw.status(), kInvalidParameter);
+  ++refused;
+  EXPECT_TRUE(counted());
+  ASSERT_TRUE(raw.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, width);
   // A length field far beyond the packet: the fake camera would copy what
   // its 64 KiB receive buffer held before (and 7 bytes past it) over the
   // registers (the bootstrap's XML URL at 0x200, control, stream).
@@ -1936,7 +1942,7 @@ TEST_F(GigeE2E, UnansweredCommandsGetACamerasAnswer) {
   EXPECT_EQ(device_->writes_refused(), 4u) << "the unacknowledged write too, not the ACTION_CMD or PACKETRESEND";
   // The owner's write without the acknowledge flag is taken, not refused
   // (the fake camera acknowledges it all the same).
-  owner.SendRaw({0x42, 0x00, 0x00, 0x82, 0x00, 0x08, 0x00, 0x72, 0, 0, 0x01, 0x00, 0, 0, 0, 32}, 300);
+  EXPECT_TRUE(owner.SendRaw({0x42, 0x00, 0x00, 0x82, 0x00, 0x08, 0x00, 0x72, 0, 0, 0x01, 0x00, 0, 0, 0, 32}, 300));
   ASSERT_TRUE(owner.Read(reg::kWidth, &value));
   EXPECT_EQ(value, 32u);
   EXPECT_EQ(device_->writes_refused(), 4u);
