@@ -31,6 +31,7 @@
 #include "bench/bench_common.h"
 #include "bench/stage_bench.h"
 #include "core/base/random.h"
+#include "core/base/simd.h"
 #include "core/sensor/smear.h"
 #include "hal/thread_pool.h"
 #include "host_tools/config.h"
@@ -644,6 +645,87 @@ void BM_PoissonSample(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_PoissonSample)->Arg(5)->Arg(1000);
+
+#ifdef CAMSIM_X86_AVX512
+// What a table lookup in lanes costs, next to a permute: the Gaussian sampler
+// gathers twice per 16 draws, ISqrt64Lanes once per 8 roots, gamma once per
+// 16 samples. GatherCost/k: AVX-512 gathers of 8 qwords from a 16 KiB table
+// (the Gaussian table's size) with k of the 8 lanes enabled; PermuteCost: a
+// two-register permute of 16 dwords. The indices come from memory and four
+// sums take the results, so the lookups are independent: throughput, not
+// latency.
+constexpr int kLookups = 64;
+struct LookupIndices {
+  alignas(64) int64_t q[kLookups][8];
+  alignas(64) int32_t d[kLookups][16];
+};
+const LookupIndices& Indices() {
+  static const LookupIndices indices = [] {
+    LookupIndices t{};
+    uint32_t u = 1;
+    for (int i = 0; i < kLookups; ++i) {
+      for (int j = 0; j < 8; ++j) t.q[i][j] = (u = u * 1664525u + 1013904223u) >> 21;  // 0 .. 2047
+      for (int j = 0; j < 16; ++j) t.d[i][j] = static_cast<int32_t>((u = u * 1664525u + 1013904223u) >> 27);  // 0 .. 31
+    }
+    return t;
+  }();
+  return indices;
+}
+
+CAMSIM_AVX512_TARGET inline __m512i Gather8(__mmask8 mask, const int64_t* index, const int64_t* table) {
+  return _mm512_mask_i64gather_epi64(_mm512_setzero_si512(), mask, _mm512_load_si512(index), table, 8);
+}
+
+CAMSIM_AVX512_TARGET void GatherLoop(benchmark::State& state) {
+  alignas(64) static int64_t table[2048];
+  for (int i = 0; i < 2048; ++i) table[i] = i;
+  const LookupIndices& ix = Indices();
+  const __mmask8 mask = static_cast<__mmask8>((1u << state.range(0)) - 1);
+  __m512i a0 = _mm512_setzero_si512(), a1 = a0, a2 = a0, a3 = a0;
+  for (auto _ : state) {
+    benchmark::ClobberMemory();  // the indices are loaded again: no lookup is hoisted out of the loop
+    for (int i = 0; i < kLookups; i += 4) {
+      a0 = _mm512_add_epi64(a0, Gather8(mask, ix.q[i], table));
+      a1 = _mm512_add_epi64(a1, Gather8(mask, ix.q[i + 1], table));
+      a2 = _mm512_add_epi64(a2, Gather8(mask, ix.q[i + 2], table));
+      a3 = _mm512_add_epi64(a3, Gather8(mask, ix.q[i + 3], table));
+    }
+  }
+  benchmark::DoNotOptimize(_mm512_add_epi64(_mm512_add_epi64(a0, a1), _mm512_add_epi64(a2, a3)));
+  state.counters["ns_per_lookup"] = benchmark::Counter(static_cast<double>(state.iterations()) * kLookups,
+                                                       benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+void BM_GatherCost(benchmark::State& state) {
+  if (!CpuHasAvx512()) return state.SkipWithError("needs AVX-512");
+  GatherLoop(state);
+}
+BENCHMARK(BM_GatherCost)->Arg(8)->Arg(1)->Arg(0);
+
+CAMSIM_AVX512_TARGET void PermuteLoop(benchmark::State& state) {
+  const LookupIndices& ix = Indices();
+  alignas(64) static int32_t entries[32];  // the 32 dwords looked up
+  for (int i = 0; i < 32; ++i) entries[i] = 3 * i + 1;
+  __m512i a0 = _mm512_setzero_si512(), a1 = a0, a2 = a0, a3 = a0;
+  for (auto _ : state) {
+    benchmark::ClobberMemory();  // the indices are loaded again: no lookup is hoisted out of the loop
+    const __m512i a = _mm512_load_si512(entries), b = _mm512_load_si512(entries + 16);
+    for (int i = 0; i < kLookups; i += 4) {
+      a0 = _mm512_add_epi32(a0, _mm512_permutex2var_epi32(a, _mm512_load_si512(ix.d[i]), b));
+      a1 = _mm512_add_epi32(a1, _mm512_permutex2var_epi32(a, _mm512_load_si512(ix.d[i + 1]), b));
+      a2 = _mm512_add_epi32(a2, _mm512_permutex2var_epi32(a, _mm512_load_si512(ix.d[i + 2]), b));
+      a3 = _mm512_add_epi32(a3, _mm512_permutex2var_epi32(a, _mm512_load_si512(ix.d[i + 3]), b));
+    }
+  }
+  benchmark::DoNotOptimize(_mm512_add_epi32(_mm512_add_epi32(a0, a1), _mm512_add_epi32(a2, a3)));
+  state.counters["ns_per_lookup"] = benchmark::Counter(static_cast<double>(state.iterations()) * kLookups,
+                                                       benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+void BM_PermuteCost(benchmark::State& state) {
+  if (!CpuHasAvx512()) return state.SkipWithError("needs AVX-512");
+  PermuteLoop(state);
+}
+BENCHMARK(BM_PermuteCost);
+#endif
 
 }  // namespace
 }  // namespace camsim
