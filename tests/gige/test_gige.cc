@@ -1132,6 +1132,39 @@ TEST(GigeRegisters, TheSyncInstallsThePlanTheWriteMade) {
   EXPECT_EQ(d->CheckInvariants(), "");
 }
 
+// The sync's fallback: pipeline settings the pipeline cannot run that
+// reached the registers past the filter (a client's write is refused as it
+// arrives; the device's own is not checked) go back together at the sync,
+// with a line on stderr and each counted as refused; the sync's other
+// settings stay, and frames keep coming from the pipeline in use.
+TEST(GigeRegisters, TheSyncPutsBackPipelineSettingsItCannotRun) {
+  DeviceOptions o = OfflineDevice();
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const uint32_t cfa_enable = StageEnableAddress(*d, "Stage_cfa");
+  ASSERT_NE(cfa_enable, 0u);
+  const double exposure = ReadRegDouble(*d, reg::kExposureTime);
+  const uint64_t refused = d->writes_refused();
+  {
+    const genicam::DeviceWrites own;
+    WriteReg(*d, cfa_enable, Be32(0));  // the raw format needs the mosaic
+    WriteReg(*d, reg::kExposureTime, Be64(4000.0));
+    WriteReg(*d, reg::kAcquisitionFrameRate, Be64(5.0));
+  }
+  testing::internal::CaptureStderr();
+  d->SyncNow();
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("camsim-gige: refused:"), std::string::npos) << err;
+  EXPECT_EQ(ReadReg32(*d, cfa_enable), 1u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), exposure) << "the sync's pipeline settings go back together";
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAcquisitionFrameRate), 5.0) << "the other settings stay";
+  EXPECT_EQ(d->writes_refused(), refused + 2);
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48));
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // SimAutoTarget takes what the controller uses (0.01 .. 0.9), and nothing more.
 TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   DeviceOptions o = OfflineDevice();
