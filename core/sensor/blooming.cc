@@ -21,6 +21,21 @@ void MarkOverWell(const uint32_t* __restrict in, int32_t* __restrict last, int w
   for (int x = 0; x < width; ++x) last[x] = in[x] >= ((x & 1) ? t1 : t0) ? row : last[x];
 }
 
+// One window row of a pass, in lanes: each pixel takes what fits of the
+// carry, then passes on its excess's share, half (rounded down) going down,
+// the rest going up.
+inline void PassRow(uint64_t* __restrict level, const uint64_t* __restrict excess, uint64_t* __restrict carry,
+                    uint64_t w, bool up) {
+#pragma GCC unroll 1  // unrolled whole, the lanes are no longer vectorised
+  for (int j = 0; j < kLanes; ++j) {
+    const uint64_t room = w - level[j];
+    const uint64_t take = room < carry[j] ? room : carry[j];
+    level[j] += take;
+    const uint64_t half = excess[j] >> 1;
+    carry[j] = carry[j] - take + (up ? excess[j] - half : half);
+  }
+}
+
 // One group of kLanes columns: the two passes of the model (blooming.h) on
 // window rows window[0 .. n), each read at [x, x + kLanes), all lanes at
 // once. qe[k & 1][j] is the QE (Q1.16) of lane j in window row k. Writes
@@ -44,29 +59,10 @@ void SpillGroup(const uint32_t* const* window, int x, int n, int self, const uin
   }
   for (int j = 0; j < kLanes; ++j) before[j] = level[self * kLanes + j] + excess[self * kLanes + j];
   uint64_t carry[kLanes] = {};
-  for (int k = 0; k < n; ++k) {  // down: each pixel takes what fits, then passes on half its excess
-    uint64_t* lk = level + k * kLanes;
-    const uint64_t* ek = excess + k * kLanes;
-#pragma GCC unroll 1  // unrolled whole, the lanes are no longer vectorised
-    for (int j = 0; j < kLanes; ++j) {
-      const uint64_t room = w - lk[j];
-      const uint64_t take = room < carry[j] ? room : carry[j];
-      lk[j] += take;
-      carry[j] = carry[j] - take + (ek[j] >> 1);
-    }
-  }
+  for (int k = 0; k < n; ++k) PassRow(level + k * kLanes, excess + k * kLanes, carry, w, false);
   for (int j = 0; j < kLanes; ++j) carry[j] = 0;
-  for (int k = n - 1; k >= self; --k) {  // up, with the other half; rows above `self` cannot change it
-    uint64_t* lk = level + k * kLanes;
-    const uint64_t* ek = excess + k * kLanes;
-#pragma GCC unroll 1  // unrolled whole, the lanes are no longer vectorised
-    for (int j = 0; j < kLanes; ++j) {
-      const uint64_t room = w - lk[j];
-      const uint64_t take = room < carry[j] ? room : carry[j];
-      lk[j] += take;
-      carry[j] = carry[j] - take + (ek[j] - (ek[j] >> 1));
-    }
-  }
+  // Up; rows above `self` cannot change it.
+  for (int k = n - 1; k >= self; --k) PassRow(level + k * kLanes, excess + k * kLanes, carry, w, true);
   for (int j = 0; j < kLanes; ++j) after[j] = level[self * kLanes + j];
 }
 

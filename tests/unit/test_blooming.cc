@@ -34,6 +34,26 @@ PipelineConfig PhotonPath(int w, int h, Cfa cfa, bool blooming) {
   return c;
 }
 
+// One call of the stage for row y of `planes` (1 or 3, w x h), as the
+// driver makes it: the window's rows y - r .. y + r, clamped to the frame
+// (the stage reads those inside it).
+void BloomRow(const BloomingStage& stage, const std::vector<const uint32_t*>& planes, int w, int h, int r, int y,
+              const std::vector<uint32_t*>& out, std::vector<uint8_t>* state, std::vector<uint64_t>* scratch) {
+  std::vector<RowIn> rows(static_cast<size_t>(2 * r + 1));
+  for (int k = 0; k < 2 * r + 1; ++k)
+    for (size_t c = 0; c < planes.size(); ++c) rows[k].ch[c] = planes[c] + std::clamp(y - r + k, 0, h - 1) * w;
+  RowArgs args;
+  args.y = y;
+  args.width = w;
+  args.rows = rows.data();
+  args.first_row = y - r;
+  args.row_count = 2 * r + 1;
+  for (size_t c = 0; c < out.size(); ++c) args.out[c] = out[c];
+  args.state = state->data();
+  args.scratch = reinterpret_cast<uint8_t*>(scratch->data());
+  stage.ProcessRow(args);
+}
+
 TEST(Blooming, SpillGoesWhereTheModelSays) {
   constexpr int kW = 4, kH = 64;
   auto b = test::Build(PhotonPath(kW, kH, Cfa::kMono, true));
@@ -126,19 +146,8 @@ TEST(Blooming, AStripStartsAfreshWhereAnotherFramesStripEnded) {
   std::vector<uint8_t> state(stage.StateBytes(kW), 0);
   std::vector<uint64_t> scratch(stage.ScratchBytes(kW) / sizeof(uint64_t) + 1);
   const auto row_of = [&](const std::vector<uint32_t>& image, int y) {
-    RowIn rows[2 * kR + 1];  // input rows y - kR .. y + kR, clamped (the stage reads those inside the frame)
-    for (int k = 0; k < 2 * kR + 1; ++k) rows[k].ch[0] = image.data() + std::clamp(y - kR + k, 0, kH - 1) * kW;
     std::vector<uint32_t> out(kW);
-    RowArgs args;
-    args.y = y;
-    args.width = kW;
-    args.rows = rows;
-    args.first_row = y - kR;
-    args.row_count = 2 * kR + 1;
-    args.out[0] = out.data();
-    args.state = state.data();
-    args.scratch = reinterpret_cast<uint8_t*>(scratch.data());
-    stage.ProcessRow(args);
+    BloomRow(stage, {image.data()}, kW, kH, kR, y, {out.data()}, &state, &scratch);
     return out;
   };
   std::vector<std::vector<uint32_t>> want;  // B's rows 20..29 from a strip that starts at row 12
@@ -226,19 +235,13 @@ TEST(Blooming, GroupsOfColumnsGiveTheColumnModelsBytes) {
     stage.BeginStrip(state.data());
     std::vector<std::vector<uint32_t>> out(channels, std::vector<uint32_t>(kW * kH));
     for (int y = 0; y < kH; ++y) {
-      RowIn rows[2 * kR + 1];
-      for (int k = 0; k < 2 * kR + 1; ++k)
-        for (int c = 0; c < channels; ++c) rows[k].ch[c] = planes[c].data() + std::clamp(y - kR + k, 0, kH - 1) * kW;
-      RowArgs args;
-      args.y = y;
-      args.width = kW;
-      args.rows = rows;
-      args.first_row = y - kR;
-      args.row_count = 2 * kR + 1;
-      for (int c = 0; c < channels; ++c) args.out[c] = out[c].data() + y * kW;
-      args.state = state.data();
-      args.scratch = reinterpret_cast<uint8_t*>(scratch.data());
-      stage.ProcessRow(args);
+      std::vector<const uint32_t*> in;
+      std::vector<uint32_t*> row_out;
+      for (int c = 0; c < channels; ++c) {
+        in.push_back(planes[c].data());
+        row_out.push_back(out[c].data() + y * kW);
+      }
+      BloomRow(stage, in, kW, kH, kR, y, row_out, &state, &scratch);
     }
     int changed = 0;
     for (int c = 0; c < channels; ++c)
