@@ -302,29 +302,34 @@ bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const st
   return true;
 }
 
+// What a stage's skipped pixels (StageStats::skipped_px) are, as "pixels
+// ...", and whether its cost per worked pixel estimates what they saved.
+// Flare's skipped pixels still take its own part and haze, and its cost
+// follows its sources: no estimate.
+struct SkipMeaning {
+  const char* what;
+  bool estimate;
+};
+SkipMeaning Skipped(StageId id) {
+  switch (id) {
+    case StageId::kDofRows:
+    case StageId::kDofColumns: return {"linked to no neighbour (CoC below dof.min_coc_px), not solved", true};
+    case StageId::kDofGather: return {"in rows whose window holds no disc wider than a pixel (CoC < 1.75 px), copied", true};
+    case StageId::kMotionBlur: return {"not moving, copied", true};
+    case StageId::kFlare: return {"in tiles without a bright pixel, no glare or ghosts from them", false};
+    default: return {"not needed", true};
+  }
+}
+
 // Time a stage saved by skipping pixels, ms per frame: its measured cost per
 // pixel it worked on times the pixels it skipped (an upper bound: the worked
 // pixels' cost includes the copies of the skipped ones). Only when it worked
 // on at least kMinWorkedShare of them; with fewer, that cost is mostly the
 // skipping itself and the product means nothing (false).
 constexpr double kMinWorkedShare = 0.1;
-// Which pixels a stage counts as skipped (StageStats::skipped_px), as "pixels ...".
-const char* SkippedWhat(StageId id) {
-  switch (id) {
-    case StageId::kDofRows:
-    case StageId::kDofColumns: return "linked to no neighbour (CoC below dof.min_coc_px), not solved";
-    case StageId::kDofGather: return "in rows whose window holds no disc wider than a pixel (CoC < 1.75 px), copied";
-    case StageId::kMotionBlur: return "not moving, copied";
-    case StageId::kFlare: return "in tiles without a bright pixel, no glare or ghosts from them";
-    default: return "not needed";
-  }
-}
-
-// Flare's skipped pixels still take its own part and haze, and its cost
-// follows its sources, not its worked pixels: no estimate.
 bool TimeSavedMs(StageId id, const StageStats& s, double frame_px, int frames, double* ms) {
   const double px = frame_px * frames, worked = px - static_cast<double>(s.skipped_px);
-  if (id == StageId::kFlare || s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
+  if (!Skipped(id).estimate || s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
   *ms = s.ticks / 1e6 / worked * static_cast<double>(s.skipped_px) / frames;
   return true;
 }
@@ -375,7 +380,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         const double frame_px = static_cast<double>(p.width()) * p.height();
         double saved = 0;
         j << ", \"skipped_fraction\": " << Num(s.skipped_px / (frame_px * frames))
-          << ", \"skipped_pixels_are\": " << JsonString(SkippedWhat(e.id)) << ", \"time_saved_ms_per_frame_estimate\": "
+          << ", \"skipped_pixels_are\": " << JsonString(Skipped(e.id).what) << ", \"time_saved_ms_per_frame_estimate\": "
           << (TimeSavedMs(e.id, s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
       }
       if (e.note[0] != '\0') j << ", \"moved_because\": " << JsonString(e.note);
@@ -437,7 +442,7 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
       const double frame_px = static_cast<double>(p.width()) * p.height();
       double saved = 0;
       std::fprintf(stderr, "  skipped %.1f %% of pixels: %s",
-                   100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames), SkippedWhat(e.id));
+                   100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames), Skipped(e.id).what);
       if (TimeSavedMs(e.id, s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
     }
     if (e.id == StageId::kSensor) {
