@@ -519,6 +519,10 @@ struct Pipeline::StripState {
   uint8_t* scratch;
   uint8_t* state;  // state_bytes_: every running stage's strip state
   RowIn* rows;  // max_window_ slots: the window of the row being produced
+  // Whose window `rows` holds: stage rows_stage's rows [rows_first, rows_last].
+  // A block stage (the DoF passes) reads one window for a block of rows, so
+  // it is listed once per block, not once per row.
+  int rows_stage, rows_first, rows_last;
   uint32_t* ring[kStageCount + 1];
   int32_t* tag[kStageCount + 1];
   int next[kStageCount + 1];
@@ -586,7 +590,12 @@ void Pipeline::Produce(StripState& s, int j, int row) const {
     ReflectedSpan(window, h, &lowest, &needed);
     Produce(s, j - 1, needed);
     const int count = window.last - window.first + 1;
-    for (int k = 0; k < count; ++k) s.rows[k] = RowOf(s, j - 1, Reflect101(window.first + k, h));
+    if (s.rows_stage != j || s.rows_first != window.first || s.rows_last != window.last) {
+      for (int k = 0; k < count; ++k) s.rows[k] = RowOf(s, j - 1, Reflect101(window.first + k, h));
+      s.rows_stage = j;
+      s.rows_first = window.first;
+      s.rows_last = window.last;
+    }
 
     const bool in_strip = r >= s.y0 && r < s.y1;
     StageStats* st = (s.stats != nullptr && in_strip) ? &s.stats->stage[j - 1] : nullptr;
@@ -648,6 +657,7 @@ void Pipeline::ProcessStrip(const FrameInput& input, uint32_t frame, int y0, int
   for (int i = 0; i < run_count_; ++i)
     if (run_[i]->StateBytes(config_.geometry.width) > 0) run_[i]->BeginStrip(s.state + state_offset_[i]);
   s.rows = arena.Take<RowIn>(static_cast<size_t>(max_window_));
+  s.rows_stage = -1;
 
   // Every ring produces at least the strip's rows [y0, y1) (its taps and
   // statistics cover them even where no later stage reads them, e.g. rows a
