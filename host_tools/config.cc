@@ -121,11 +121,18 @@ const std::vector<Field>& Fields() {
         *err = "must list 1 to " + std::to_string(kStageCount) + " stages";
         return false;
       }
-      for (size_t i = 0; i < names.size(); ++i)
-        if (!StageFromName(names[i].c_str(), &c.core.order[i])) {
+      StageId order[kStageCount];
+      for (size_t i = 0; i < names.size(); ++i) {
+        if (!StageFromName(names[i].c_str(), &order[i])) {
           *err = "unknown stage '" + names[i] + "'";
           return false;
         }
+        if (std::find(order, order + i, order[i]) != order + i) {
+          *err = "lists stage '" + names[i] + "' twice";
+          return false;
+        }
+      }
+      std::copy(order, order + names.size(), c.core.order);
       c.core.order_count = static_cast<int>(names.size());
       return true;
     };
@@ -576,6 +583,12 @@ bool SetField(const Field& f, const toml::node& n, RunConfig* c, std::string* er
         *error = "expects a number";
         return false;
       }
+      // No key means anything by nan or inf, and a stage that is off would
+      // not check its own ranges: refused here for every key.
+      if (!std::isfinite(*v)) {
+        *error = "must be a finite number";
+        return false;
+      }
       f.number(*c) = *v;
       return true;
     }
@@ -637,6 +650,10 @@ bool SetField(const Field& f, const toml::node& n, RunConfig* c, std::string* er
         const toml::node& e = (*a)[static_cast<size_t>(i)];
         if (!(e.is_floating_point() || e.is_integer())) {
           *error = "element " + std::to_string(i) + " is not a number";
+          return false;
+        }
+        if (!std::isfinite(*e.value<double>())) {
+          *error = "element " + std::to_string(i) + " must be a finite number";
           return false;
         }
         dst[i] = *e.value<double>();
@@ -706,6 +723,17 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
       *error = Where(section_node, source) + ": '" + section + "' must be a table: write [" + section + "] " +
                (section_node.is_array() ? "(one pair of brackets, not [[" + section + "]])" : "and its keys below it");
       return false;
+    }
+    if (!known_section && t == nullptr) {
+      // A key above every [section] header: name the section that has it.
+      std::string home;
+      for (const Field& f : Fields())
+        if (section == f.key && home.empty()) home = f.section;
+      if (!home.empty()) {
+        *error = Where(section_node, source) + ": '" + section + "' is outside any section: write it under [" +
+                 home + "] (" + home + "." + section + ")";
+        return false;
+      }
     }
     if (!known_section) {
       *error = Where(section_node, source) + ": unknown section '" + section + "'" + SuggestSection(section);
@@ -840,6 +868,11 @@ bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins
   const size_t dot = assignment.find('.');
   if (eq == std::string::npos || dot == std::string::npos || dot > eq) {
     *error = "--set " + assignment + ": expected section.key=value";
+    return false;
+  }
+  // One key each: a line break would let the value add lines of its own.
+  if (assignment.find_first_of("\n\r") != std::string::npos) {
+    *error = "--set " + assignment.substr(0, eq) + ": the value has a line break";
     return false;
   }
   const std::string section = assignment.substr(0, dot), key = assignment.substr(dot + 1, eq - dot - 1);

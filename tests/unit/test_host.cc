@@ -70,6 +70,33 @@ TEST(Config, UnknownKeysSuggestFromTheirSection) {
   EXPECT_EQ(error, "--set: unknown key 'sensor.nope'");
 }
 
+// What the parser refuses for every key, whether its stage runs or not: a
+// stage that is off never checks its own ranges.
+TEST(Config, RefusesWhatNoKeyMeans) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  EXPECT_FALSE(ParseConfig("[dof]\nfocus_distance_m = nan\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:2: dof.focus_distance_m must be a finite number");
+  EXPECT_FALSE(ParseConfig("[distortion]\n\nk1 = -inf\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:3: distortion.k1 must be a finite number");
+  EXPECT_FALSE(ParseConfig("[dof]\nstructural_poly = [0, inf]\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:2: dof.structural_poly element 1 must be a finite number");
+  EXPECT_FALSE(ApplyOverride("motion.vector_fps=inf", &c, &o, &error));
+  EXPECT_NE(error.find("must be a finite number"), std::string::npos) << error;
+  // A --set is one key: a line break cannot smuggle in another.
+  EXPECT_FALSE(ApplyOverride("sensor.gain_db=3\n[exposure]\nf_number=0.1", &c, &o, &error));
+  EXPECT_EQ(error, "--set sensor.gain_db: the value has a line break");
+  EXPECT_EQ(o.count("exposure.f_number"), 0u);
+  EXPECT_FALSE(ParseConfig("[pipeline]\nstages = [\"exposure\", \"cfa\", \"exposure\"]\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:2: pipeline.stages lists stage 'exposure' twice");
+  // A key above every header is named with its section.
+  EXPECT_FALSE(ParseConfig("seed = 1\n[sensor]\nadc_bits = 12\n", "f.toml", &c, &o, &error));
+  EXPECT_EQ(error, "f.toml:1: 'seed' is outside any section: write it under [pipeline] (pipeline.seed)");
+  EXPECT_FALSE(ParseConfig("sede = 1\n", "f.toml", &c, &o, &error));
+  EXPECT_NE(error.find("unknown section 'sede'"), std::string::npos) << error;
+}
+
 TEST(Config, ErrorsNameKeyAndLine) {
   RunConfig c;
   Origins o;
