@@ -1,6 +1,10 @@
 #include "host_tools/io/image_write.h"
 #include "host_tools/io/png_error.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
 #include <bit>
 #include <cerrno>
 #include <csetjmp>
@@ -24,19 +28,35 @@ constexpr int kMaxWriteDim = 1000000;
 
 std::string Quoted(const std::string& path) { return "'" + path + "'"; }
 
+// A new file beside `path` for WriteAtomically: created with O_EXCL (mode
+// 0666 less the umask, as fopen would), so it was no file before, whatever
+// the directory holds. Empty on failure, with *error set.
+std::string CreateTemporary(const std::string& path, std::string* error) {
+  static std::atomic<unsigned> counter{0};
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const std::string tmp = path + ".tmp." + std::to_string(getpid()) + "." + std::to_string(counter++);
+    const int fd = open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) {
+      close(fd);
+      return tmp;
+    }
+    if (errno != EEXIST) {
+      *error = "cannot write " + Quoted(path) + ": cannot create " + Quoted(tmp) + ": " + std::strerror(errno);
+      return "";
+    }
+  }
+  *error = "cannot write " + Quoted(path) + ": no free temporary name beside it";
+  return "";
+}
+
 // Runs write_tmp(tmp_path, error) and renames the result onto `path`; see the
 // atomicity rule in image_write.h.
 bool WriteAtomically(const std::string& path,
                      const std::function<bool(const std::string&, std::string*)>& write_tmp,
                      std::string* error) {
-  const std::string tmp = path + ".tmp";
+  const std::string tmp = CreateTemporary(path, error);
+  if (tmp.empty()) return false;
   std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::symlink_status(tmp, ec);
-  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
-    *error = "cannot write " + Quoted(path) + ": temporary path " + Quoted(tmp) +
-             " exists and is not a regular file";
-    return false;
-  }
   bool ok = false;
   try {
     ok = write_tmp(tmp, error);

@@ -1,11 +1,12 @@
 // Image and text writers for host tools. Host-side only.
 //
-// Every writer is atomic: it writes `path + ".tmp"` and rename()s it onto
-// `path`, so `path` is never left half-written. On failure it returns false,
-// sets *error (naming `path` and what went wrong), removes the temporary file
-// and leaves any earlier `path` untouched. If `path + ".tmp"` exists and is not
-// a regular file (e.g. a directory) the write fails without touching it. No
-// exception escapes.
+// Every writer is atomic: it writes a temporary file of its own beside
+// `path` (`path + ".tmp." + pid + "." + n`, created exclusively, so never an
+// existing file: an input cannot be overwritten through it) and rename()s it
+// onto `path`, so `path` is never left half-written. On failure it returns
+// false, sets *error (naming `path` and what went wrong), removes the
+// temporary file and leaves any earlier `path` untouched. No exception
+// escapes.
 //
 // Images: `data` points at the top-left sample; `stride_samples` is the
 // distance between row starts in samples (>= width * channels); width and

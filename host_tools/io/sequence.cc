@@ -41,6 +41,41 @@ bool ExpandDirectory(const std::string& dir, std::vector<std::string>* files, st
   return true;
 }
 
+// The lowest index above `missing` whose file exists for prefix + index +
+// suffix (index zero-padded to width), or -1. Lists the prefix's directory
+// when the suffix names no directory, else tries the next kLookAhead indices.
+int LaterIndex(const std::string& prefix, const std::string& suffix, size_t width, int missing) {
+  constexpr int kLookAhead = 1000;
+  if (suffix.find('/') != std::string::npos) {
+    for (int k = missing + 1; k <= missing + kLookAhead; ++k) {
+      std::string n = std::to_string(k);
+      if (n.size() < width) n.insert(0, width - n.size(), '0');
+      if (IsFile(prefix + n + suffix)) return k;
+    }
+    return -1;
+  }
+  const size_t slash = prefix.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : prefix.substr(0, slash + 1);
+  const std::string stem = slash == std::string::npos ? prefix : prefix.substr(slash + 1);
+  int best = -1;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string f = it->path().filename().string();
+    if (f.size() <= stem.size() + suffix.size() || f.compare(0, stem.size(), stem) != 0 ||
+        f.compare(f.size() - suffix.size(), suffix.size(), suffix) != 0)
+      continue;
+    const std::string digits = f.substr(stem.size(), f.size() - stem.size() - suffix.size());
+    if (digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    const int k = std::stoi(digits);
+    std::string n = std::to_string(k);
+    if (n.size() < width) n.insert(0, width - n.size(), '0');
+    if (n != digits || k <= missing || !IsFile(it->path().string())) continue;  // not a name the pattern makes
+    if (best < 0 || k < best) best = k;
+  }
+  return best;
+}
+
 bool ExpandPattern(const std::string& arg, std::vector<std::string>* files, std::string* error) {
   static const std::regex kIndex("%(0([0-9]{1,2}))?d");
   std::smatch m;
@@ -65,6 +100,14 @@ bool ExpandPattern(const std::string& arg, std::vector<std::string>* files, std:
     return false;
   }
   for (; IsFile(name(i)); ++i) files->push_back(name(i));
+  // A frame after the first missing index means a gap (a failed render, a
+  // file not yet copied): an error, not a sequence that silently ends early.
+  const int later = LaterIndex(prefix, suffix, width, i);
+  if (later > i) {
+    *error = "input pattern '" + arg + "' has a gap: '" + name(i) + "' is missing but '" + name(later) +
+             "' exists (list the frames to run them anyway)";
+    return false;
+  }
   return true;
 }
 

@@ -12,9 +12,10 @@ namespace camsim::io {
 //    by name byte-wise (so zero-pad frame numbers);
 //  - otherwise a printf-style pattern with exactly one %d or %0Nd (e.g.
 //    "frame_%04d.exr"): indices from 0 or 1, whichever exists first, up to the
-//    first missing index.
-// Fails (false, *error naming the argument) if an argument matches nothing or
-// `args` is empty; *files is then unchanged. No exception escapes.
+//    first missing index; a file of a later index (a gap) is an error.
+// Fails (false, *error naming the argument) if an argument matches nothing,
+// a pattern has a gap, or `args` is empty; *files is then unchanged. No
+// exception escapes.
 bool ExpandInputs(const std::vector<std::string>& args, std::vector<std::string>* files,
                   std::string* error);
 

@@ -499,18 +499,19 @@ TEST_F(IoTest, AtomicWriteIntoMissingDirectoryLeavesNothing) {
 }
 
 TEST_F(IoTest, FailedWriteKeepsExistingFile) {
-  const std::string path = Path("keep.png");
-  const uint8_t first[] = {10, 20}, second[] = {30, 40};
+  // A name so long (254 of NAME_MAX's 255 bytes) that no temporary name fits
+  // beside it: the write fails before it touches anything.
+  const std::string name = std::string(250, 'k') + ".png";
+  const std::string path = Path(name);
+  { std::ofstream(path) << "before"; }
+  const uint8_t second[] = {30, 40};
   std::string error;
-  ASSERT_TRUE(WritePng(path, first, 2, 1, 1, 8, 2, &error)) << error;
-  const std::string before = ReadBytes(path);
-  // A directory where the temporary file would go makes the next write fail.
-  fs::create_directory(path + ".tmp");
   EXPECT_FALSE(WritePng(path, second, 2, 1, 1, 8, 2, &error));
   EXPECT_NE(error.find(path), std::string::npos) << error;
-  EXPECT_EQ(ReadBytes(path), before);
-  EXPECT_TRUE(fs::is_directory(path + ".tmp"));  // not ours to remove
-  fs::remove(path + ".tmp");
+  EXPECT_NE(error.find("cannot create"), std::string::npos) << error;
+  EXPECT_EQ(ReadBytes(path), "before");
+  EXPECT_EQ(DirEntries(), (std::vector<std::string>{name}));
+  fs::remove(path);
 
   // Target is an existing directory: the rename fails, the temp file is removed.
   const std::string target_dir = Path("adir");
@@ -518,7 +519,22 @@ TEST_F(IoTest, FailedWriteKeepsExistingFile) {
   EXPECT_FALSE(WriteTextFile(target_dir, "x", &error));
   EXPECT_NE(error.find(target_dir), std::string::npos) << error;
   EXPECT_TRUE(fs::is_directory(target_dir));
-  EXPECT_EQ(DirEntries(), (std::vector<std::string>{"adir", "keep.png"}));
+  EXPECT_EQ(DirEntries(), std::vector<std::string>{"adir"});  // its temporary file is gone
+}
+
+// A file or directory with the old fixed temporary name (`path.tmp`), e.g.
+// an input of the same run, is neither written nor removed.
+TEST_F(IoTest, TemporaryNamesNeverTouchExistingFiles) {
+  const std::string path = Path("frame.png");
+  { std::ofstream(path + ".tmp") << "an input"; }
+  fs::create_directory(path + ".tmp." + std::to_string(getpid()) + ".x");
+  const uint8_t data[] = {10, 20};
+  std::string error;
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(WritePng(path, data, 2, 1, 1, 8, 2, &error)) << error;
+  EXPECT_EQ(ReadBytes(path + ".tmp"), "an input");
+  EXPECT_EQ(ReadBytes(path).substr(1, 3), "PNG");
+  EXPECT_EQ(DirEntries(), (std::vector<std::string>{"frame.png", "frame.png.tmp",
+                                                     "frame.png.tmp." + std::to_string(getpid()) + ".x"}));
 }
 
 TEST_F(IoTest, WriteExrFloatRejectsBadChannels) {
@@ -606,17 +622,37 @@ TEST_F(IoTest, ExpandDirectory) {
 }
 
 TEST_F(IoTest, ExpandPatternAndFiles) {
-  for (const char* n : {"f_0001.exr", "f_0002.exr", "f_0003.exr", "f_0005.exr", "s0.exr", "s1.exr"}) {
+  // f_05.exr and f_00005.exr are not names %04d makes: no gap.
+  for (const char* n : {"f_0001.exr", "f_0002.exr", "f_0003.exr", "f_05.exr", "f_00005.exr", "f_0005.exr.bak",
+                        "s0.exr", "s1.exr", "t_9.exr"}) {
     WriteBytes(Path(n), "x");
   }
   std::vector<std::string> files;
   std::string error;
-  ASSERT_TRUE(ExpandInputs({Path("f_%04d.exr"), Path("s%d.exr"), Path("f_0005.exr")}, &files,
-                           &error))
+  ASSERT_TRUE(ExpandInputs({Path("f_%04d.exr"), Path("s%d.exr"), Path("t_9.exr")}, &files, &error)) << error;
+  EXPECT_EQ(files, (std::vector<std::string>{Path("f_0001.exr"), Path("f_0002.exr"), Path("f_0003.exr"),
+                                             Path("s0.exr"), Path("s1.exr"), Path("t_9.exr")}));
+}
+
+// A missing frame inside a numbered sequence stops nothing silently.
+TEST_F(IoTest, ExpandPatternWithAGapIsAnError) {
+  for (const char* n : {"f_0001.exr", "f_0002.exr", "f_0004.exr", "f_0007.exr"}) WriteBytes(Path(n), "x");
+  std::vector<std::string> files = {"keep"};
+  std::string error;
+  EXPECT_FALSE(ExpandInputs({Path("f_%04d.exr")}, &files, &error));
+  EXPECT_EQ(error, "input pattern '" + Path("f_%04d.exr") + "' has a gap: '" + Path("f_0003.exr") +
+                       "' is missing but '" + Path("f_0004.exr") + "' exists (list the frames to run them anyway)");
+  EXPECT_EQ(files, std::vector<std::string>{"keep"});
+  // The same where the index names a directory (the next indices are tried).
+  for (const char* d : {"d1", "d2", "d9"}) {
+    fs::create_directory(Path(d));
+    WriteBytes(Path(std::string(d) + "/x.exr"), "x");
+  }
+  EXPECT_FALSE(ExpandInputs({Path("d%d/x.exr")}, &files, &error));
+  EXPECT_NE(error.find("'" + Path("d3/x.exr") + "' is missing but '" + Path("d9/x.exr") + "' exists"),
+            std::string::npos)
       << error;
-  EXPECT_EQ(files, (std::vector<std::string>{Path("f_0001.exr"), Path("f_0002.exr"),
-                                             Path("f_0003.exr"), Path("s0.exr"), Path("s1.exr"),
-                                             Path("f_0005.exr")}));
+  EXPECT_EQ(files, std::vector<std::string>{"keep"});
 }
 
 TEST_F(IoTest, ExpandErrors) {
