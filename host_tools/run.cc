@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <sstream>
 
@@ -497,32 +498,47 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
 
 }  // namespace
 
+namespace {
+
+// A failure before the run knows its inputs (so before --report is claimed):
+// the error goes to the report only where that cannot lose a file, i.e. when
+// nothing is at that path, or an earlier camsim report is (which would
+// otherwise pass for this run's). Anything else there is left alone.
+int FailBeforeClaim(const RunOptions& o, const std::string& message) {
+  std::fprintf(stderr, "camsim: %s\n", message.c_str());
+  if (o.report_path.empty()) return 1;
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::symlink_status(o.report_path, ec);
+  bool ours = !std::filesystem::exists(st);
+  if (std::filesystem::is_regular_file(st)) {
+    const std::string head = std::string("{\n  \"camsim_version\": \"");
+    std::ifstream in(o.report_path, std::ios::binary);
+    std::string start(head.size(), '\0');
+    ours = in.read(start.data(), static_cast<std::streamsize>(start.size())) && start == head;
+  }
+  std::string werr;
+  if (!ours)
+    std::fprintf(stderr, "camsim: --report '%s' is not a camsim report: left as it is\n", o.report_path.c_str());
+  else if (!io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
+    std::fprintf(stderr, "camsim: %s\n", werr.c_str());
+  return 1;
+}
+
+}  // namespace
+
 int RunCommand(const RunOptions& o) {
   RunConfig rc;
   Origins origins;
   std::string error;
-  if (!o.preset.empty() && !ApplyPreset(o.preset, &rc, &origins, &error)) {
-    std::fprintf(stderr, "camsim: %s\n", error.c_str());
-    return 1;
-  }
-  if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error)) {
-    std::fprintf(stderr, "camsim: %s\n", error.c_str());
-    return 1;
-  }
+  if (!o.preset.empty() && !ApplyPreset(o.preset, &rc, &origins, &error)) return FailBeforeClaim(o, error);
+  if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error))
+    return FailBeforeClaim(o, error);
   for (const std::string& s : o.overrides)
-    if (!ApplyOverride(s, &rc, &origins, &error)) {
-      std::fprintf(stderr, "camsim: %s\n", error.c_str());
-      return 1;
-    }
-  if (!o.stages.empty() && !SplitStages(o.stages, &rc, &error)) {
-    std::fprintf(stderr, "camsim: %s\n", error.c_str());
-    return 1;
-  }
+    if (!ApplyOverride(s, &rc, &origins, &error)) return FailBeforeClaim(o, error);
+  if (!o.stages.empty() && !SplitStages(o.stages, &rc, &error)) return FailBeforeClaim(o, error);
   if (!o.stages.empty()) origins["pipeline.stages"] = "--stages";
-  if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0) {
-    std::fprintf(stderr, "camsim: --threads must be 1..64 and --strip-rows >= 1\n");
-    return 1;
-  }
+  if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0)
+    return FailBeforeClaim(o, "--threads must be 1..64 and --strip-rows >= 1");
   // Every file the run reads (scenes, depth, the configuration and the files
   // it names) by resolved path, and the paths outputs claim: no output may
   // overwrite an input or another output of this run.

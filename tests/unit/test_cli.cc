@@ -613,6 +613,30 @@ TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
   EXPECT_NE(text.find("no\\ufffd\\ufffd such.exr"), std::string::npos) << text;
   for (char c : text) EXPECT_LT(static_cast<unsigned char>(c), 0x80u) << "a raw byte in " << text;
 
+  // A failure before the inputs are known (a --set typo, an unknown stage)
+  // replaces an earlier camsim report too, and writes one where none is.
+  ASSERT_EQ(Camsim("run --config " + kConfig + " --input " + kScene + " --out " + dir + "/out --report " + report).code,
+            0);
+  const Result typo = Camsim("run --config " + kConfig + " --set sensor.ful_well_e=1 --input " + kScene + " --out " +
+                             dir + "/out --report " + report);
+  EXPECT_EQ(typo.code, 1);
+  EXPECT_NE(Slurp(report).find("\"error\": \"--set: unknown key 'sensor.ful_well_e'"), std::string::npos)
+      << Slurp(report);
+  const std::string fresh = dir + "/fresh.json";
+  EXPECT_EQ(Camsim("run --stages exposure,nosuch --input " + kScene + " --out " + dir + "/out --report " + fresh).code,
+            1);
+  EXPECT_NE(Slurp(fresh).find("\"error\": \"--stages"), std::string::npos) << Slurp(fresh);
+  // Anything else at that path may be a file the broken configuration names:
+  // it is left alone.
+  const std::string notes = dir + "/notes.json";
+  std::ofstream(notes) << "{\"mine\": 1}\n";
+  const Result other = Camsim("run --set sensor.ful_well_e=1 --input " + kScene + " --out " + dir + "/out --report " +
+                              notes);
+  EXPECT_EQ(other.code, 1);
+  EXPECT_EQ(Slurp(notes), "{\"mine\": 1}\n");
+  EXPECT_NE(other.err.find("--report '" + notes + "' is not a camsim report: left as it is"), std::string::npos)
+      << other.err;
+
   const std::string odd = dir + "/odd_channels.exr";
   camsim::test::WriteExrFixture(odd, camsim::test::Box(0, 0, 3, 3), camsim::test::Box(0, 0, 3, 3),
                         {{"Q\x1b[31mred", Imf::FLOAT, std::vector<float>(16, 1.0f)}});
@@ -620,6 +644,48 @@ TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
   EXPECT_EQ(o.code, 1);
   EXPECT_NE(o.err.find("Q\\x1b[31mred"), std::string::npos) << o.err;
   EXPECT_EQ(o.err.find('\x1b'), std::string::npos) << "an escape sequence reached the terminal";
+}
+
+// tradeoff checks its input as `camsim run` does: a stage without its depth
+// plane is an error naming it (it used to read a plane that is not there).
+TEST(Cli, TradeoffRefusesAnInputWithoutTheDepthItNeeds) {
+  const std::string dir = TempDir("tradeoff_depth");
+  const std::string flat = dir + "/rgb_only.exr";
+  const std::vector<float> grey(64 * 32, 0.5f);
+  camsim::test::WriteExrFixture(flat, camsim::test::Box(0, 0, 63, 31), camsim::test::Box(0, 0, 63, 31),
+                                {{"R", Imf::FLOAT, grey}, {"G", Imf::FLOAT, grey}, {"B", Imf::FLOAT, grey}});
+  for (const std::string set : {"dof.method=diffusion", "dof.method=gather", "motion.source=vectors",
+                                "motion.source=camera --set 'motion.linear_velocity_m_s=[1,0,0]'"}) {
+    const Result r = Camsim("tradeoff --config " + kConfig + " --input " + flat + " --out " + dir + "/out --set " + set +
+                            " --frames 1");
+    EXPECT_EQ(r.code, 1) << set;
+    EXPECT_NE(r.err.find(flat + ": "), std::string::npos) << set << ": " << r.err;
+    EXPECT_NE(r.err.find(set[0] == 'd' ? "depth of field needs a sensor-sized depth plane"
+                                       : set == "motion.source=vectors" ? "needs sensor-sized motion vector planes"
+                                                                        : "camera translation needs"),
+              std::string::npos)
+        << set << ": " << r.err;
+    EXPECT_FALSE(Exists(dir + "/out/tradeoff.csv")) << set;
+  }
+  // With the planes it needs, the same run works (flare's pre-pass included).
+  EXPECT_EQ(Camsim("tradeoff --config " + kConfig + " --input " + kScene + " --out " + dir +
+                   "/ok --set dof.method=diffusion --set flare.enabled=true --set sensor.width=96"
+                   " --set sensor.height=64 --frames 1")
+                .code,
+            0);
+  EXPECT_TRUE(Exists(dir + "/ok/tradeoff.csv"));
+}
+
+// An input named like the old fixed temporary name of an output
+// (`OUT.tmp`) is read, not overwritten and renamed away.
+TEST(Cli, AnInputNamedLikeAnOutputsTemporaryFileSurvives) {
+  const std::string dir = TempDir("tmpname");
+  std::system(("cp '" + kScene + "' '" + dir + "/shot.png.tmp'").c_str());
+  const std::string before = Slurp(dir + "/shot.png.tmp");
+  const Result r = Camsim("preview --input " + dir + "/shot.png.tmp --out " + dir + "/shot.png");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(Slurp(dir + "/shot.png.tmp") == before);
+  EXPECT_EQ(Slurp(dir + "/shot.png").substr(1, 3), "PNG");
 }
 
 // The report counts what the EXR reader replaced in the depth channel too
