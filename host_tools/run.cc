@@ -577,6 +577,18 @@ int RunCommand(const RunOptions& o) {
     const char* why = made == 0 || mkdir_errno == EEXIST ? "a file of that name is in the way" : std::strerror(mkdir_errno);
     return fail(2, "cannot create output directory '" + o.out_dir + "': " + why);
   }
+  // A report that could not be written would fail only after every frame
+  // (checked once --out exists: the report may go inside it).
+  if (!o.report_path.empty()) {
+    std::error_code ec;
+    const std::filesystem::path report(o.report_path);
+    const std::filesystem::path parent = report.has_parent_path() ? report.parent_path() : ".";
+    if (std::filesystem::is_directory(report, ec) || !std::filesystem::is_directory(parent, ec)) {
+      std::fprintf(stderr, "camsim: --report '%s': %s\n", o.report_path.c_str(),
+                   std::filesystem::is_directory(report, ec) ? "is a directory" : "its directory does not exist");
+      return 2;
+    }
+  }
 
   FrameRenderer renderer(o.threads, o.strip_rows);
   const RunConfig user_config = rc;  // rc becomes the finished configuration

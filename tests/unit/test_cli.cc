@@ -626,6 +626,14 @@ TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
   EXPECT_EQ(Camsim("run --stages exposure,nosuch --input " + kScene + " --out " + dir + "/out --report " + fresh).code,
             1);
   EXPECT_NE(Slurp(fresh).find("\"error\": \"--stages"), std::string::npos) << Slurp(fresh);
+  // A report that cannot be written stops the run before its first frame.
+  const Result into_dir = Camsim("run --input " + kScene + " --out " + dir + "/out2 --report " + dir);
+  EXPECT_EQ(into_dir.code, 2);
+  EXPECT_NE(into_dir.err.find("--report '" + dir + "': is a directory"), std::string::npos) << into_dir.err;
+  const Result no_dir = Camsim("run --input " + kScene + " --out " + dir + "/out2 --report " + dir + "/none/r.json");
+  EXPECT_EQ(no_dir.code, 2);
+  EXPECT_NE(no_dir.err.find("its directory does not exist"), std::string::npos) << no_dir.err;
+  EXPECT_FALSE(Exists(dir + "/out2/aisle_0001.png"));
   // Anything else at that path may be a file the broken configuration names:
   // it is left alone.
   const std::string notes = dir + "/notes.json";
