@@ -104,7 +104,7 @@ int Run(int argc, char** argv) {
         std::fprintf(stderr, "camsim: --calibration: the path must not contain ' or a newline\n");
         return 1;
       }
-      o.overrides.push_back("distortion.calibration='" + path + "'");
+      o.calibration_path = path;
     }
     else if (a == "--stages") o.stages = value("a list");
     else if (a == "--report") o.report_path = value("a file");

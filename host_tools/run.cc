@@ -535,6 +535,11 @@ int RunCommand(const RunOptions& o) {
     return FailBeforeClaim(o, error);
   for (const std::string& s : o.overrides)
     if (!ApplyOverride(s, &rc, &origins, &error)) return FailBeforeClaim(o, error);
+  if (!o.calibration_path.empty()) {  // (camsim_main refuses a path with ' or a newline)
+    if (!ApplyOverride("distortion.calibration='" + o.calibration_path + "'", &rc, &origins, &error))
+      return FailBeforeClaim(o, error);
+    origins["distortion.calibration"] = "--calibration '" + o.calibration_path + "'";
+  }
   if (!o.stages.empty() && !SplitStages(o.stages, &rc, &error)) return FailBeforeClaim(o, error);
   if (!o.stages.empty()) origins["pipeline.stages"] = "--stages";
   if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0)

@@ -15,6 +15,7 @@ struct RunOptions {
   std::string depth_path;              // separate depth file (single frame)
   std::string out_dir;
   std::vector<std::string> overrides;  // --set section.key=value
+  std::string calibration_path;        // --calibration YAML: distortion.calibration, named as such in errors
   std::string stages;                  // --stages a,b,c (comma-separated)
   std::string report_path;             // --report FILE (JSON)
   int threads = 1;

@@ -268,6 +268,20 @@ TEST(Calibration, PatternCommandWritesLoadableTargets) {
   // ... and refused for a 16:9 one.
   ASSERT_EQ(RunCamsim("pattern dot-grid --out " + dir + "/wide.exr --width 160 --height 90 --supersample 1"), 0);
   EXPECT_EQ(RunCamsim("run --input " + dir + "/wide.exr --out " + dir + "/out2 --calibration " + cal + " --quiet"), 1);
+  // A lens the file gives that the stage refuses names the file, not a --set.
+  std::string zero_fx = kOpenCv;
+  zero_fx.replace(zero_fx.find("5.3591573396163199e+02"), 22, "0.");
+  const std::string bad = dir + "/zero_fx.yml";
+  std::ofstream(bad) << zero_fx;
+  const std::string err = dir + "/err.txt";
+  EXPECT_NE(std::system((std::string(CAMSIM_BINARY) + " run --input " + dir + "/dot-grid.exr --out " + dir +
+                         "/out3 --calibration " + bad + " --quiet 2>'" + err + "' >/dev/null")
+                            .c_str()),
+            0);
+  std::ifstream in(err);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(text.find("--calibration '" + bad + "': distortion.calibration gives distortion.fx"), std::string::npos)
+      << text;
 }
 
 }  // namespace
