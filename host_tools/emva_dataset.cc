@@ -58,10 +58,15 @@ bool ParseDescriptor(const std::string& path, Descriptor* out, std::string* erro
     if (key == "v") continue;
     if (key == "n") {
       long bits = 0, width = 0, height = 0;
+      const auto whole = [](const std::string& t, long* v) {  // all of t, or 0 (refused below)
+        char* end = nullptr;
+        *v = std::strtol(t.c_str(), &end, 10);
+        if (end == t.c_str() || *end != '\0') *v = 0;
+      };
       if (w.size() == 4) {
-        bits = std::strtol(w[1].c_str(), nullptr, 10);
-        width = std::strtol(w[2].c_str(), nullptr, 10);
-        height = std::strtol(w[3].c_str(), nullptr, 10);
+        whole(w[1], &bits);
+        whole(w[2], &width);
+        whole(w[3], &height);
       }
       if (w.size() != 4 || bits < 1 || bits > 16 || width < 2 || width > 16384 || height < 2 || height > 16384)
         return fail("expected 'n BITS WIDTH HEIGHT' with BITS 1..16 and a size of 2..16384");

@@ -151,6 +151,11 @@ int PatternCommand(int argc, char** argv) {
       std::fprintf(stderr, "camsim: %s: '%s' is not a number\n", a.c_str(), v);
       return 1;
     }
+    const bool whole = num == std::floor(num);  // sizes and the supersample count are whole numbers
+    if ((a == "--width" || a == "--height" || a == "--supersample") && !whole) {
+      std::fprintf(stderr, "camsim: %s: '%s' is not a whole number\n", a.c_str(), v);
+      return 1;
+    }
     if (a == "--width" && num >= 8 && num <= 16384) o.width = static_cast<int>(num);
     else if (a == "--height" && num >= 8 && num <= 16384) o.height = static_cast<int>(num);
     else if (a == "--cell" && num >= 4) o.cell = num;

@@ -49,7 +49,7 @@ Status AutoExposure::Configure(const AutoExposureConfig& c, const ExposureSettin
     return InvalidArgument("auto_exposure.target",
                            "target * 2^settle_ev must be above black_fraction, or frames near the target count as "
                            "black and it never settles");
-  const bool aperture = c.f_number_min > 0 || c.f_number_max > 0;
+  const bool aperture = c.f_number_min != 0 || c.f_number_max != 0;  // (a negative one is refused, not "fixed")
   if (aperture && (!InRange(c.f_number_min, 0.5, 128.0) || !InRange(c.f_number_max, c.f_number_min, 128.0)))
     return InvalidArgument("auto_exposure.f_number_max", "need 0.5 <= min <= max <= 128 (or both 0: fixed)");
   bool seen[3] = {};

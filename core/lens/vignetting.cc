@@ -178,7 +178,7 @@ Status VignettingStage::Configure(const VignettingConfig& c, const SensorGeometr
           return InvalidArgument("vignetting.table", "gains must be in [0, 3.9999]");
       break;
     case VignettingMode::kMask:
-      if (!has_mask) return InvalidArgument("vignetting.mask", "mode 'mask' needs a mask image");
+      if (!has_mask) return InvalidArgument("vignetting.mode", "'mask' needs a mask image (vignetting.mask)");
       break;
     default: return InvalidArgument("vignetting.mode", "must be off, cos4, table or mask");
   }

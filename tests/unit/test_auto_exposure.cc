@@ -222,6 +222,13 @@ TEST(AutoExposure, OffChangesNothingAndBadConfigNamesTheKey) {
   AutoExposureConfig bad = Continuous();
   bad.start_ev = 0.01;  // below settle_ev
   EXPECT_EQ(std::string(ae.Configure(bad, initial).field()), "auto_exposure.start_ev");
+  // Only both limits at 0 mean a fixed aperture; a negative one is refused.
+  AutoExposureConfig negative = Continuous();
+  negative.f_number_min = -1.0;
+  EXPECT_EQ(std::string(ae.Configure(negative, initial).field()), "auto_exposure.f_number_max");
+  negative.f_number_min = 0.0;
+  negative.f_number_max = -4.0;
+  EXPECT_EQ(std::string(ae.Configure(negative, initial).field()), "auto_exposure.f_number_max");
 }
 
 // A target whose settle band counts as saturated (or black) would make the

@@ -247,6 +247,8 @@ TEST(Calibration, PatternCommandWritesLoadableTargets) {
   }
   EXPECT_NE(RunCamsim("pattern hexagons --out " + dir + "/x.exr"), 0);
   EXPECT_NE(RunCamsim("pattern checkerboard --out " + dir + "/x.exr --width 2"), 0);
+  EXPECT_NE(RunCamsim("pattern checkerboard --out " + dir + "/x.exr --width 12.7"), 0);  // not truncated to 12
+  EXPECT_NE(RunCamsim("pattern checkerboard --out " + dir + "/x.exr --supersample 2.5"), 0);
   // It runs through a camera distorting as a calibration file says: made at
   // 640x480, scaled to this 160x120 target (the same aspect ratio) ...
   const std::string cal = dir + "/cal.yml";

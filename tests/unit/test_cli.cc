@@ -404,6 +404,11 @@ TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
   const Result nan = Camsim("run --set exposure.f_number=nan --input " + kScene + " --out " + dir);
   EXPECT_EQ(nan.code, 1);
   EXPECT_NE(nan.err.find("exposure.f_number"), std::string::npos) << nan.err;
+  // A mask mode without its image names the mode's --set.
+  const Result mask = Camsim("run --set vignetting.mode=mask --input " + kScene + " --out " + dir);
+  EXPECT_EQ(mask.code, 1);
+  EXPECT_NE(mask.err.find("--set: vignetting.mode 'mask' needs a mask image (vignetting.mask)"), std::string::npos)
+      << mask.err;
 }
 
 // Every file a run reads is an input no output may replace: the --config

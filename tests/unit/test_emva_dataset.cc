@@ -126,6 +126,8 @@ TEST(EmvaDataset, MalformedDatasetsNameTheFileAndLine) {
   const std::string pair = WriteSeries(cam, dir, "p", 100, 2);
   EXPECT_NE(MeasureError("n 12 128 128\nq 1\n", dir).find("bad.txt:2: unknown line 'q'"), std::string::npos);
   EXPECT_NE(MeasureError("n 12 128\n", dir).find("bad.txt:1: expected 'n BITS WIDTH HEIGHT'"), std::string::npos);
+  EXPECT_NE(MeasureError("n 12abc 128 128\n", dir).find("bad.txt:1: expected 'n BITS WIDTH HEIGHT'"), std::string::npos);
+  EXPECT_NE(MeasureError("n 12 128 128.5\n", dir).find("bad.txt:1: expected 'n BITS WIDTH HEIGHT'"), std::string::npos);
   EXPECT_NE(MeasureError("n 12 128 128\nb 10 nan\n" + pair, dir).find("bad.txt:2: expected 'b EXPOSURE PHOTONS'"),
             std::string::npos);
   EXPECT_NE(MeasureError("n 12 128 128\nd 10\ni images/p_0.png\n", dir).find("bad.txt:2: a series needs at least 2"),
