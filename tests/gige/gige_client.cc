@@ -1,5 +1,7 @@
 #include "tests/gige/gige_client.h"
 
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cstring>
 #include <thread>
@@ -111,6 +113,8 @@ void Settle(Client& c) {
     if (arv_camera_get_integer(c.camera(), "SimSyncCount", nullptr) >= start + 2) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+  // Read-backs after this would test a state the device may not have reached.
+  ADD_FAILURE() << "the device did not sync twice within 10 s (SimSyncCount stayed below " << start + 2 << ")";
 }
 
 }  // namespace camsim::gigetest

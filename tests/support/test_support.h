@@ -7,9 +7,19 @@
 #include <string>
 #include <vector>
 
+#include "core/base/simd.h"
 #include "core/pipeline/pipeline.h"
 #include "core/pipeline/stage.h"
 #include "host_tools/config.h"
+
+// For a test of lane kernels (AVX2, AVX-512) against their portable twins:
+// in a build without them (the debug build's CAMSIM_NO_CPU_CLONES, other
+// architectures) or on a CPU without AVX2, both sides are the same code, so
+// the test is skipped and says why instead of passing.
+#define CAMSIM_SKIP_WITHOUT_LANE_KERNELS()                                   \
+  if (!::camsim::CpuHasAvx2())                                               \
+  GTEST_SKIP() << "no SIMD lanes in this build or on this CPU: the lanes are " \
+                  "the portable code here"
 
 namespace camsim::test {
 

@@ -80,7 +80,7 @@ void StepFigures(const Trace& t, double step_sign, int* frames, double* overshoo
 TEST(AutoExposure, EightStopStepsConvergeWithinFiveFramesWithoutOvershoot) {
   for (double step : {8.0, -8.0, 3.0, -3.0, 0.5}) {
     Settled s;
-    Settle(&s, Continuous());
+    ASSERT_NO_FATAL_FAILURE(Settle(&s, Continuous()));
     const double lum = std::exp2(step);
     const Trace t = RunLoop(s.ae, s.plant, 30, [lum](int) { return lum; });
     int frames = 0;
@@ -100,7 +100,7 @@ TEST(AutoExposure, EightStopStepsConvergeWithinFiveFramesWithoutOvershoot) {
 
 TEST(AutoExposure, BlackFrameDoesNotWindUpAndRecovers) {
   Settled s;
-  Settle(&s, Continuous());
+  ASSERT_NO_FATAL_FAILURE(Settle(&s, Continuous()));
   // 40 black frames: the EV goes to its maximum and stays there.
   const Trace black = RunLoop(s.ae, s.plant, 40, [](int) { return 0.0; });
   EXPECT_DOUBLE_EQ(s.ae.ev(), s.ae.ev_max());
@@ -123,7 +123,7 @@ TEST(AutoExposure, BlackFrameDoesNotWindUpAndRecovers) {
 
 TEST(AutoExposure, SaturatedFrameDoesNotWindUpAndRecovers) {
   Settled s;
-  Settle(&s, Continuous());
+  ASSERT_NO_FATAL_FAILURE(Settle(&s, Continuous()));
   const Trace sat = RunLoop(s.ae, s.plant, 40, [](int) { return 1e9; });
   EXPECT_DOUBLE_EQ(s.ae.ev(), s.ae.ev_min());
   const Trace back = RunLoop(s.ae, s.plant, 20, [](int) { return 1.0; });
@@ -156,7 +156,7 @@ TEST(AutoExposure, FlickerDoesNotMakeItOscillate) {
 
 TEST(AutoExposure, FlickerAfterSettlingChangesNothing) {
   Settled s;
-  Settle(&s, Continuous());
+  ASSERT_NO_FATAL_FAILURE(Settle(&s, Continuous()));
   const double ev = s.ae.ev();
   RunLoop(s.ae, s.plant, 50, [](int n) { return std::exp2(n % 2 ? 0.4 : -0.4); });
   EXPECT_EQ(s.ae.ev(), ev);

@@ -244,6 +244,7 @@ TEST(DofSolver, WideAndSplitProductsAgree) {
 }
 
 TEST(DofSolver, RowUpdatesInLanesMatchScalar) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   // PullRow and BackRow (AVX-512 or AVX2 lanes on x86-64) against MulQ30 and OutOf one
   // by one, over the whole contract: |difference| < 2^49, weights 0 .. 2^30,
   // y on both sides of the output range (saturation), every tail length.

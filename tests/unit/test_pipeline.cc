@@ -5,6 +5,9 @@
 #include <vector>
 
 #include "core/pipeline/pipeline.h"
+#include "host_tools/config.h"
+#include "host_tools/io/exr_scene.h"
+#include "host_tools/scene_input.h"
 #include "tests/support/allocations.h"
 #include "tests/support/test_support.h"
 
@@ -196,6 +199,70 @@ TEST(Pipeline, NoHeapAllocationWhileProcessing) {
   for (uint32_t frame = 0; frame < 3; ++frame) b->pipeline.ProcessFrame(in, frame, 7, &t, 1, &stats, nullptr);
   EXPECT_EQ(test::AllocationCount() - before, 0);
   EXPECT_GT(stats.stage[0].count[0], 0);  // the work did happen
+}
+
+// The same for every stage a frame can run, on two workers (strips of 7 rows
+// taken in turn), pre-passes included: configs/tradeoff.toml (distortion with
+// chromatic scale, diffusion DoF, motion blur from camera motion) plus flare,
+// blooming, smear, row and column noise, hot pixels, a colour matrix and the
+// fixed-pattern table; then the gather DoF with motion vectors. Only the
+// configuration (host code) allocates, before the count starts.
+TEST(Pipeline, NoHeapAllocationWhileProcessingEveryStage) {
+  const std::vector<std::string> every = {
+      "flare.enabled=true",         "flare.threshold=0.5",          "blooming.enabled=true",
+      "sensor.smear_row_transfer_us=2", "sensor.row_fpn_e=1",       "sensor.column_fpn_e=1",
+      "sensor.hot_pixel_fraction=0.01", "sensor.fixed_pattern_table=true",
+      "color_matrix.m=[1.2, -0.1, -0.1, -0.1, 1.2, -0.1, -0.1, -0.1, 1.2]"};
+  const std::vector<std::string> gather = [&every] {
+    std::vector<std::string> g = every;
+    g.insert(g.end(), {"dof.method=gather", "motion.source=vectors"});
+    return g;
+  }();
+  io::SceneFrame scene;
+  std::string error;
+  ASSERT_TRUE(io::LoadSceneExr(CAMSIM_SOURCE_DIR "/scenes/aisle_0001.exr", "", &scene, &error)) << error;
+  for (const auto* sets : {&every, &gather}) {
+    host::RunConfig rc;
+    host::Origins origins;
+    ASSERT_TRUE(host::LoadConfigFile(CAMSIM_SOURCE_DIR "/configs/tradeoff.toml", &rc, &origins, &error)) << error;
+    for (const std::string& a : *sets) ASSERT_TRUE(host::ApplyOverride(a, &rc, &origins, &error)) << error;
+    ASSERT_TRUE(host::ApplyOverride("sensor.width=96", &rc, &origins, &error)) << error;
+    ASSERT_TRUE(host::ApplyOverride("sensor.height=64", &rc, &origins, &error)) << error;
+    ASSERT_TRUE(host::ApplyOverride("sensor.scene_fit=scale", &rc, &origins, &error)) << error;
+    std::unique_ptr<Pipeline> p;
+    ASSERT_TRUE(host::FinishConfig(&rc, scene.width, scene.height, origins, 2, &error, nullptr, &p)) << error;
+    // Every stage of the order runs but the other DoF method.
+    std::string left_out;
+    for (int i = 0; i < p->plan().count; ++i)
+      if (!p->plan().entries[i].runs)
+        left_out += std::string(StageName(p->plan().entries[i].id)) + " (" + p->plan().entries[i].reason + ") ";
+    // All but the other DoF method (one stage or two) and the cfa, whose
+    // mosaic the distortion writes itself.
+    EXPECT_EQ(p->plan().running, kStageCount - (sets == &every ? 2 : 3)) << left_out;
+    std::vector<uint8_t> workspace(p->WorkspaceBytes());
+    ASSERT_TRUE(p->Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok());
+    host::CoreInput input;
+    host::PrepareInput(scene, p->width(), p->height(), rc.fit, &input);
+    std::vector<FlareSource> sources(static_cast<size_t>(p->PrepassFlareSources()));
+    std::vector<uint32_t> smear(static_cast<size_t>(p->PrepassSmearEntries()));
+    FlareFrame flare;
+    std::vector<uint8_t> out(static_cast<size_t>(p->width()) * p->height() * 3);
+    Tap t;
+    t.format = TapFormat::kU8;
+    t.data = out.data();
+    t.stride = p->width() * 3;
+    WorkerStats stats[2];
+    const long before = test::AllocationCount();
+    for (uint32_t frame = 0; frame < 2; ++frame) {
+      const FrameInput in = p->RunPrepasses(input.View(), Span<FlareSource>{sources.data(), sources.size()}, &flare,
+                                            Span<uint32_t>{smear.data(), smear.size()});
+      ASSERT_TRUE(p->CheckInput(in).ok());
+      for (int y0 = 0, k = 0; y0 < p->height(); y0 += 7, ++k)
+        p->ProcessStrip(in, frame, y0, y0 + 7, k % 2, &t, 1, &stats[k % 2], nullptr);
+    }
+    EXPECT_EQ(test::AllocationCount() - before, 0) << (sets == &every ? "diffusion" : "gather");
+    EXPECT_GT(stats[0].stage[0].count[1] + stats[1].stage[0].count[1], 0);  // the work did happen
+  }
 }
 
 TEST(Pipeline, CheckInputRejectsWrongSizes) {

@@ -9,6 +9,7 @@
 #include "core/base/detmath.h"
 #include "core/base/random.h"
 #include "core/base/simd.h"
+#include "tests/support/test_support.h"
 
 namespace camsim {
 namespace {
@@ -182,6 +183,7 @@ TEST(ISqrt64Test, RandomValuesOfEveryMagnitude) {
 // their neighbours, powers of two, both ends of every table cell at every
 // scale, random values, and 0 and 2^64 - 1 between them in the same vector.
 TEST(ISqrt64Test, LanesMatchScalar) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   std::vector<uint64_t> x;
   for (uint64_t v = 0; v < 4096; ++v) x.push_back(v);
   for (uint64_t r = 1; r <= 0xFFFFFFFFu; r += (r >> 11) + 1)
@@ -332,6 +334,7 @@ TEST_F(GaussianTest, MatchesExactQuantileOfBucketMidpoint) {
 // bits: a stride through all words, every segment's ends, both tails, and
 // lengths that are not a multiple of the sixteen or eight lanes.
 TEST_F(GaussianTest, LanesMatchSample) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   std::vector<uint32_t> u;
   for (uint64_t w = 0; w < (uint64_t{1} << 32); w += 4099) u.push_back(static_cast<uint32_t>(w));
   for (int s = 0; s < 31; ++s)
@@ -457,6 +460,7 @@ TEST_F(PoissonTest, ProbabilityOfZeroIsExact) {
 // the scalar Sample), and random. Lanes that stop early sit next to lanes
 // that search on, and the count is odd so that the scalar tail runs too.
 TEST_F(PoissonTest, SmallLanesMatchSample) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   std::vector<uint32_t> lambda, u;
   std::mt19937 rng(11);
   for (uint32_t q = 0; q < PoissonTable::kSmallQ8; ++q) {
@@ -527,6 +531,7 @@ TEST_F(PoissonTest, LargeMeansSaturateAndNeverOverflow) {
 // a given sigma against Sample: a stride through every lambda_q8, the edges
 // of the normal branch and of every power of two.
 TEST_F(PoissonTest, SigmaLanesMatchSigma) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   std::vector<uint32_t> lambda;
   for (uint64_t q = 0; q <= 0xFFFFFFFFu; q += 40009) lambda.push_back(static_cast<uint32_t>(q));
   for (int b = 0; b < 32; ++b)

@@ -224,6 +224,7 @@ std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uin
 // and seeded defects (a block's lanes stop before its first defect pixel),
 // also with stored patterns, FPN and smear on a 3-channel sensor.
 TEST(Sensor, LanesGiveThePortableBytes) {
+  CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   const int h = 9;
   std::mt19937 rng(5);
   const DefectPixel listed[] = {{3, 4, DefectKind::kHot, -1.0}};
