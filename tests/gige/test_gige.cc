@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <arpa/inet.h>
 #include <netinet/in.h>
+#include <png.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -1425,6 +1426,26 @@ TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
   const auto f = c.Grab(3000);
   ASSERT_EQ(f.size(), expected.size());
   EXPECT_TRUE(f == expected) << "BayerRG12 frame 4 differs from camsim run's .raw";
+  c.CloseStream();
+  // RGB8 against the PNG camsim run wrote for the same frame, decoded by
+  // libpng (not through the device's own conversion code).
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  ASSERT_TRUE(png_image_begin_read_from_file(&png, (dir + "/aisle_0001.png").c_str())) << png.message;
+  png.format = PNG_FORMAT_RGB;
+  std::vector<uint8_t> rgb(PNG_IMAGE_SIZE(png));
+  ASSERT_TRUE(png_image_finish_read(&png, nullptr, rgb.data(), 0, nullptr)) << png.message;
+  ASSERT_EQ(rgb.size(), 96u * 64u * 3u);
+  Set(c, "PixelFormat", "RGB8");
+  SetInt(c, "SimFrameIndex", 4);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  uint32_t format = 0;
+  const auto g = c.Grab(3000, nullptr, nullptr, &format);
+  EXPECT_EQ(format, genicam::kRGB8);
+  ASSERT_EQ(g.size(), rgb.size());
+  EXPECT_TRUE(g == rgb) << "RGB8 frame 4 differs from camsim run's .png";
 }
 
 TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
