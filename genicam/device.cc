@@ -39,6 +39,16 @@ bool Checked(const Feature& f) {
 }
 // A client write of `size` bytes at `address` (whole registers,
 // fake_camera_hooks.h): whether it covers register r, and r's value in it.
+// Registers only the device writes: the fake camera's that camsim derives
+// from its own (exposure, frame period, the trigger block), and camsim's
+// range (0x8000 up to the XML at 0x10000), of which a client writes only
+// what the XML describes. (The fake camera's acquisition register stays a
+// client's: its writes are the stops the filter counts.)
+bool IsDeviceRange(uint32_t r) {
+  using namespace reg;
+  return r == kFakeExposureUs || r == kFakeFramePeriodUs || (r >= kFakeTriggerMode && r <= kFakeTriggerSoftware) ||
+         (r >= 0x8000 && r < 0x10000);
+}
 bool Covers(uint32_t address, uint32_t size, uint32_t r) {
   return address <= r && uint64_t{r} + 4 <= uint64_t{address} + size;
 }
@@ -573,12 +583,13 @@ std::string GigeDevice::line_error() const {
 
 void GigeDevice::WriteDerived() {
   using namespace reg;
-  // The fake camera's own registers follow camsim's.
-  // A 1 us period: the fake camera asks for frames as fast as they are
-  // rendered, and Fill waits for AcquisitionFrameRate's slots itself.
+  // The fake camera's own registers follow camsim's. It stays in its
+  // software-trigger mode: camsim asks it for every frame, the triggers' and
+  // the free run's (PaceFreeRun), so that it never waits for a frame's slot
+  // inside Fill, on the thread that also answers control packets.
   Write(kFakeFramePeriodUs, 1);
-  Write(kFakeTriggerMode, Applied(kTriggerMode));
-  Write(kFakeTriggerSource, 1);  // the fake camera's "Software": camsim forwards both sources to it
+  Write(kFakeTriggerMode, 1);
+  Write(kFakeTriggerSource, 1);  // the fake camera's "Software"
   Write(kFakeExposureUs, static_cast<uint32_t>(AppliedDouble(kExposureTime)));
   WriteLineStatus();
   Write(kSimSceneFrame, static_cast<uint32_t>(Applied(kSimFrameIndex) % static_cast<uint32_t>(sensor_.scene_count)));
@@ -696,6 +707,21 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     const uint32_t now = d->Read(r);
     for (uint32_t b = 0; b < 4; ++b) data[r - address + b] = static_cast<uint8_t>(now >> (24 - 8 * b));
   };
+  // TriggerSoftware: one frame per write, taken as it arrives (a register
+  // the sync polled merged writes that came within one sync period). Not
+  // stored: it reads back 0. TriggerMode and TriggerSource as written so far.
+  if (covers(reg::kTriggerSoftware)) {
+    if (size != 4 || value(reg::kTriggerSoftware) != 1) {
+      ++d->writes_refused_;
+      return {false, GevStatus::kInvalidParameter};
+    }
+    if ((d->Read(reg::kAcquisition) != 0 || d->restarting_) && d->Read(reg::kTriggerMode) == 1 &&
+        d->Read(reg::kTriggerSource) == kSourceSoftware) {
+      std::lock_guard<std::mutex> t(d->trigger_mutex_);
+      d->TakeTrigger(kNextIndex);
+    }
+    return {false, GevStatus::kSuccess};
+  }
   for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop, reg::kAcquisitionAbort}) {
     if (!covers(command)) continue;
     if (size != 4 || value(command) != 1) {
@@ -714,6 +740,21 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   const auto refuse = [&verdict](GevStatus s) {
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
   };
+  // A write to a register only the device writes, or to an address of
+  // camsim's range the XML does not describe, is refused whole, not stored
+  // (it used to stop a free run through the fake camera's trigger mode).
+  for (uint32_t r = address; r < address + size; r += 4) {
+    if (!IsDeviceRange(r)) continue;
+    // The fake camera acknowledges a trigger by writing 0 through the same
+    // path as a client (arv_fake_camera_check_and_acknowledge_software_trigger).
+    if (r == reg::kFakeTriggerSoftware && size == 4 && value(r) == 0) continue;
+    bool described = false;
+    for (const Feature& f : d->registers_) described = described || (r >= f.address && r < f.address + f.length);
+    if (!described) {
+      ++d->writes_refused_;
+      return {false, GevStatus::kInvalidAddress};
+    }
+  }
   for (const Feature& f : d->registers_) {
     if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
@@ -774,6 +815,17 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       if (Checked(f) && d->IsPipelineRegister(f.address)) set_back_feature(f);
     refuse(GevStatus::kInvalidParameter);
   }
+  // Gain and GainRaw are one setting in two units: the one written (not set
+  // back) sets the other now, so the last write wins whatever the sync sees.
+  const bool gain = covers(reg::kGain) && covers(reg::kGain + 4);
+  const uint64_t gain_bits = gain ? (uint64_t{value(reg::kGain)} << 32 | value(reg::kGain + 4)) : 0;
+  if (gain && gain_bits != DoubleBits(d->ReadDouble(reg::kGain))) {
+    double g;
+    std::memcpy(&g, &gain_bits, 8);
+    d->Write(reg::kGainRaw, static_cast<uint32_t>(std::lround(g * 10)));
+  } else if (!gain && covers(reg::kGainRaw) && value(reg::kGainRaw) != d->Read(reg::kGainRaw)) {
+    d->WriteDouble(reg::kGain, static_cast<double>(value(reg::kGainRaw)) / 10.0);
+  }
   if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
   return verdict;
 }
@@ -821,9 +873,8 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
       names += (names.empty() ? "" : ", ") + RegisterName(f);
   }
   if (names.empty()) return true;
-  // Gain and GainRaw as the sync will join them: a new Gain wins, else a new GainRaw sets it.
-  if (after[kGain] == applied_.at(kGain) && after[kGainRaw] != applied_.at(kGainRaw))
-    after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
+  // Gain and GainRaw as FilterClientWrite joins them: the one written sets the other.
+  if (!covers(kGain) && covers(kGainRaw)) after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
   host::PlannedPipeline planned;
   std::string why;
   if (PlanFor(after, &planned, &why)) {
@@ -861,11 +912,15 @@ void GigeDevice::Sync() {
   // The payload's registers during acquisition: FilterClientWrite.
   sync_saw_acquiring_ = acquiring;
   if (!acquiring) was_acquiring_ = false;
-  if (!acquiring || Applied(kTriggerMode) == 0) {
-    // Triggers belong to an acquisition in trigger mode: none left for the next.
+  if (!acquiring || Read(kTriggerMode) == 0) {
+    // Triggers belong to an acquisition in trigger mode: none left for the
+    // next. (The register as written: FilterClientWrite takes a trigger
+    // that follows a TriggerMode write before this sync applies it.) In
+    // free run the fake camera's flag is PaceFreeRun's request.
     std::lock_guard<std::mutex> t(trigger_mutex_);
     pending_triggers_.clear();
-    Write(kFakeTriggerSoftware, 0);
+    if (!acquiring) free_run_requested_ = false;
+    if (!free_run_requested_) Write(kFakeTriggerSoftware, 0);
   }
 
   Registers next = applied_;
@@ -941,14 +996,6 @@ void GigeDevice::Sync() {
     WriteDerived();
   }
   Write(kSimSyncCount, Read(kSimSyncCount) + 1);
-  // TriggerSoftware: one frame when acquiring with TriggerSource Software.
-  if (Read(kTriggerSoftware) != 0) {
-    Write(kTriggerSoftware, 0);
-    if (acquiring && Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceSoftware) {
-      std::lock_guard<std::mutex> t(trigger_mutex_);
-      TakeTrigger(kNextIndex);
-    }
-  }
   {
     std::lock_guard<std::mutex> t(trigger_mutex_);
     line0_armed_ = Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceLine0;
@@ -999,14 +1046,16 @@ void GigeDevice::RestartStream() {
 void GigeDevice::SyncLoop() {
   while (!stop_) {
     bool restart = false;
+    auto wake = std::chrono::steady_clock::now() + std::chrono::milliseconds(kSyncPeriodMs);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       Sync();
+      wake = std::min(wake, PaceFreeRun());  // a free-run slot before the next sync: wake for it
       restart = restart_stream_;
       restart_stream_ = false;
     }
     if (restart) RestartStream();
-    std::this_thread::sleep_for(std::chrono::milliseconds(kSyncPeriodMs));
+    std::this_thread::sleep_until(wake);
   }
 }
 
@@ -1178,42 +1227,47 @@ std::array<uint64_t, 6> GigeDevice::AutoKey() const {
           applied_.at(kExposureTime), applied_.at(kGain),     applied_.at(kSimFNumber)};
 }
 
-void GigeDevice::WaitForFrameSlot() {
+std::chrono::steady_clock::time_point GigeDevice::PaceFreeRun() {
   using namespace reg;
   using Clock = std::chrono::steady_clock;
-  // In slices of at most 10 ms, so that a new rate (or a stop, or trigger
-  // mode) applies to a frame that is already waiting.
-  constexpr auto kSlice = std::chrono::milliseconds(10);
-  for (;;) {
-    Clock::time_point start;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      const Clock::time_point ready = Clock::now();
-      // The first frame of an acquisition goes at once (FillLocked sets was_acquiring_).
-      if (!was_acquiring_ || Applied(kTriggerMode) != 0 || Applied(kAcquisitionFrameRateEnable) == 0 ||
-          Read(kAcquisition) == 0) {
-        frame_slot_ = ready;
-        return;
-      }
-      const Clock::duration period = FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime));
-      const FrameSlot next = NextFrameSlot(frame_slot_, ready, period);
-      if (next.start <= ready) {
-        frame_slot_ = next.slot;
-        return;
-      }
-      start = next.start;
-    }
-    std::this_thread::sleep_for(std::min<Clock::duration>(start - Clock::now(), kSlice));
+  const Clock::time_point now = Clock::now();
+  if (free_run_requested_ || Read(kAcquisition) == 0 || Applied(kTriggerMode) != 0) return Clock::time_point::max();
+  // The first frame of an acquisition goes at once (FillLocked sets was_acquiring_).
+  if (was_acquiring_ && Applied(kAcquisitionFrameRateEnable) != 0) {
+    const Clock::duration period = FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime));
+    const FrameSlot next = NextFrameSlot(frame_slot_, now, period);
+    if (next.start > now) return next.start;
   }
+  free_run_requested_ = true;
+  Write(kFakeTriggerSoftware, 1);
+  return Clock::time_point::max();
+}
+
+void GigeDevice::TakeFrameSlot() {
+  using namespace reg;
+  const std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now();
+  if (!was_acquiring_ || Applied(kTriggerMode) != 0 || Applied(kAcquisitionFrameRateEnable) == 0)
+    frame_slot_ = now;
+  else
+    frame_slot_ = NextFrameSlot(frame_slot_, now, FramePeriod(AppliedDouble(kAcquisitionFrameRate),
+                                                                AppliedDouble(kExposureTime)))
+                      .slot;
+  free_run_requested_ = false;
 }
 
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
-  WaitForFrameSlot();
   uint64_t dest = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    TakeFrameSlot();
+    // The frame's time is its start, as the fake camera's clock reads it (it
+    // stamps the buffer itself before this callback).
+    const guint64 now_ns = static_cast<guint64>(g_get_real_time()) * 1000;
+    arv_buffer_set_timestamp(buffer, now_ns);
+    arv_buffer_set_system_timestamp(buffer, now_ns);
     const bool first = !was_acquiring_;
     FillLocked(buffer, pixel_format);
+    PaceFreeRun();  // the next frame at once when its slot has passed, or frames come as fast as they are made
     dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
     if (!gv_ || !prime_first_frame_ || dest == 0 || (!first && dest == primed_dest_)) return;
     primed_dest_ = dest;

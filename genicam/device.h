@@ -187,7 +187,13 @@ class GigeDevice {
   void WriteResultingFrameRate();  // AcquisitionResultingFrameRate
   void WriteLineStatus();  // each line's level
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
-  void WaitForFrameSlot();  // free run at AcquisitionFrameRate (NextFrameSlot), outside mutex_
+  // Free run (under mutex_): the fake camera stays in its trigger mode and
+  // makes a frame when asked, so its one thread keeps answering control
+  // packets between frames. PaceFreeRun asks for the next frame when its
+  // slot has come (NextFrameSlot at AcquisitionFrameRate) and returns when
+  // the next slot starts; TakeFrameSlot records the slot of the frame begun.
+  std::chrono::steady_clock::time_point PaceFreeRun();
+  void TakeFrameSlot();
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
@@ -278,6 +284,7 @@ class GigeDevice {
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;
   std::chrono::steady_clock::time_point frame_slot_{};  // the last frame's slot (NextFrameSlot)
+  bool free_run_requested_ = false;  // a free-run frame asked of the fake camera and not yet begun
   uint64_t stream_dest_ = 0;         // stream destination at the last sync
   bool sync_saw_acquiring_ = false;  // acquisition at the last sync
   bool restart_stream_ = false;

@@ -94,6 +94,7 @@ std::vector<uint8_t> Client::Grab(int timeout_ms, uint64_t* frame_id, int* width
     if (frame_id) *frame_id = arv_buffer_get_frame_id(b);
     if (width) *width = arv_buffer_get_image_width(b);
     if (format) *format = arv_buffer_get_image_pixel_format(b);
+    last_timestamp_ns_ = arv_buffer_get_timestamp(b);
   } else {
     ++failed_;
   }

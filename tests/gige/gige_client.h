@@ -44,10 +44,14 @@ class Client {
                             uint32_t* format = nullptr);
   void CloseStream();
   uint64_t failed_buffers() const { return failed_; }
+  // The last grabbed frame's timestamp (ns, the camera's clock: the fake
+  // camera's real time).
+  uint64_t last_timestamp_ns() const { return last_timestamp_ns_; }
   std::string last_error;
 
  private:
   ArvCamera* camera_ = nullptr;
+  uint64_t last_timestamp_ns_ = 0;
   ArvStream* stream_ = nullptr;
   uint64_t failed_ = 0;
 };

@@ -824,6 +824,60 @@ TEST(GigeRegisters, AcquisitionCommandsReadBackDone) {
 // One write of several registers while acquiring: the window's registers go
 // back to the values in use, the others are taken; with the acquisition
 // register cleared in the same block (a stop), the window is taken too.
+// Gain and GainRaw are one setting in two units: the last write of either
+// wins, whatever a sync sees between them (a Gain write and then a GainRaw
+// write within one sync period used to keep the Gain).
+TEST(GigeRegisters, TheLastOfGainAndGainRawWins) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kGain, Be64(10.0));
+  d->SyncNow();
+  WriteReg(*d, reg::kGain, Be64(20.0));
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 200u) << "GainRaw follows Gain as it arrives";
+  WriteReg(*d, reg::kGainRaw, Be32(123));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 12.3) << "Gain follows GainRaw as it arrives";
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 12.3);
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 123u);
+  WriteReg(*d, reg::kGainRaw, Be32(50));
+  WriteReg(*d, reg::kGain, Be64(7.5));
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 7.5);
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 75u);
+  // A refused GainRaw moves nothing.
+  WriteRegRefused(*d, reg::kGainRaw, Be32(100000));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 7.5);
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
+// Registers only the device writes (the fake camera's trigger block, its
+// frame period) and addresses of camsim's range the XML does not describe
+// are no client's to write: refused, not stored (a write to the fake
+// camera's trigger mode used to stop a free run).
+TEST(GigeRegisters, RegistersNoFeatureDescribesRefuseClientWrites) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  const uint32_t mode = ReadReg32(*d, reg::kFakeTriggerMode), period = ReadReg32(*d, reg::kFakeFramePeriodUs);
+  WriteRegRefused(*d, reg::kFakeTriggerMode, Be32(1 - mode));
+  WriteRegRefused(*d, reg::kFakeFramePeriodUs, Be32(period + 1000));
+  WriteRegRefused(*d, reg::kFakeTriggerSoftware, Be32(1));
+  WriteRegRefused(*d, 0x9000, Be32(1));
+  // A block with one undescribed register is refused whole: BlackLevel (a
+  // Float at 0x8050) and the unused word after it.
+  const double black = ReadRegDouble(*d, reg::kBlackLevel);
+  std::vector<uint8_t> block = Be64(black + 1.0);
+  for (uint8_t b : Be32(1)) block.push_back(b);
+  WriteRegRefused(*d, reg::kBlackLevel, block);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kBlackLevel), black);
+  EXPECT_EQ(ReadReg32(*d, reg::kFakeTriggerMode), mode);
+  EXPECT_EQ(ReadReg32(*d, reg::kFakeFramePeriodUs), period);
+  EXPECT_EQ(ReadReg32(*d, reg::kFakeTriggerSoftware), 0u);
+  EXPECT_EQ(ReadReg32(*d, 0x9000), 0u);
+  EXPECT_EQ(d->writes_refused(), 5u);
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 TEST(GigeRegisters, ABlockWriteKeepsWhatItMayChange) {
   static_assert(reg::kPixelFormat == reg::kAcquisition + 4 && reg::kAcquisitionMode == reg::kPixelFormat + 4);
   DeviceOptions o = OfflineDevice();
@@ -1485,6 +1539,68 @@ TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
     EXPECT_TRUE(c.Grab(400).empty()) << "more than one frame for trigger " << i;
   }
   EXPECT_EQ(device_->frames_sent(), 3u);
+  // Back to back, well within one register sync: each still gives a frame
+  // (they used to be merged into one).
+  for (int i = 0; i < 4; ++i) {
+    GError* e = nullptr;
+    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+    ASSERT_EQ(e, nullptr);
+  }
+  for (int i = 0; i < 4; ++i) EXPECT_FALSE(c.Grab(3000).empty()) << "back-to-back trigger " << i;
+  EXPECT_TRUE(c.Grab(400).empty()) << "more frames than triggers";
+  EXPECT_EQ(device_->frames_sent(), 7u);
+}
+
+// A free-running frame is stamped when its slot comes, not when the fake
+// camera asked for it (before the wait): at 5 Hz each stamp lies after the
+// previous frame arrived, and stamps are a period apart.
+TEST_F(GigeE2E, FrameTimestampsAreTheirSlots) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  SetFloat(c, "AcquisitionFrameRate", 5.0);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  std::vector<uint64_t> stamp, arrival;
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_FALSE(c.Grab(3000).empty()) << "frame " << i;
+    arrival.push_back(static_cast<uint64_t>(g_get_real_time()) * 1000);
+    stamp.push_back(c.last_timestamp_ns());
+  }
+  for (int i = 1; i < 4; ++i) {
+    EXPECT_GT(stamp[i], arrival[i - 1]) << "frame " << i << " carries a time from before the previous frame arrived";
+    EXPECT_NEAR(static_cast<double>(stamp[i] - stamp[i - 1]), 200e6, 60e6) << "frame " << i;
+  }
+}
+
+// The fake camera's one thread answers control packets and makes frames.
+// A free-run frame waiting for its slot (0.5 Hz here) used to wait inside
+// the frame callback, so reads timed out and the camera dropped its client
+// at a heartbeat timeout. Now every read is answered while the next frame
+// waits, and the client keeps control and its stream.
+TEST_F(GigeE2E, ControlAnswersWhileAFrameWaitsForItsSlot) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  SetFloat(c, "AcquisitionFrameRate", 0.5);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  const auto t0 = std::chrono::steady_clock::now();
+  double slowest_ms = 0;
+  int reads = 0;
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(1500)) {
+    const auto r0 = std::chrono::steady_clock::now();
+    GError* e = nullptr;
+    const int64_t width = arv_camera_get_integer(c.camera(), "Width", &e);
+    ASSERT_EQ(e, nullptr) << "read " << reads << ": " << e->message;
+    EXPECT_EQ(width, 64);
+    slowest_ms = std::max(slowest_ms, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - r0).count());
+    ++reads;
+  }
+  // A frame waits 2 s for its slot; a read waited for it before.
+  EXPECT_LT(slowest_ms, 1000.0) << reads << " reads";
+  EXPECT_FALSE(c.Grab(3000).empty()) << "the next frame after the reads";
 }
 
 TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
