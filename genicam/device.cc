@@ -37,18 +37,18 @@ bool Checked(const Feature& f) {
   return f.writable && f.alias_of.empty() && f.kind != Kind::kString && f.kind != Kind::kCommand &&
          f.kind != Kind::kSwissKnife;
 }
-// A client write of `size` bytes at `address` (whole registers,
-// fake_camera_hooks.h): whether it covers register r, and r's value in it.
 // Registers only the device writes: the fake camera's that camsim derives
 // from its own (exposure, frame period, the trigger block), and camsim's
-// range (0x8000 up to the XML at 0x10000), of which a client writes only
-// what the XML describes. (The fake camera's acquisition register stays a
+// range (its first register up to the XML after the register memory), of
+// which a client writes only what the XML describes. (The fake camera's acquisition register stays a
 // client's: its writes are the stops the filter counts.)
 bool IsDeviceRange(uint32_t r) {
   using namespace reg;
   return r == kFakeExposureUs || r == kFakeFramePeriodUs || (r >= kFakeTriggerMode && r <= kFakeTriggerSoftware) ||
-         (r >= 0x8000 && r < 0x10000);
+         (r >= kWidthMax && r < ARV_FAKE_CAMERA_MEMORY_SIZE);
 }
+// A client write of `size` bytes at `address` (whole registers,
+// fake_camera_hooks.h): whether it covers register r, and r's value in it.
 bool Covers(uint32_t address, uint32_t size, uint32_t r) {
   return address <= r && uint64_t{r} + 4 <= uint64_t{address} + size;
 }
@@ -1227,14 +1227,20 @@ std::array<uint64_t, 6> GigeDevice::AutoKey() const {
           applied_.at(kExposureTime), applied_.at(kGain),     applied_.at(kSimFNumber)};
 }
 
+std::chrono::steady_clock::duration GigeDevice::FreeRunPeriod() const {
+  using namespace reg;
+  // The first frame of an acquisition goes at once (FillLocked sets was_acquiring_).
+  if (!was_acquiring_ || Applied(kTriggerMode) != 0 || Applied(kAcquisitionFrameRateEnable) == 0) return {};
+  return FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime));
+}
+
 std::chrono::steady_clock::time_point GigeDevice::PaceFreeRun() {
   using namespace reg;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point now = Clock::now();
   if (free_run_requested_ || Read(kAcquisition) == 0 || Applied(kTriggerMode) != 0) return Clock::time_point::max();
-  // The first frame of an acquisition goes at once (FillLocked sets was_acquiring_).
-  if (was_acquiring_ && Applied(kAcquisitionFrameRateEnable) != 0) {
-    const Clock::duration period = FramePeriod(AppliedDouble(kAcquisitionFrameRate), AppliedDouble(kExposureTime));
+  const Clock::duration period = FreeRunPeriod();
+  if (period > Clock::duration::zero()) {
     const FrameSlot next = NextFrameSlot(frame_slot_, now, period);
     if (next.start > now) return next.start;
   }
@@ -1244,14 +1250,9 @@ std::chrono::steady_clock::time_point GigeDevice::PaceFreeRun() {
 }
 
 void GigeDevice::TakeFrameSlot() {
-  using namespace reg;
   const std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now();
-  if (!was_acquiring_ || Applied(kTriggerMode) != 0 || Applied(kAcquisitionFrameRateEnable) == 0)
-    frame_slot_ = now;
-  else
-    frame_slot_ = NextFrameSlot(frame_slot_, now, FramePeriod(AppliedDouble(kAcquisitionFrameRate),
-                                                                AppliedDouble(kExposureTime)))
-                      .slot;
+  const std::chrono::steady_clock::duration period = FreeRunPeriod();
+  frame_slot_ = period > period.zero() ? NextFrameSlot(frame_slot_, now, period).slot : now;
   free_run_requested_ = false;
 }
 

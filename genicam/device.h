@@ -194,6 +194,7 @@ class GigeDevice {
   // the next slot starts; TakeFrameSlot records the slot of the frame begun.
   std::chrono::steady_clock::time_point PaceFreeRun();
   void TakeFrameSlot();
+  std::chrono::steady_clock::duration FreeRunPeriod() const;  // 0: the next frame goes at once
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto

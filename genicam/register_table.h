@@ -70,7 +70,7 @@ inline constexpr uint32_t kWidth = 0x100, kHeight = 0x104, kGainRaw = 0x110, kGa
                           kAcquisition = 0x124, kPixelFormat = 0x128, kAcquisitionMode = 0x12c, kOffsetX = 0x130,
                           kOffsetY = 0x134, kFakeFramePeriodUs = 0x138, kFakeTriggerMode = 0x300,
                           kFakeTriggerSource = 0x304, kFakeTriggerActivation = 0x308, kFakeTriggerSoftware = 0x30c;
-// camsim's own registers.
+// camsim's own registers (kWidthMax is the first).
 inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionFrameCount = 0x8008,
                           kAcquisitionFrameRate = 0x8010, kAcquisitionFrameRateEnable = 0x8018,
                           kExposureTime = 0x8020, kExposureAuto = 0x8028, kTriggerSelector = 0x8030,
