@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "host_tools/io/exr_scene.h"
 #include "host_tools/io/image_write.h"
 #include "host_tools/render.h"
 #include "tests/support/exr_fixture.h"
@@ -184,6 +186,37 @@ TEST(Cli, StagesAndDumpWriteIntermediates) {
   EXPECT_TRUE(Exists(out + "/aisle_0001.exr"));  // photons as float EXR
   EXPECT_TRUE(Exists(out + "/aisle_0001.0_exposure.exr"));
   EXPECT_TRUE(Exists(out + "/aisle_0001.1_vignetting.exr"));
+  // What they hold: the last dump is the output; the exposure dump is the
+  // scene times one factor; the vignetting dump is the exposure dump times a
+  // gain of 1 at the centre, falling towards the corners (cos4).
+  camsim::io::SceneFrame scene, exposed, vignetted, output;
+  std::string error;
+  ASSERT_TRUE(camsim::io::LoadSceneExr(kScene, "", &scene, &error)) << error;
+  ASSERT_TRUE(camsim::io::LoadSceneExr(out + "/aisle_0001.0_exposure.exr", "", &exposed, &error)) << error;
+  ASSERT_TRUE(camsim::io::LoadSceneExr(out + "/aisle_0001.1_vignetting.exr", "", &vignetted, &error)) << error;
+  ASSERT_TRUE(camsim::io::LoadSceneExr(out + "/aisle_0001.exr", "", &output, &error)) << error;
+  ASSERT_EQ(exposed.width, scene.width);
+  ASSERT_EQ(exposed.height, scene.height);
+  EXPECT_TRUE(output.r.data == vignetted.r.data && output.g.data == vignetted.g.data &&
+              output.b.data == vignetted.b.data);
+  double lo = INFINITY, hi = 0;
+  for (size_t i = 0; i < scene.g.data.size(); ++i)
+    if (scene.g.data[i] > 0.05f) {  // well above the Q16.16 radiance and Q24.8 photon steps
+      const double ratio = exposed.g.data[i] / scene.g.data[i];
+      lo = std::min(lo, ratio);
+      hi = std::max(hi, ratio);
+    }
+  ASSERT_GT(lo, 0.0);
+  EXPECT_LT(hi / lo, 1.001) << "exposure is one factor for every pixel";
+  const int w = scene.width, h = scene.height;
+  const auto gain = [&](int x, int y) {
+    const float e = exposed.g.at(x, y);
+    return e > 0 ? vignetted.g.at(x, y) / e : 1.0f;
+  };
+  EXPECT_NEAR(gain(w / 2, h / 2), 1.0f, 0.01f);
+  EXPECT_LT(gain(0, 0), 0.9f * gain(w / 2, h / 2));
+  for (size_t i = 0; i < exposed.g.data.size(); ++i)
+    ASSERT_LE(vignetted.g.data[i], exposed.g.data[i] * 1.0001f + 0.01f) << "pixel " << i << " brightened";
 }
 
 // A repeated name used to be kept once per listing, past the end of a
