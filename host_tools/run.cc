@@ -496,10 +496,6 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
   return true;
 }
 
-}  // namespace
-
-namespace {
-
 // A failure before the run knows its inputs (so before --report is claimed):
 // the error goes to the report only where that cannot lose a file, i.e. when
 // nothing is at that path, or an earlier camsim report is (which would
