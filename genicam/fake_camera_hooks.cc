@@ -443,6 +443,13 @@ ClientWritesHeld::~ClientWritesHeld() {
 DeviceWrites::DeviceWrites() { ++t_device_writes; }
 DeviceWrites::~DeviceWrites() { --t_device_writes; }
 
+int FilterUsers(ArvFakeCamera* camera) {
+  std::lock_guard<std::mutex> list(g_filters_mutex);
+  for (const Filter& f : g_filters)
+    if (f.camera == camera && !f.removed) return f.users;
+  return 0;
+}
+
 uint64_t WritesRefusedAt(const char* address) {
   in_addr a{};
   if (address == nullptr || inet_pton(AF_INET, address, &a) != 1) return 0;

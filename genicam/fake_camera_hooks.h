@@ -88,6 +88,10 @@ class ClientWritesHeld {
 // (which the fake camera drops). One per packet.
 uint64_t WritesRefusedAt(const char* address);
 
+// How many ClientWritesHeld and client writes hold or wait for `camera`'s
+// filter now (0 without a filter): lets a test see a waiter wait.
+int FilterUsers(ArvFakeCamera* camera);
+
 // The device's own writes (initial values, reverting a refused value): the
 // filter does not see the writes made on this thread while one lives.
 class DeviceWrites {

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <mutex>
 #include <thread>
 
 #include "genicam/fake_camera_hooks.h"
@@ -477,9 +479,16 @@ TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
   ASSERT_NE(out, nullptr) << error;
   constexpr int kEdges = 40;
   std::vector<uint32_t> got;
-  std::atomic<bool> queue_full{false};
+  // The reader stays behind until the queue is full, then wakes at once (a
+  // notification, not a poll: the next send waits only kSendTimeoutMs for it).
+  std::mutex m;
+  std::condition_variable cv;
+  bool queue_full = false;
   std::thread reader([&] {
-    while (!queue_full) std::this_thread::sleep_for(std::chrono::milliseconds(1));  // behind until then
+    {
+      std::unique_lock<std::mutex> lock(m);
+      cv.wait(lock, [&] { return queue_full; });
+    }
     std::string e;
     hal::Edge edge;
     uint32_t index = 0;
@@ -493,7 +502,11 @@ TEST(GigeTriggerBus, BurstsWaitForASlowReaderAndSkipAStuckOne) {
     out->SetEdgeIndex(static_cast<uint32_t>(k));
     EXPECT_TRUE(out->Set(k % 2 == 0, &error)) << error;  // no ASSERT: the reader thread must be joined
     reached += out->last_receivers();
-    if (k == 9) queue_full = true;  // 10 queued (max_dgram_qlen): the next send waits for the reader
+    if (k == 9) {  // 10 queued (max_dgram_qlen): the next send waits for the reader
+      std::lock_guard<std::mutex> lock(m);
+      queue_full = true;
+      cv.notify_one();
+    }
   }
   reader.join();
   EXPECT_EQ(reached, kEdges);
@@ -934,7 +947,8 @@ TEST(GigeRegisters, OneCamerasHeldWritesDoNotHoldUpAnothers) {
   genicam::SetWriteFilter(b, pass, nullptr);
   auto held = std::make_unique<genicam::ClientWritesHeld>(a);
   std::thread waiter([a] { genicam::ClientWritesHeld wait_for_a(a); });
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the waiter waits for A by now
+  for (int i = 0; i < 2000 && genicam::FilterUsers(a) < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(genicam::FilterUsers(a), 2) << "the waiter does not wait for A";  // held + waiter
   std::atomic<bool> written{false};
   std::thread writer([b, &written] {
     const uint8_t v[4] = {0, 0, 0, 32};
