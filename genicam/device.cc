@@ -82,6 +82,9 @@ double BitsDouble(uint64_t b) {
   std::memcpy(&v, &b, 8);
   return v;
 }
+// Gain (dB) and GainRaw (0.1 dB steps): one setting in two units.
+uint64_t GainRawOf(double db) { return static_cast<uint64_t>(std::lround(db * 10)); }
+double GainDbOf(uint64_t raw) { return static_cast<double>(raw) / 10.0; }
 std::string Fmt(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%.6g", v);
@@ -477,7 +480,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kTriggerSource, kSourceSoftware},
       {kTriggerActivation, 0},
       {kGain, DoubleBits(c.sensor.gain_db)},
-      {kGainRaw, static_cast<uint64_t>(std::lround(c.sensor.gain_db * 10))},
+      {kGainRaw, GainRawOf(c.sensor.gain_db)},
       {kGainAuto, kAutoOff},
       {kBlackLevel, DoubleBits(c.sensor.black_level_dn)},
       {kLineSelector, 0},
@@ -570,7 +573,7 @@ std::string GigeDevice::CheckInvariants() const {
   if (applied_.at(kWidth) + applied_.at(kOffsetX) > static_cast<uint64_t>(sensor_.width) ||
       applied_.at(kHeight) + applied_.at(kOffsetY) > static_cast<uint64_t>(sensor_.height))
     return "the window is off the sensor";
-  if (applied_.at(kGainRaw) != static_cast<uint64_t>(std::lround(AppliedDouble(kGain) * 10)))
+  if (applied_.at(kGainRaw) != GainRawOf(AppliedDouble(kGain)))
     return "Gain and GainRaw disagree";
   if (applied_.at(SelectedAddress(kLineSource, 0)) != kLineSourceOff) return "Line0, an input, has a source";
   return "";
@@ -820,11 +823,9 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   const bool gain = covers(reg::kGain) && covers(reg::kGain + 4);
   const uint64_t gain_bits = gain ? (uint64_t{value(reg::kGain)} << 32 | value(reg::kGain + 4)) : 0;
   if (gain && gain_bits != DoubleBits(d->ReadDouble(reg::kGain))) {
-    double g;
-    std::memcpy(&g, &gain_bits, 8);
-    d->Write(reg::kGainRaw, static_cast<uint32_t>(std::lround(g * 10)));
+    d->Write(reg::kGainRaw, static_cast<uint32_t>(GainRawOf(BitsDouble(gain_bits))));
   } else if (!gain && covers(reg::kGainRaw) && value(reg::kGainRaw) != d->Read(reg::kGainRaw)) {
-    d->WriteDouble(reg::kGain, static_cast<double>(value(reg::kGainRaw)) / 10.0);
+    d->WriteDouble(reg::kGain, GainDbOf(value(reg::kGainRaw)));
   }
   if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
   return verdict;
@@ -874,7 +875,7 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
   }
   if (names.empty()) return true;
   // Gain and GainRaw as FilterClientWrite joins them: the one written sets the other.
-  if (!covers(kGain) && covers(kGainRaw)) after[kGain] = DoubleBits(static_cast<double>(after[kGainRaw]) / 10.0);
+  if (!covers(kGain) && covers(kGainRaw)) after[kGain] = DoubleBits(GainDbOf(after[kGainRaw]));
   host::PlannedPipeline planned;
   std::string why;
   if (PlanFor(after, &planned, &why)) {
@@ -967,10 +968,10 @@ void GigeDevice::Sync() {
     if (next[SelectedAddress(kLineSource, 0)] != kLineSourceOff) refuse(SelectedAddress(kLineSource, 0));
     // Gain and GainRaw are one setting in two units.
     if (was_changed(kGain)) {
-      next[kGainRaw] = static_cast<uint64_t>(std::lround(BitsDouble(next[kGain]) * 10));
+      next[kGainRaw] = GainRawOf(BitsDouble(next[kGain]));
       Write(kGainRaw, static_cast<uint32_t>(next[kGainRaw]));
     } else if (was_changed(kGainRaw)) {
-      next[kGain] = DoubleBits(static_cast<double>(next[kGainRaw]) / 10.0);
+      next[kGain] = DoubleBits(GainDbOf(next[kGainRaw]));
       WriteDouble(kGain, BitsDouble(next[kGain]));
     }
     bool pipeline = false;
@@ -1160,7 +1161,7 @@ GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const
   next[kExposureTime] = DoubleBits(s.exposure_time_us);
   const double g = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
   next[kGain] = DoubleBits(g);
-  next[kGainRaw] = static_cast<uint64_t>(std::lround(g * 10));
+  next[kGainRaw] = GainRawOf(g);
   return next;
 }
 

@@ -584,9 +584,11 @@ int RunCommand(const RunOptions& o) {
     std::error_code ec;
     const std::filesystem::path report(o.report_path);
     const std::filesystem::path parent = report.has_parent_path() ? report.parent_path() : ".";
-    if (std::filesystem::is_directory(report, ec) || !std::filesystem::is_directory(parent, ec)) {
-      std::fprintf(stderr, "camsim: --report '%s': %s\n", o.report_path.c_str(),
-                   std::filesystem::is_directory(report, ec) ? "is a directory" : "its directory does not exist");
+    const char* why = std::filesystem::is_directory(report, ec)          ? "is a directory"
+                      : !std::filesystem::is_directory(parent, ec) ? "its directory does not exist"
+                                                                   : nullptr;
+    if (why != nullptr) {
+      std::fprintf(stderr, "camsim: --report '%s': %s\n", o.report_path.c_str(), why);
       return 2;
     }
   }

@@ -41,17 +41,21 @@ bool ExpandDirectory(const std::string& dir, std::vector<std::string>* files, st
   return true;
 }
 
+// Index i as a pattern writes it: zero-padded to `width` digits.
+std::string Padded(int i, size_t width) {
+  std::string n = std::to_string(i);
+  if (n.size() < width) n.insert(0, width - n.size(), '0');
+  return n;
+}
+
 // The lowest index above `missing` whose file exists for prefix + index +
 // suffix (index zero-padded to width), or -1. Lists the prefix's directory
 // when the suffix names no directory, else tries the next kLookAhead indices.
 int LaterIndex(const std::string& prefix, const std::string& suffix, size_t width, int missing) {
   constexpr int kLookAhead = 1000;
   if (suffix.find('/') != std::string::npos) {
-    for (int k = missing + 1; k <= missing + kLookAhead; ++k) {
-      std::string n = std::to_string(k);
-      if (n.size() < width) n.insert(0, width - n.size(), '0');
-      if (IsFile(prefix + n + suffix)) return k;
-    }
+    for (int k = missing + 1; k <= missing + kLookAhead; ++k)
+      if (IsFile(prefix + Padded(k, width) + suffix)) return k;
     return -1;
   }
   const size_t slash = prefix.rfind('/');
@@ -68,9 +72,7 @@ int LaterIndex(const std::string& prefix, const std::string& suffix, size_t widt
     if (digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
       continue;
     const int k = std::stoi(digits);
-    std::string n = std::to_string(k);
-    if (n.size() < width) n.insert(0, width - n.size(), '0');
-    if (n != digits || k <= missing || !IsFile(it->path().string())) continue;  // not a name the pattern makes
+    if (Padded(k, width) != digits || k <= missing || !IsFile(it->path().string())) continue;  // not a name the pattern makes
     if (best < 0 || k < best) best = k;
   }
   return best;
@@ -89,11 +91,7 @@ bool ExpandPattern(const std::string& arg, std::vector<std::string>* files, std:
     return false;
   }
   const size_t width = m[2].matched ? std::stoul(m[2].str()) : 0;
-  auto name = [&](int i) {
-    std::string n = std::to_string(i);
-    if (n.size() < width) n.insert(0, width - n.size(), '0');
-    return prefix + n + suffix;
-  };
+  auto name = [&](int i) { return prefix + Padded(i, width) + suffix; };
   int i = IsFile(name(0)) ? 0 : 1;
   if (!IsFile(name(i))) {
     *error = "no files match pattern '" + arg + "' (tried '" + name(0) + "' and '" + name(1) + "')";
