@@ -1470,31 +1470,85 @@ TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
   }
 }
 
-TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
-  // The bundled scene through `camsim run` and through the camera: same bytes.
+// `camsim run` on the bundled scene at 96x64 from frame 4, with `extra`
+// options: its .raw (one little-endian 16-bit word per DN). Its PNG is left in
+// `dir`.
+constexpr int kRunWidth = 96, kRunHeight = 64, kRunFrame = 4;
+std::vector<uint8_t> CamsimRunRaw(const DeviceOptions& o, const std::string& dir, const std::string& extra) {
+  mkdir(dir.c_str(), 0755);
+  const std::string cmd = std::string(CAMSIM_BINARY) + " run --quiet --config " + o.config_path +
+                          " --set sensor.width=" + std::to_string(kRunWidth) +
+                          " --set sensor.height=" + std::to_string(kRunHeight) + " " + extra +
+                          " --first-frame " + std::to_string(kRunFrame) + " --input " + o.inputs[0] + " --out " + dir;
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream raw(dir + "/aisle_0001.raw", std::ios::binary);
+  return std::vector<uint8_t>((std::istreambuf_iterator<char>(raw)), std::istreambuf_iterator<char>());
+}
+
+DeviceOptions RunSceneDevice(const std::vector<std::string>& extra_overrides) {
   DeviceOptions o = SmallDevice();
   o.pattern.clear();
   o.inputs = {std::string(CAMSIM_SOURCE_DIR) + "/scenes/aisle_0001.exr"};
-  o.overrides = {"sensor.width=96", "sensor.height=64"};
+  o.overrides = {"sensor.width=" + std::to_string(kRunWidth), "sensor.height=" + std::to_string(kRunHeight)};
+  o.overrides.insert(o.overrides.end(), extra_overrides.begin(), extra_overrides.end());
+  return o;
+}
+
+// Frame `kRunFrame` as the camera sends it in `format`; `format_code` gets
+// the leader's pixel format.
+std::vector<uint8_t> GrabRunFrame(Client& c, const char* format, uint32_t* format_code = nullptr) {
+  Set(c, "PixelFormat", format);
+  SetInt(c, "SimFrameIndex", kRunFrame);
+  Settle();
+  if (!c.OpenStream()) {
+    ADD_FAILURE() << "no stream for " << format;
+    return {};
+  }
+  Start(c);
+  uint32_t code = 0;
+  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, &code);
+  c.CloseStream();
+  if (format_code != nullptr) *format_code = code;
+  return f;
+}
+
+// A window of a .raw frame at another depth, written from the PFNC's
+// definitions and camsim's documented choice (docs/gige.md): 8 bits keep the
+// top 8 of the ADC's bits (truncated), 16 bits are the DN shifted up to the
+// MSB, 12 bits the DN itself; words little-endian.
+std::vector<uint8_t> RawWindowAs(const std::vector<uint8_t>& raw, int adc_bits, int bits, int x, int y, int w, int h) {
+  std::vector<uint8_t> out;
+  for (int r = y; r < y + h; ++r)
+    for (int i = x; i < x + w; ++i) {
+      const size_t at = 2 * (static_cast<size_t>(r) * kRunWidth + i);
+      const uint32_t dn = raw[at] | (raw[at + 1] << 8);
+      if (bits == 8) {
+        out.push_back(static_cast<uint8_t>(dn >> (adc_bits - 8)));
+      } else {
+        const uint32_t v = bits == 16 ? dn << (16 - adc_bits) : dn;
+        out.push_back(static_cast<uint8_t>(v & 0xff));
+        out.push_back(static_cast<uint8_t>(v >> 8));
+      }
+    }
+  return out;
+}
+
+TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
+  // The bundled scene through `camsim run` and through the camera: same bytes,
+  // in every pixel format the Bayer camera offers.
+  const DeviceOptions o = RunSceneDevice({});
   const std::string dir = testing::TempDir() + "camsim_gige_run";
-  mkdir(dir.c_str(), 0755);
-  const std::string cmd = std::string(CAMSIM_BINARY) + " run --quiet --config " + o.config_path +
-                          " --set sensor.width=96 --set sensor.height=64 --first-frame 4 --input " + o.inputs[0] +
-                          " --out " + dir;
-  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  std::ifstream raw(dir + "/aisle_0001.raw", std::ios::binary);
-  const std::vector<uint8_t> expected((std::istreambuf_iterator<char>(raw)), std::istreambuf_iterator<char>());
-  ASSERT_EQ(expected.size(), 96u * 64u * 2u);
+  const std::vector<uint8_t> expected = CamsimRunRaw(o, dir, "");
+  ASSERT_EQ(expected.size(), static_cast<size_t>(kRunWidth) * kRunHeight * 2);
   ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
-  SetInt(c, "SimFrameIndex", 4);
-  Settle();
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  const auto f = c.Grab(3000);
-  ASSERT_EQ(f.size(), expected.size());
-  EXPECT_TRUE(f == expected) << "BayerRG12 frame 4 differs from camsim run's .raw";
-  c.CloseStream();
+  const int adc_bits = device_->sensor().adc_bits;
+  ASSERT_EQ(adc_bits, 12) << "configs/camera.toml's ADC; the formats below assume it";
+  EXPECT_TRUE(GrabRunFrame(c, "BayerRG12") == expected) << "BayerRG12 frame differs from camsim run's .raw";
+  EXPECT_TRUE(GrabRunFrame(c, "BayerRG8") == RawWindowAs(expected, adc_bits, 8, 0, 0, kRunWidth, kRunHeight))
+      << "BayerRG8 is not the top 8 bits of camsim run's .raw";
+  EXPECT_TRUE(GrabRunFrame(c, "BayerRG16") == RawWindowAs(expected, adc_bits, 16, 0, 0, kRunWidth, kRunHeight))
+      << "BayerRG16 is not camsim run's .raw shifted to the MSB";
   // RGB8 against the PNG camsim run wrote for the same frame, decoded by
   // libpng (not through the device's own conversion code).
   png_image png{};
@@ -1503,17 +1557,36 @@ TEST_F(GigeE2E, FramesEqualCamsimRunOutput) {
   png.format = PNG_FORMAT_RGB;
   std::vector<uint8_t> rgb(PNG_IMAGE_SIZE(png));
   ASSERT_TRUE(png_image_finish_read(&png, nullptr, rgb.data(), 0, nullptr)) << png.message;
-  ASSERT_EQ(rgb.size(), 96u * 64u * 3u);
-  Set(c, "PixelFormat", "RGB8");
-  SetInt(c, "SimFrameIndex", 4);
-  Settle();
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
+  ASSERT_EQ(rgb.size(), static_cast<size_t>(kRunWidth) * kRunHeight * 3);
   uint32_t format = 0;
-  const auto g = c.Grab(3000, nullptr, nullptr, &format);
+  EXPECT_TRUE(GrabRunFrame(c, "RGB8", &format) == rgb) << "RGB8 frame differs from camsim run's .png";
   EXPECT_EQ(format, genicam::kRGB8);
-  ASSERT_EQ(g.size(), rgb.size());
-  EXPECT_TRUE(g == rgb) << "RGB8 frame 4 differs from camsim run's .png";
+}
+
+TEST_F(GigeE2E, MonoFramesEqualCamsimRunOutput) {
+  // A mono sensor: Mono8/12/16 against `camsim run`'s .raw, whole and through
+  // a window at odd offsets (a mono camera's offsets step by 1).
+  const DeviceOptions o = RunSceneDevice({"sensor.cfa=Mono"});
+  const std::vector<uint8_t> expected =
+      CamsimRunRaw(o, testing::TempDir() + "camsim_gige_run_mono", "--set sensor.cfa=Mono");
+  ASSERT_EQ(expected.size(), static_cast<size_t>(kRunWidth) * kRunHeight * 2);
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  const int adc_bits = device_->sensor().adc_bits;
+  uint32_t format = 0;
+  EXPECT_TRUE(GrabRunFrame(c, "Mono12", &format) == expected) << "Mono12 frame differs from camsim run's .raw";
+  EXPECT_EQ(format, genicam::kMono12);
+  EXPECT_TRUE(GrabRunFrame(c, "Mono8", &format) == RawWindowAs(expected, adc_bits, 8, 0, 0, kRunWidth, kRunHeight));
+  EXPECT_EQ(format, genicam::kMono8);
+  EXPECT_TRUE(GrabRunFrame(c, "Mono16", &format) == RawWindowAs(expected, adc_bits, 16, 0, 0, kRunWidth, kRunHeight));
+  EXPECT_EQ(format, genicam::kMono16);
+  constexpr int kX = 7, kY = 5, kW = 33, kH = 21;
+  SetInt(c, "Width", kW);
+  SetInt(c, "Height", kH);
+  SetInt(c, "OffsetX", kX);
+  SetInt(c, "OffsetY", kY);
+  EXPECT_TRUE(GrabRunFrame(c, "Mono16") == RawWindowAs(expected, adc_bits, 16, kX, kY, kW, kH))
+      << "a 33x21 window at (7, 5) differs from that window of camsim run's .raw";
 }
 
 TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
