@@ -1382,7 +1382,6 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   }
   const bool strobe = strobe_ && Applied(SelectedAddress(kLineSource, 1)) == kLineSourceExposureActive;
   std::string line_error;
-  if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   auto set_strobe = [&](bool high) {
     if (strobe_->Set(high, &line_error)) {
       strobe_level_ = high;
@@ -1391,6 +1390,10 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
       line_error_ = line_error;
     }
   };
+  // A falling edge that failed is sent first (with its own frame's index):
+  // otherwise this frame's rising edge would find the line already high.
+  if (strobe && strobe_level_) set_strobe(false);
+  if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   if (strobe) set_strobe(true);
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);

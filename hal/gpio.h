@@ -54,8 +54,8 @@ std::unique_ptr<OutputLine> OpenOutputLine(const std::string& spec, const std::s
 
 // Loopback trigger bus "unix:DIR": a stand-in for a trigger wire shared by the
 // cameras of a rig where no GPIO chip exists. Each input (a camera's Line0)
-// binds a datagram socket DIR/line-<pid>-<n>.sock (DIR is created if missing,
-// its parent must exist); an output (camsim-trigger, or a master camera's
+// binds a datagram socket DIR/line-<pid>-<n>.sock, n the first number no live
+// input holds (DIR is created if missing, its parent must exist); an output (camsim-trigger, or a master camera's
 // strobe) sends every edge to all sockets in DIR. An edge is one datagram
 // (TriggerBusMessage) carrying its level and a frame index, so a camera that
 // missed pulses still renders the same frame index as the others.

@@ -24,7 +24,10 @@ bool Open(const std::string& spec, Opened* out, std::string* error) {
   unsigned offset = 0;
   if (!ParseLineSpec(spec, &chip, &offset, error)) return false;
   errno = 0;
-  out->chip = gpiod_chip_open_lookup(chip.c_str());
+  // libgpiod 1.6's lookup takes a path only under /dev/ (anything else is
+  // looked up as /dev/NAME): any other path is opened as given.
+  const bool path = chip.find('/') != std::string::npos && chip.rfind("/dev/", 0) != 0;
+  out->chip = path ? gpiod_chip_open(chip.c_str()) : gpiod_chip_open_lookup(chip.c_str());
   if (!out->chip) {
     *error = "GPIO line '" + spec + "': cannot open chip '" + chip + "': " + Reason();
     return false;

@@ -8,7 +8,6 @@
 #include <sys/un.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -37,9 +36,20 @@ bool MakeAddress(const std::string& path, sockaddr_un* a) {
   return true;
 }
 
-// Socket names of the inputs: line-<pid>-<n>.sock (n counts the process's inputs).
-std::atomic<unsigned> g_input_count{0};
+// Socket names of the inputs: line-<pid>-<n>.sock, n the first free number.
+// Cameras in other PID namespaces may share the pid.
 constexpr char kInputPrefix[] = "line-", kInputSuffix[] = ".sock";
+constexpr int kMaxInputNames = 1024;  // names tried before giving up
+
+// A socket file nobody has bound any more (its process was killed) refuses a
+// connection; a live one, or a file we cannot judge, is left alone.
+bool IsStaleSocket(const sockaddr_un& a) {
+  const int probe = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (probe < 0) return false;
+  const bool stale = connect(probe, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0 && errno == ECONNREFUSED;
+  close(probe);
+  return stale;
+}
 
 class BusInput : public InputLine {
  public:
@@ -122,6 +132,14 @@ bool ParseBusSpec(const std::string& spec, std::string* dir, std::string* error)
 std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* error) {
   std::string dir;
   if (!ParseBusSpec(spec, &dir, error)) return nullptr;
+  const std::string stem = dir + "/" + kInputPrefix + std::to_string(getpid()) + "-";
+  auto name = [&](int n) { return stem + std::to_string(n) + kInputSuffix; };
+  sockaddr_un a;
+  if (!MakeAddress(name(kMaxInputNames), &a)) {  // checked before the directory is made
+    *error = "trigger bus '" + spec + "': socket paths like '" + name(0) + "' can be longer than " +
+             std::to_string(sizeof a.sun_path - 1) + " bytes";
+    return nullptr;
+  }
   // The first member creates the bus directory; its parent must exist.
   if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
     *error = "trigger bus '" + spec + "': cannot create directory '" + dir + "': " + Reason();
@@ -136,26 +154,35 @@ std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* er
     *error = "trigger bus '" + spec + "': '" + dir + "' is not a directory";
     return nullptr;
   }
-  const std::string path = dir + "/" + kInputPrefix + std::to_string(getpid()) + "-" +
-                           std::to_string(g_input_count++) + kInputSuffix;
-  sockaddr_un a;
-  if (!MakeAddress(path, &a)) {
-    *error = "trigger bus '" + spec + "': socket path '" + path + "' is longer than " +
-             std::to_string(sizeof a.sun_path - 1) + " bytes";
-    return nullptr;
-  }
   const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd < 0) {
     *error = "trigger bus '" + spec + "': socket: " + Reason();
     return nullptr;
   }
-  unlink(path.c_str());  // a stale socket of a killed process with this pid
-  if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
-    *error = "trigger bus '" + spec + "': cannot bind '" + path + "': " + Reason();
-    close(fd);
-    return nullptr;
+  // bind claims a name atomically: a live input's name is skipped, a socket
+  // left by a killed process is replaced.
+  for (int n = 0; n < kMaxInputNames; ++n) {
+    const std::string path = name(n);
+    MakeAddress(path, &a);
+    const sockaddr* addr = reinterpret_cast<const sockaddr*>(&a);
+    bool bound = bind(fd, addr, sizeof a) == 0;
+    int bind_errno = errno;
+    if (!bound && bind_errno == EADDRINUSE && IsStaleSocket(a) && unlink(path.c_str()) == 0) {
+      bound = bind(fd, addr, sizeof a) == 0;
+      bind_errno = errno;
+    }
+    if (bound) return std::make_unique<BusInput>(spec, path, fd);
+    if (bind_errno != EADDRINUSE) {
+      errno = bind_errno;
+      *error = "trigger bus '" + spec + "': cannot bind '" + path + "': " + Reason();
+      close(fd);
+      return nullptr;
+    }
   }
-  return std::make_unique<BusInput>(spec, path, fd);
+  *error = "trigger bus '" + spec + "': " + std::to_string(kMaxInputNames) + " inputs named " + stem +
+           "N.sock are in use";
+  close(fd);
+  return nullptr;
 }
 
 BusOutput::~BusOutput() {

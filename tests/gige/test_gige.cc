@@ -277,6 +277,15 @@ TEST(GigeGpio, MissingChipGivesAClearError) {
   error.clear();
   EXPECT_EQ(hal::OpenGpiodOutput("/dev/null:0", "test", &error), nullptr);  // not a GPIO chip
   EXPECT_NE(error.find("/dev/null"), std::string::npos) << error;
+  EXPECT_NE(error.find(std::strerror(ENOTTY)), std::string::npos) << "the reason: its ioctl fails\n" << error;
+  // A path outside /dev is opened as given (libgpiod's lookup would try
+  // /dev/PATH and report a missing file).
+  const std::string file = testing::TempDir() + "camsim_not_a_chip";
+  std::ofstream(file) << "x";
+  error.clear();
+  EXPECT_EQ(hal::OpenGpiodInput(file + ":0", "test", &error), nullptr);
+  EXPECT_NE(error.find(std::strerror(ENOTTY)), std::string::npos) << error;
+  std::remove(file.c_str());
 }
 
 // Edges that arrive before the waiter wakes keep their own direction: a
@@ -347,7 +356,7 @@ TEST(GigeTriggerBus, BadSpecsGiveAClearErrorNamingThem) {
   const std::string long_dir = testing::TempDir() + std::string(120, 'd');
   EXPECT_EQ(input("unix:" + long_dir), nullptr);
   EXPECT_NE(error.find("longer than"), std::string::npos) << error;
-  rmdir(long_dir.c_str());
+  EXPECT_NE(rmdir(long_dir.c_str()), 0) << "a refused bus made its directory";
   // A file where the bus directory should be.
   const std::string file = testing::TempDir() + "camsim-bus-file-" + std::to_string(getpid());
   std::fclose(std::fopen(file.c_str(), "w"));
@@ -385,6 +394,44 @@ TEST(GigeTriggerBus, AnEdgeThatFailedIsSentByTheNextSet) {
   EXPECT_EQ(edge, hal::Edge::kRising);
   in.reset();
   EXPECT_EQ(rmdir(dir.c_str()), 0);
+}
+
+// Cameras in different PID namespaces can share a pid, and so a socket name:
+// an input never takes a live input's name, and replaces a killed one's.
+TEST(GigeTriggerBus, AnInputSkipsNamesInUseAndReplacesStaleOnes) {
+  const std::string dir = testing::TempDir() + "camsim-names-" + std::to_string(getpid());
+  ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
+  const std::string stem = dir + "/line-" + std::to_string(getpid()) + "-";
+  auto bind_at = [](const std::string& path) {
+    const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::snprintf(a.sun_path, sizeof a.sun_path, "%s", path.c_str());
+    EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << path;
+    return fd;
+  };
+  const int other = bind_at(stem + "0.sock");  // another namespace's camera, live
+  close(bind_at(stem + "1.sock"));             // a killed camera's socket file
+  std::string error;
+  auto in = hal::OpenInputLine("unix:" + dir, "test", &error);
+  ASSERT_NE(in, nullptr) << error;
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  const std::string pid = std::to_string(getpid());
+  EXPECT_EQ(names, (std::vector<std::string>{"line-" + pid + "-0.sock", "line-" + pid + "-1.sock"}));
+  auto out = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(out, nullptr) << error;
+  ASSERT_TRUE(out->Set(true, &error)) << error;
+  EXPECT_EQ(out->last_receivers(), 2) << "both the other camera and the new input";
+  hal::Edge edge;
+  EXPECT_EQ(in->WaitEdge(1000, &edge, &error), 1);
+  uint8_t buf[16];
+  EXPECT_EQ(recv(other, buf, sizeof buf, MSG_DONTWAIT), 16) << "the other camera lost its socket";
+  in.reset();
+  EXPECT_TRUE(std::filesystem::exists(stem + "0.sock")) << "closing the input removed the other camera's socket";
+  close(other);
+  std::filesystem::remove_all(dir);
 }
 
 // Datagrams that are not bus edges do not restart an input's timeout.
@@ -1326,6 +1373,50 @@ TEST(GigeRegisters, LineStatusFollowsTheStrobe) {
     EXPECT_EQ(memory.edges(), stuck ? 0 : 2);
     EXPECT_EQ(ReadReg32(*d, line0_status), 0u) << "Line0: no trigger line, low";
   }
+}
+
+// An output whose next falling edge fails once; it records the edges it
+// sent and the frame index each carried.
+class FailsOnceLowLine : public hal::OutputLine {
+ public:
+  bool fail_next_low = false;
+  std::vector<std::pair<bool, uint32_t>> sent;
+  bool Set(bool high, std::string* error) override {
+    if (!high && fail_next_low) {
+      fail_next_low = false;
+      *error = "failed once";
+      return false;
+    }
+    sent.emplace_back(high, index_);
+    return true;
+  }
+  void SetEdgeIndex(uint32_t index) override { index_ = index; }
+  std::string Name() const override { return "fails once"; }
+
+ private:
+  uint32_t index_ = 0;
+};
+
+// A frame whose falling edge failed does not cost the next frame its rising
+// edge: the falling edge goes first, then the next frame's pulse.
+TEST(GigeRegisters, AStrobeEdgeThatFailedIsSentBeforeTheNextPulse) {
+  FailsOnceLowLine line;
+  DeviceOptions o = OfflineDevice();
+  o.strobe = &line;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, genicam::reg::SelectedAddress(reg::kLineSource, 1), Be32(genicam::kLineSourceExposureActive));
+  WriteReg(*d, reg::kSimFrameIndex, Be32(7));
+  d->SyncNow();
+  std::vector<uint8_t> frame;
+  line.fail_next_low = true;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(d->line_error(), "failed once");
+  EXPECT_EQ(ReadReg32(*d, genicam::reg::SelectedAddress(reg::kLineStatus, 1)), 1u) << "the strobe stayed high";
+  ASSERT_TRUE(d->RenderNow(&frame));
+  const std::vector<std::pair<bool, uint32_t>> want = {{true, 7}, {false, 7}, {true, 8}, {false, 8}};
+  EXPECT_EQ(line.sent, want);
+  EXPECT_EQ(ReadReg32(*d, genicam::reg::SelectedAddress(reg::kLineStatus, 1)), 0u);
 }
 
 // ---------------------------------------------------------------- end to end
