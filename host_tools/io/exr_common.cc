@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <limits>
 #include <new>
+#include <string>
+#include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -37,14 +39,25 @@ std::unique_ptr<Imf::MultiPartInputFile> OpenExr(const std::string& path, std::s
   // Imf 3.1 allocates first: a 909-byte file with a string attribute "of
   // 1.9 GB" made it allocate 1.9 GB. Strict: without the flag, Core reports
   // such a header of a later part and still returns success.
+  // Core's own reason is kept for the message (e.g. a multi-part file with a
+  // deep part needs a `version` attribute on every part: Core 3.1 refuses it
+  // otherwise, with or without the flag).
   {
+    std::vector<std::string> said;
     exr_context_t ctx = nullptr;
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.flags = EXR_CONTEXT_FLAG_STRICT_HEADER | EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+    init.flags = EXR_CONTEXT_FLAG_STRICT_HEADER;
+    init.user_data = &said;
+    init.error_handler_fn = [](exr_const_context_t c, exr_result_t, const char* message) {
+      void* said_list = nullptr;
+      if (exr_get_user_data(c, &said_list) == EXR_ERR_SUCCESS && said_list != nullptr)
+        static_cast<std::vector<std::string>*>(said_list)->push_back(message);
+    };
     const exr_result_t r = exr_start_read(&ctx, path.c_str(), &init);
     if (ctx != nullptr) exr_finish(&ctx);
     if (r != EXR_ERR_SUCCESS) {
-      *error = "'" + path + "' is not a readable OpenEXR file: " + exr_get_default_error_message(r);
+      *error = "'" + path + "' is not a readable OpenEXR file: " + exr_get_default_error_message(r) +
+               (said.empty() ? "" : " (" + Printable(said.front()) + ")");
       return nullptr;
     }
   }
@@ -65,6 +78,17 @@ bool PartHasChannel(const Imf::MultiPartInputFile& file, int part, const std::st
   return IsFlatPart(file, part) && file.header(part).channels().findChannel(name) != nullptr;
 }
 
+std::string Printable(const std::string& bytes) {
+  std::string out;
+  for (const char c : bytes) {
+    const unsigned char b = static_cast<unsigned char>(c);
+    char hex[5];
+    std::snprintf(hex, sizeof hex, "\\x%02x", b);
+    out += b >= 0x20 && b < 0x7f ? std::string(1, c) : std::string(hex);
+  }
+  return out;
+}
+
 std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names) {
   std::string list;
   size_t n = 0;
@@ -74,13 +98,7 @@ std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names) 
     for (auto it = channels.begin(); it != channels.end(); ++it, ++n) {
       if (n == max_names) return list + ", ...";
       // A name is any bytes: shown printable, so that no terminal control sequence reaches the user.
-      list += n ? ", " : "";
-      for (const char* c = it.name(); *c != '\0'; ++c) {
-        const unsigned char b = static_cast<unsigned char>(*c);
-        char hex[5];
-        std::snprintf(hex, sizeof hex, "\\x%02x", b);
-        list += b >= 0x20 && b < 0x7f ? std::string(1, *c) : std::string(hex);
-      }
+      list += (n ? ", " : "") + Printable(it.name());
     }
   }
   return n ? list : "(none)";

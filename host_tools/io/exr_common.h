@@ -40,6 +40,9 @@ bool PartHasChannel(const Imf::MultiPartInputFile& file, int part, const std::st
 
 // Channel names of all flat parts, comma separated, at most `max_names` (then "...").
 std::string ListChannels(const Imf::MultiPartInputFile& file, size_t max_names = 20);
+// Bytes from a file shown printable: others as \xNN (no terminal control
+// sequence reaches the user).
+std::string Printable(const std::string& bytes);
 
 // The display window size; false if empty or larger than kMaxDisplayDim.
 bool DisplaySize(const Imf::Header& header, int* width, int* height);

@@ -43,23 +43,29 @@ struct Colour {
   std::string layout;
 };
 
-// Blender multi-layer: the first `<layer><pass>.R` with G and B beside it.
+// Blender's compositor output: a layer of its own beside the view layers.
+constexpr char kCompositeLayer[] = "Composite.";
+
+// Blender multi-layer: the first `<layer><pass>.R` with G and B beside it;
+// the Composite layer only when no other layer has one.
 bool FindLayerPass(const Imf::MultiPartInputFile& file, const std::string& pass, Colour* c) {
   const std::string suffix = pass + ".R";
-  for (int p = 0; p < file.parts(); ++p) {
-    if (!detail::IsFlatPart(file, p)) continue;
-    const Imf::ChannelList& channels = file.header(p).channels();
-    for (auto it = channels.begin(); it != channels.end(); ++it) {
-      const std::string name = it.name();
-      if (!EndsWith(name, suffix)) continue;
-      const std::string layer = name.substr(0, name.size() - suffix.size());
-      if (!layer.empty() && layer.back() != '.') continue;
-      const std::string base = layer + pass + ".";
-      if (FindPart(file, p, {base + "G", base + "B"}) != p) continue;
-      *c = {p, name, base + "G", base + "B", layer,
-            "blender-multilayer " + (layer.empty() ? std::string("(unnamed)")
-                                                   : layer.substr(0, layer.size() - 1))};
-      return true;
+  for (const bool composite : {false, true}) {
+    for (int p = 0; p < file.parts(); ++p) {
+      if (!detail::IsFlatPart(file, p)) continue;
+      const Imf::ChannelList& channels = file.header(p).channels();
+      for (auto it = channels.begin(); it != channels.end(); ++it) {
+        const std::string name = it.name();
+        if (!EndsWith(name, suffix)) continue;
+        const std::string layer = name.substr(0, name.size() - suffix.size());
+        if (!layer.empty() && layer.back() != '.') continue;
+        if ((layer == kCompositeLayer) != composite) continue;
+        const std::string base = layer + pass + ".";
+        if (FindPart(file, p, {base + "G", base + "B"}) != p) continue;
+        *c = {p, name, base + "G", base + "B", layer,
+              "blender-multilayer " + (layer.empty() ? std::string("(unnamed)") : layer.substr(0, layer.size() - 1))};
+        return true;
+      }
     }
   }
   return false;
@@ -81,8 +87,12 @@ bool FindColour(const Imf::MultiPartInputFile& file, const std::string& path, Co
     *c = {p, "Y", "Y", "Y", "", "y"};
     return true;
   }
+  int deep_parts = 0;
+  for (int p = 0; p < file.parts(); ++p) deep_parts += detail::IsFlatPart(file, p) ? 0 : 1;
   *error = "'" + path + "': no colour channels (looked for <Layer>.Combined.R/G/B, " +
-           "<Layer>.Image.R/G/B, R/G/B, Y); channels present: " + detail::ListChannels(file);
+           "<Layer>.Image.R/G/B, R/G/B, Y); channels present: " + detail::ListChannels(file) +
+           (deep_parts ? "; " + std::to_string(deep_parts) + " deep part(s) skipped: deep images are not supported"
+                       : "");
   return false;
 }
 

@@ -4,13 +4,20 @@
 // LoadSceneExr(path, depth_path, out, error): the rules
 //
 // Files: single-part and multi-part files (every part is searched, in file
-// order; deep parts are skipped); scanline and tiled; any compression. For
+// order; deep parts are skipped, and a file of deep parts only is an error
+// that says so); scanline and tiled; any compression. OpenEXR 3.1 refuses a
+// multi-part file with a deep part unless every part has a `version`
+// attribute; the error gives its reason. For
 // multi-part files the layout gets " (multi-part, colour in part N)" appended.
 //
 // Colour, first match wins:
 //  1. Blender multi-layer: `<Layer>.Combined.R/G/B` (layout "blender-multilayer
 //     <Layer>"); the first layer, in part order then channel-name order, that
 //     has all three. Only if no layer has Combined: `<Layer>.Image.R/G/B`.
+//     Blender's `Composite` layer (the compositor's output, written beside
+//     the view layers) comes last: the view layer holds the depth and motion
+//     that go with its colour, and the compositor's lens effects are camsim's
+//     to model.
 //     A bare `Combined.R/G/B` (empty layer name) also counts.
 //  2. Plain `R`, `G`, `B` (layout "rgb", or "rgba" if `A` is present; A unused).
 //  3. Luminance-only `Y`: r = g = b = Y (layout "y"). Files with chroma

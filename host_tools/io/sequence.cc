@@ -69,9 +69,11 @@ int LaterIndex(const std::string& prefix, const std::string& suffix, size_t widt
         f.compare(f.size() - suffix.size(), suffix.size(), suffix) != 0)
       continue;
     const std::string digits = f.substr(stem.size(), f.size() - stem.size() - suffix.size());
-    if (digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
-      continue;
-    const int k = std::stoi(digits);
+    if (!std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    // Leading zeros (a %010d pattern) do not count towards int's 9 safe digits.
+    const size_t significant = std::min(digits.find_first_not_of('0'), digits.size());
+    if (digits.size() - significant > 9) continue;
+    const int k = significant == digits.size() ? 0 : std::stoi(digits.substr(significant));
     if (Padded(k, width) != digits || k <= missing || !IsFile(it->path().string())) continue;  // not a name the pattern makes
     if (best < 0 || k < best) best = k;
   }
@@ -92,9 +94,11 @@ bool ExpandPattern(const std::string& arg, std::vector<std::string>* files, std:
   }
   const size_t width = m[2].matched ? std::stoul(m[2].str()) : 0;
   auto name = [&](int i) { return prefix + Padded(i, width) + suffix; };
+  // The first index: 0, else 1, else the lowest present (a sequence from 1001).
   int i = IsFile(name(0)) ? 0 : 1;
-  if (!IsFile(name(i))) {
-    *error = "no files match pattern '" + arg + "' (tried '" + name(0) + "' and '" + name(1) + "')";
+  if (!IsFile(name(i))) i = LaterIndex(prefix, suffix, width, 1);
+  if (i < 0) {
+    *error = "no files match pattern '" + arg + "' (tried '" + name(0) + "', '" + name(1) + "' and later indices)";
     return false;
   }
   for (; IsFile(name(i)); ++i) files->push_back(name(i));

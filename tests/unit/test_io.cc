@@ -14,6 +14,9 @@
 #include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineOutputFile.h>
+#include <OpenEXR/ImfDeepScanLineOutputPart.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
@@ -168,6 +171,45 @@ TEST_F(IoTest, FloatRoundTripSanitises) {
   EXPECT_EQ(f.depth_stats.negative, 1u);
 }
 
+// Blender writes the compositor's output as a layer "Composite" beside the
+// view layers; it sorts first, but colour comes from the view layer, which
+// holds the depth and motion that go with it.
+TEST_F(IoTest, BlenderCompositeLayerComesLast) {
+  const std::vector<float> one = {1.0f, 1.0f}, half = {0.5f, 0.5f}, z = {2.0f, 3.0f}, v = {0.25f, -0.25f};
+  const std::string path = Path("composite.exr");
+  std::string error;
+  ASSERT_TRUE(WriteExrFloat(path, 2, 1,
+                            {{"Composite.Combined.R", half.data(), 2},
+                             {"Composite.Combined.G", half.data(), 2},
+                             {"Composite.Combined.B", half.data(), 2},
+                             {"ViewLayer.Combined.R", one.data(), 2},
+                             {"ViewLayer.Combined.G", one.data(), 2},
+                             {"ViewLayer.Combined.B", one.data(), 2},
+                             {"ViewLayer.Depth.Z", z.data(), 2},
+                             {"ViewLayer.Vector.X", v.data(), 2},
+                             {"ViewLayer.Vector.Y", v.data(), 2}},
+                            &error))
+      << error;
+  SceneFrame f;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "blender-multilayer ViewLayer");
+  EXPECT_EQ(f.r.data, one);
+  ASSERT_TRUE(f.has_depth);
+  EXPECT_EQ(f.depth.data, z);
+  EXPECT_TRUE(f.has_motion);
+  // Only a Composite layer: it is the colour.
+  const std::string only = Path("composite_only.exr");
+  ASSERT_TRUE(WriteExrFloat(only, 2, 1,
+                            {{"Composite.Combined.R", half.data(), 2},
+                             {"Composite.Combined.G", half.data(), 2},
+                             {"Composite.Combined.B", half.data(), 2}},
+                            &error))
+      << error;
+  ASSERT_TRUE(LoadSceneExr(only, "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "blender-multilayer Composite");
+  EXPECT_EQ(f.r.data, half);
+}
+
 TEST_F(IoTest, HalfChannelsAndUintDepth) {
   const std::string path = Path("half.exr");
   WriteTestExr(path, Box(0, 0, 1, 0), Box(0, 0, 1, 0),
@@ -320,6 +362,63 @@ TEST_F(IoTest, MultiPartFile) {
   EXPECT_EQ(f.layout, "rgb+z (multi-part, colour in part 1)");
   EXPECT_EQ(f.g.data, (std::vector<float>{0.5f, 0.75f}));
   EXPECT_EQ(f.depth.data, (std::vector<float>{3, 4}));
+}
+
+// Deep parts are skipped; a file of deep parts only, and one OpenEXR 3.1's
+// header check refuses, are errors that say why.
+TEST_F(IoTest, DeepPartsAreSkippedOrNamed) {
+  const Imath::Box2i window = Box(0, 0, 1, 0);
+  unsigned counts[2] = {1, 1};
+  float samples[2] = {1, 1}, flat[2] = {0.5f, 0.75f};
+  float* sample_at[2] = {&samples[0], &samples[1]};
+  auto deep_header = [&] {
+    Imf::Header h(window, window);
+    h.compression() = Imf::ZIPS_COMPRESSION;  // deep files take no block compression
+    for (const char* c : {"R", "G", "B"}) h.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    h.setType(Imf::DEEPSCANLINE);
+    h.setName("deep");
+    h.setVersion(1);
+    return h;
+  };
+  auto write_deep = [&](auto& target) {
+    Imf::DeepFrameBuffer fb;
+    fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, reinterpret_cast<char*>(counts), 4, 8));
+    for (const char* c : {"R", "G", "B"})
+      fb.insert(c, Imf::DeepSlice(Imf::FLOAT, reinterpret_cast<char*>(sample_at), sizeof(float*), 2 * sizeof(float*), 4));
+    target.setFrameBuffer(fb);
+    target.writePixels(1);
+  };
+  auto write_mixed = [&](const std::string& path, bool flat_version) {
+    Imf::Header flat_header(window, window);
+    for (const char* c : {"R", "G", "B"}) flat_header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    flat_header.setType(Imf::SCANLINEIMAGE);
+    flat_header.setName("flat");
+    if (flat_version) flat_header.setVersion(1);
+    std::vector<Imf::Header> headers = {deep_header(), flat_header};
+    Imf::MultiPartOutputFile file(path.c_str(), headers.data(), 2);
+    Imf::DeepScanLineOutputPart deep(file, 0);
+    write_deep(deep);
+    Imf::OutputPart part(file, 1);
+    Imf::FrameBuffer fb;
+    for (const char* c : {"R", "G", "B"}) fb.insert(c, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(flat), 4, 8));
+    part.setFrameBuffer(fb);
+    part.writePixels(1);
+  };
+  SceneFrame f;
+  std::string error;
+  write_mixed(Path("mixed.exr"), true);
+  ASSERT_TRUE(LoadSceneExr(Path("mixed.exr"), "", &f, &error)) << error;
+  EXPECT_EQ(f.layout, "rgb (multi-part, colour in part 1)");
+  EXPECT_EQ(f.r.data, (std::vector<float>{0.5f, 0.75f}));
+  write_mixed(Path("no_version.exr"), false);
+  EXPECT_FALSE(LoadSceneExr(Path("no_version.exr"), "", &f, &error));
+  EXPECT_NE(error.find("'version' attribute for deep file not found"), std::string::npos) << error;
+  {
+    Imf::DeepScanLineOutputFile file(Path("deep.exr").c_str(), deep_header());
+    write_deep(file);
+  }
+  EXPECT_FALSE(LoadSceneExr(Path("deep.exr"), "", &f, &error));
+  EXPECT_NE(error.find("1 deep part(s) skipped: deep images are not supported"), std::string::npos) << error;
 }
 
 TEST_F(IoTest, LoadErrors) {
@@ -632,6 +731,20 @@ TEST_F(IoTest, ExpandPatternAndFiles) {
   ASSERT_TRUE(ExpandInputs({Path("f_%04d.exr"), Path("s%d.exr"), Path("t_9.exr")}, &files, &error)) << error;
   EXPECT_EQ(files, (std::vector<std::string>{Path("f_0001.exr"), Path("f_0002.exr"), Path("f_0003.exr"),
                                              Path("s0.exr"), Path("s1.exr"), Path("t_9.exr")}));
+}
+
+// A sequence may start at any index (VFX renders often start at 1001), and
+// wide padding (%010d) is still checked for gaps.
+TEST_F(IoTest, ExpandPatternFromAnyIndexAndAnyWidth) {
+  for (const char* n : {"v_1001.exr", "v_1002.exr", "w_0000000001.exr", "w_0000000003.exr"}) WriteBytes(Path(n), "x");
+  std::vector<std::string> files;
+  std::string error;
+  ASSERT_TRUE(ExpandInputs({Path("v_%04d.exr")}, &files, &error)) << error;
+  EXPECT_EQ(files, (std::vector<std::string>{Path("v_1001.exr"), Path("v_1002.exr")}));
+  EXPECT_FALSE(ExpandInputs({Path("w_%010d.exr")}, &files, &error));
+  EXPECT_NE(error.find("'" + Path("w_0000000002.exr") + "' is missing but '" + Path("w_0000000003.exr") + "' exists"),
+            std::string::npos)
+      << error;
 }
 
 // A missing frame inside a numbered sequence stops nothing silently.
