@@ -366,6 +366,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   sensor_.scene_count = static_cast<int>(scenes_.size());
   const LineFormat out = p.plan().output;
   sensor_.has_isp_rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
+  if (finished.core.dof.method != DofMethod::kOff)  // the focus must exceed the focal length (core/lens/dof.cc)
+    sensor_.min_focus_distance_m =
+        std::max(reg::kMinFocusDistanceM, (std::floor(finished.core.dof.focal_length_mm) + 1) / 1000.0);
   for (StageId id : configured_stages_) sensor_.stage_names.push_back(StageName(id));
   if (sensor_.width % 2 || sensor_.height % 2) {
     if (sensor_.cfa != Cfa::kMono) {
@@ -456,6 +459,11 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   put_string(reg::kDeviceVersion, strings.version, 32);
   put_string(reg::kManufacturerInfo, "camsim camera emulator", 48);
   put_string(reg::kUserId, "", 16);
+  // What the device is and can do. WRITEMEM is the only way to write an
+  // 8-byte Float register; the fake camera has no concatenation, packet
+  // resend or events, so they are not claimed.
+  Write(reg::kDeviceMode, reg::kDeviceModeBigEndianUtf8);
+  Write(reg::kGvcpCapability, reg::kCapabilityUserName | reg::kCapabilitySerialNumber | reg::kCapabilityWriteMem);
 
   using namespace reg;
   const auto& c = finished.core;
@@ -494,7 +502,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimFNumber, DoubleBits(c.exposure.f_number)},
       // (Unchecked while dof.method is off: kept in the XML's range.)
       {kSimFocusDistance, DoubleBits(std::isfinite(c.dof.focus_distance_m)
-                                         ? std::clamp(c.dof.focus_distance_m, kMinFocusDistanceM, kMaxFocusDistanceM)
+                                         ? std::clamp(c.dof.focus_distance_m, sensor_.min_focus_distance_m, kMaxFocusDistanceM)
                                          : kMaxFocusDistanceM)},
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
@@ -747,6 +755,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   // camsim's range the XML does not describe, is refused whole, not stored
   // (it used to stop a free run through the fake camera's trigger mode).
   for (uint32_t r = address; r < address + size; r += 4) {
+    if (r == reg::kDeviceMode || r == reg::kGvcpCapability) {
+      ++d->writes_refused_;
+      return {false, GevStatus::kWriteProtect};
+    }
     if (!IsDeviceRange(r)) continue;
     // The fake camera acknowledges a trigger by writing 0 through the same
     // path as a client (arv_fake_camera_check_and_acknowledge_software_trigger).
@@ -1262,11 +1274,15 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     TakeFrameSlot();
-    // The frame's time is its start, as the fake camera's clock reads it (it
-    // stamps the buffer itself before this callback).
-    const guint64 now_ns = static_cast<guint64>(g_get_real_time()) * 1000;
-    arv_buffer_set_timestamp(buffer, now_ns);
-    arv_buffer_set_system_timestamp(buffer, now_ns);
+    // The frame's time is its slot on the fake camera's clock (it stamps the
+    // buffer itself before this callback): free-run frames keep their cadence,
+    // as a camera's sensor timing does, however late this thread runs.
+    const auto late = std::max(std::chrono::steady_clock::duration::zero(),
+                               std::chrono::steady_clock::now() - frame_slot_);
+    const guint64 slot_ns = static_cast<guint64>(g_get_real_time()) * 1000 -
+                            static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
+    arv_buffer_set_timestamp(buffer, slot_ns);
+    arv_buffer_set_system_timestamp(buffer, slot_ns);
     const bool first = !was_acquiring_;
     FillLocked(buffer, pixel_format);
     PaceFreeRun();  // the next frame at once when its slot has passed, or frames come as fast as they are made

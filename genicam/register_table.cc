@@ -167,6 +167,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const auto window = [&t](Feature f, const char* max_name, const char* other) {
     f.max_formula = "M-O";
     f.variables = {{"M", max_name}, {"O", other}};
+    f.locked_while_acquiring = true;
     t.push_back(f);
   };
   window(Int("Width", ifc, kWidth, true, step, s.width, step,
@@ -182,6 +183,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
+  t.back().locked_while_acquiring = true;
 
   const char* ac = "AcquisitionControl";
   t.push_back(Enum("AcquisitionMode", ac, kAcquisitionMode, true,
@@ -214,6 +216,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Automatic exposure: scales ExposureTime so the mean raw level reaches SimAutoTarget."));
   t.push_back(Enum("TriggerSelector", ac, kTriggerSelector, true, {{"FrameStart", 0}},
                    "The trigger the other Trigger features configure."));
+  t.back().selects = {"TriggerMode", "TriggerSource", "TriggerActivation", "TriggerSoftware"};
   t.push_back(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
                    "On: one frame per trigger; off: free run."));
   t.push_back(Enum("TriggerSource", ac, kTriggerSource, true, {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
@@ -232,6 +235,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const char* io = "DigitalIOControl";
   t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
                    "Line0: trigger input; Line1: strobe output."));
+  t.back().selects = {"LineMode", "LineSource", "LineStatus"};
   constexpr int kLines = 2;
   t.push_back(Selected(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}},
                             "Direction of the selected line."),
@@ -267,7 +271,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("SimFrameIndex", sim, kSimFrameIndex, true, 0, 0x7fffffff, 1,
                   "Frame index of the next frame (keys the noise; `camsim run --first-frame`)."));
   t.push_back(Flt("SimFNumber", sim, kSimFNumber, 0.5, 128.0, "Lens f-number.", ""));
-  t.push_back(Flt("SimFocusDistance", sim, kSimFocusDistance, kMinFocusDistanceM, kMaxFocusDistanceM,
+  t.push_back(Flt("SimFocusDistance", sim, kSimFocusDistance, s.min_focus_distance_m, kMaxFocusDistanceM,
                   "Focus distance of the depth of field (the dof stage; it must exceed the focal length).", "m"));
   t.push_back(Int("SimSeed", sim, kSimSeed, true, 0, 0x7fffffff, 1, "Seed of all randomness."));
   std::vector<EnumEntry> stages;
@@ -275,6 +279,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
     stages.push_back({"Stage_" + s.stage_names[i], static_cast<int64_t>(i)});
   if (stages.empty()) stages.push_back({"Stage_none", 0});
   t.push_back(Enum("SimStageSelector", sim, kSimStageSelector, true, stages, "Configured stage SimStageEnable acts on."));
+  t.back().selects = {"SimStageEnable"};
   t.push_back(Selected(Bool("SimStageEnable", sim, kSimStageEnable, true, "Whether the selected stage runs."),
                        "SimStageSelector", static_cast<int>(stages.size())));
   t.push_back(Int("SimSyncCount", sim, kSimSyncCount, false, 0, 0xffffffff, 1,
@@ -311,6 +316,12 @@ const Feature* FindFeature(const std::vector<Feature>& table, const std::string&
   return nullptr;
 }
 
+// The node a payload feature's pIsLocked names: 1 during an acquisition (the
+// fake camera's acquisition register) or while TLParamsLocked is 1.
+constexpr char kPayloadLocked[] = "PayloadLocked";
+// Where the VersionGuid goes once the rest of the file is known.
+constexpr char kVersionGuidMark[] = "@VERSION_GUID@";
+
 std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& d) {
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
@@ -318,7 +329,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     << "<RegisterDescription ModelName=\"" << Xml(d.model) << "\" VendorName=\"" << Xml(d.vendor)
     << "\" StandardNameSpace=\"GEV\" SchemaMajorVersion=\"1\" SchemaMinorVersion=\"0\" SchemaSubMinorVersion=\"1\""
     << " MajorVersion=\"0\" MinorVersion=\"1\" SubMinorVersion=\"0\" ToolTip=\"camsim emulated camera\""
-    << " ProductGuid=\"5e1c0a52-6d1f-4c4e-9a3e-63616d73696d\" VersionGuid=\"5e1c0a52-6d1f-4c4e-9a3e-000000000100\""
+    << " ProductGuid=\"5e1c0a52-6d1f-4c4e-9a3e-63616d73696d\" VersionGuid=\"" << kVersionGuidMark << "\""
     << " xmlns=\"http://www.genicam.org/GenApi/Version_1_0\""
     << " xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\""
     << " xsi:schemaLocation=\"http://www.genicam.org/GenApi/Version_1_0 GenApiSchema.xsd\">\n";
@@ -343,6 +354,8 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     const std::string regname = (f.alias_of.empty() ? f.name : f.alias_of) + "Reg";
     const std::string access = f.writable ? "RW" : "RO";
     const std::string head = "  <!-- " + Hex(f.address) + " -->\n";
+    const std::string locked =
+        f.locked_while_acquiring ? std::string("    <pIsLocked>") + kPayloadLocked + "</pIsLocked>\n" : "";
     if (f.kind == Kind::kSwissKnife) {
       x << "  <IntSwissKnife Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
         << "    <Description>" << Xml(f.description) << "</Description>\n";
@@ -363,7 +376,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     switch (f.kind) {
       case Kind::kInteger:
         x << "  <Integer Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << locked
           << "    <pValue>" << regname << "</pValue>\n"
           << "    <Min>" << static_cast<int64_t>(f.min) << "</Min>\n";
         if (f.max_formula.empty()) x << "    <Max>" << static_cast<int64_t>(f.max) << "</Max>\n";
@@ -388,11 +401,13 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         break;
       case Kind::kEnum:
         x << "  <Enumeration Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n";
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << locked;
         for (const EnumEntry& e : f.entries)
           x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\"" << (IsStandard(f.name) ? "Standard" : "Custom")
             << "\">\n      <Value>" << e.value << "</Value>\n    </EnumEntry>\n";
-        x << "    <pValue>" << regname << "</pValue>\n  </Enumeration>\n";
+        x << "    <pValue>" << regname << "</pValue>\n";
+        for (const std::string& selected : f.selects) x << "    <pSelected>" << selected << "</pSelected>\n";
+        x << "  </Enumeration>\n";
         break;
       case Kind::kBoolean:
         x << "  <Boolean Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
@@ -423,8 +438,26 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     if (!is_float) x << "    <Sign>Unsigned</Sign>\n";
     x << "    <Endianess>BigEndian</Endianess>\n  </" << reg_kind << ">\n";
   }
+  x << "  <IntSwissKnife Name=\"" << kPayloadLocked << "\" NameSpace=\"Custom\">\n"
+    << "    <pVariable Name=\"T\">TLParamsLockedReg</pVariable>\n"
+    << "    <pVariable Name=\"A\">AcquisitionActiveReg</pVariable>\n"
+    << "    <Formula>(T&lt;&gt;0)||(A&lt;&gt;0)</Formula>\n  </IntSwissKnife>\n"
+    << "  <IntReg Name=\"AcquisitionActiveReg\" NameSpace=\"Custom\">\n"
+    << "    <Address>" << Hex(reg::kAcquisition) << "</Address>\n    <Length>4</Length>\n"
+    << "    <AccessMode>RO</AccessMode>\n    <pPort>Device</pPort>\n    <Cachable>NoCache</Cachable>\n"
+    << "    <Sign>Unsigned</Sign>\n    <Endianess>BigEndian</Endianess>\n  </IntReg>\n";
   x << "  <Port Name=\"Device\" NameSpace=\"Standard\"/>\n</RegisterDescription>\n";
-  return x.str();
+  // The VersionGuid changes with the content (clients cache node maps by it):
+  // its last 64 bits are an FNV-1a hash of the file with the mark in place.
+  std::string xml = x.str();
+  uint64_t hash = 14695981039346656037ull;
+  for (const char c : xml) hash = (hash ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+  char guid[37];
+  std::snprintf(guid, sizeof guid, "5e1c0a52-6d1f-4c4e-%04x-%012llx", static_cast<unsigned>(hash >> 48),
+                static_cast<unsigned long long>(hash & 0xffffffffffffull));
+  const size_t at = xml.find(kVersionGuidMark);
+  xml.replace(at, sizeof kVersionGuidMark - 1, guid);
+  return xml;
 }
 
 }  // namespace camsim::genicam

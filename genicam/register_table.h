@@ -53,6 +53,11 @@ struct Feature {
   // kInteger: the value is the register's low `low_bits` bits (a GenICam
   // MaskedIntReg; writes keep the other bits); 0: the whole register.
   int low_bits = 0;
+  // kEnum, a selector: the features it selects (GenICam pSelected).
+  std::vector<std::string> selects;
+  // Locked (GenICam pIsLocked: not writable) during an acquisition or while
+  // TLParamsLocked is 1, as the device then refuses writes (the payload).
+  bool locked_while_acquiring = false;
 };
 
 // Register addresses (named once, used by the table, the device and the tests).
@@ -60,6 +65,13 @@ namespace reg {
 inline constexpr uint32_t kVendorName = 0x48, kModelName = 0x68, kDeviceVersion = 0x88, kManufacturerInfo = 0xa8,
                           kSerialNumber = 0xd8, kUserId = 0xe8;  // GigE Vision bootstrap strings
 inline constexpr uint32_t kPacketSize = 0xd04;                    // bootstrap SCPS0
+// GigE Vision bootstrap, read-only to clients: device mode (bit 31:
+// big-endian registers; low 16 bits: the strings' character set) and the
+// GVCP capabilities the device has.
+inline constexpr uint32_t kDeviceMode = 0x0004, kGvcpCapability = 0x0934;
+inline constexpr uint32_t kDeviceModeBigEndianUtf8 = 0x80000001u;
+inline constexpr uint32_t kCapabilityUserName = 1u << 31, kCapabilitySerialNumber = 1u << 30,
+                          kCapabilityWriteMem = 1u << 1;
 // GigE Vision bootstrap: heartbeat timeout (ms), control channel privilege
 // (0 = no controlling client), stream channel 0 port (low 16 bits) and destination address.
 inline constexpr uint32_t kHeartbeatTimeout = 0x0938, kControlChannelPrivilege = 0x0a00, kStreamPort = 0x0d00,
@@ -122,6 +134,9 @@ struct SensorInfo {
   int scene_count = 1;
   bool has_isp_rgb = false;  // the configured pipeline ends in an 8-bit RGB image
   std::vector<std::string> stage_names;  // configured stages (SimStageSelector entries)
+  // SimFocusDistance's Min: a value the device accepts (with depth of field,
+  // the next whole millimetre beyond the focal length).
+  double min_focus_distance_m = reg::kMinFocusDistanceM;
 };
 
 // Pixel formats offered for a sensor, first = default (the raw format at the ADC depth).

@@ -189,6 +189,17 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
             arv_gc_enum_entry_get_value(ARV_GC_ENUM_ENTRY(e->data), nullptr);
       for (const genicam::EnumEntry& e : f.entries) want[e.name] = e.value;
       EXPECT_EQ(got, want) << f.name;
+      // A selector names what it selects (GenICam pSelected): clients walk
+      // it to save and restore every selected value.
+      ArvGcSelector* selector = ARV_GC_SELECTOR(node);
+      EXPECT_EQ(arv_gc_selector_is_selector(selector), !f.selects.empty()) << f.name;
+      std::vector<std::string> selected;
+      for (const GSList* e = arv_gc_selector_get_selected_features(selector); e; e = e->next)
+        selected.push_back(arv_gc_feature_node_get_name(ARV_GC_FEATURE_NODE(e->data)));
+      std::sort(selected.begin(), selected.end());
+      std::vector<std::string> want_selected = f.selects;
+      std::sort(want_selected.begin(), want_selected.end());
+      EXPECT_EQ(selected, want_selected) << f.name;
     }
     ++checked;
   }
@@ -205,6 +216,45 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
   EXPECT_EQ(genicam::kRGB8, static_cast<uint32_t>(ARV_PIXEL_FORMAT_RGB_8_PACKED));
   EXPECT_EQ(genicam::kMono12, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_12));
   g_object_unref(gc);
+}
+
+// Clients cache a parsed XML by its VersionGuid: another sensor, another
+// file, another guid; the same sensor, the same.
+TEST(GigeRegisterTable, VersionGuidFollowsTheContent) {
+  auto guid_of = [](int width, Cfa cfa) {
+    genicam::SensorInfo s;
+    s.width = width;
+    s.height = 48;
+    s.cfa = cfa;
+    s.adc_bits = 12;
+    s.scene_count = 1;
+    const std::string xml = genicam::GenerateXml(genicam::RegisterTable(s), genicam::DeviceStrings());
+    const std::string key = "VersionGuid=\"";
+    const size_t at = xml.find(key);
+    EXPECT_NE(at, std::string::npos);
+    return at == std::string::npos ? std::string() : xml.substr(at + key.size(), 36);
+  };
+  const std::string a = guid_of(64, Cfa::kBayerRG);
+  EXPECT_EQ(a.size(), 36u);
+  EXPECT_EQ(a[8], '-');
+  EXPECT_EQ(a, guid_of(64, Cfa::kBayerRG));
+  EXPECT_NE(a, guid_of(96, Cfa::kBayerRG));
+  EXPECT_NE(a, guid_of(64, Cfa::kBayerGR));
+}
+
+// The bootstrap says what the device is: big-endian registers, UTF-8
+// strings, WRITEMEM (a Float can only be written whole), the serial number
+// and user name registers. Clients cannot change either.
+TEST(GigeRegisters, BootstrapDescribesTheDeviceAndIsReadOnly) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(ReadReg32(*d, reg::kDeviceMode), 0x80000001u);
+  const uint32_t caps = ReadReg32(*d, reg::kGvcpCapability);
+  EXPECT_EQ(caps, (1u << 31) | (1u << 30) | (1u << 1)) << std::hex << caps;
+  WriteRegRefused(*d, reg::kDeviceMode, Be32(0));
+  WriteRegRefused(*d, reg::kGvcpCapability, Be32(0xffffffff));
+  EXPECT_EQ(ReadReg32(*d, reg::kDeviceMode), 0x80000001u);
+  EXPECT_EQ(ReadReg32(*d, reg::kGvcpCapability), caps);
 }
 
 TEST(GigeRegisterTable, AddressesDoNotOverlap) {
@@ -1169,7 +1219,7 @@ TEST(GigeRegisters, ResultingFrameRateFollowsRateExposureAndRendering) {
 // SimFocusDistance is dof.focus_distance_m: the frames follow it as the
 // core renders them with that setting (the pattern's depth is a plane from
 // 0.5 m to 8 m), and a distance the lens cannot focus at (not beyond its
-// focal length) is refused as it arrives: the pipeline's plan fails.
+// focal length: below the XML's Min) is refused as it arrives.
 TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   DeviceOptions o = OfflineDevice();
   o.pattern = "checker";
@@ -1187,19 +1237,20 @@ TEST(GigeRegisters, SimFocusDistanceMovesTheFocus) {
   ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_EQ(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48, {"dof.focus_distance_m=6.0"}));
   EXPECT_NE(frame, ReferenceFrame(o, 1, code, 0, 0, 64, 48)) << "the focus distance changes nothing in this scene";
-  testing::internal::CaptureStderr();
   WriteRegRefused(*d, reg::kSimFocusDistance, Be64(0.002));  // the demo lens's focal length is longer
-  // The reason names the register the value came from, not the --set that started the device.
-  const std::string log = testing::internal::GetCapturedStderr();
-  EXPECT_EQ(log.rfind("camsim-gige: refused SimFocusDistance: SimFocusDistance: dof.focus_distance_m must exceed", 0),
-            0u)
-      << log;
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0) << "refused as it arrives";
   EXPECT_EQ(d->writes_refused(), 1u);
   d->SyncNow();
   EXPECT_EQ(ReadRegDouble(*d, reg::kSimFocusDistance), 6.0);
   EXPECT_EQ(d->writes_refused(), 1u);
   EXPECT_EQ(d->CheckInvariants(), "");
+  // The XML's Min is a value the device takes (GenApi: bounds are valid
+  // values); a millimetre less is the focal length or shorter.
+  const genicam::Feature* focus = genicam::FindFeature(d->table(), "SimFocusDistance");
+  ASSERT_NE(focus, nullptr);
+  EXPECT_GT(focus->min, reg::kMinFocusDistanceM);
+  WriteReg(*d, reg::kSimFocusDistance, Be64(focus->min));
+  WriteRegRefused(*d, reg::kSimFocusDistance, Be64(focus->min - 0.001));
 }
 
 // The filter plans a pipeline write as it arrives; the sync installs that
@@ -1747,7 +1798,8 @@ TEST_F(GigeE2E, FrameTimestampsAreTheirSlots) {
   }
   for (int i = 1; i < 4; ++i) {
     EXPECT_GT(stamp[i], arrival[i - 1]) << "frame " << i << " carries a time from before the previous frame arrived";
-    EXPECT_NEAR(static_cast<double>(stamp[i] - stamp[i - 1]), 200e6, 60e6) << "frame " << i;
+    // The slots' cadence, whatever the load delays (5 ms: the clocks' reads).
+    EXPECT_NEAR(static_cast<double>(stamp[i] - stamp[i - 1]), 200e6, 5e6) << "frame " << i;
   }
 }
 
@@ -2362,6 +2414,37 @@ TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
   // Old frames: those already in the client's 4 buffers or being rendered
   // when the write landed; no more.
   EXPECT_LE(old_after_write, 4 + 1) << "old settings after the write was applied";
+}
+
+// The payload's features say they are locked (pIsLocked) exactly when the
+// device refuses their writes: while TLParamsLocked is 1 and while acquiring.
+TEST_F(GigeE2E, PayloadFeaturesReadLockedWhenWritesAreRefused) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ArvDevice* device = arv_camera_get_device(c.camera());
+  auto locked = [&](const char* name) {
+    ArvGcNode* node = arv_device_get_feature(device, name);
+    EXPECT_NE(node, nullptr) << name;
+    GError* e = nullptr;
+    const bool is = node != nullptr && arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), &e);
+    EXPECT_EQ(e, nullptr) << name;
+    return is;
+  };
+  const char* payload[] = {"Width", "Height", "OffsetX", "OffsetY", "PixelFormat"};
+  for (const char* f : payload) EXPECT_FALSE(locked(f)) << f;
+  SetInt(c, "TLParamsLocked", 1);
+  for (const char* f : payload) EXPECT_TRUE(locked(f)) << f << " with TLParamsLocked";
+  EXPECT_FALSE(locked("ExposureTime"));
+  SetInt(c, "TLParamsLocked", 0);
+  for (const char* f : payload) EXPECT_FALSE(locked(f)) << f;
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (const char* f : payload) EXPECT_TRUE(locked(f)) << f << " while acquiring";
+  GError* e = nullptr;
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr);
+  c.CloseStream();
+  for (const char* f : payload) EXPECT_FALSE(locked(f)) << f << " after the stop";
 }
 
 // Over the network: a window written while streaming is refused as it
