@@ -42,7 +42,7 @@ const char kUsage[] =
     "      a calibration target (radiance, R = G = B) to run through camsim\n"
     "  camsim config --preset NAME      print a camera preset (EMVA 1288 data of a real camera)\n"
     "  camsim config --presets          list the camera presets\n"
-    "  camsim emva [--preset NAME] [--config FILE] [--set section.key=value]... [--size N]\n"
+    "  camsim emva [--preset NAME] [--config FILE] [--set section.key=value]... [--size N] [--levels N]\n"
     "  camsim emva --dataset EMVA1288_DESCRIPTOR   (measure a recorded camera's frames)\n"
     "      EMVA 1288 photon-transfer measurement of the emulated sensor, measured vs configured\n"
     "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"

@@ -377,7 +377,7 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.motion_blur.vector_fps; }));
     v.push_back(Number("motion", "line_time_us", "rolling shutter: delay from one row's exposure to the next, us; 0 = global shutter",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.line_time_us; }));
-    v.push_back(Integer("motion", "max_displacement_px", "bound on each sample's offset, 1 .. 63 px (longer motion stops there)",
+    v.push_back(Integer("motion", "max_displacement_px", "bound on each sample's offset, 1 .. 511 px (longer motion stops there)",
                         [](RunConfig& c) -> int& { return c.core.motion_blur.max_displacement_px; }));
     v.push_back(Number("motion", "samples_per_px", "samples per pixel of motion length (precision knob), 1/16 .. 16",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.samples_per_px; }));

@@ -75,11 +75,11 @@
 // gather" of the z-buffer method):
 //   out_p = sum_q [|p - q| <= R_q] x_q / A(R_q) / sum_q [|p - q| <= R_q] / A(R_q),
 // A(R) the pixel count of the disc (a table); integer offsets, a binary disc,
-// so CoCs below 2 px do not blur. Weights round(2^26 / A); sums in 64 bits;
+// so CoCs below 1.75 px (radius below 1 px after rounding) do not blur. Weights round(2^26 / A); sums in 64 bits;
 // one rounded division per channel (details in dof_gather.cc). Reads rows
 // y - max_radius .. y + max_radius, clipped to the frame (discs are clipped
 // at the borders and renormalised, so no margin columns). A row whose window
-// holds no CoC >= 2 px is copied (StageStats::skipped_px).
+// holds no CoC >= 1.75 px is copied (StageStats::skipped_px).
 #pragma once
 
 #include "core/pipeline/inverse_depth.h"

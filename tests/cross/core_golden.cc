@@ -14,10 +14,10 @@
 // multiply-add) shows here even when rounding to integers hides it in the
 // pixel output.
 //
-// Cases, part 2: four pipeline configurations (tests/cross/cases.h: the demo
-// camera, a mono sensor, bilinear BayerBG with a colour matrix, the demo
-// camera with motion blur and rolling shutter, the demo camera behind a
-// distorting lens, depth of field and structural blur) x two synthetic scenes
+// Cases, part 2: the pipeline configurations of tests/cross/cases.h (the
+// demo camera, a mono sensor, bilinear BayerBG with a colour matrix, motion
+// blur and rolling shutter, a distorting lens, depth of field and structural
+// blur, sensor artefacts, listed defects, flare) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
 // pipeline after a running stage. Each case's output (uint32 samples, the

@@ -58,9 +58,6 @@ Client::Client(const std::string& address) {
     return;
   }
   arv_camera_gv_set_stream_options(camera_, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
-  // Aravis 0.8.26 clients keep the value they wrote despite <Cachable>NoCache:
-  // without this, a write the device refused would still read back as written.
-  arv_camera_set_register_cache_policy(camera_, ARV_REGISTER_CACHE_POLICY_DISABLE);
 }
 
 Client::~Client() {
