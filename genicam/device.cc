@@ -621,6 +621,16 @@ void GigeDevice::WriteResultingFrameRate() {
   WriteDouble(kAcquisitionResultingFrameRate, period_s > 1e-6 ? 1.0 / period_s : 1e6);
 }
 
+void GigeDevice::DriveStrobe(bool high) {
+  std::string error;
+  if (strobe_->Set(high, &error)) {
+    strobe_level_ = high;
+    WriteLineStatus();
+  } else {
+    line_error_ = error;
+  }
+}
+
 void GigeDevice::WriteLineStatus() {
   using namespace reg;
   Write(SelectedAddress(kLineStatus, 0), trigger_level_ ? 1 : 0);
@@ -1008,6 +1018,10 @@ void GigeDevice::Sync() {
     applied_ = next;
     WriteDerived();
   }
+  // A strobe whose falling edge failed is lowered as soon as it can be (the
+  // strobe is high only inside a frame's rendering, which holds mutex_ as
+  // every Sync does): not left high until the next frame, if one comes.
+  if (strobe_ && strobe_level_) DriveStrobe(false);
   Write(kSimSyncCount, Read(kSimSyncCount) + 1);
   {
     std::lock_guard<std::mutex> t(trigger_mutex_);
@@ -1397,23 +1411,12 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     ++n;
   }
   const bool strobe = strobe_ && Applied(SelectedAddress(kLineSource, 1)) == kLineSourceExposureActive;
-  std::string line_error;
-  auto set_strobe = [&](bool high) {
-    if (strobe_->Set(high, &line_error)) {
-      strobe_level_ = high;
-      WriteLineStatus();
-    } else {
-      line_error_ = line_error;
-    }
-  };
-  // A falling edge that failed is sent first (with its own frame's index):
-  // otherwise this frame's rising edge would find the line already high.
-  if (strobe && strobe_level_) set_strobe(false);
+  // (A falling edge that failed was sent again by the Sync above.)
   if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
-  if (strobe) set_strobe(true);
+  if (strobe) DriveStrobe(true);
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
-  if (strobe) set_strobe(false);
+  if (strobe) DriveStrobe(false);
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
 

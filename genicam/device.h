@@ -186,6 +186,7 @@ class GigeDevice {
   void WriteDerived();  // registers that follow from the applied values
   void WriteResultingFrameRate();  // AcquisitionResultingFrameRate
   void WriteLineStatus();  // each line's level
+  void DriveStrobe(bool high);  // sets the strobe line; a failure goes to line_error_
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   // Free run (under mutex_): the fake camera stays in its trigger mode and
   // makes a frame when asked, so its one thread keeps answering control

@@ -1,6 +1,8 @@
 // Loopback trigger bus backend of hal/gpio.h: UNIX datagram sockets in one
 // directory stand for a trigger wire shared by the cameras of a rig.
 #include <dirent.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -51,12 +53,38 @@ bool IsStaleSocket(const sockaddr_un& a) {
   return stale;
 }
 
+// Holds an exclusive flock on the bus directory: claiming a name (probe,
+// unlink, bind) and giving it up (unlink) are one step to every member,
+// also to cameras in other PID namespaces that share the directory.
+class DirectoryLock {
+ public:
+  explicit DirectoryLock(const std::string& dir) : fd_(open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
+    if (fd_ >= 0)
+      while (flock(fd_, LOCK_EX) != 0 && errno == EINTR) {
+      }
+  }
+  ~DirectoryLock() {
+    if (fd_ >= 0) close(fd_);  // releases the lock
+  }
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+
+ private:
+  int fd_;
+};
+
 class BusInput : public InputLine {
  public:
-  BusInput(std::string spec, std::string path, int fd) : spec_(std::move(spec)), path_(std::move(path)), fd_(fd) {}
+  BusInput(std::string spec, std::string dir, std::string path, int fd)
+      : spec_(std::move(spec)), dir_(std::move(dir)), path_(std::move(path)), fd_(fd) {}
   ~BusInput() override {
+    // The name goes while the socket still answers: a member probing it
+    // meanwhile sees it live, never stale.
+    {
+      const DirectoryLock lock(dir_);
+      unlink(path_.c_str());
+    }
     close(fd_);
-    unlink(path_.c_str());
   }
   int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override {
     // A signal or a datagram that is not a bus edge does not restart the timeout.
@@ -93,7 +121,7 @@ class BusInput : public InputLine {
   }
 
  private:
-  std::string spec_, path_;
+  std::string spec_, dir_, path_;
   int fd_;
   uint32_t index_ = 0;
 };
@@ -159,8 +187,10 @@ std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* er
     *error = "trigger bus '" + spec + "': socket: " + Reason();
     return nullptr;
   }
-  // bind claims a name atomically: a live input's name is skipped, a socket
-  // left by a killed process is replaced.
+  // A live input's name is skipped, a socket left by a killed process is
+  // replaced; under the directory's lock, so two members never both judge
+  // one name stale, nor a name being bound or given up.
+  const DirectoryLock lock(dir);
   for (int n = 0; n < kMaxInputNames; ++n) {
     const std::string path = name(n);
     MakeAddress(path, &a);
@@ -171,7 +201,7 @@ std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* er
       bound = bind(fd, addr, sizeof a) == 0;
       bind_errno = errno;
     }
-    if (bound) return std::make_unique<BusInput>(spec, path, fd);
+    if (bound) return std::make_unique<BusInput>(spec, dir, path, fd);
     if (bind_errno != EADDRINUSE) {
       errno = bind_errno;
       *error = "trigger bus '" + spec + "': cannot bind '" + path + "': " + Reason();
