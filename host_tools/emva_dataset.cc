@@ -275,9 +275,10 @@ std::string FormatEmvaDatasetReport(const std::string& descriptor, const EmvaDat
                 r.fit.dark_noise_e, "saturation capacity (e-)", r.fit.saturation_e, "dark level (DN)", r.dark_mean_dn,
                 "dark current (e-)", r.dark_current_e, r.fit.saturation_photons, r.fit.fit_points);
   std::string t = b;
-  // EMVA 1288: below 0.5 DN of temporal dark noise, quantisation dominates.
-  if (r.fit.dark_noise_e * r.fit.system_gain < 0.5)
-    t += "warning: temporal dark noise is below 0.5 DN; quantisation limits its accuracy\n";
+  // EMVA 1288 4.0: a dark variance below 0.24 DN^2 gives only an upper limit.
+  if (r.fit.dark_noise_upper_limit)
+    t += "note: the temporal dark noise is an upper limit: the dark variance is below 0.24 DN^2, where "
+         "quantisation hides the dark noise\n";
   if (r.has_nonuniformity) {
     std::snprintf(b, sizeof b, "%-30s %12.4g\n%-30s %12.4g\n(non-uniformity: stacks at 0 and %.0f photons)\n",
                   "DSNU (e-)", r.dsnu_e, "PRNU (%)", r.prnu_percent, r.stack_photons);
@@ -287,9 +288,10 @@ std::string FormatEmvaDatasetReport(const std::string& descriptor, const EmvaDat
   }
   // A starting point for a preset: the measured figures as camsim keys.
   std::snprintf(b, sizeof b,
-                "\n[sensor]\nadc_bits = %d\nquantum_efficiency = [%.3f, %.3f, %.3f]\ndark_noise_e = %.2f\n"
+                "\n[sensor]\nadc_bits = %d\nquantum_efficiency = [%.3f, %.3f, %.3f]\ndark_noise_e = %.2f%s\n"
                 "system_gain_dn_per_e = %.4f\nblack_level_dn = %.1f\n",
-                r.bits, qe, qe, qe, r.fit.dark_noise_e, r.fit.system_gain, r.dark_mean_dn);
+                r.bits, qe, qe, qe, r.fit.dark_noise_e, r.fit.dark_noise_upper_limit ? "  # an upper limit" : "",
+                r.fit.system_gain, r.dark_mean_dn);
   t += b;
   if (r.has_nonuniformity) {
     std::snprintf(b, sizeof b, "dsnu_e = %.2f\nprnu_percent = %.2f\n", r.dsnu_e, r.prnu_percent);

@@ -12,6 +12,9 @@ namespace camsim::host {
 namespace {
 
 constexpr double kQuantisationVariance = 1.0 / 12.0;  // DN^2, uniform rounding
+// EMVA 1288 4.0: a dark variance below this is limited by the quantisation;
+// sigma_d is then given as the upper limit it sets.
+constexpr double kDarkVarianceFloor = 0.24;  // DN^2
 constexpr double kFitFraction = 0.70;  // EMVA 1288: fit K and R below 70 % of saturation
 constexpr double kPrnuFraction = 0.50; // EMVA 1288: PRNU at 50 % of saturation
 
@@ -237,16 +240,21 @@ bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOpti
   r.fit_points = fit.fit_points;
   const double K = fit.system_gain;
   r.measured.system_gain = K;
-  // QE per channel: each channel's responsivity over the levels K was fitted on.
+  // QE per channel: its responsivity over its own levels below 70 % of its
+  // own saturation (a channel more sensitive than G saturates first), over K.
   for (int c = 0; c < 3; ++c) {
-    std::vector<double> p, s;
-    for (int i = 0; i < r.fit_points; ++i) {
-      p.push_back(points[static_cast<size_t>(i)].photons);
-      s.push_back(points[static_cast<size_t>(i)].mean[c] - dark.mean[c]);
+    std::vector<TransferLevel> channel;
+    for (const PairStats& p : points) channel.push_back({p.photons, p.mean[c], p.var[c], dark.mean[c], dark.var[c]});
+    TransferFit channel_fit;
+    std::string channel_error;
+    if (!FitPhotonTransfer(channel, dark.var[c], &channel_fit, &channel_error)) {
+      *error = std::string("emva: channel ") + "RGB"[c] + ": " + channel_error;
+      return false;
     }
-    r.measured.qe[c] = SlopeThroughOrigin(p, s) / K;
+    r.measured.qe[c] = channel_fit.responsivity / K;
   }
   r.measured.dark_noise_e = fit.dark_noise_e;
+  r.measured.dark_noise_upper_limit = fit.dark_noise_upper_limit;
   r.measured.saturation_e = fit.saturation_e;
 
   // DSNU and PRNU from averages of L frames.
@@ -305,8 +313,9 @@ bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var
     *error = "emva: the signal does not grow with the photon count (responsivity <= 0): check the photon values";
     return false;
   }
-  f.dark_noise_e = std::sqrt(std::max(0.0, dark_var - kQuantisationVariance)) / f.system_gain;
-  f.saturation_e = sat_signal / f.system_gain;
+  f.dark_noise_upper_limit = dark_var < kDarkVarianceFloor;
+  f.dark_noise_e = std::sqrt(std::max(dark_var, kDarkVarianceFloor) - kQuantisationVariance) / f.system_gain;
+  f.saturation_e = f.responsivity / f.system_gain * f.saturation_photons;  // QE * mu_p.sat
   *fit = f;
   return true;
 }
@@ -341,6 +350,8 @@ std::string FormatEmvaReport(const std::string& title, const EmvaReport& r) {
   row("quantum efficiency G", r.configured.qe[1], r.measured.qe[1]);
   row("quantum efficiency B", r.configured.qe[2], r.measured.qe[2]);
   row("temporal dark noise (e-)", r.configured.dark_noise_e, r.measured.dark_noise_e);
+  if (r.measured.dark_noise_upper_limit)
+    t += "  (an upper limit: the dark variance is below 0.24 DN^2, where quantisation hides the dark noise)\n";
   std::snprintf(line, sizeof line, "%-30s %12.4g\n", "full well or ADC clip (e-)", r.configured.full_well_e);
   t += line;
   row("saturation capacity (e-)", r.configured.saturation_e, r.measured.saturation_e);

@@ -17,7 +17,10 @@
 //      signal; responsivity R: the same of mu_y - mu_y.dark against mu_p;
 //      QE = R / K.
 //   5. Dark noise sigma_d = sqrt(sigma^2_y.dark - 1/12) / K (quantisation
-//      noise removed); saturation capacity mu_e.sat = (mu_y.sat - mu_y.dark) / K.
+//      noise removed), with sigma^2_y.dark at least 0.24 DN^2: below that the
+//      figure is only an upper limit (EMVA 1288 4.0), and says so; saturation
+//      capacity mu_e.sat = QE * mu_p.sat. Each colour's QE is fitted over its
+//      own levels below 70 % of its own saturation.
 //   6. DSNU, PRNU: `average_frames` frames averaged, dark and at 50 % of the
 //      saturation photon count; spatial variance of the average minus the
 //      temporal variance / L; DSNU = s_y.dark / K (electrons),
@@ -42,6 +45,7 @@ struct EmvaFigures {
   double system_gain = 0;      // K, DN per electron (with the analog gain)
   double qe[3] = {};           // R, G, B quantum efficiency, 0..1
   double dark_noise_e = 0;     // temporal dark noise, electrons
+  bool dark_noise_upper_limit = false;  // measured only: the dark variance was below 0.24 DN^2
   double saturation_e = 0;     // saturation capacity (EMVA: at the variance maximum), electrons
   double full_well_e = 0;      // configured only: the clip (well, or the ADC if it ends first)
   double dsnu_e = 0;           // dark signal non-uniformity, electrons
@@ -87,7 +91,8 @@ struct TransferFit {
   double system_gain = 0;    // K, DN/e-
   double responsivity = 0;   // R, DN/photon
   double dark_noise_e = 0;   // from dark_var
-  double saturation_e = 0;   // (mu_y.sat - mu_y.dark) / K
+  bool dark_noise_upper_limit = false;  // dark_var below 0.24 DN^2: dark_noise_e is an upper limit
+  double saturation_e = 0;   // QE * mu_p.sat = R / K * mu_p.sat
   double saturation_photons = 0;
   int fit_points = 0;
 };

@@ -19,7 +19,7 @@ const std::vector<Preset>& Presets() {
 # Source: first-hand, the dataset's raw frames measured with
 #   camsim emva --dataset EMVA1288_ReferenceSet_001_CCD_12Bit/EMVA1288_Data.txt
 # which gives K 0.2801 DN/e-, QE 45.25 %, temporal dark noise 10.93 e-,
-# saturation capacity 13 890 e- (at 30 957 photons), dark level 14.7 DN,
+# saturation capacity 14 010 e- (QE x 30 957 photons), dark level 14.7 DN,
 # DSNU 0.55 e-, PRNU 0.43 %, dark signal 2.85e-8 e- per unit of exposure.
 # The EMVA 1288 reference implementation's published results for the same
 # dataset: K 0.2808, QE 45.14 %, sigma_d 10.90 e-, 13 973 e- at 30 957 photons.
@@ -29,7 +29,7 @@ cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.4525, 0.4525, 0.4525]  # source (the wavelength is not in the dataset)
 dark_noise_e = 10.93                           # source
-full_well_e = 14200.0                          # source: gives the measured 13 890 e- EMVA saturation (the variance peak lies ~2.5 sigma below the clip)
+full_well_e = 14200.0                          # near the source: camsim emva measures 13 660 e- with it, 2.5 % below the dataset's 14 010 (the variance peak lies ~2.5 sigma below the clip)
 system_gain_dn_per_e = 0.2801                  # source
 black_level_dn = 14.7                          # source (dark level at the shortest exposure)
 dsnu_e = 0.55                                  # source
@@ -49,7 +49,7 @@ cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.47, 0.47, 0.47]  # source (mono: G is used)
 dark_noise_e = 13.0                      # source
-full_well_e = 7000.0                     # source (saturation capacity)
+full_well_e = 7000.0                     # the source's saturation capacity as the well: camsim emva measures 6782 e-
 system_gain_dn_per_e = 0.55              # assumption: saturation at ~3900 of 4095 DN
 black_level_dn = 64.0                    # assumption
 dsnu_e = 3.0                             # assumption (CCD class)
@@ -85,16 +85,18 @@ dark_current_e_per_s = 5.0               # assumption
 # Source: FLIR's EMVA 1288 data for the camera as quoted at
 #   https://www.uniquephoto.com/community/qa/why-doesnt-full-well-capacity-match-the-adc-range-on-my-flir-blackfly-sensor
 # (Photography Stack Exchange, CC BY-SA 4.0): system gain 0.24 (listed as
-# e-/ADU; the quoted 4096 x 0.24 = 17062 e- arithmetic only holds for
-# 0.24 DN/e-), 12-bit ADC, saturation capacity 14837 e-, dynamic range
-# 11.93 bit. Dark noise derived from the dynamic range (EMVA: DR = mu_e.sat /
-# sigma_d): 14837 / 2^11.93 = 3.80 e-.
+# e-/ADU; the quoted 4096 / 0.24 = 17067 e- only holds for 0.24 DN/e-),
+# 12-bit ADC, saturation capacity 14837 e-, dynamic range 11.93 bit. Dark
+# noise derived from the dynamic range as mu_e.sat / sigma_d: 14837 / 2^11.93
+# = 3.80 e- (EMVA 1288's DR = mu_p.sat / mu_p.min also counts the
+# quantisation noise and would give about 3.05 e-; the source does not say
+# which it used).
 [sensor]
 cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.53, 0.53, 0.53]  # assumption (FSI CMOS class at 525 nm)
 dark_noise_e = 3.8                       # derived from the source's dynamic range
-full_well_e = 14837.0                    # source
+full_well_e = 14837.0                    # source (camsim emva measures 14 250 e- with it)
 system_gain_dn_per_e = 0.24              # source
 black_level_dn = 64.0                    # assumption
 dsnu_e = 1.5                             # assumption

@@ -37,9 +37,13 @@ const std::vector<PrecisionKnob>& PrecisionKnobs() {
 
 namespace {
 
-// The noise-free camera: what the references model.
-constexpr const char* kNoiseOff[] = {"sensor.shot_noise=false", "sensor.dark_noise_e=0", "sensor.dsnu_e=0",
-                                     "sensor.prnu_percent=0"};
+// The noise-free camera: what the references model (no temporal noise, no
+// fixed patterns, no defect pixels).
+constexpr const char* kNoiseOff[] = {"sensor.shot_noise=false",      "sensor.dark_noise_e=0",
+                                     "sensor.dsnu_e=0",              "sensor.prnu_percent=0",
+                                     "sensor.row_fpn_e=0",           "sensor.column_fpn_e=0",
+                                     "sensor.hot_pixel_fraction=0",  "sensor.dead_pixel_fraction=0",
+                                     "sensor.stuck_pixel_fraction=0", "sensor.defects_file=\"\""};
 
 struct Error {
   double max_abs = 0, rms = 0, psnr_db = 0;
@@ -145,58 +149,88 @@ const char* UnitName(Domain d) {
   return "";
 }
 
-// Runs one configuration: timing on one worker (the fastest of `frames`),
-// then one untimed run with every stage tapped for the errors.
-bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, const io::FloatPlane* mask, int frames,
-             Setting* out, std::string* error) {
+// One configuration, ready to run: its pipeline on one worker and its
+// input; the pipeline of `reference` (the configuration as given) gives the
+// references, so a knob that picks a cheaper model (the remap filter, the
+// demosaic method) is measured against the configured model, not its own.
+struct Run {
+  RunConfig rc;
+  std::unique_ptr<Pipeline> p, ref_p;
+  std::vector<uint8_t> workspace;
+  CoreInput input;
+  std::vector<FlareSource> flare_sources;
+  std::vector<uint32_t> smear;
+  FlareFrame flare;
+  FrameInput view;
+  int strip_rows = 0;
+  double best_ms = INFINITY;  // the fastest timed frame
+  WorkerStats best_stats;
+
+  FrameInput Prepass() {  // part of every frame's cost, as in `camsim run`
+    return p->RunPrepasses(input.View(), Span<FlareSource>{flare_sources.data(), flare_sources.size()}, &flare,
+                           Span<uint32_t>{smear.data(), smear.size()});
+  }
+};
+
+bool Prepare(RunConfig rc, RunConfig reference, const Origins& origins, const io::SceneFrame& scene,
+             const io::FloatPlane* mask, Run* run, std::string* error) {
   // (mask is the file rc.vignetting_mask names, so the validation's pipeline is configured for it.)
-  std::unique_ptr<Pipeline> configured;
-  if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error, nullptr, &configured)) return false;
-  Pipeline& p = *configured;
-  std::vector<uint8_t> workspace(p.WorkspaceBytes());
-  if (!p.Init(Span<uint8_t>{workspace.data(), workspace.size()}).ok()) {
+  if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error, nullptr, &run->p)) return false;
+  if (!FinishConfig(&reference, scene.width, scene.height, origins, 1, error, nullptr, &run->ref_p)) return false;
+  run->rc = rc;
+  Pipeline& p = *run->p;
+  const Pipeline& ref_p = *run->ref_p;
+  bool same_stages = ref_p.plan().running == p.plan().running;
+  for (int i = 0; same_stages && i < p.plan().running; ++i)
+    same_stages = std::strcmp(ref_p.running_stage(i).name(), p.running_stage(i).name()) == 0;
+  if (!same_stages) {
+    *error = "the knob changes which stages run; its error has no common reference";
+    return false;
+  }
+  run->workspace.resize(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{run->workspace.data(), run->workspace.size()}).ok()) {
     *error = "workspace";
     return false;
   }
-  CoreInput input;
-  PrepareInput(scene, p.width(), p.height(), rc.fit, &input);
-  if (mask != nullptr) PrepareMask(*mask, p.width(), p.height(), &input);
+  PrepareInput(scene, p.width(), p.height(), rc.fit, &run->input);
+  if (mask != nullptr) PrepareMask(*mask, p.width(), p.height(), &run->input);
   // The frame's pre-passes (flare sources, smear charge), then the input
   // check `camsim run` makes: a stage without its depth or vectors is an
   // error here too, not a read of a plane the scene does not have.
-  std::vector<FlareSource> flare_sources(static_cast<size_t>(p.PrepassFlareSources()));
-  std::vector<uint32_t> smear(static_cast<size_t>(p.PrepassSmearEntries()));
-  FlareFrame flare;
-  const auto prepass = [&] {
-    return p.RunPrepasses(input.View(), Span<FlareSource>{flare_sources.data(), flare_sources.size()}, &flare,
-                          Span<uint32_t>{smear.data(), smear.size()});
-  };
-  const FrameInput view = prepass();
-  const Status checked = p.CheckInput(view);
+  run->flare_sources.resize(static_cast<size_t>(p.PrepassFlareSources()));
+  run->smear.resize(static_cast<size_t>(p.PrepassSmearEntries()));
+  run->view = run->Prepass();
+  const Status checked = p.CheckInput(run->view);
   if (!checked.ok()) {
     *error = scene.source + ": " + checked.message();
     return false;
   }
-  const int w = p.width(), h = p.height(), n = p.plan().running;
-  const int kStripRows = StripRows(0, h, 1);  // as `camsim run` on one thread
+  run->strip_rows = StripRows(0, p.height(), 1);  // as `camsim run` on one thread
+  p.ProcessFrame(run->view, 0, run->strip_rows, nullptr, 0, nullptr, nullptr);  // warm caches and tables
+  return true;
+}
 
+// One timed frame on one worker; the fastest counts.
+void TimeFrame(Run* run) {
   const Clock clock = hal::NanosecondClock();
-  p.ProcessFrame(view, 0, kStripRows, nullptr, 0, nullptr, nullptr);  // warm caches and tables
-  double best = INFINITY;
-  WorkerStats best_stats;
-  for (int f = 0; f < frames; ++f) {
-    WorkerStats stats;
-    const uint64_t t0 = hal::NowNs();
-    prepass();  // part of every frame's cost, as in `camsim run`
-    p.ProcessFrame(view, 0, kStripRows, nullptr, 0, &stats, &clock);
-    const double ms = (hal::NowNs() - t0) / 1e6;
-    if (ms < best) {
-      best = ms;
-      best_stats = stats;
-    }
+  WorkerStats stats;
+  const uint64_t t0 = hal::NowNs();
+  run->Prepass();
+  run->p->ProcessFrame(run->view, 0, run->strip_rows, nullptr, 0, &stats, &clock);
+  const double ms = (hal::NowNs() - t0) / 1e6;
+  if (ms < run->best_ms) {
+    run->best_ms = ms;
+    run->best_stats = stats;
   }
-  out->frame_ms = best;
+}
 
+// One untimed run with every stage tapped, against the references.
+void Errors(const Run& run, Setting* out) {
+  Pipeline& p = *run.p;
+  const Pipeline& ref_p = *run.ref_p;
+  const FrameInput& view = run.view;
+  const int w = p.width(), h = p.height(), n = p.plan().running;
+  out->frame_ms = run.best_ms;
   std::vector<std::vector<uint32_t>> taps(static_cast<size_t>(n));
   std::vector<Tap> tap(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -206,9 +240,9 @@ bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, 
     tap[i].data = taps[i].data();
     tap[i].stride = static_cast<ptrdiff_t>(w) * p.running_format(i).channels;
   }
-  p.ProcessFrame(view, 0, kStripRows, tap.data(), n, nullptr, nullptr);
+  p.ProcessFrame(view, 0, run.strip_rows, tap.data(), n, nullptr, nullptr);
 
-  const int bits = rc.core.geometry.adc_bits;
+  const int bits = run.rc.core.geometry.adc_bits;
   ref::RefImage chain = ref::SceneRadiance(view, w, h);
   out->stages.clear();
   // From the distortion stage on, the chain's error leaves out the pixels
@@ -220,11 +254,11 @@ bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, 
     const ref::RefImage in = i == 0 ? chain
                                     : ToRef(taps[i - 1], p.running_format(i - 1).domain,
                                             p.running_format(i - 1).channels, w, h);
-    const ref::RefImage want = ref::RunStageReference(p, i, i == 0 ? chain : in, view);
+    const ref::RefImage want = ref::RunStageReference(ref_p, i, i == 0 ? chain : in, view);
     StageResult r;
     r.name = p.running_stage(i).name();
     r.unit = UnitName(f.domain);
-    r.ms = best_stats.stage[i].ticks / 1e6;
+    r.ms = run.best_stats.stage[i].ticks / 1e6;
     const std::vector<uint8_t> flip = ref::FillDisagreement(p, i);
     if (!flip.empty()) {
       out->fill_edge = static_cast<size_t>(std::count(flip.begin(), flip.end(), 1));
@@ -232,12 +266,11 @@ bool Measure(RunConfig rc, const Origins& origins, const io::SceneFrame& scene, 
     }
     r.error = Compare(taps[i], f.domain, want, Peak(f.domain, bits, want), flip);
     out->stages.push_back(r);
-    chain = ref::RunStageReference(p, i, chain, view);
+    chain = ref::RunStageReference(ref_p, i, chain, view);
   }
   const LineFormat last = p.running_format(n - 1);
   out->end_to_end = Compare(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain), chain_skip);
   out->output_unit = UnitName(last.domain);
-  return true;
 }
 
 std::string Fmt(double v, const char* f = "%.4g") {
@@ -295,16 +328,20 @@ int TradeoffCommand(const TradeoffOptions& o) {
   // The configuration as given; it stays in the results only when no knob is
   // swept (otherwise the knob's configured value is the same run).
   std::vector<Setting> settings;
+  std::vector<std::unique_ptr<Run>> runs;
+  const io::FloatPlane* mask_plane = has_mask ? &mask : nullptr;
   Setting base;
   base.knob = "(as configured)";
   base.configured = true;
-  if (!Measure(rc, origins, scene, has_mask ? &mask : nullptr, o.frames, &base, &error)) {
+  runs.push_back(std::make_unique<Run>());
+  if (!Prepare(rc, rc, origins, scene, mask_plane, runs.back().get(), &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
   settings.push_back(base);
+  std::vector<size_t> run_of = {0};  // each setting's run
   std::vector<std::string> running;
-  for (const StageResult& s : base.stages) running.push_back(s.name);
+  for (int i = 0; i < runs[0]->p->plan().running; ++i) running.push_back(runs[0]->p->running_stage(i).name());
   std::vector<std::string> swept;
   for (const PrecisionKnob& k : PrecisionKnobs()) {
     if (std::find(running.begin(), running.end(), k.stage) == running.end()) continue;
@@ -320,15 +357,39 @@ int TradeoffCommand(const TradeoffOptions& o) {
       s.knob = k.key;
       s.value = v;
       s.configured = ConfigToToml(variant, false) == ConfigToToml(rc, false);
-      if (!Measure(variant, vo, scene, has_mask ? &mask : nullptr, o.frames, &s, &error)) {
-        std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
-        return 1;
+      // Each knob's configured value is the configuration as given: one run
+      // for all of them, so they share one time and one error.
+      if (!s.configured) {
+        runs.push_back(std::make_unique<Run>());
+        if (!Prepare(variant, rc, vo, scene, mask_plane, runs.back().get(), &error)) {
+          std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
+          return 1;
+        }
       }
-      std::fprintf(stderr, "  %s=%s: %.2f ms, end-to-end rms %.4g %s\n", k.key, v.c_str(), s.frame_ms,
-                   s.end_to_end.rms, s.output_unit.c_str());
+      run_of.push_back(s.configured ? 0 : runs.size() - 1);
       settings.push_back(s);
     }
   }
+  // Timed in rounds, one frame of every setting a round, so that a machine
+  // whose speed drifts (a shared VM) slows all settings alike; each round
+  // starts one setting later, so none always follows the same one.
+  for (int f = 0; f < o.frames; ++f)
+    for (size_t i = 0; i < runs.size(); ++i) TimeFrame(runs[(i + static_cast<size_t>(f)) % runs.size()].get());
+  std::vector<Setting> measured(runs.size());
+  for (size_t r = 0; r < runs.size(); ++r) Errors(*runs[r], &measured[r]);
+  for (size_t i = 0; i < settings.size(); ++i) {
+    const Setting& m = measured[run_of[i]];
+    settings[i].frame_ms = m.frame_ms;
+    settings[i].stages = m.stages;
+    settings[i].end_to_end = m.end_to_end;
+    settings[i].fill_edge = m.fill_edge;
+    settings[i].output_unit = m.output_unit;
+    if (i > 0)
+      std::fprintf(stderr, "  %s=%s: %.2f ms, end-to-end rms %.4g %s\n", settings[i].knob.c_str(),
+                   settings[i].value.c_str(), settings[i].frame_ms, settings[i].end_to_end.rms,
+                   settings[i].output_unit.c_str());
+  }
+  runs.clear();
   if (settings.size() > 1) settings.erase(settings.begin());
   // The error-time frontier: settings no other setting beats on both.
   for (Setting& a : settings) {
@@ -354,8 +415,10 @@ int TradeoffCommand(const TradeoffOptions& o) {
   md << "Generated by `camsim tradeoff` on `" << o.input << "` (" << scene.width << "x" << scene.height
      << "), one thread, the fastest of " << o.frames
      << " frames per setting. Errors are against the double-precision reference on the same input, with sensor "
-        "noise, DSNU and PRNU off. The reference does not round to whole DN, so the ADC's rounding sets the "
-        "floor of the end-to-end error.\n\n"
+        "noise, DSNU, PRNU, fixed patterns and defect pixels off. The reference is always the configuration as "
+        "given: a knob that picks a cheaper model (the remap filter, the demosaic method) is measured against "
+        "the configured model's reference. The reference does not round to whole DN, so the ADC's rounding sets "
+        "the floor of the end-to-end error.\n\n"
         "Fill edge: where a pixel's source lies within the remap grid's error of the frame edge, the distortion "
         "stage and its exact reference can put it on different sides, one reading the scene and the other the "
         "black fill (docs/lens-distortion.md). That difference is a whole pixel value, not precision, so those "

@@ -16,7 +16,7 @@ struct TradeoffOptions {
   std::string input;                   // one EXR
   std::string out_dir;
   std::vector<std::string> overrides;  // --set section.key=value
-  int frames = 5;                      // timed runs per setting (the fastest counts)
+  int frames = 15;                     // timed rounds: one frame of every setting each (the fastest counts)
 };
 
 // A knob: a configuration key whose values trade accuracy for time.

@@ -107,5 +107,47 @@ TEST(Emva, AnalogGainScalesTheMeasuredK) {
   EXPECT_NEAR(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol * r.configured.saturation_e);
 }
 
+// A channel more sensitive than G saturates first: its QE is fitted over
+// its own levels (it used to take G's and fit into its own clip: R read
+// 0.61 for 0.9).
+TEST(Emva, EachChannelsQeIsFittedBelowItsOwnSaturation) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
+  ASSERT_TRUE(ApplyOverride("sensor.quantum_efficiency=[0.9, 0.3, 0.5]", &rc, &origins, &error)) << error;
+  EmvaOptions o;
+  o.size = 96;
+  EmvaReport r;
+  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  EXPECT_NEAR(r.measured.qe[0], 0.9, 0.02 * 0.9);
+  EXPECT_NEAR(r.measured.qe[1], 0.3, 0.02 * 0.3);
+  EXPECT_NEAR(r.measured.qe[2], 0.5, 0.02 * 0.5);
+}
+
+// Below 0.24 DN^2 of dark variance the dark noise is only an upper limit
+// (EMVA 1288 4.0): 3 e- at 0.05 DN/e- is 0.15 DN, hidden by the quantisation.
+// It used to read 0 e-.
+TEST(Emva, DarkNoiseBelowTheQuantisationIsAnUpperLimit) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
+  ASSERT_TRUE(ApplyOverride("sensor.system_gain_dn_per_e=0.05", &rc, &origins, &error)) << error;
+  ASSERT_TRUE(ApplyOverride("sensor.dark_noise_e=3", &rc, &origins, &error)) << error;
+  EmvaOptions o;
+  o.size = 96;
+  EmvaReport r;
+  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  EXPECT_TRUE(r.measured.dark_noise_upper_limit);
+  EXPECT_NEAR(r.measured.dark_noise_e, std::sqrt(0.24 - 1.0 / 12.0) / 0.05, 0.05);
+  EXPECT_GT(r.measured.dark_noise_e, 3.0) << "an upper limit below the true value";
+  EXPECT_NE(FormatEmvaReport("test", r).find("an upper limit"), std::string::npos);
+  // The presets' dark noise is well above it: a figure, not a limit.
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
+  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  EXPECT_FALSE(r.measured.dark_noise_upper_limit);
+}
+
 }  // namespace
 }  // namespace camsim::host
