@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/lens/flare.h"
 #include "core/lens/flare_ref.h"
@@ -132,13 +133,19 @@ TEST(Flare, MatchesTheDoubleReference) {
   const ref::RefImage r = ref::RefFlare(f, b->pipeline.config().geometry, in);
   // Q16.16 output, ~40 rounded spreads per pixel (< 1e-3 together), and the
   // glare fraction quantised to Q0.16 (its error, <= 2^-17, times the excess).
-  double max_err = 0;
+  double max_err = 0, mean_err = 0;
   for (int c = 0; c < 3; ++c)
     for (int i = 0; i < kW * kH; ++i) {
       const double err = std::abs(out[i * 3 + c] / 65536.0 - r.planes[c][i]);
       EXPECT_LE(err, 1e-3 + in.planes[c][i] / 131072.0) << "channel " << c << " pixel " << i;
       max_err = std::max(max_err, err);
+      mean_err += err / (3.0 * kW * kH);
     }
+  // The rounding errors are unbiased: their mean is far below the per-pixel
+  // bound, so an error that touches every pixel (the haze's level, say: about
+  // 1.6e-3 per pixel here) shows even where it stays under that bound.
+  std::printf("flare vs reference: max %.3g, mean %.3g\n", max_err, mean_err);
+  EXPECT_LE(mean_err, 1e-4);
   RecordProperty("max_abs_error", std::to_string(max_err));
 }
 

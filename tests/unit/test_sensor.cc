@@ -374,22 +374,40 @@ TEST(Sensor, NoiselessSensorMatchesReference) {
     PipelineConfig c = SensorOnly(64, 1, Cfa::kBayerGB);
     c.sensor = Noiseless();
     c.sensor.dark_current_e_per_s = 50.0;
-    c.sensor.temperature_c = 39.0;  // two doublings
+    c.sensor.temperature_c = c.sensor.dark_current_ref_c + 2 * c.sensor.dark_current_doubling_c;  // x4
     c.sensor.gain_db = 6.0;
     c.sensor.black_level_dn = black;
+    c.exposure.exposure_time_us = 100000.0;  // dark charge 50 e-/s x 4 x 0.1 s = 20 e-
     auto b = test::Build(c);
     ASSERT_TRUE(b->status.ok());
+    // Signals from 0 to past the ADC's clip (most pixels below it), so the
+    // gain, the dark charge and the black level all show in the means.
+    const double photons_per_radiance = ReferenceExposure(c.exposure, 1.0);
     test::Scene s = test::FlatScene(64, 1, 0, 0, 0);
     for (int x = 0; x < 64; ++x)
-      for (int ch = 0; ch < 3; ++ch) s.plane[ch][x] = static_cast<uint32_t>((x * 977 + ch * 31) * 61);
+      for (int ch = 0; ch < 3; ++ch) {
+        const double electrons = (x + 0.3 * ch) * 90.0;  // 0 .. ~5700 e-
+        const double photons = electrons / c.sensor.quantum_efficiency[ch];
+        s.plane[ch][x] = static_cast<uint32_t>(std::lround(photons / photons_per_radiance * 65536.0));
+      }
     const auto out = test::RunFrame(*b, s, 0, 1);
+    int unclipped = 0;
     for (int x = 0; x < 64; ++x) {
       const Colour col = CfaColour(c.geometry.cfa, x, 0);
       const double photons = ReferenceExposure(c.exposure, s.plane[col][x] / 65536.0);
       const double ref = ReferenceSensorMeanDn(c.sensor, c.geometry, c.exposure.exposure_time_us, col, photons);
+      // The reference's model written out here with libm: the gain in dB,
+      // the dark current doubling with temperature, the well, the ADC.
+      const double k = c.sensor.system_gain_dn_per_e * std::pow(10.0, 6.0 / 20.0);
+      const double dark = 50.0 * 0.1 * std::exp2(2.0);
+      const double e = std::min(c.sensor.full_well_e, photons * c.sensor.quantum_efficiency[col] + dark);
+      const double model = std::clamp(k * e + black, 0.0, 4095.0);
+      ASSERT_NEAR(ref, model, 1e-9 * std::max(1.0, model)) << "x " << x << ": the reference's model";
+      unclipped += model < 4095.0 ? 1 : 0;
       worst = std::max(worst, std::abs(out[x] - ref));
       EXPECT_NEAR(out[x], ref, SensorMaxErrorDn(c.sensor, photons)) << "x " << x << ", black level " << black;
     }
+    EXPECT_GE(unclipped, 48) << "the test's signals should mostly stay below the clip";
   }
   RecordProperty("sensor_max_error_dn", std::to_string(worst));
 }
