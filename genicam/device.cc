@@ -501,9 +501,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimFrameIndex, 0},
       {kSimFNumber, DoubleBits(c.exposure.f_number)},
       // (Unchecked while dof.method is off: kept in the XML's range.)
-      {kSimFocusDistance, DoubleBits(std::isfinite(c.dof.focus_distance_m)
-                                         ? std::clamp(c.dof.focus_distance_m, sensor_.min_focus_distance_m, kMaxFocusDistanceM)
-                                         : kMaxFocusDistanceM)},
+      {kSimFocusDistance,
+       DoubleBits(std::isfinite(c.dof.focus_distance_m)
+                      ? std::clamp(c.dof.focus_distance_m, sensor_.min_focus_distance_m, kMaxFocusDistanceM)
+                      : kMaxFocusDistanceM)},
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
