@@ -57,14 +57,19 @@ struct StageResult {
   Error error;
 };
 
-struct Setting {
-  std::string knob, value;  // "(as configured)" for the baseline
-  bool configured = false;  // the value the configuration has
+// What one run of a configuration measured.
+struct Measured {
   double frame_ms = 0;
   std::vector<StageResult> stages;
   Error end_to_end;
   size_t fill_edge = 0;  // pixels where distortion and its reference disagree on the fill
   std::string output_unit;
+};
+
+// One row of the results: a knob's value and what its run measured.
+struct Setting : Measured {
+  std::string knob, value;  // "(as configured)" for the baseline
+  bool configured = false;  // the value the configuration has
   bool frontier = false;
 };
 
@@ -150,12 +155,13 @@ const char* UnitName(Domain d) {
 }
 
 // One configuration, ready to run: its pipeline on one worker and its
-// input; the pipeline of `reference` (the configuration as given) gives the
+// input; `ref_p`, the pipeline of the configuration as given, gives the
 // references, so a knob that picks a cheaper model (the remap filter, the
 // demosaic method) is measured against the configured model, not its own.
 struct Run {
   RunConfig rc;
-  std::unique_ptr<Pipeline> p, ref_p;
+  std::unique_ptr<Pipeline> p;
+  const Pipeline* ref_p = nullptr;
   std::vector<uint8_t> workspace;
   CoreInput input;
   std::vector<FlareSource> flare_sources;
@@ -172,14 +178,13 @@ struct Run {
   }
 };
 
-bool Prepare(RunConfig rc, RunConfig reference, const Origins& origins, const io::SceneFrame& scene,
+bool Prepare(RunConfig rc, const Pipeline& ref_p, const Origins& origins, const io::SceneFrame& scene,
              const io::FloatPlane* mask, Run* run, std::string* error) {
   // (mask is the file rc.vignetting_mask names, so the validation's pipeline is configured for it.)
   if (!FinishConfig(&rc, scene.width, scene.height, origins, 1, error, nullptr, &run->p)) return false;
-  if (!FinishConfig(&reference, scene.width, scene.height, origins, 1, error, nullptr, &run->ref_p)) return false;
   run->rc = rc;
+  run->ref_p = &ref_p;
   Pipeline& p = *run->p;
-  const Pipeline& ref_p = *run->ref_p;
   bool same_stages = ref_p.plan().running == p.plan().running;
   for (int i = 0; same_stages && i < p.plan().running; ++i)
     same_stages = std::strcmp(ref_p.running_stage(i).name(), p.running_stage(i).name()) == 0;
@@ -225,7 +230,7 @@ void TimeFrame(Run* run) {
 }
 
 // One untimed run with every stage tapped, against the references.
-void Errors(const Run& run, Setting* out) {
+void Errors(const Run& run, Measured* out) {
   Pipeline& p = *run.p;
   const Pipeline& ref_p = *run.ref_p;
   const FrameInput& view = run.view;
@@ -330,11 +335,17 @@ int TradeoffCommand(const TradeoffOptions& o) {
   std::vector<Setting> settings;
   std::vector<std::unique_ptr<Run>> runs;
   const io::FloatPlane* mask_plane = has_mask ? &mask : nullptr;
+  std::unique_ptr<Pipeline> reference;  // the configuration as given: every setting's references
+  RunConfig reference_rc = rc;
+  if (!FinishConfig(&reference_rc, scene.width, scene.height, origins, 1, &error, nullptr, &reference)) {
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 1;
+  }
   Setting base;
   base.knob = "(as configured)";
   base.configured = true;
   runs.push_back(std::make_unique<Run>());
-  if (!Prepare(rc, rc, origins, scene, mask_plane, runs.back().get(), &error)) {
+  if (!Prepare(rc, *reference, origins, scene, mask_plane, runs.back().get(), &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }
@@ -361,7 +372,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
       // for all of them, so they share one time and one error.
       if (!s.configured) {
         runs.push_back(std::make_unique<Run>());
-        if (!Prepare(variant, rc, vo, scene, mask_plane, runs.back().get(), &error)) {
+        if (!Prepare(variant, *reference, vo, scene, mask_plane, runs.back().get(), &error)) {
           std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
           return 1;
         }
@@ -375,15 +386,10 @@ int TradeoffCommand(const TradeoffOptions& o) {
   // starts one setting later, so none always follows the same one.
   for (int f = 0; f < o.frames; ++f)
     for (size_t i = 0; i < runs.size(); ++i) TimeFrame(runs[(i + static_cast<size_t>(f)) % runs.size()].get());
-  std::vector<Setting> measured(runs.size());
+  std::vector<Measured> measured(runs.size());
   for (size_t r = 0; r < runs.size(); ++r) Errors(*runs[r], &measured[r]);
   for (size_t i = 0; i < settings.size(); ++i) {
-    const Setting& m = measured[run_of[i]];
-    settings[i].frame_ms = m.frame_ms;
-    settings[i].stages = m.stages;
-    settings[i].end_to_end = m.end_to_end;
-    settings[i].fill_edge = m.fill_edge;
-    settings[i].output_unit = m.output_unit;
+    static_cast<Measured&>(settings[i]) = measured[run_of[i]];
     if (i > 0)
       std::fprintf(stderr, "  %s=%s: %.2f ms, end-to-end rms %.4g %s\n", settings[i].knob.c_str(),
                    settings[i].value.c_str(), settings[i].frame_ms, settings[i].end_to_end.rms,

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "host_tools/emva_measure.h"
 #include "host_tools/presets.h"
@@ -107,19 +109,25 @@ TEST(Emva, AnalogGainScalesTheMeasuredK) {
   EXPECT_NEAR(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol * r.configured.saturation_e);
 }
 
+// The Blackfly preset with `overrides`, measured at 96 x 96.
+EmvaReport MeasureBlackfly(const std::vector<std::string>& overrides) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  EmvaReport r;
+  EXPECT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error)) << error;
+  for (const std::string& o : overrides) EXPECT_TRUE(ApplyOverride(o, &rc, &origins, &error)) << o << ": " << error;
+  EmvaOptions o;
+  o.size = 96;
+  EXPECT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  return r;
+}
+
 // A channel more sensitive than G saturates first: its QE is fitted over
 // its own levels (it used to take G's and fit into its own clip: R read
 // 0.61 for 0.9).
 TEST(Emva, EachChannelsQeIsFittedBelowItsOwnSaturation) {
-  RunConfig rc;
-  Origins origins;
-  std::string error;
-  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
-  ASSERT_TRUE(ApplyOverride("sensor.quantum_efficiency=[0.9, 0.3, 0.5]", &rc, &origins, &error)) << error;
-  EmvaOptions o;
-  o.size = 96;
-  EmvaReport r;
-  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  const EmvaReport r = MeasureBlackfly({"sensor.quantum_efficiency=[0.9, 0.3, 0.5]"});
   EXPECT_NEAR(r.measured.qe[0], 0.9, 0.02 * 0.9);
   EXPECT_NEAR(r.measured.qe[1], 0.3, 0.02 * 0.3);
   EXPECT_NEAR(r.measured.qe[2], 0.5, 0.02 * 0.5);
@@ -129,24 +137,13 @@ TEST(Emva, EachChannelsQeIsFittedBelowItsOwnSaturation) {
 // (EMVA 1288 4.0): 3 e- at 0.05 DN/e- is 0.15 DN, hidden by the quantisation.
 // It used to read 0 e-.
 TEST(Emva, DarkNoiseBelowTheQuantisationIsAnUpperLimit) {
-  RunConfig rc;
-  Origins origins;
-  std::string error;
-  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
-  ASSERT_TRUE(ApplyOverride("sensor.system_gain_dn_per_e=0.05", &rc, &origins, &error)) << error;
-  ASSERT_TRUE(ApplyOverride("sensor.dark_noise_e=3", &rc, &origins, &error)) << error;
-  EmvaOptions o;
-  o.size = 96;
-  EmvaReport r;
-  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  const EmvaReport r = MeasureBlackfly({"sensor.system_gain_dn_per_e=0.05", "sensor.dark_noise_e=3"});
   EXPECT_TRUE(r.measured.dark_noise_upper_limit);
   EXPECT_NEAR(r.measured.dark_noise_e, std::sqrt(0.24 - 1.0 / 12.0) / 0.05, 0.05);
-  EXPECT_GT(r.measured.dark_noise_e, 3.0) << "an upper limit below the true value";
+  EXPECT_GT(r.measured.dark_noise_e, 3.0) << "an upper limit below the true 3 e-";
   EXPECT_NE(FormatEmvaReport("test", r).find("an upper limit"), std::string::npos);
-  // The presets' dark noise is well above it: a figure, not a limit.
-  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error));
-  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
-  EXPECT_FALSE(r.measured.dark_noise_upper_limit);
+  // The preset's dark noise is well above it: a figure, not a limit.
+  EXPECT_FALSE(MeasureBlackfly({}).measured.dark_noise_upper_limit);
 }
 
 }  // namespace
