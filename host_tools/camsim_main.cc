@@ -31,10 +31,11 @@ const char kUsage[] =
     "usage:\n"
     "  camsim run --input EXR... --out DIR [--preset NAME] [--config FILE] [--depth EXR] [--threads N]\n"
     "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE]\n"
-    "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML]\n"
+    "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML] [--measure-savings N]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "      --depth: a separate depth file, for a single input frame\n"
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
+    "      --measure-savings: time each frame N more times with the stages' skipping on and off\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
     "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"
@@ -110,14 +111,16 @@ int Run(int argc, char** argv) {
     else if (a == "--report") o.report_path = value("a file");
     else if (a == "--dump-stages") o.dump_stages = true;
     else if (a == "--quiet") o.quiet = true;
-    else if (a == "--threads" || a == "--strip-rows" || a == "--first-frame") {
+    else if (a == "--threads" || a == "--strip-rows" || a == "--first-frame" || a == "--measure-savings") {
       const char* v = value("a number");
-      if (!ParseInt(v, a == "--first-frame" ? 0 : 1, a == "--threads" ? 64 : 2147483647L, &n)) {
+      const long hi = a == "--threads" ? 64 : (a == "--measure-savings" ? 1000 : 2147483647L);
+      if (!ParseInt(v, a == "--first-frame" ? 0 : 1, hi, &n)) {
         std::fprintf(stderr, "camsim: %s: '%s' is not a valid number\n", a.c_str(), v);
         return 1;
       }
       if (a == "--threads") o.threads = static_cast<int>(n);
       else if (a == "--strip-rows") o.strip_rows = static_cast<int>(n);
+      else if (a == "--measure-savings") o.savings_rounds = static_cast<int>(n);
       else o.first_frame = static_cast<uint32_t>(n);
     } else {
       std::fprintf(stderr, "camsim: unknown option '%s'\n%s", a.c_str(), kUsage);

@@ -200,9 +200,20 @@ struct FrameRecord {
   ExposureSettings ae_settings;                 // the settings this frame was taken with
 };
 
+// --measure-savings: each frame timed again in rounds, with the stages'
+// skipping on and off (PipelineConfig::skip_idle), alternating; per frame the
+// fastest round of each, summed over frames.
+struct SavingsMeasured {
+  int rounds = 0;
+  int frames = 0;
+  double stage_on_ms[kStageCount] = {}, stage_off_ms[kStageCount] = {};  // by running index
+  double wall_on_ms = 0, wall_off_ms = 0;
+};
+
 struct Accumulated {
   WorkerStats stats;  // summed over frames and workers
   std::vector<FrameRecord> frames;
+  SavingsMeasured savings;
 };
 
 // Auto exposure's settings into the configuration of the next frame.
@@ -304,34 +315,78 @@ bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const st
 }
 
 // What a stage's skipped pixels (StageStats::skipped_px) are, as "pixels
-// ...", and whether its cost per worked pixel estimates what they saved.
-// Flare's skipped pixels still take its own part and haze, and its cost
-// follows its sources: no estimate.
+// ...", and whether skipping them can be turned off (Stage::set_skip_idle)
+// to measure the time saved. Flare's skipped pixels source nothing: there is
+// no work to run on them, so nothing to measure.
 struct SkipMeaning {
   const char* what;
-  bool estimate;
+  bool measurable;
 };
 SkipMeaning Skipped(StageId id) {
   switch (id) {
-    case StageId::kDofRows:
-    case StageId::kDofColumns: return {"linked to no neighbour (CoC below dof.min_coc_px), not solved", true};
+    case StageId::kDofRows: return {"linked to no neighbour (CoC below dof.min_coc_px): their weights are 1, taken without a division", true};
+    case StageId::kDofColumns: return {"linked to no neighbour (CoC below dof.min_coc_px): copied where their whole column tile is", true};
     case StageId::kDofGather: return {"in rows whose window holds no disc wider than a pixel (CoC < 1.75 px), copied", true};
     case StageId::kMotionBlur: return {"not moving, copied", true};
     case StageId::kFlare: return {"in tiles without a bright pixel, no glare or ghosts from them", false};
-    default: return {"not needed", true};
+    default: return {"not needed", false};
   }
 }
 
-// Time a stage saved by skipping pixels, ms per frame: its measured cost per
-// pixel it worked on times the pixels it skipped (an upper bound: the worked
-// pixels' cost includes the copies of the skipped ones). Only when it worked
-// on at least kMinWorkedShare of them; with fewer, that cost is mostly the
-// skipping itself and the product means nothing (false).
-constexpr double kMinWorkedShare = 0.1;
-bool TimeSavedMs(StageId id, const StageStats& s, double frame_px, int frames, double* ms) {
-  const double px = frame_px * frames, worked = px - static_cast<double>(s.skipped_px);
-  if (!Skipped(id).estimate || s.skipped_px <= 0 || worked < kMinWorkedShare * px) return false;
-  *ms = s.ticks / 1e6 / worked * static_cast<double>(s.skipped_px) / frames;
+// The time running stage r saved per frame by skipping, measured
+// (--measure-savings): its fastest round without skipping minus its fastest
+// with. Timing noise can make it negative.
+bool TimeSavedMs(StageId id, int r, const SavingsMeasured& m, double* ms) {
+  if (!Skipped(id).measurable || m.frames == 0) return false;
+  *ms = (m.stage_off_ms[r] - m.stage_on_ms[r]) / m.frames;
+  return true;
+}
+
+// --measure-savings: renders the frame `rounds` more times with skipping on
+// (`renderer`, into `taps`) and off (`probe`, into buffers of its own),
+// alternating, and adds each one's fastest round, per running stage and
+// wall, to *m. Skipping changes no byte (PipelineConfig::skip_idle): the
+// probe's outputs are compared with `buffers`, and a difference is an error.
+bool MeasureSavings(FrameRenderer& renderer, FrameRenderer& probe, uint32_t frame, const std::vector<Tap>& taps,
+                    const std::vector<std::vector<uint8_t>>& buffers, int rounds, SavingsMeasured* m,
+                    std::string* error) {
+  const int running = renderer.pipeline().plan().running;
+  std::vector<std::vector<uint8_t>> probe_buffers(taps.size());
+  std::vector<Tap> probe_taps = taps;
+  for (size_t i = 0; i < taps.size(); ++i) {
+    probe_buffers[i].resize(buffers[i].size());
+    probe_taps[i].data = probe_buffers[i].data();
+  }
+  double stage_best[2][kStageCount], wall_best[2] = {HUGE_VAL, HUGE_VAL};
+  for (int s = 0; s < 2; ++s)
+    for (int r = 0; r < running; ++r) stage_best[s][r] = HUGE_VAL;
+  for (int round = 0; round < rounds; ++round)
+    for (int off = 0; off < 2; ++off) {
+      FrameRenderer& fr = off ? probe : renderer;
+      std::vector<WorkerStats> stats(static_cast<size_t>(fr.threads()));
+      const uint64_t t0 = hal::NowNs();
+      fr.Render(frame, off ? probe_taps.data() : taps.data(), static_cast<int>(taps.size()), &stats);
+      wall_best[off] = std::min(wall_best[off], (hal::NowNs() - t0) / 1e6);
+      for (int r = 0; r < running; ++r) {
+        double ms = 0;
+        for (const WorkerStats& ws : stats) ms += ws.stage[r].ticks / 1e6;
+        stage_best[off][r] = std::min(stage_best[off][r], ms);
+      }
+    }
+  for (size_t i = 0; i < taps.size(); ++i)
+    if (probe_buffers[i] != buffers[i]) {
+      *error = "--measure-savings: frame " + std::to_string(frame) + " came out different with skipping off (tap " +
+               std::to_string(i) + "): a fault in the core, please report it";
+      return false;
+    }
+  for (int r = 0; r < running; ++r) {
+    m->stage_on_ms[r] += stage_best[0][r];
+    m->stage_off_ms[r] += stage_best[1][r];
+  }
+  m->wall_on_ms += wall_best[0];
+  m->wall_off_ms += wall_best[1];
+  m->rounds = rounds;
+  ++m->frames;
   return true;
 }
 
@@ -381,8 +436,8 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
         const double frame_px = static_cast<double>(p.width()) * p.height();
         double saved = 0;
         j << ", \"skipped_fraction\": " << Num(s.skipped_px / (frame_px * frames))
-          << ", \"skipped_pixels_are\": " << JsonString(Skipped(e.id).what) << ", \"time_saved_ms_per_frame_estimate\": "
-          << (TimeSavedMs(e.id, s, frame_px, frames, &saved) ? Num(saved) : std::string("null"));
+          << ", \"skipped_pixels_are\": " << JsonString(Skipped(e.id).what) << ", \"time_saved_ms_per_frame\": "
+          << (TimeSavedMs(e.id, running - 1, acc.savings, &saved) ? Num(saved) : std::string("null"));
       }
       if (e.note[0] != '\0') j << ", \"moved_because\": " << JsonString(e.note);
       if (e.id == StageId::kSensor) {
@@ -399,7 +454,13 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     }
     j << (i + 1 < plan.count ? ",\n" : "\n");
   }
-  j << "  ],\n  \"frames\": [\n";
+  j << "  ],\n";
+  const SavingsMeasured& m = acc.savings;
+  if (m.frames > 0)
+    j << "  \"savings_measured\": {\"rounds\": " << m.rounds << ", \"frames\": " << m.frames
+      << ", \"wall_ms_per_frame_skipping\": " << Num(m.wall_on_ms / m.frames)
+      << ", \"wall_ms_per_frame_not_skipping\": " << Num(m.wall_off_ms / m.frames) << "},\n";
+  j << "  \"frames\": [\n";
   for (size_t i = 0; i < acc.frames.size(); ++i) {
     const FrameRecord& f = acc.frames[i];
     j << "    {\"input\": " << JsonString(f.input) << ", \"wall_ms\": " << Num(f.wall_ms)
@@ -444,7 +505,8 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
       double saved = 0;
       std::fprintf(stderr, "  skipped %.1f %% of pixels: %s",
                    100.0 * static_cast<double>(s.skipped_px) / (frame_px * frames), Skipped(e.id).what);
-      if (TimeSavedMs(e.id, s, frame_px, frames, &saved)) std::fprintf(stderr, ", saved <= %.2f ms/frame", saved);
+      if (TimeSavedMs(e.id, running - 1, acc.savings, &saved))
+        std::fprintf(stderr, ", saved %.2f ms/frame (measured)", saved);
     }
     if (e.id == StageId::kSensor) {
       std::fprintf(stderr, "  electrons");
@@ -460,6 +522,10 @@ void PrintPlan(const Pipeline& p, const Accumulated& acc) {
     std::fprintf(stderr, "\n");
     if (e.note[0] != '\0') std::fprintf(stderr, "  %-14s moved: %s\n", "", e.note);
   }
+  const SavingsMeasured& m = acc.savings;
+  if (m.frames > 0)
+    std::fprintf(stderr, "savings measured (fastest of %d rounds a frame): %.2f ms/frame wall skipping, %.2f not\n",
+                 m.rounds, m.wall_on_ms / m.frames, m.wall_off_ms / m.frames);
 }
 
 bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
@@ -594,6 +660,7 @@ int RunCommand(const RunOptions& o) {
   }
 
   FrameRenderer renderer(o.threads, o.strip_rows);
+  FrameRenderer probe(o.threads, o.strip_rows);  // --measure-savings: the same frames, skipping off
   const RunConfig user_config = rc;  // rc becomes the finished configuration
   Accumulated acc;
   const bool tty = isatty(2) && !o.quiet && files.size() > 1;
@@ -607,6 +674,7 @@ int RunCommand(const RunOptions& o) {
   std::vector<uint16_t> metering_weights;
 
   for (size_t f = 0; f < files.size(); ++f) {
+    const bool reconfigures = f == 0 || (ae_on && ae_changed);  // the renderer's configuration changes
     io::SceneFrame scene;
     if (!io::LoadSceneExr(files[f], o.depth_path, &scene, &error)) {
       error = "frame " + std::to_string(f) + ": " + error;
@@ -745,6 +813,16 @@ int RunCommand(const RunOptions& o) {
       if (e.id == StageId::kMotionBlur && m.source == MotionSource::kVectors) rec.motion_used = true;
     }
     for (const WorkerStats& ws : worker_stats) AddStats(ws, plan.running, &acc.stats);
+    if (o.savings_rounds > 0) {
+      RunConfig off = rc;
+      off.core.skip_idle = false;
+      if ((reconfigures && !probe.Configure(off, origins, scene.width, scene.height, nullptr, &error)) ||
+          !probe.SetScene(scene, &error) ||
+          !MeasureSavings(renderer, probe, frame_index, taps, buffers, o.savings_rounds, &acc.savings, &error)) {
+        exit_code = 1;
+        break;
+      }
+    }
     if (ae_on) {
       // Measure this frame, set the next one's exposure.
       const int max_dn_ae = (1 << rc.core.geometry.adc_bits) - 1;

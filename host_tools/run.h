@@ -21,6 +21,7 @@ struct RunOptions {
   int threads = 1;
   int strip_rows = 0;                  // 0: StripRows' default (one strip per thread)
   uint32_t first_frame = 0;            // frame index of the first input (keys noise)
+  int savings_rounds = 0;              // --measure-savings N: each frame N more times with skipping on and off
   bool dump_stages = false;
   bool quiet = false;
 };

@@ -287,7 +287,7 @@ namespace {
 // is a chain carried in a register, and the kChannels chains of a step are
 // independent, so they overlap (the same operations, so the same bits).
 template <int kChannels>
-int SolveLineN(uint32_t* const* line, const uint32_t* beta, int n, uint8_t* work) {
+int SolveLineN(uint32_t* const* line, const uint32_t* beta, int n, uint8_t* work, bool skip) {
   uint32_t* e = reinterpret_cast<uint32_t*>(work);
   int64_t* u[kChannels];
   uint8_t* p = work + AlignUp(sizeof(uint32_t) * static_cast<size_t>(n));
@@ -296,16 +296,18 @@ int SolveLineN(uint32_t* const* line, const uint32_t* beta, int n, uint8_t* work
     p += AlignUp(sizeof(int64_t) * static_cast<size_t>(n));
   }
   int solved = 0;
+  if (!skip)  // one segment: a step across b = 0 has r = e = 1 exactly (SolveLines), so the same bits
+    for (int i = 0; i < n; ++i) solved += (i > 0 && beta[i] != 0) || (i + 1 < n && beta[i + 1] != 0);
   int s = 0;
   while (s < n) {
     // The segment [s, t]: linked by non-zero b; a lone sample is its own solution.
     int t = s;
-    while (t + 1 < n && beta[t + 1] != 0) ++t;
+    while (t + 1 < n && (!skip || beta[t + 1] != 0)) ++t;
     if (t == s) {
       ++s;
       continue;
     }
-    solved += t - s + 1;
+    if (skip) solved += t - s + 1;
     int64_t v[kChannels];  // u_{i-1}, then y_{i+1}
     for (int c = 0; c < kChannels; ++c) u[c][s] = v[c] = int64_t{line[c][s]} << kG;
     uint32_t r = kOneW;
@@ -333,11 +335,11 @@ int SolveLineN(uint32_t* const* line, const uint32_t* beta, int n, uint8_t* work
 }
 }  // namespace
 
-int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work) {
+int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work, bool skip) {
   switch (channels) {
-    case 1: return SolveLineN<1>(line, beta, n, work);
-    case 2: return SolveLineN<2>(line, beta, n, work);
-    default: return SolveLineN<3>(line, beta, n, work);
+    case 1: return SolveLineN<1>(line, beta, n, work, skip);
+    case 2: return SolveLineN<2>(line, beta, n, work, skip);
+    default: return SolveLineN<3>(line, beta, n, work, skip);
   }
 }
 
@@ -404,12 +406,14 @@ CAMSIM_AVX512_TARGET inline void StoreColumns(const LineIo* lines, int count, in
 // The lane sweep's weights of the eight lines (each line's recurrence, each
 // lane keeping its last computed step as SweepStep does) into rt and et, and
 // SolveLine's returns: a sample is solved when a link on either side is not
-// 0. Where every linked lane repeats its kept step (most steps: 91 % of the
+// 0. skip false: every lane takes every step (b = 0 gives r = e = 1 in
+// SweepStep too), so nothing is taken without its division or repeat check.
+// Where every linked lane repeats its kept step (most steps: 91 % of the
 // row steps repeat, per line), the kept weights are taken in lanes; lanes
 // that do not repeat compute theirs one by one (SweepStep). Lanes past count
 // repeat the last line.
 CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int n, uint32_t* rt, uint32_t* et,
-                                            int32_t* solved) {
+                                            int32_t* solved, bool skip) {
   constexpr int kL = kLaneLines;
   const uint32_t* beta[kL];
   for (int j = 0; j < kL; ++j) beta[j] = lines[j < count ? j : count - 1].beta;
@@ -429,13 +433,14 @@ CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int 
       const int i = i0 + k;
       const __m256i b = b_cols[k];
       const __mmask8 linked = _mm256_test_epi32_mask(b, b);
-      const __mmask8 repeat = _mm256_mask_cmpeq_epi32_mask(linked, b, kept_b) & _mm256_cmpeq_epi32_mask(r, kept_r);
-      if (repeat != linked) {  // some lanes have a step not kept: SweepStep computes it
+      const __mmask8 stepped = skip ? linked : __mmask8{0xFF};
+      const __mmask8 repeat = _mm256_mask_cmpeq_epi32_mask(stepped, b, kept_b) & _mm256_cmpeq_epi32_mask(r, kept_r);
+      if (repeat != stepped) {  // some lanes have a step not kept: SweepStep computes it
         alignas(32) uint32_t bj[kL], rj[kL];
         _mm256_store_si256(reinterpret_cast<__m256i*>(bj), b);
         _mm256_store_si256(reinterpret_cast<__m256i*>(rj), r);
         for (int j = 0; j < kL; ++j) {
-          if (((linked & ~repeat) >> j & 1) == 0) continue;
+          if (((stepped & ~repeat) >> j & 1) == 0) continue;
           SweepStep<true> step;
           step.Take(bj[j], rj[j]);
           kb[j] = step.b;
@@ -448,9 +453,9 @@ CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int 
         kept_next = _mm256_load_si256(reinterpret_cast<const __m256i*>(kn));
         kept_e = _mm256_load_si256(reinterpret_cast<const __m256i*>(ke));
       }
-      r = _mm256_mask_blend_epi32(linked, one, kept_next);  // b = 0: r = e = 1, the sweep restarts
+      r = _mm256_mask_blend_epi32(stepped, one, kept_next);  // b = 0: r = e = 1, the sweep restarts
       _mm256_store_si256(reinterpret_cast<__m256i*>(rt + kL * i), r);
-      _mm256_store_si256(reinterpret_cast<__m256i*>(et + kL * (i - 1)), _mm256_mask_blend_epi32(linked, one, kept_e));
+      _mm256_store_si256(reinterpret_cast<__m256i*>(et + kL * (i - 1)), _mm256_mask_blend_epi32(stepped, one, kept_e));
       solved_lanes = _mm256_mask_sub_epi32(solved_lanes, linked | linked_left, solved_lanes, _mm256_set1_epi32(-1));
       linked_left = linked;
     }
@@ -553,21 +558,21 @@ size_t LinesWorkBytes(int n) {
   return LineWorkBytes(n);
 }
 
-void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved) {
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved, bool skip) {
   CAMSIM_DCHECK(count >= 1 && count <= kLaneLines);
 #ifdef CAMSIM_X86_AVX512
   if (CpuHasAvx512()) {
     uint32_t* rt = reinterpret_cast<uint32_t*>(work);
     uint32_t* et = reinterpret_cast<uint32_t*>(work + LaneWeightBytes(n));
     int64_t* u = reinterpret_cast<int64_t*>(work + 2 * LaneWeightBytes(n));
-    LaneWeightsAvx512(lines, count, n, rt, et, solved);
+    LaneWeightsAvx512(lines, count, n, rt, et, solved, skip);
     Lanes8ForCpu().sweep_lines(lines, count, n, rt, et, u);
     return;
   }
 #endif
   for (int j = 0; j < count; ++j) {
     for (int c = 0; c < 3; ++c) std::memcpy(lines[j].out[c], lines[j].in[c], sizeof(uint32_t) * static_cast<size_t>(n));
-    solved[j] = SolveLine(lines[j].out, 3, lines[j].beta, n, work);
+    solved[j] = SolveLine(lines[j].out, 3, lines[j].beta, n, work, skip);
   }
 }
 
@@ -712,7 +717,7 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
       }
       lines[k].beta = beta;
     }
-    dof::SolveLines(lines, a.row_count, a.width, work, header + 1);
+    dof::SolveLines(lines, a.row_count, a.width, work, header + 1, skip_idle_);
     header[0] = b0;
   }
   const int k = a.y - b0;
@@ -932,8 +937,9 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
   for (int c = 0; c < 3; ++c) us[c] = reinterpret_cast<int64_t*>(take64(n * kBlock));
 
   // A tile whose window holds no link (in focus) is its own solution: every
-  // r and e is 1, so the sweeps would return the input bits. Copy it.
-  bool coupled = false;
+  // r and e is 1, so the sweeps would return the input bits. Copy it
+  // (unless skipping is off: then they do return them).
+  bool coupled = !skip_idle_;
   for (int i = lo + 1; i <= hi && !coupled; ++i) {
     const uint32_t* link = links(i);
     for (int x = 0; x < w; ++x) coupled |= link[x] != 0;

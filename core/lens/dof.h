@@ -204,9 +204,10 @@ void BackRow(int64_t* y, const int64_t* us, const uint32_t* e, uint32_t* out, in
 // Solves one line of n samples for `channels` (1 .. 3) channels in place: beta[i]
 // (i = 1 .. n - 1) couples samples i - 1 and i; beta[0] and beta[n] are
 // ignored (insulated ends). work: 2 n uint32 + 3 n int64 (LineWorkBytes).
-// Returns the number of samples solved (those with a non-zero link).
+// Returns the number of samples with a non-zero link: those solved. skip
+// false solves the whole line as one segment (the same bytes).
 size_t LineWorkBytes(int n);
-int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work);
+int SolveLine(uint32_t* const* line, int channels, const uint32_t* beta, int n, uint8_t* work, bool skip = true);
 
 // Up to kLaneLines lines of 3 channels solved together: line j reads
 // lines[j].in, writes lines[j].out (SolveLine's result for a copy of in) and
@@ -221,7 +222,11 @@ struct LineIo {
   const uint32_t* beta;  // n + 1 links
 };
 size_t LinesWorkBytes(int n);
-void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved);
+// skip: a sample without links is its own solution and is not swept (the
+// lanes sweep it with weights 1 taken without a step); false steps and
+// sweeps it as any other, for the same bytes. solved[j]: line j's samples
+// with a non-zero link.
+void SolveLines(const LineIo* lines, int count, int n, uint8_t* work, int32_t* solved, bool skip = true);
 }  // namespace dof
 
 // Row pass of the diffusion DoF (and structural blur). Rows are solved in

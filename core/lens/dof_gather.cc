@@ -102,11 +102,11 @@ void DofGatherStage::ProcessRow(const RowArgs& a) const {
     const uint32_t* iz = a.input->inverse_depth.row(a.first_row + k);
     for (int x = 0; x < w; ++x) blur |= coc_.Coc(iz[x]) >= 448;
   }
-  if (!blur) {
+  if (!blur && a.stats != nullptr) a.stats->skipped_px += w;
+  if (!blur && skip_idle_) {
     const RowIn& in = a.rows[y - a.first_row];
     for (int c = 0; c < 3; ++c)
       for (int x = 0; x < w; ++x) a.out[c][x] = in.ch[c][x];
-    if (a.stats != nullptr) a.stats->skipped_px += w;
     return;
   }
   for (int k = 0; k < a.row_count; ++k) {

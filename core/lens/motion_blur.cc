@@ -342,9 +342,11 @@ void MotionBlurStage::ProcessRow(const RowArgs& a) const {
   for (int x = 0; x < w; ++x) {
     const int64_t dx = du[x], dy = dv[x];
     if ((dx | dy) == 0) {
-      for (int c = 0; c < 3; ++c) a.out[c][x] = own.ch[c][x];
       ++still;
-      continue;
+      if (skip_idle_) {
+        for (int c = 0; c < 3; ++c) a.out[c][x] = own.ch[c][x];
+        continue;
+      }
     }
     // n = 1 + ceil(L spp): L Q.16 (<= 2^30) times spp Q.4 (<= 256) is Q.20 below 2^39.
     const int64_t len = (dx < 0 ? -dx : dx) > (dy < 0 ? -dy : dy) ? (dx < 0 ? -dx : dx) : (dy < 0 ? -dy : dy);

@@ -282,6 +282,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(demosaic_.Configure(config.demosaic, g));
   CAMSIM_TRY(color_matrix_.Configure(config.color_matrix, g));
   CAMSIM_TRY(gamma_.Configure(config.gamma, g));
+  for (int i = 0; i < kStageCount; ++i) StageFor(static_cast<StageId>(i))->set_skip_idle(config.skip_idle);
 
   // Plan: follow the format through the configured order, leaving out stages
   // that would change nothing.

@@ -74,6 +74,7 @@ struct FrameInput {
 struct PipelineConfig {
   SensorGeometry geometry;
   uint64_t seed = 1;  // keys all randomness (with frame, x, y, channel)
+  bool skip_idle = true;  // Stage::set_skip_idle of every stage: the same bytes either way
 
   // Stages in run order; a stage not listed does not run. The planner runs a
   // Bayer CFA ahead of the exposure and vignetting right before it (they are

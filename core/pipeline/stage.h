@@ -104,7 +104,8 @@ struct StageStats {
   // Pixels of running rows where the scene did not need (part of) the
   // stage's work: copied through (e.g. no blur where the circle of
   // confusion is negligible), or for flare the pixels that source no glare
-  // or ghosts: the planner's savings within a frame.
+  // or ghosts: the planner's savings within a frame. Counted the same with
+  // Stage::set_skip_idle off, when the work is done on them anyway.
   int64_t skipped_px = 0;
   uint64_t ticks = 0;  // time spent, in the caller's clock units
 };
@@ -179,8 +180,17 @@ class Stage {
   }
   virtual void ProcessRow(const RowArgs& args) const = 0;
 
+  // Whether the stage copies the pixels that need none of its work (those
+  // StageStats::skipped_px counts; default on). Off, it runs its full
+  // arithmetic on them too and gives the same bytes: the run that `camsim
+  // run --measure-savings` times the skipping against. Stages that skip
+  // nothing, and flare (its skipped pixels source nothing: there is no work
+  // to run on them), ignore it.
+  void set_skip_idle(bool on) { skip_idle_ = on; }
+
  protected:
   ~Stage() = default;
+  bool skip_idle_ = true;
 };
 
 // The equality InitFrom compares configuration values with: bit for bit, so

@@ -319,12 +319,27 @@ TEST(DofSolver, LinesTogetherMatchOneByOne) {
         }
         lines[static_cast<size_t>(j)].beta = b.data();
       }
-      dof::SolveLines(lines.data(), count, n, aligned, solved.data());
-      for (int j = 0; j < count; ++j) {
-        ASSERT_EQ(solved[static_cast<size_t>(j)], want_solved[static_cast<size_t>(j)]) << "n " << n << " line " << j;
-        for (int i = 0; i < 3 * n; ++i)
-          ASSERT_EQ(out[static_cast<size_t>(j)][static_cast<size_t>(i)], want[static_cast<size_t>(j)][static_cast<size_t>(i)])
-              << "n " << n << " lines " << count << " line " << j << " channel " << i / n << " x " << i % n;
+      // Skipping off (Stage::set_skip_idle) steps and sweeps the unlinked
+      // samples too: the same bytes and counts.
+      for (const bool skip : {true, false}) {
+        for (std::vector<uint32_t>& o : out) std::fill(o.begin(), o.end(), 0xDEADBEEFu);
+        dof::SolveLines(lines.data(), count, n, aligned, solved.data(), skip);
+        for (int j = 0; j < count; ++j) {
+          ASSERT_EQ(solved[static_cast<size_t>(j)], want_solved[static_cast<size_t>(j)]) << "n " << n << " line " << j;
+          for (int i = 0; i < 3 * n; ++i)
+            ASSERT_EQ(out[static_cast<size_t>(j)][static_cast<size_t>(i)], want[static_cast<size_t>(j)][static_cast<size_t>(i)])
+                << "n " << n << " lines " << count << " line " << j << " channel " << i / n << " x " << i % n
+                << " skip " << skip;
+        }
+        if (skip) continue;
+        for (int j = 0; j < count; ++j) {  // and one by one
+          std::vector<uint32_t> one = in[static_cast<size_t>(j)];
+          uint32_t* o3[3];
+          for (int c = 0; c < 3; ++c) o3[c] = one.data() + static_cast<size_t>(c) * n;
+          ASSERT_EQ(dof::SolveLine(o3, 3, beta[static_cast<size_t>(j)].data(), n, aligned, false),
+                    want_solved[static_cast<size_t>(j)]);
+          ASSERT_EQ(one, want[static_cast<size_t>(j)]) << "n " << n << " line " << j << " solved one by one, skip off";
+        }
       }
     }
   }
@@ -733,6 +748,29 @@ TEST(DofSkipping, InFocusColumnTilesAreCopied) {
       }
     }
   EXPECT_GT(changed, kTile * h) << "the middle tile is blurred";
+}
+
+// Skipping off (PipelineConfig::skip_idle, what `camsim run
+// --measure-savings` times against) runs the work on the pixels that need
+// none and changes no byte, for both methods; the counts stay the same.
+TEST(DofSkipping, SkippingOffChangesNoByte) {
+  const int w = 3 * DofColumnStage::kTile + 7, h = 2 * DofColumnStage::kBlock + 9;
+  test::Scene s = test::TexturedScene(w, h);
+  // In focus at 3 m on the left and at the top; out of focus elsewhere.
+  SetDepth(&s, [](int x, int y) { return x < 40 || y < 20 ? 3.0 : 0.7 + 0.01 * ((x * 7 + y * 3) % 50); });
+  for (const DofMethod method : {DofMethod::kDiffusion, DofMethod::kGather}) {
+    PipelineConfig p = DofPipeline(w, h, method);
+    p.dof.max_radius_px = 6;
+    WorkerStats on, off;
+    const std::vector<uint32_t> skipped = RunDof(p, s, 16, &on);
+    p.skip_idle = false;
+    EXPECT_EQ(RunDof(p, s, 16, &off), skipped) << (method == DofMethod::kGather ? "gather" : "diffusion");
+    for (int k = 0; k < (method == DofMethod::kGather ? 1 : 2); ++k) {
+      EXPECT_GT(on.stage[k].skipped_px, int64_t{w} * 10) << "stage " << k << ": the case skips";
+      EXPECT_LT(on.stage[k].skipped_px, int64_t{w} * h / 2) << "stage " << k << ": and works";
+      EXPECT_EQ(off.stage[k].skipped_px, on.stage[k].skipped_px) << "stage " << k;
+    }
+  }
 }
 
 TEST(DofSkipping, GatherCopiesRowsWithoutBlur) {

@@ -45,7 +45,8 @@ FrameInput ViewOf(const test::Scene& s, const Extras& e) {
 }
 
 // Runs the pipeline's whole frame in strips of strip_rows; returns interleaved RGB.
-std::vector<uint32_t> RunMotion(const test::Built& b, const test::Scene& s, const Extras& e, int strip_rows) {
+std::vector<uint32_t> RunMotion(const test::Built& b, const test::Scene& s, const Extras& e, int strip_rows,
+                                WorkerStats* stats = nullptr) {
   std::vector<uint32_t> out(static_cast<size_t>(s.width) * s.height * 3, 0xDEADBEEFu);
   Tap t;
   t.format = TapFormat::kU32;
@@ -53,7 +54,7 @@ std::vector<uint32_t> RunMotion(const test::Built& b, const test::Scene& s, cons
   t.stride = static_cast<ptrdiff_t>(s.width) * 3;
   const FrameInput in = ViewOf(s, e);
   EXPECT_TRUE(b.pipeline.CheckInput(in).ok());
-  b.pipeline.ProcessFrame(in, 0, strip_rows, &t, 1, nullptr, nullptr);
+  b.pipeline.ProcessFrame(in, 0, strip_rows, &t, 1, stats, nullptr);
   return out;
 }
 
@@ -283,6 +284,26 @@ TEST(MotionBlur, BitExactForEveryStripHeightAndThreads) {
     for (size_t i = 0; i < whole.size(); ++i) changed += whole[i] != k.scene.plane[i % 3][i / 3];
     EXPECT_GT(changed, whole.size() / 2);
   }
+}
+
+// Skipping off (PipelineConfig::skip_idle) runs the gather on the pixels
+// that do not move: one sample at the pixel itself, the same bytes.
+TEST(MotionBlur, SkippingOffChangesNoByte) {
+  Busy k = BusyCase(61, 47, MotionSource::kVectors);
+  for (int c = 0; c < 2; ++c)  // the left 20 columns still
+    for (int y = 0; y < 47; ++y)
+      for (int x = 0; x < 20; ++x) k.extras.vectors[c][static_cast<size_t>(y) * 61 + x] = 0;
+  WorkerStats on, off;
+  auto b = test::Build(k.config);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const std::vector<uint32_t> skipped = RunMotion(*b, k.scene, k.extras, 9, &on);
+  k.config.skip_idle = false;
+  auto all = test::Build(k.config);
+  ASSERT_TRUE(all->status.ok()) << all->status.message();
+  EXPECT_EQ(RunMotion(*all, k.scene, k.extras, 9, &off), skipped);
+  EXPECT_GE(on.stage[0].skipped_px, 20 * 47) << "the still columns, and the swirl's centre";
+  EXPECT_LT(on.stage[0].skipped_px, 61 * 47 / 2);
+  EXPECT_EQ(off.stage[0].skipped_px, on.stage[0].skipped_px) << "counted the same";
 }
 
 // Error against the double reference on the busy scene, in units of the
