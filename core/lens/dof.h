@@ -316,9 +316,15 @@ class DofGatherStage final : public Stage {
   void CountTables(WorkspaceCounter& counter) const override;
   Status Init(Arena& tables) override;
   size_t ScratchBytes(int width) const override;
+  // Strip state: a byte per frame row, whether the row holds a disc wider
+  // than a pixel (kRowUnknown until a window first reads it), so that each
+  // row is scanned once per strip for the skip, not once per output row.
+  size_t StateBytes(int width) const override;
+  void BeginStrip(uint8_t* state) const override;
   void ProcessRow(const RowArgs& args) const override;
 
  private:
+  static constexpr uint8_t kRowUnknown = 2;
   DofConfig config_;
   SensorGeometry geometry_;
   CocModel coc_;

@@ -20,6 +20,8 @@
 
 #include "core/lens/dof.h"
 
+#include <cstring>
+
 #include "core/pipeline/pipeline.h"
 
 namespace camsim {
@@ -86,6 +88,12 @@ size_t DofGatherStage::ScratchBytes(int width) const {
   return 4 * AlignUp(sizeof(int64_t) * static_cast<size_t>(width + 1)) + AlignUp(sizeof(uint16_t) * static_cast<size_t>(width));
 }
 
+size_t DofGatherStage::StateBytes(int /*width*/) const { return AlignUp(static_cast<size_t>(geometry_.height)); }
+
+void DofGatherStage::BeginStrip(uint8_t* state) const {
+  std::memset(state, kRowUnknown, static_cast<size_t>(geometry_.height));
+}
+
 void DofGatherStage::ProcessRow(const RowArgs& a) const {
   const int w = a.width, y = a.y, rmax = config_.max_radius_px;
   const size_t n1 = static_cast<size_t>(w + 1);
@@ -99,8 +107,14 @@ void DofGatherStage::ProcessRow(const RowArgs& a) const {
   // i.e. quarter-pixel radius (coc + 64) >> 7 < 4, coc < 448 in Q.8).
   bool blur = false;
   for (int k = 0; k < a.row_count && !blur; ++k) {
-    const uint32_t* iz = a.input->inverse_depth.row(a.first_row + k);
-    for (int x = 0; x < w; ++x) blur |= coc_.Coc(iz[x]) >= 448;
+    uint8_t& row_blurs = a.state[a.first_row + k];
+    if (row_blurs == kRowUnknown) {
+      const uint32_t* iz = a.input->inverse_depth.row(a.first_row + k);
+      bool b = false;
+      for (int x = 0; x < w && !b; ++x) b = coc_.Coc(iz[x]) >= 448;
+      row_blurs = b ? 1 : 0;
+    }
+    blur = row_blurs == 1;
   }
   if (!blur && a.stats != nullptr) a.stats->skipped_px += w;
   if (!blur && skip_idle_) {
