@@ -705,19 +705,28 @@ void DofRowStage::ProcessRow(const RowArgs& a) const {
     const size_t link_pitch = AlignUp(sizeof(uint32_t) * (w + 1));
     uint8_t* work = links + kBlock * link_pitch;
     dof::LineIo lines[kBlock];
+    bool linked = false;
     for (int k = 0; k < a.row_count; ++k) {
       uint32_t* beta = reinterpret_cast<uint32_t*>(links + static_cast<size_t>(k) * link_pitch);
       RowCc2(*a.input, b0 + k, 0, a.width, cc2);
       beta[0] = 0;
       beta[w] = 0;
       dof::BetaRow(cc2, cc2 + 1, a.width - 1, beta + 1);
+      for (size_t x = 1; x < w; ++x) linked |= beta[x] != 0;
       for (int c = 0; c < 3; ++c) {
         lines[k].in[c] = a.rows[k].ch[c];
         lines[k].out[c] = cache + (static_cast<size_t>(k) * 3 + c) * w;
       }
       lines[k].beta = beta;
     }
-    dof::SolveLines(lines, a.row_count, a.width, work, header + 1, skip_idle_);
+    if (linked || !skip_idle_) {
+      dof::SolveLines(lines, a.row_count, a.width, work, header + 1, skip_idle_);
+    } else {  // no link in the block (in focus): every line is its own solution
+      for (int k = 0; k < a.row_count; ++k) {
+        for (int c = 0; c < 3; ++c) std::memcpy(lines[k].out[c], lines[k].in[c], sizeof(uint32_t) * w);
+        header[1 + k] = 0;
+      }
+    }
     header[0] = b0;
   }
   const int k = a.y - b0;
