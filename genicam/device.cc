@@ -584,7 +584,6 @@ std::string GigeDevice::CheckInvariants() const {
     return "the window is off the sensor";
   if (applied_.at(kGainRaw) != GainRawOf(AppliedDouble(kGain)))
     return "Gain and GainRaw disagree";
-  if (applied_.at(SelectedAddress(kLineSource, 0)) != kLineSourceOff) return "Line0, an input, has a source";
   return "";
 }
 
@@ -699,8 +698,9 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
 // clear the fake camera's acquisition register and are not stored, so each
 // reads back 0. A value a feature never takes (out of its range, not one of
-// its entries), a window that would leave the sensor, or a source for the
-// input Line0 is set back to the value in memory: invalid parameter; so is
+// its entries at that selection, e.g. a source for the input Line0) or a
+// window that would leave the sensor is set back to the value in memory:
+// invalid parameter; so is
 // half of a Float: bad alignment, and a read-only feature's register:
 // write protect. A change of the pipeline's registers that the pipeline
 // cannot run (a raw format without the sensor, RGB8 without the ISP, ...)
@@ -809,12 +809,6 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (after(extent) + after(offset) <= static_cast<uint64_t>(limits[a])) continue;
     if (covers(offset)) set_back(offset);
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
-    refuse(GevStatus::kInvalidParameter);
-  }
-  // Line0 is an input: nothing drives it.
-  const uint32_t line0_source = reg::SelectedAddress(reg::kLineSource, 0);
-  if (covers(line0_source) && value(line0_source) != kLineSourceOff) {
-    set_back(line0_source);
     refuse(GevStatus::kInvalidParameter);
   }
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
@@ -978,8 +972,8 @@ void GigeDevice::Sync() {
       ++writes_refused_;
     };
     // The window must stay on the sensor: refuse the offset, then the size
-    // (FilterClientWrite does this and the Line0 rule as writes arrive; here
-    // whatever wrote the registers).
+    // (FilterClientWrite does this as writes arrive; here whatever wrote the
+    // registers).
     const std::pair<uint32_t, uint32_t> axes[2] = {{kWidth, kOffsetX}, {kHeight, kOffsetY}};
     const int limits[2] = {sensor_.width, sensor_.height};
     for (int a = 0; a < 2; ++a) {
@@ -987,8 +981,6 @@ void GigeDevice::Sync() {
       if (was_changed(axes[a].second)) refuse(axes[a].second);
       if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
     }
-    // Line0 is an input: nothing drives it.
-    if (next[SelectedAddress(kLineSource, 0)] != kLineSourceOff) refuse(SelectedAddress(kLineSource, 0));
     // Gain and GainRaw are one setting in two units.
     if (was_changed(kGain)) {
       next[kGainRaw] = GainRawOf(BitsDouble(next[kGain]));

@@ -25,6 +25,9 @@ enum class Kind : uint8_t { kInteger, kFloat, kEnum, kBoolean, kCommand, kString
 struct EnumEntry {
   std::string name;
   int64_t value;
+  // >= 0: the entry is available only while the feature's selector has this
+  // value (GenICam pIsAvailable; the device refuses it otherwise).
+  int64_t only_at_selection = -1;
 };
 
 struct Feature {
@@ -144,7 +147,8 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);
 // The table with each selected feature spread into one entry per register
-// (named Feature[i], at address + 4 * i): what the device reads and checks.
+// (named Feature[i], at address + 4 * i, with the entries available at
+// selection i): what the device reads and checks.
 std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table);
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);
 
