@@ -58,8 +58,9 @@ inline uint32_t ROf(uint64_t D, uint32_t b) {
 // a repeat reuses them with the same bits and no division. Repeats are the
 // rule: along a row where b is constant r settles on a fixed point (91 % of
 // the row steps of BM_PipelineDof's scene), and neighbouring columns of a
-// column tile mostly share b and r (94 % of its downward steps). b = 0 never
-// reaches a step, so it marks "nothing kept". kWithE: also compute e.
+// column tile mostly share b and r (94 % of its downward steps). The empty
+// step keeps (0, 0): r is never 0, so no real step matches it (b = 0 reaches
+// a step only with skipping off, and gives r = e = 1). kWithE: also compute e.
 template <bool kWithE>
 struct SweepStep {
   uint32_t b = 0, r = 0;     // the inputs kept
@@ -418,7 +419,7 @@ CAMSIM_AVX512_TARGET void LaneWeightsAvx512(const LineIo* lines, int count, int 
   const uint32_t* beta[kL];
   for (int j = 0; j < kL; ++j) beta[j] = lines[j < count ? j : count - 1].beta;
   const __m256i one = _mm256_set1_epi32(static_cast<int>(kOneW));
-  // Each lane's kept step (SweepStep's b, r, next, e; b = 0: nothing kept).
+  // Each lane's kept step (SweepStep's b, r, next, e; r = 0: nothing kept).
   alignas(32) uint32_t kb[kL] = {}, kr[kL] = {}, kn[kL] = {}, ke[kL] = {};
   __m256i kept_b = _mm256_setzero_si256(), kept_r = kept_b, kept_next = kept_b, kept_e = kept_b;
   __m256i r = one;  // r_{i-1}
@@ -947,8 +948,9 @@ void DofColumnStage::SolveTile(const RowArgs& a, int yb, int ye, int x0, int x1,
 
   // A tile whose window holds no link (in focus) is its own solution: every
   // r and e is 1, so the sweeps would return the input bits. Copy it
-  // (unless skipping is off: then they do return them).
-  bool coupled = !skip_idle_;
+  // (unless skipping is off: then they do return them). A window of one row
+  // has no links at all.
+  bool coupled = !skip_idle_ && hi > lo;
   for (int i = lo + 1; i <= hi && !coupled; ++i) {
     const uint32_t* link = links(i);
     for (int x = 0; x < w; ++x) coupled |= link[x] != 0;

@@ -181,9 +181,10 @@ class Stage {
   virtual void ProcessRow(const RowArgs& args) const = 0;
 
   // Whether the stage copies the pixels that need none of its work (those
-  // StageStats::skipped_px counts; default on). Off, it runs its full
-  // arithmetic on them too and gives the same bytes: the run that `camsim
-  // run --measure-savings` times the skipping against. Stages that skip
+  // StageStats::skipped_px counts; default on). Off, it does the work it
+  // would skip (a copy becomes a sweep, a gather, a sample) and gives the
+  // same bytes: the run that `camsim run --measure-savings` times the
+  // skipping against. Stages that skip
   // nothing, and flare (its skipped pixels source nothing: there is no work
   // to run on them), ignore it.
   void set_skip_idle(bool on) { skip_idle_ = on; }

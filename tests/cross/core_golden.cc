@@ -333,7 +333,7 @@ int main(int argc, char** argv) {
         }
         if (running == previous_running) continue;
         previous_running = running;
-        std::vector<uint8_t> workspace(p->WorkspaceBytes());
+        std::vector<uint8_t> workspace(p->WorkspaceBytes(), 0xA5);  // not 0: nothing may depend on it
         const Status is = p->Init(Span<uint8_t>{workspace.data(), workspace.size()});
         if (!is.ok()) {
           std::printf("ERROR %s %dx%d cut %d: Init: %s\n", cfg.name, w, h, n, is.message());

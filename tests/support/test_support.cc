@@ -59,7 +59,7 @@ std::unique_ptr<Built> Build(const PipelineConfig& config, int workers) {
   auto b = std::make_unique<Built>();
   b->status = b->pipeline.Configure(config, workers, false);
   if (!b->status.ok()) return b;
-  b->workspace.assign(b->pipeline.WorkspaceBytes(), 0);
+  b->workspace.assign(b->pipeline.WorkspaceBytes(), 0xA5);  // not 0: the core must not read what it did not write
   b->status = b->pipeline.Init(Span<uint8_t>{b->workspace.data(), b->workspace.size()});
   return b;
 }
