@@ -35,7 +35,7 @@ const char kUsage[] =
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "      --depth: a separate depth file, for a single input frame\n"
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
-    "      --measure-savings: time each frame N more times with the stages' skipping on and off\n"
+    "      --measure-savings: time each frame N (1..1000) more times with the stages' skipping on and off\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
     "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"

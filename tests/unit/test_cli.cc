@@ -635,6 +635,9 @@ TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   const Result r = Camsim("run --config " + kConfig + " --input " + dir + "/seq_%04d.exr --out " + dir + "/out");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("seq_0002.exr"), std::string::npos) << r.err;
+  // The run says where the pattern's sequence starts and ends.
+  EXPECT_NE(r.err.find("inputs: 2 frames, " + dir + "/seq_0001.exr .. " + dir + "/seq_0002.exr"), std::string::npos)
+      << r.err;
   EXPECT_TRUE(Exists(dir + "/out/seq_0001.png"));  // frame 1's outputs were kept
   // Garbage and missing files.
   std::ofstream(dir + "/garbage.exr") << "this is not an EXR file";
