@@ -364,6 +364,9 @@ TEST(Sensor, ExposureMatchesReference) {
     EXPECT_NEAR(fixed, ref, kExposureMaxErrorPhotons + ref * 1e-9) << r;
   }
   RecordProperty("exposure_max_error_photons", std::to_string(worst));
+  // The reference is the stage's own model function: check it against eq. 7
+  // written out (photons = radiance c t / N^2, t in ms).
+  EXPECT_DOUBLE_EQ(ReferenceExposure(e, 0.5), 0.5 * 8000.0 * 12.345 / 16.0);
 }
 
 // A fractional black level is part of the one rounding (round(K v + BL)), not
@@ -443,6 +446,28 @@ TEST(Sensor, VignettingMatchesReference) {
     // Corners are exactly the curve's end point, the centre exactly 1.
     EXPECT_NEAR(out[0] / 256.0, 10000.0 * ReferenceVignettingGain(c.vignetting, c.geometry, 0, 0), 1.0);
     EXPECT_EQ(out[(30 * 97 + 48) * 3], 10000u * 256u);
+  }
+  // The reference shares the stage's model functions: check it against the
+  // models written out. Cos4: cos^4 of the field angle atan(r / f), r the
+  // pixel's distance from the centre (48, 30). Table: linear in rho between
+  // the 5 given gains, rho the squared radius over the corner's (48^2 + 30^2).
+  VignettingConfig v;
+  v.mode = VignettingMode::kCos4;
+  v.focal_length_px = 60.0;
+  const SensorGeometry g{97, 61, Cfa::kBayerRG, 12};
+  for (const auto& [x, y] : {std::pair{0, 0}, {48, 30}, {96, 60}, {10, 45}, {70, 3}}) {
+    const double r = std::hypot(x - 48.0, y - 30.0);
+    EXPECT_NEAR(ReferenceVignettingGain(v, g, x, y), std::pow(std::cos(std::atan(r / 60.0)), 4), 1e-12) << x << "," << y;
+  }
+  v.mode = VignettingMode::kTable;
+  const double table[5] = {1.0, 0.95, 0.8, 0.6, 0.3};
+  for (int i = 0; i < 5; ++i) v.table[i] = table[i];
+  v.table_count = 5;
+  for (const auto& [x, y] : {std::pair{0, 0}, {48, 30}, {10, 45}, {70, 3}}) {
+    const double rho = ((x - 48.0) * (x - 48.0) + (y - 30.0) * (y - 30.0)) / (48.0 * 48.0 + 30.0 * 30.0);
+    const int i = std::min(static_cast<int>(rho * 4), 3);
+    const double want = table[i] + (table[i + 1] - table[i]) * (rho * 4 - i);
+    EXPECT_NEAR(ReferenceVignettingGain(v, g, x, y), want, 1e-12) << x << "," << y;
   }
 }
 
