@@ -46,6 +46,14 @@ StageRunner::StageRunner(const Pipeline& pipeline, int index, const FrameInput& 
   }
 }
 
+void StageRunner::SetOutput(TapFormat format) {
+  const size_t bytes = format == TapFormat::kU8 ? 1 : (format == TapFormat::kU16 ? 2 : 4);
+  output_.assign(static_cast<size_t>(width_) * height_ * out_channels_ * bytes, 0);
+  tap_.format = format;
+  tap_.data = output_.data();
+  tap_.stride = static_cast<ptrdiff_t>(width_) * out_channels_;
+}
+
 void StageRunner::RunFrame(uint32_t frame) {
   constexpr int kStripRows = 16;
   std::atomic<int> next{0};
@@ -69,6 +77,7 @@ void StageRunner::RunFrame(uint32_t frame) {
           for (int c = 0; c < channels_; ++c) wk.rows[static_cast<size_t>(k)].ch[c] = padded_[src * channels_ + c].data() + margin_;
         }
         stage_.ProcessRow(args);
+        if (tap_.data != nullptr) WriteTapRow(tap_, args.out, out_channels_, y, width_);
       }
     }
   });

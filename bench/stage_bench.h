@@ -17,8 +17,14 @@ class StageRunner {
  public:
   // Captures the input of running stage `index` of `pipeline` for `input`.
   StageRunner(const Pipeline& pipeline, int index, const FrameInput& input, int threads);
-  // Runs the stage over the whole frame once; rows land in a per-thread row buffer.
+  // Runs the stage over the whole frame once; rows land in a per-thread row
+  // buffer, and with an output set (SetOutput) also in a whole frame, as a
+  // pipeline's tap writes them (what a peer writing an image is compared with).
   void RunFrame(uint32_t frame);
+  // Writes every output row to a frame of `format` (interleaved channels);
+  // the frame is output_frame().
+  void SetOutput(TapFormat format);
+  const std::vector<uint8_t>& output_frame() const { return output_; }
   const Stage& stage() const { return stage_; }
   // The captured input: interleaved channels, width x height.
   const std::vector<uint32_t>& input_frame() const { return frame_; }
@@ -38,6 +44,8 @@ class StageRunner {
     std::vector<uint8_t> scratch;
   };
   std::vector<Worker> workers_;
+  std::vector<uint8_t> output_;
+  Tap tap_;  // tap_.data == nullptr: no output frame
   hal::ThreadPool pool_;
 };
 
