@@ -153,9 +153,6 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
     for (int p = 0; p < 2; ++p)
       for (int j = 0; j < kLanes; ++j)
         qe[p][j] = qe_q16_[channels == 3 ? c : CfaColour(geometry_.cfa, j & 1, first + p)];
-    // A full pixel's photons, even and odd columns of the centre row (most changed pixels are full).
-    const uint32_t full[2] = {qe[self & 1][0] != 0 ? ToPhotons(full_well_q8_, qe[self & 1][0]) : 0,
-                              qe[self & 1][1] != 0 ? ToPhotons(full_well_q8_, qe[self & 1][1]) : 0};
     // The group of columns [x0, x0 + m), m <= kLanes; called with m = kLanes
     // for whole groups, so that its loops and copy have a constant length.
     const auto group = [&](int x0, int m) {
@@ -182,7 +179,7 @@ void BloomingStage::ProcessRow(const RowArgs& a) const {
         if (q == 0 || after[j] == before[j]) {
           out[x0 + j] = center[x0 + j];
         } else {
-          out[x0 + j] = after[j] == full_well_q8_ ? full[j & 1] : ToPhotons(after[j], q);
+          out[x0 + j] = after[j] == full_well_q8_ ? kFullWellPhotons : ToPhotons(after[j], q);
         }
       }
     };

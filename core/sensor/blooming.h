@@ -10,7 +10,12 @@
 //   up pass, k decreasing:    the same with the other half, excess - floor(excess / 2)
 //   charge carried past the frame's first or last row is lost (a drain).
 // Total charge is conserved except what leaves the frame. The output is the
-// photon count that gives the resulting charge: level(k) / QE(colour at k).
+// photon count that gives the resulting charge, level(k) / QE(colour at k),
+// except at a full well: a pixel left with level W (its own excess spilled,
+// or filled by a spill) comes out as kFullWellPhotons, the format's maximum,
+// so that the sensor reads it saturated. A full well holds W electrons, not W
+// on average: as W / QE photons, PRNU below 1 and the shot noise drawn on
+// them would put about half of the full pixels below saturation.
 //
 // Streaming: output row y runs the two passes on the window [y - R, y + R]
 // (R = rows) of its column, with no carry entering the window. That equals the
@@ -44,6 +49,8 @@ struct BloomingConfig {
 };
 
 inline constexpr int kMaxBloomingRows = 64;  // = kMaxContextRows
+// A full well's output (see above): Photons Q24.8 saturated.
+inline constexpr uint32_t kFullWellPhotons = 0xFFFFFFFFu;
 
 class BloomingStage final : public Stage {
  public:

@@ -68,7 +68,53 @@ TEST(Blooming, SpillGoesWhereTheModelSays) {
     double e = 500;
     if (y == 30 || y == 31 || y == 29) e = 1000;  // full
     if (y == 32 || y == 28) e = 750;              // the last 250 e- each way
-    for (int x = 0; x < kW; ++x) EXPECT_NEAR(out[y * kW + x] / 256.0 * 0.5, e, 0.01) << "y " << y << " x " << x;
+    for (int x = 0; x < kW; ++x) {
+      if (e == 1000) {
+        EXPECT_EQ(out[y * kW + x], kFullWellPhotons) << "a full well reads saturated; y " << y << " x " << x;
+        continue;
+      }
+      EXPECT_NEAR(out[y * kW + x] / 256.0 * 0.5, e, 0.01) << "y " << y << " x " << x;
+    }
+  }
+}
+
+// Through the sensor, with its PRNU, shot and dark noise: a pixel whose
+// well blooming left full reads saturated, as it does without blooming (its
+// photons are kFullWellPhotons, not W / QE, on which PRNU below 1 and the
+// shot noise would put about half of them below the well).
+TEST(Blooming, FullWellsReadSaturatedThroughTheNoisySensor) {
+  constexpr int kW = 64, kH = 60;
+  test::Scene s = test::FlatScene(kW, kH, 0.5, 0.5, 0.5);  // 500 photons = 250 e- (QE 0.5)
+  for (int c = 0; c < 3; ++c)
+    for (int i = 20 * kW; i < 40 * kW; ++i) s.plane[c][i] = Q<16, 16>::FromDouble(10.0).raw;  // 5000 e-
+  std::vector<uint32_t> dn[2];
+  for (const bool blooming : {false, true}) {
+    PipelineConfig c = PhotonPath(kW, kH, Cfa::kMono, blooming);
+    c.order[c.order_count++] = StageId::kSensor;
+    c.sensor.prnu_percent = 2.0;
+    auto b = test::Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    dn[blooming] = test::RunFrame(*b, s, 3, 16);
+  }
+  // Rows 20 .. 39 are over the well either way; with blooming, the spill
+  // (4000 e- of excess a pixel, half each way, 750 e- of room a pixel, within
+  // the stage's window of R = 16 rows) fills at least rows 14 .. 19 and 40 .. 45.
+  const auto stats = [&](const std::vector<uint32_t>& v, int y0, int y1) {
+    double sum = 0, sum2 = 0;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = 0; x < kW; ++x) {
+        sum += v[y * kW + x];
+        sum2 += double(v[y * kW + x]) * v[y * kW + x];
+      }
+    const double n = double(y1 - y0 + 1) * kW, mean = sum / n;
+    return std::pair{mean, std::sqrt(sum2 / n - mean * mean)};
+  };
+  const auto [mean_off, sd_off] = stats(dn[0], 20, 39);
+  EXPECT_LT(sd_off, 2.0) << "saturated: only the read noise after the clip";
+  for (const auto& [y0, y1] : {std::pair{20, 39}, {14, 19}, {40, 45}}) {
+    const auto [mean, sd] = stats(dn[1], y0, y1);
+    EXPECT_NEAR(mean, mean_off, 0.5) << "rows " << y0 << ".." << y1;
+    EXPECT_LT(sd, 2.0) << "rows " << y0 << ".." << y1;
   }
 }
 
@@ -111,7 +157,10 @@ TEST(Blooming, MatchesWholeColumnReferenceAndConservesCharge) {
     }
     const std::vector<double> ref = ref::RefBloomColumn(charge, W);
     for (int y = 0; y < kH; ++y) {
-      const double got = out[y * kW + x] / 256.0 * qe[y];
+      // A full well's marker (kFullWellPhotons) holds exactly W.
+      const double got = out[y * kW + x] == kFullWellPhotons && in[y * kW + x] != kFullWellPhotons
+                             ? W
+                             : out[y * kW + x] / 256.0 * qe[y];
       max_err = std::max(max_err, std::abs(got - ref[y]));
       total_ref += ref[y];
       total_out += got;
@@ -191,6 +240,7 @@ uint32_t ModelPixel(const std::vector<uint32_t>& plane, int w, int h, int x, int
   }
   const uint64_t q = qe_of_row(y);
   if (q == 0 || level[self] == m_self) return plane[y * w + x];
+  if (level[self] == well) return kFullWellPhotons;  // a full well reads saturated
   return static_cast<uint32_t>(std::min<uint64_t>(((level[self] << 16) + q / 2) / q, 0xFFFFFFFFu));
 }
 
