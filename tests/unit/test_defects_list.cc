@@ -87,6 +87,32 @@ TEST(ListedDefects, EachKindLandsAtItsPixelAndWinsOverTheSeededMap) {
   EXPECT_EQ(listed_pixels, kListCount);
 }
 
+// A hot pixel's dark current follows the temperature as the mean dark
+// current does: doubling every dark_current_doubling_c kelvin (7), so 14 K
+// above the reference gives four times the charge. The exposure doubles it
+// again. (No test covered this: a hot pixel that ignored the temperature
+// passed every test and golden hash; found by a review.)
+TEST(ListedDefects, HotPixelsFollowTemperatureAndExposure) {
+  const test::Scene flat = test::FlatScene(kW, kH, 1.0, 1.0, 1.0);
+  const auto hot_excess = [&](double temperature_c, double exposure_us) {
+    PipelineConfig c = Quiet();
+    c.sensor.temperature_c = temperature_c;
+    c.exposure.exposure_time_us = exposure_us;
+    c.exposure.photons_per_radiance_ms = 100.0 * 10000.0 / exposure_us;  // the same photons at any exposure
+    auto clean = test::Build(c);
+    c.sensor.defects = kList;
+    c.sensor.defect_count = kListCount;
+    auto hot = test::Build(c);
+    EXPECT_TRUE(clean->status.ok() && hot->status.ok());
+    const int64_t base = test::RunFrame(*clean, flat, 0, 7)[2 * kW + 3];
+    return static_cast<int64_t>(test::RunFrame(*hot, flat, 0, 7)[2 * kW + 3]) - base;
+  };
+  EXPECT_EQ(hot_excess(25.0, 10000.0), 10) << "1000 e-/s for 10 ms, K = 1";
+  EXPECT_EQ(hot_excess(39.0, 10000.0), 40) << "two doublings";
+  EXPECT_EQ(hot_excess(18.0, 10000.0), 5) << "one halving";
+  EXPECT_EQ(hot_excess(25.0, 20000.0), 20) << "twice the exposure";
+}
+
 TEST(ListedDefects, SameForAnyStripHeightAndThreads) {
   PipelineConfig c = Quiet();
   c.sensor.shot_noise = true;

@@ -140,6 +140,34 @@ TEST(Sensor, FixedPatternsAreTheSameEveryFrame) {
   EXPECT_GT(m.var, 1.0);
 }
 
+// Each fixed pattern (DSNU, PRNU, row and column FPN, the seeded defect
+// map) is the same every frame but another camera's, another seed, has its
+// own: a frame of seed 2 differs from seed 1's in most pixels, for each
+// pattern on its own.
+TEST(Sensor, FixedPatternsFollowTheSeed) {
+  const test::Scene s = test::FlatScene(32, 32, 2.0, 2.0, 2.0);
+  const auto differing = [&](void (*set)(SensorConfig*)) {
+    PipelineConfig c = SensorOnly(32, 32, Cfa::kMono);
+    c.sensor = Noiseless();
+    set(&c.sensor);
+    auto one = test::Build(c);
+    c.seed = 2;
+    auto two = test::Build(c);
+    const auto a = test::RunFrame(*one, s, 0, 32), b = test::RunFrame(*two, s, 0, 32);
+    EXPECT_EQ(test::RunFrame(*one, s, 5, 32), a) << "fixed over frames";
+    int n = 0;
+    for (size_t i = 0; i < a.size(); ++i) n += a[i] != b[i];
+    return n;
+  };
+  EXPECT_GT(differing([](SensorConfig* s) { s->dsnu_e = 5.0; }), 32 * 32 / 2) << "DSNU";
+  EXPECT_GT(differing([](SensorConfig* s) { s->prnu_percent = 3.0; }), 32 * 32 / 2) << "PRNU";
+  EXPECT_GT(differing([](SensorConfig* s) { s->row_fpn_e = 5.0; }), 32 * 32 / 2) << "row FPN";
+  EXPECT_GT(differing([](SensorConfig* s) { s->column_fpn_e = 5.0; }), 32 * 32 / 2) << "column FPN";
+  // 1 % of the pixels hot in each map (about 10 of 1024), almost none shared:
+  // about 20 pixels differ.
+  EXPECT_GT(differing([](SensorConfig* s) { s->hot_pixel_fraction = 0.01; }), 10) << "hot pixels";
+}
+
 // sensor.fixed_pattern_table builds PRNU and DSNU once at Init: the same bytes
 // as drawing them every frame (Bayer: one channel; no CFA: three), for odd
 // sizes, several strip heights and threads, with noise and defects on; the
