@@ -140,6 +140,25 @@ TEST(Sensor, FixedPatternsAreTheSameEveryFrame) {
   EXPECT_GT(m.var, 1.0);
 }
 
+// Dark charge is drawn with the signal (Poisson): in a dark frame its
+// temporal variance equals its mean, in electrons. 10 000 e-/s for 10 ms
+// is 100 e-; over 64 x 64 pixels the variance is within ~5 % of it (charge
+// added after the draw would leave only the quantisation, 1/12 DN^2).
+TEST(Sensor, DarkChargeCarriesItsShotNoise) {
+  PipelineConfig c = SensorOnly(64, 64, Cfa::kMono);
+  c.exposure.exposure_time_us = 10000.0;
+  c.sensor = Noiseless();
+  c.sensor.shot_noise = true;
+  c.sensor.dark_current_e_per_s = 10000.0;
+  c.sensor.system_gain_dn_per_e = 1.0;
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const test::Scene dark = test::FlatScene(64, 64, 0.0, 0.0, 0.0);
+  const Moments m = Of(AsDouble(test::RunFrame(*b, dark, 0, 64)));
+  EXPECT_NEAR(m.mean - c.sensor.black_level_dn, 100.0, 1.0);
+  EXPECT_NEAR(m.var, 100.0, 15.0);
+}
+
 // Each fixed pattern (DSNU, PRNU, row and column FPN, the seeded defect
 // map) is the same every frame but another camera's, another seed, has its
 // own: a frame of seed 2 differs from seed 1's in most pixels, for each
