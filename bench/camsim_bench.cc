@@ -244,7 +244,7 @@ void BM_SensorPath(benchmark::State& state) {
   PipelineConfig c = SensorPath(w, h);
   c.sensor.fixed_pattern_table = state.range(3) != 0;
   RunPipeline(state, c, static_cast<int>(state.range(2)));
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_SensorPath)
@@ -346,7 +346,7 @@ void BM_SensorPathStage(benchmark::State& state) {
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
   state.SetLabel(runner.stage().name());
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_SensorPathStage)
@@ -478,7 +478,7 @@ void BM_Stage(benchmark::State& state) {
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
   state.SetLabel(runner.stage().name());
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_Stage)
@@ -503,7 +503,7 @@ void BM_SensorLowLight(benchmark::State& state) {
   if (std::strcmp(runner.stage().name(), "sensor") != 0) std::abort();
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_SensorLowLight)->ArgsProduct({{1920}, {1080}, {1, 10, 100, 1000}})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -527,7 +527,7 @@ void BM_ColorMatrix(benchmark::State& state) {
   bench::StageRunner runner(p, index, Scene(w).View(), 1);
   uint32_t frame = 0;
   for (auto _ : state) runner.RunFrame(frame++);
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_ColorMatrix)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -631,7 +631,7 @@ void BM_RandomLanes(benchmark::State& state) {
     x += RandomLanes::kLanes;
     benchmark::DoNotOptimize(lanes.v[0][0]);
   }
-  state.counters["ns_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * RandomLanes::kLanes * 1e-9,
+  state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * RandomLanes::kLanes,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_RandomLanes);
