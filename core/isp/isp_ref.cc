@@ -69,14 +69,19 @@ RefImage RefBlackLevel(const RefImage& dn, double black_level_dn, int adc_bits) 
   return out;
 }
 
-RefImage RefWhiteBalance(const RefImage& in, Cfa cfa, const WhiteBalanceConfig& config) {
+RefImage RefWhiteBalance(const RefImage& in, Cfa cfa, const WhiteBalanceConfig& config, double white_level) {
   RefImage out = SameSize(in, in.planes.size());
+  // Highlights clip at the smallest positive gain times the white level.
+  double min_gain = 1e300;
+  for (double g : config.gain)
+    if (g > 0.0) min_gain = std::min(min_gain, g);
+  const double clip = std::min((min_gain < 1e300 ? min_gain : 1.0) * white_level * kFullScale, kFullScale);
   for (size_t c = 0; c < in.planes.size(); ++c)
     for (int y = 0; y < in.height; ++y)
       for (int x = 0; x < in.width; ++x) {
         const size_t i = static_cast<size_t>(y) * in.width + x;
         const Colour colour = in.planes.size() == 3 ? static_cast<Colour>(c) : CfaColour(cfa, x, y);
-        out.planes[c][i] = std::min(in.planes[c][i] * config.gain[colour], kFullScale);
+        out.planes[c][i] = std::min(in.planes[c][i] * config.gain[colour], clip);
       }
   return out;
 }

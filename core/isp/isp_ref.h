@@ -24,7 +24,8 @@ struct RefImage {
 // clamp(max(DN - BL, 0) * 65535 / (2^adc_bits - 1 - BL), 0, 65535)
 RefImage RefBlackLevel(const RefImage& dn, double black_level_dn, int adc_bits);
 // min(v * gain, 65535); one plane takes the gain of each site's CFA colour.
-RefImage RefWhiteBalance(const RefImage& in, Cfa cfa, const WhiteBalanceConfig& config);
+// white_level: as WhiteBalanceStage::Configure's (highlights clip at min gain * white).
+RefImage RefWhiteBalance(const RefImage& in, Cfa cfa, const WhiteBalanceConfig& config, double white_level);
 // Eq. 23-24: zero-filled colour planes convolved with K_rb and K_g. A padded
 // site has the CFA colour of its own (unreflected) position.
 RefImage RefDemosaicBilinear(const RefImage& mosaic, Cfa cfa);

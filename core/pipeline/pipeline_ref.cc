@@ -209,7 +209,10 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
       const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
       return RefBlackLevel(in, bl, g.adc_bits);
     }
-    case StageId::kWhiteBalance: return RefWhiteBalance(in, g.cfa, c.white_balance);
+    case StageId::kWhiteBalance: {
+      const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
+      return RefWhiteBalance(in, g.cfa, c.white_balance, WhiteLevel(SensorSaturationDn(c.sensor, g), bl, g.adc_bits));
+    }
     case StageId::kDemosaic:
       return c.demosaic.method == DemosaicMethod::kMalvar ? RefDemosaicMalvar(in, g.cfa) : RefDemosaicBilinear(in, g.cfa);
     case StageId::kColorMatrix: return RefColorMatrix(in, c.color_matrix.m);

@@ -30,6 +30,12 @@ bool InRange(double v, double lo, double hi) { return v >= lo && v <= hi; }  // 
 
 }  // namespace
 
+double SensorSaturationDn(const SensorConfig& c, const SensorGeometry& g) {
+  const double dn = std::floor(SystemGain(c) * c.full_well_e + c.black_level_dn + 0.5);  // rounded as the stage rounds
+  const double max_dn = (1 << g.adc_bits) - 1;
+  return dn > max_dn ? max_dn : dn;
+}
+
 double ReferenceSensorMeanDn(const SensorConfig& c, const SensorGeometry& g, double exposure_time_us,
                              Colour colour, double photons) {
   const int qe_index = g.cfa == Cfa::kMono ? kGreen : colour;

@@ -198,6 +198,11 @@ class SensorStage final : public Stage {
   bool force_portable_ = false;  // tests only
 };
 
+// The DN of a full well without noise: min(round(K W + black level), 2^bits -
+// 1), ties up as the stage rounds. The ISP's white balance clips highlights
+// there (core/isp/white_balance.h).
+double SensorSaturationDn(const SensorConfig& config, const SensorGeometry& g);
+
 // Double reference: the mean DN for a mean photon count (no noise, no patterns).
 double ReferenceSensorMeanDn(const SensorConfig& config, const SensorGeometry& g, double exposure_time_us,
                              Colour colour, double photons);

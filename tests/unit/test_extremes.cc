@@ -13,11 +13,12 @@
 //  - all-max radiance, noise off: photons saturate at 2^32 - 1 (exposure), the
 //    raw DN is min(round(K * full_well) + BL, 2^bits - 1) everywhere, and the
 //    ISP stages give exactly their formula of that value (a flat field stays
-//    flat through demosaic); a pixel clipped at the ADC maximum stays at full
-//    scale (65535) through the ISP. (The demo camera's full well, 4002 DN, is
-//    below its 12-bit ADC maximum, so a saturated pixel is not white: black
-//    level gives 64023, white balance clips R and B to 65535 and leaves G,
-//    and the sRGB output is (65535, 64866, 65535): 8-bit (255, 252, 255).)
+//    flat through demosaic). (The demo camera's full well, 4002 DN, is below
+//    its 12-bit ADC maximum, so a saturated pixel is not full scale: black
+//    level gives 64023, and white balance clips every channel at its
+//    smallest gain times that level, so the sRGB output is neutral,
+//    (64866, 64866, 64866). Before 2026-11-28 it clipped at 65535 and the
+//    output was magenta, (65535, 64866, 65535).)
 //  - dark and saturated frames, noise on: the raw DN is within the read-noise
 //    and DSNU tails (|z| <= 6.34) of the noise-free value;
 //  - highlights next to dark pixels, noise off: the model has no blooming, so a
@@ -163,8 +164,15 @@ uint32_t ExpectedLinear(const PipelineConfig& c, uint32_t dn) {
   const double bl = c.sensor.black_level_dn, max = (1 << c.geometry.adc_bits) - 1;
   return static_cast<uint32_t>(std::min(RoundUp(std::max(dn - bl, 0.0) * 65535.0 / (max - bl)), 65535.0));
 }
+// White balance: the gain, clipped at min gain * the sensor's white level
+// (when the stage runs: a gain differs from 1).
 uint32_t ExpectedBalanced(const PipelineConfig& c, uint32_t linear, int colour) {
-  return static_cast<uint32_t>(std::min(RoundUp(linear * c.white_balance.gain[colour]), 65535.0));
+  const WhiteBalanceConfig& wb = c.white_balance;
+  if (wb.gain[0] == 1.0 && wb.gain[1] == 1.0 && wb.gain[2] == 1.0) return linear;
+  const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
+  const double white = WhiteLevel(SensorSaturationDn(c.sensor, c.geometry), bl, c.geometry.adc_bits);
+  const double clip = RoundUp(WhiteBalanceClip(wb, white));
+  return static_cast<uint32_t>(std::min(RoundUp(linear * wb.gain[colour]), clip));
 }
 // The gamma table as the pipeline builds it.
 std::vector<uint16_t> GammaTable(const PipelineConfig& c) {
@@ -349,10 +357,10 @@ TEST(Extremes, NoiseOffZeroMaxAndHighlights) {
       what = What(v, w, h, "all-max");
       const Cuts max = RunChecked(*b, Flat(w, h, 0xFFFFFFFFu), what);
       CheckAllMax(c, max, what);
-      // Saturated is not white here (see the top of the file): G stays at 64866.
+      // Saturated is neutral, below full scale (see the top of the file).
       if (!max.out.empty() && (v == Variant::kMono || (w >= 2 && h >= 2))) {
         const std::vector<uint32_t> saturated_output =
-            v == Variant::kMono ? std::vector<uint32_t>{64866u} : std::vector<uint32_t>{65535u, 64866u, 65535u};
+            v == Variant::kMono ? std::vector<uint32_t>{64866u} : std::vector<uint32_t>{64866u, 64866u, 64866u};
         EXPECT_EQ(std::vector<uint32_t>(max.out.back().begin(), max.out.back().begin() + saturated_output.size()),
                   saturated_output)
             << what;

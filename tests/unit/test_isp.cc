@@ -254,24 +254,68 @@ TEST(IspBlackLevel, PlanConvertsDigitalToLinear) {
 
 TEST(IspWhiteBalance, ExactGainsAndSaturation) {
   WhiteBalanceStage stage;
-  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 0.5, 16.0}}, Geometry(3, 1)).ok());
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 16.0}}, Geometry(3, 1), 1.0).ok());
   Image in = MakeImage(3, 1, 3);
   in.planes[0] = {0, 1000, 40000};  // R x2
-  in.planes[1] = {1, 3, 65535};     // G x0.5: 0.5 and 1.5 round up
+  in.planes[1] = {1, 3, 65535};     // G x1
   in.planes[2] = {1, 4095, 4096};   // B x16: 65520, then saturation
   const Image out = RunStage(stage, in, 3);
   EXPECT_EQ(out.planes[0], (std::vector<uint32_t>{0, 2000, 65535}));
-  EXPECT_EQ(out.planes[1], (std::vector<uint32_t>{1, 2, 32768}));
+  EXPECT_EQ(out.planes[1], (std::vector<uint32_t>{1, 3, 65535}));
   EXPECT_EQ(out.planes[2], (std::vector<uint32_t>{16, 65520, 65535}));
+  // A gain below 1 lowers the clip with it (min gain 0.5 times white 1:
+  // 32767.5, rounded up), so every channel of a full well ends equal.
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 0.5, 16.0}}, Geometry(3, 1), 1.0).ok());
+  in.planes[1] = {1, 3, 65535};  // G x0.5: 0.5 and 1.5 round up
+  const Image half = RunStage(stage, in, 3);
+  EXPECT_EQ(half.planes[0], (std::vector<uint32_t>{0, 2000, 32768}));
+  EXPECT_EQ(half.planes[1], (std::vector<uint32_t>{1, 2, 32768}));
+  EXPECT_EQ(half.planes[2], (std::vector<uint32_t>{16, 32768, 32768}));
+}
+
+// A full well is below the ADC's maximum (the demo camera: K W + BL = 4002
+// DN of 4095), so after the black level every channel of a blown highlight
+// reads the white level; gains above 1 lifted R and B above G: magenta. The
+// clip at min gain * white keeps it neutral, in the stage and through the
+// whole demo pipeline to 16-bit sRGB.
+TEST(IspWhiteBalance, BlownHighlightsStayNeutral) {
+  const double white = WhiteLevel(4002.0, 64.0, 12);
+  EXPECT_NEAR(white, (4002.0 - 64.0) / (4095.0 - 64.0), 1e-15);
+  WhiteBalanceStage stage;
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{1.9, 1.0, 1.4}}, Geometry(2, 1), white).ok());
+  const uint32_t full = static_cast<uint32_t>(std::lround(white * kMaxQ16));
+  const Image out = RunStage(stage, MakeImage(2, 1, 3, full), 3);
+  EXPECT_EQ(out.planes[0], out.planes[1]);
+  EXPECT_EQ(out.planes[2], out.planes[1]);
+  EXPECT_EQ(out.planes[1][0], full);
+
+  PipelineConfig c = test::DemoConfig(48, 32);
+  c.white_balance.gain[0] = 1.9;
+  c.white_balance.gain[2] = 1.4;
+  c.exposure.exposure_time_us *= 20;  // every pixel far over its well
+  auto b = test::Build(c);
+  ASSERT_TRUE(b->status.ok()) << b->status.message();
+  const std::vector<uint32_t> rgb = test::RunFrame(*b, test::FlatScene(48, 32, 1.0, 1.0, 1.0), 0, 32);
+  // The read noise and DSNU after the well's clip leave G a few DN of 4095
+  // below the clip in some pixels; the tint was 675 of 65535 (sRGB (65535,
+  // 64860, 65535)) before the clip.
+  double r_minus_g = 0, b_minus_g = 0;
+  for (size_t i = 0; i < rgb.size(); i += 3) {
+    r_minus_g += double(rgb[i]) - rgb[i + 1];
+    b_minus_g += double(rgb[i + 2]) - rgb[i + 1];
+  }
+  const double n = static_cast<double>(rgb.size() / 3);
+  EXPECT_LT(std::fabs(r_minus_g / n), 64.0);
+  EXPECT_LT(std::fabs(b_minus_g / n), 64.0);
 }
 
 TEST(IspWhiteBalance, MosaicTakesTheSiteColourGain) {
   // RGGB with gains R 2, G 1, B 4 on a flat 1000 field.
   WhiteBalanceStage stage;
-  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 4.0}}, Geometry(2, 2, Cfa::kBayerRG)).ok());
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 4.0}}, Geometry(2, 2, Cfa::kBayerRG), 1.0).ok());
   const Image out = RunStage(stage, MakeImage(2, 2, 1, 1000), 1);
   EXPECT_EQ(out.planes[0], (std::vector<uint32_t>{2000, 1000, 1000, 4000}));
-  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 4.0}}, Geometry(2, 2, Cfa::kMono)).ok());
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 4.0}}, Geometry(2, 2, Cfa::kMono), 1.0).ok());
   EXPECT_EQ(RunStage(stage, MakeImage(2, 2, 1, 1000), 1).planes[0],
             (std::vector<uint32_t>{1000, 1000, 1000, 1000}));
 }
@@ -280,28 +324,29 @@ TEST(IspWhiteBalance, MatchesReference) {
   const WhiteBalanceConfig configs[] = {
       {{2.0137, 1.0, 1.7321}}, {{0.4, 1.3, 15.9}}, {{0.0, 16.0, 1.0 / 3.0}}};
   for (const WhiteBalanceConfig& config : configs)
-    for (Cfa cfa : kBayerPhases) {
-      WhiteBalanceStage stage;
-      ASSERT_TRUE(stage.Configure(config, Geometry(1, 1, cfa)).ok());
-      const Image inputs[] = {RandomImage(29, 11, 1, kMaxQ16, 3), RampImage(64, 32, 1, kMaxQ16),
-                              RandomImage(17, 5, 3, kMaxQ16, 4), RampImage(40, 8, 3, kMaxQ16)};
-      for (const Image& in : inputs) {
-        const int channels = static_cast<int>(in.planes.size());
-        EXPECT_LE(MaxAbsError(RunStage(stage, in, channels), ref::RefWhiteBalance(ToRef(in), cfa, config)),
-                  kWhiteBalanceMaxErr);
+    for (Cfa cfa : kBayerPhases)
+      for (const double white : {1.0, 0.977, 0.31}) {
+        WhiteBalanceStage stage;
+        ASSERT_TRUE(stage.Configure(config, Geometry(1, 1, cfa), white).ok());
+        const Image inputs[] = {RandomImage(29, 11, 1, kMaxQ16, 3), RampImage(64, 32, 1, kMaxQ16),
+                                RandomImage(17, 5, 3, kMaxQ16, 4), RampImage(40, 8, 3, kMaxQ16)};
+        for (const Image& in : inputs) {
+          const int channels = static_cast<int>(in.planes.size());
+          EXPECT_LE(MaxAbsError(RunStage(stage, in, channels), ref::RefWhiteBalance(ToRef(in), cfa, config, white)),
+                    kWhiteBalanceMaxErr);
+        }
       }
-    }
 }
 
 TEST(IspWhiteBalance, IdentityAndValidation) {
   WhiteBalanceStage stage;
-  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{}, Geometry(4, 4)).ok());
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{}, Geometry(4, 4), 1.0).ok());
   EXPECT_STREQ(stage.IdentityReason(), "white-balance gains are all 1");
-  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{1.0, 1.0, 1.001}}, Geometry(4, 4)).ok());
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{1.0, 1.0, 1.001}}, Geometry(4, 4), 1.0).ok());
   EXPECT_EQ(stage.IdentityReason(), nullptr);
   const double bad[] = {kNaN, -0.1, 16.01, std::numeric_limits<double>::infinity()};
   for (double b : bad)
-    ExpectInvalid(stage.Configure(WhiteBalanceConfig{{1.0, b, 1.0}}, Geometry(4, 4)), "white_balance.gain");
+    ExpectInvalid(stage.Configure(WhiteBalanceConfig{{1.0, b, 1.0}}, Geometry(4, 4), 1.0), "white_balance.gain");
   EXPECT_FALSE(stage.Plan(LineFormat{Domain::kDigital, 1, true}).ok());
 }
 
@@ -734,8 +779,9 @@ TEST(IspSizes, PointStagesMatchReferencesAtEverySmallSize) {
 
       const WhiteBalanceConfig wb{{1.9, 1.0, 1.4}};
       WhiteBalanceStage white;
-      ASSERT_TRUE(white.Configure(wb, g).ok());
-      EXPECT_LE(MaxAbsError(RunStage(white, linear, 1), ref::RefWhiteBalance(ToRef(linear), g.cfa, wb)),
+      const double white_level = WhiteLevel(4002.0, 64.0, 12);
+      ASSERT_TRUE(white.Configure(wb, g, white_level).ok());
+      EXPECT_LE(MaxAbsError(RunStage(white, linear, 1), ref::RefWhiteBalance(ToRef(linear), g.cfa, wb, white_level)),
                 kWhiteBalanceMaxErr);
 
       const Image rgb = RandomImage(w, h, 3, kMaxQ16, static_cast<uint32_t>(w * h));
