@@ -73,8 +73,9 @@ RefImage RefWhiteBalance(const RefImage& in, Cfa cfa, const WhiteBalanceConfig& 
   RefImage out = SameSize(in, in.planes.size());
   // Highlights clip at the smallest positive gain times the white level.
   double min_gain = 1e300;
-  for (double g : config.gain)
-    if (g > 0.0) min_gain = std::min(min_gain, g);
+  for (int colour = 0; colour < 3; ++colour)
+    if (config.gain[colour] > 0.0 && (cfa != Cfa::kMono || colour == kGreen))
+      min_gain = std::min(min_gain, config.gain[colour]);
   const double clip = std::min((min_gain < 1e300 ? min_gain : 1.0) * white_level * kFullScale, kFullScale);
   for (size_t c = 0; c < in.planes.size(); ++c)
     for (int y = 0; y < in.height; ++y)

@@ -50,10 +50,13 @@ double WhiteLevel(double saturation_dn, double black_level_dn, int adc_bits) {
   return w < 0.0 ? 0.0 : (w > 1.0 ? 1.0 : w);
 }
 
-double WhiteBalanceClip(const WhiteBalanceConfig& c, double white_level) {
+double WhiteBalanceClip(const WhiteBalanceConfig& c, Cfa cfa, double white_level) {
   double min_gain = 0.0;
-  for (double gain : c.gain)
+  for (int colour = 0; colour < 3; ++colour) {
+    const double gain = c.gain[colour];
+    if (cfa == Cfa::kMono && colour != kGreen) continue;  // a mono sensor takes the G gain only
     if (gain > 0.0 && (min_gain == 0.0 || gain < min_gain)) min_gain = gain;
+  }
   const double clip = (min_gain > 0.0 ? min_gain : 1.0) * white_level * kMaxQ16;
   return clip < kMaxQ16 ? clip : kMaxQ16;
 }
@@ -67,9 +70,8 @@ Status WhiteBalanceStage::Configure(const WhiteBalanceConfig& c, const SensorGeo
     if (!s.ok()) return s.status();
     gain_[i] = s.value();
   }
-  if (!(white_level >= 0.0 && white_level <= 1.0)) return InvalidArgument("sensor.full_well_e", "white level out of [0, 1]");
   // Round half up; the clip is at most 65535 (WhiteBalanceClip caps it).
-  clip_ = static_cast<uint32_t>(WhiteBalanceClip(c, white_level) + 0.5);
+  clip_ = static_cast<uint32_t>(WhiteBalanceClip(c, g.cfa, white_level) + 0.5);
   cfa_ = g.cfa;
   return Status::Ok();
 }

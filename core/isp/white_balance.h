@@ -5,7 +5,8 @@
 //   clip = min(round(min_gain * white * 65535), 65535)
 //
 // white is the linear level of a full well (SensorSaturationDn through the
-// black level's mapping, 0 .. 1) and min_gain the smallest gain above 0.
+// black level's mapping, 0 .. 1) and min_gain the smallest gain above 0 of
+// the colours the sensor has (a mono sensor: the G gain).
 // A channel saturated at the sensor comes out at `clip` whatever its gain,
 // so a blown highlight stays neutral (dcraw's highlight clipping). Without
 // the clip, gains above 1 lifted a saturated R and B to 65535 while G
@@ -18,7 +19,8 @@
 // Error against the exact product: <= 0.5 LSB + 3e-4 LSB (the gain's 2^-32
 // relative rounding on products up to 16 * 65535), and against the exact
 // clip <= 0.5 LSB (its rounding). The stage is left out when every gain is
-// 1 (nothing to clip either: every channel saturates at the same level).
+// 1: then nothing is clipped, and a stuck pixel or the noise tail above the
+// full well keeps its value (every channel of a full well is already equal).
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -51,7 +53,8 @@ class WhiteBalanceStage final : public Stage {
 // saturation_dn after the black level's mapping, (dn - BL) / (2^bits - 1 - BL),
 // clamped to [0, 1].
 double WhiteLevel(double saturation_dn, double black_level_dn, int adc_bits);
-// The clip for gains and a white level: min_gain * white in Q0.16, unrounded.
-double WhiteBalanceClip(const WhiteBalanceConfig& config, double white_level);
+// The clip for gains and a white level: min_gain * white in Q0.16, unrounded
+// (min_gain over the colours the sensor has: G alone for mono).
+double WhiteBalanceClip(const WhiteBalanceConfig& config, Cfa cfa, double white_level);
 
 }  // namespace camsim

@@ -192,8 +192,15 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
             charge[y] = in.planes[k][at(x, y)] * qe[y];
           }
           const std::vector<double> bloomed = RefBloomColumn(charge, c.sensor.full_well_e);
-          for (int y = 0; y < h; ++y)
-            out.planes[k][at(x, y)] = qe[y] > 0 ? bloomed[y] / qe[y] : in.planes[k][at(x, y)];
+          for (int y = 0; y < h; ++y) {
+            double& o = out.planes[k][at(x, y)];
+            if (qe[y] <= 0)
+              o = in.planes[k][at(x, y)];
+            else if (bloomed[y] >= c.sensor.full_well_e && bloomed[y] != charge[y])
+              o = kFullWellPhotons / 256.0;  // a well blooming left full reads saturated (blooming.h)
+            else
+              o = bloomed[y] / qe[y];
+          }
         }
       return out;
     }

@@ -11,11 +11,15 @@
 //   charge carried past the frame's first or last row is lost (a drain).
 // Total charge is conserved except what leaves the frame. The output is the
 // photon count that gives the resulting charge, level(k) / QE(colour at k),
-// except at a full well: a pixel left with level W (its own excess spilled,
-// or filled by a spill) comes out as kFullWellPhotons, the format's maximum,
-// so that the sensor reads it saturated. A full well holds W electrons, not W
-// on average: as W / QE photons, PRNU below 1 and the shot noise drawn on
-// them would put about half of the full pixels below saturation.
+// except at a full well: a pixel whose charge blooming changed to W (its own
+// excess spilled, or filled by a spill) comes out as kFullWellPhotons, the
+// format's maximum, so that the sensor reads it saturated (whenever QE * PRNU
+// gain * 2^24 photons >= W, i.e. for any QE above 0.06 at the largest full
+// well). A full well holds W electrons, not W on average: as W / QE photons,
+// PRNU below 1 and the shot noise drawn on them would put about half of the
+// full pixels below saturation. A pixel at exactly W that nothing changed
+// passes through, as without blooming. (The run report's mean of this stage
+// averages these markers.)
 //
 // Streaming: output row y runs the two passes on the window [y - R, y + R]
 // (R = rows) of its column, with no carry entering the window. That equals the

@@ -9,6 +9,7 @@
 #include <functional>
 
 #include "core/sensor/blooming.h"
+#include "core/pipeline/pipeline_ref.h"
 #include "core/sensor/blooming_ref.h"
 #include "tests/support/test_support.h"
 
@@ -171,6 +172,16 @@ TEST(Blooming, MatchesWholeColumnReferenceAndConservesCharge) {
   EXPECT_GT(changed, kW * 4);  // blooming happened
   // Back to photons rounds to 1/256 photon: < 0.01 e- per pixel.
   EXPECT_LT(max_err, 0.01);
+  // The pipeline's reference (camsim tradeoff's) agrees, full wells included.
+  ref::RefImage photons{kW, kH, {std::vector<double>(in.size())}};
+  for (size_t i = 0; i < in.size(); ++i) photons.planes[0][i] = in[i] / 256.0;
+  const ref::RefImage r = ref::RunStageReference(bloom->pipeline, 2, photons, s.View());
+  int full = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    ASSERT_NEAR(r.planes[0][i], out[i] / 256.0, 0.05) << i;  // 0.01 e- / QE 0.4, and Q0.16 QE
+    full += out[i] == kFullWellPhotons;
+  }
+  EXPECT_GT(full, kW) << "full wells marked";
   EXPECT_NEAR(total_out, total_ref, 0.01 * kW * kH);
   RecordProperty("max_abs_error_e", std::to_string(max_err));
 }

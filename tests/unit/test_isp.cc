@@ -318,6 +318,15 @@ TEST(IspWhiteBalance, MosaicTakesTheSiteColourGain) {
   ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{2.0, 1.0, 4.0}}, Geometry(2, 2, Cfa::kMono), 1.0).ok());
   EXPECT_EQ(RunStage(stage, MakeImage(2, 2, 1, 1000), 1).planes[0],
             (std::vector<uint32_t>{1000, 1000, 1000, 1000}));
+  // Mono clips at its own (G) gain times the white level, not at the
+  // smallest of gains it never uses: 1.0 * 0.8 * 65535 = 52428.
+  ASSERT_TRUE(stage.Configure(WhiteBalanceConfig{{0.5, 1.0, 2.0}}, Geometry(2, 1, Cfa::kMono), 0.8).ok());
+  Image mono = MakeImage(2, 1, 1);
+  mono.planes[0] = {40000, 60000};
+  EXPECT_EQ(RunStage(stage, mono, 1).planes[0], (std::vector<uint32_t>{40000, 52428}));
+  EXPECT_LE(MaxAbsError(RunStage(stage, mono, 1), ref::RefWhiteBalance(ToRef(mono), Cfa::kMono,
+                                                                      WhiteBalanceConfig{{0.5, 1.0, 2.0}}, 0.8)),
+            kWhiteBalanceMaxErr);
 }
 
 TEST(IspWhiteBalance, MatchesReference) {
