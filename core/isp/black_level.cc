@@ -14,7 +14,7 @@ Status BlackLevelStage::Configure(const BlackLevelConfig& c, const SensorGeometr
   if (g.adc_bits < 8 || g.adc_bits > 16) return InvalidArgument("sensor.adc_bits", "must be 8 to 16");
   const double max_dn = static_cast<double>((1 << g.adc_bits) - 1);
   const bool from_sensor = c.black_level_dn == -1.0;
-  const double bl = from_sensor ? sensor_black_level_dn : c.black_level_dn;
+  const double bl = BlackLevelInUse(c, sensor_black_level_dn);
   if (!(bl >= 0.0 && bl <= max_dn - 1.0)) {
     if (from_sensor) return InvalidArgument("sensor.black_level_dn", "must be in [0, 2^adc_bits - 2]");
     return InvalidArgument("black_level.black_level_dn",

@@ -24,6 +24,11 @@ struct BlackLevelConfig {
   double black_level_dn = -1.0;
 };
 
+// The offset in use: config.black_level_dn, or the sensor's when it is -1.
+inline double BlackLevelInUse(const BlackLevelConfig& config, double sensor_black_level_dn) {
+  return config.black_level_dn == -1.0 ? sensor_black_level_dn : config.black_level_dn;
+}
+
 class BlackLevelStage final : public Stage {
  public:
   // sensor_black_level_dn: used when config.black_level_dn is -1.

@@ -245,6 +245,11 @@ const Stage* Pipeline::InitialisedStage(StageId id) const {
   return nullptr;
 }
 
+double PipelineWhiteLevel(const PipelineConfig& c) {
+  return WhiteLevel(SensorSaturationDn(c.sensor, c.geometry), BlackLevelInUse(c.black_level, c.sensor.black_level_dn),
+                    c.geometry.adc_bits);
+}
+
 Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_vignetting_mask,
                            const Pipeline* previous) {
   if (previous == this) previous = nullptr;  // its state is about to be replaced
@@ -278,8 +283,7 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   CAMSIM_TRY(sensor_.Configure(config.sensor, g, config.exposure.exposure_time_us, config.seed));
   CAMSIM_TRY(blooming_.Configure(config.blooming, config.sensor, g));
   CAMSIM_TRY(black_level_.Configure(config.black_level, g, config.sensor.black_level_dn));
-  CAMSIM_TRY(white_balance_.Configure(
-      config.white_balance, g, WhiteLevel(SensorSaturationDn(config.sensor, g), black_level_.black_level_dn(), g.adc_bits)));
+  CAMSIM_TRY(white_balance_.Configure(config.white_balance, g, PipelineWhiteLevel(config)));
   CAMSIM_TRY(demosaic_.Configure(config.demosaic, g));
   CAMSIM_TRY(color_matrix_.Configure(config.color_matrix, g));
   CAMSIM_TRY(gamma_.Configure(config.gamma, g));

@@ -105,6 +105,10 @@ struct PipelineConfig {
   GammaConfig gamma;
 };
 
+// White balance's white level for a configuration: the sensor's full well
+// (SensorSaturationDn) through the black level in use (WhiteLevel).
+double PipelineWhiteLevel(const PipelineConfig& config);
+
 // The planner's verdict on one configured stage.
 struct PlanEntry {
   StageId id = StageId::kExposure;

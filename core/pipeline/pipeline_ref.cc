@@ -212,14 +212,8 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
                                                           CfaColour(g.cfa, x, y), in.planes[0][at(x, y)]);
       return out;
     }
-    case StageId::kBlackLevel: {
-      const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
-      return RefBlackLevel(in, bl, g.adc_bits);
-    }
-    case StageId::kWhiteBalance: {
-      const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
-      return RefWhiteBalance(in, g.cfa, c.white_balance, WhiteLevel(SensorSaturationDn(c.sensor, g), bl, g.adc_bits));
-    }
+    case StageId::kBlackLevel: return RefBlackLevel(in, BlackLevelInUse(c.black_level, c.sensor.black_level_dn), g.adc_bits);
+    case StageId::kWhiteBalance: return RefWhiteBalance(in, g.cfa, c.white_balance, PipelineWhiteLevel(c));
     case StageId::kDemosaic:
       return c.demosaic.method == DemosaicMethod::kMalvar ? RefDemosaicMalvar(in, g.cfa) : RefDemosaicBilinear(in, g.cfa);
     case StageId::kColorMatrix: return RefColorMatrix(in, c.color_matrix.m);

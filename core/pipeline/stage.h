@@ -184,9 +184,8 @@ class Stage {
   // StageStats::skipped_px counts; default on). Off, it does the work it
   // would skip (a copy becomes a sweep, a gather, a sample) and gives the
   // same bytes: the run that `camsim run --measure-savings` times the
-  // skipping against. Stages that skip
-  // nothing, and flare (its skipped pixels source nothing: there is no work
-  // to run on them), ignore it.
+  // skipping against. Stages that skip nothing, and flare (its skipped
+  // pixels source nothing: there is no work to run on them), ignore it.
   void set_skip_idle(bool on) { skip_idle_ = on; }
 
  protected:

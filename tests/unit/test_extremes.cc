@@ -169,9 +169,7 @@ uint32_t ExpectedLinear(const PipelineConfig& c, uint32_t dn) {
 uint32_t ExpectedBalanced(const PipelineConfig& c, uint32_t linear, int colour) {
   const WhiteBalanceConfig& wb = c.white_balance;
   if (wb.gain[0] == 1.0 && wb.gain[1] == 1.0 && wb.gain[2] == 1.0) return linear;
-  const double bl = c.black_level.black_level_dn < 0 ? c.sensor.black_level_dn : c.black_level.black_level_dn;
-  const double white = WhiteLevel(SensorSaturationDn(c.sensor, c.geometry), bl, c.geometry.adc_bits);
-  const double clip = RoundUp(WhiteBalanceClip(wb, c.geometry.cfa, white));
+  const double clip = RoundUp(WhiteBalanceClip(wb, c.geometry.cfa, PipelineWhiteLevel(c)));
   return static_cast<uint32_t>(std::min(RoundUp(linear * wb.gain[colour]), clip));
 }
 // The gamma table as the pipeline builds it.
