@@ -12,6 +12,7 @@ namespace camsim {
 namespace {
 
 constexpr double kMaxFullWell = 1e6;  // keeps v * K inside int64 (see header)
+constexpr uint32_t kDefectBand = uint32_t{1} << 26;  // each defect class's band of u (emva.h)
 
 // Dark charge per exposure of a dark current (e-/s at the reference temperature).
 double DarkElectrons(const SensorConfig& c, double exposure_time_us, double e_per_s) {
@@ -113,11 +114,15 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   smear_ = c.smear_row_transfer_us > 0 && c.smear_leak > 0;
   row_fpn_q8_ = Q<23, 8>::FromDouble(c.row_fpn_e).raw;
   col_fpn_q8_ = Q<23, 8>::FromDouble(c.column_fpn_e).raw;
-  // Cumulative thresholds on a uniform 32-bit word; each fraction <= 0.01, so no overflow.
-  const auto below = [](double fraction) { return static_cast<uint32_t>(fraction * 4294967296.0); };
-  hot_below_ = below(c.hot_pixel_fraction);
-  dead_below_ = hot_below_ + below(c.dead_pixel_fraction);
-  stuck_below_ = dead_below_ + below(c.stuck_pixel_fraction);
+  // One band of the uniform 32-bit word u per class (emva.h); each fraction
+  // <= 0.01 < 1/64, so no band reaches the next.
+  const auto width = [](double fraction) { return static_cast<uint32_t>(fraction * 4294967296.0); };
+  const uint32_t hot = width(c.hot_pixel_fraction), dead = width(c.dead_pixel_fraction),
+                 stuck = width(c.stuck_pixel_fraction);
+  hot_end_ = hot;
+  dead_end_ = kDefectBand + dead;
+  stuck_end_ = 2 * kDefectBand + stuck;
+  any_defect_below_ = stuck != 0 ? stuck_end_ : (dead != 0 ? dead_end_ : hot_end_);
   const double hot_e = DarkElectrons(c, exposure_time_us, c.hot_pixel_dark_e_per_s);
   if (!InRange(hot_e, 0.0, kMaxFullWell))
     return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "hot-pixel charge per exposure exceeds 1e6 electrons");
@@ -598,7 +603,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   using Normals = int32_t[4][RandomLanes::kLanes];  // G(word) for the words of a RandomLanes
   static_assert(kBlock % 2 == 0, "blocks start on even columns: the parity of i is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
-  const bool defects = stuck_below_ != 0;
+  const bool defects = any_defect_below_ != 0;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool draw_patterns = patterns && pattern_ == nullptr;
   CAMSIM_DCHECK(pattern_ == nullptr || channels == input_channels_);  // the planner's SetInputChannels
@@ -663,7 +668,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
         // Seeded defects: the lanes stop before the group of four that holds
         // the block's first defect pixel (most blocks have none).
         for (int i = 0; defects && i < lanes; ++i)
-          if (d.v[2 * (i & 1)][i >> 1] < stuck_below_) lanes = i & ~3;
+          if (d.v[2 * (i & 1)][i >> 1] < any_defect_below_) lanes = i & ~3;
         static_assert(sizeof(PatternEntry) == 2 * sizeof(int32_t), "(gain, DSNU) pairs");
         const sensor_lanes::MeanIn m{in,
                                      {qe[0], qe[1]},
@@ -704,16 +709,16 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
             mu = RoundShiftU(mu * static_cast<uint64_t>(p.gain_q16), 16);
             dsnu += p.dsnu_q8;
           }
-          if (defects && hit == nullptr && d.v[w][lane] < stuck_below_) {
+          if (defects && hit == nullptr && d.v[w][lane] < any_defect_below_) {
             const uint32_t u = d.v[w][lane];
-            if (u < hot_below_) {
+            if (u < hot_end_) {
               // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
               const uint64_t factor = (uint64_t{1} << 31) + d.v[w + 1][lane];
               dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
-            } else if (u < dead_below_) {
+            } else if (u >= kDefectBand && u < dead_end_) {
               mu = 0;
               dark = 0;
-            } else {
+            } else if (u >= 2 * kDefectBand && u < stuck_end_) {
               out[i] = static_cast<uint32_t>(max_dn_);  // stuck
               continue;
             }

@@ -36,9 +36,12 @@
 //                              * 2^((T - T_ref) / T_double) * (0.5 + u'),
 //                              u' uniform in [0, 1) from its second word (a
 //                              spread of hot-pixel strengths), with shot noise;
-//     dead  (h <= u < h + d):  no photo or dark charge (offsets and read noise remain);
-//     stuck (h + d <= u < h + d + s): output stuck at 2^bits - 1.
-//   h, d, s = the configured fractions times 2^32 (rounded down).
+//     dead  (B <= u < B + d):  no photo or dark charge (offsets and read noise remain);
+//     stuck (2B <= u < 2B + s): output stuck at 2^bits - 1.
+//   h, d, s = the configured fractions times 2^32 (rounded down); B = 2^26
+//   (1/64 > the largest fraction, 0.01): each class has its own band of u,
+//   so changing one fraction leaves the other classes' maps as they were,
+//   and raising it keeps its earlier pixels (and adds some).
 //   listed defects (SensorConfig::defects, from sensor.defects_file): at a
 //     listed pixel the seeded class is ignored (the list wins) and
 //     hot:   extra dark charge value * t * 2^((T - T_ref) / T_double) (value
@@ -160,7 +163,10 @@ class SensorStage final : public Stage {
   int64_t read_q8_ = 0;      // dark noise sigma, Q.8 electrons
   int64_t row_fpn_q8_ = 0;   // row FPN sigma, Q.8 electrons
   int64_t col_fpn_q8_ = 0;   // column FPN sigma, Q.8 electrons
-  uint32_t hot_below_ = 0, dead_below_ = 0, stuck_below_ = 0;  // defect thresholds on u (cumulative)
+  // Defect bands on u (emva.h, top): hot [0, hot_end_), dead [B, dead_end_),
+  // stuck [2B, stuck_end_); any_defect_below_: the end of the highest band
+  // in use (0: no seeded defects).
+  uint32_t hot_end_ = 0, dead_end_ = 0, stuck_end_ = 0, any_defect_below_ = 0;
   uint32_t hot_q8_ = 0;      // median hot-pixel extra dark charge per exposure, Q24.8
   struct ListedDefect {
     uint32_t x;

@@ -3,6 +3,7 @@
 // from frame to frame, and are off by default.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/sensor/emva.h"
@@ -74,9 +75,42 @@ TEST(SensorArtefacts, DefectsLeaveOtherPixelsUnchanged) {
   EXPECT_NEAR(changed, n, 4 * std::sqrt(n));
 }
 
-struct DefectCounts {
-  int hot = 0, dead = 0, stuck = 0;
-};
+enum PixelClass : char { kNormal, kHot, kDead, kStuck };
+
+// Each pixel's class, told apart from two dark frames and a lit one (6000
+// photons, ~3900 e-): stuck reads full scale in all, hot carries >= 400 e-
+// of extra dark charge in both dark frames, dead does not respond to light.
+// Expects every other pixel to respond normally. Needs hot_pixel_dark_e_per_s
+// far above the read noise.
+std::vector<PixelClass> ClassifyPixels(const PipelineConfig& c, int w, int h) {
+  auto b = test::Build(c);
+  EXPECT_TRUE(b->status.ok()) << b->status.message();
+  if (!b->status.ok()) return {};
+  const double K = c.sensor.system_gain_dn_per_e, black = c.sensor.black_level_dn;
+  const auto dark = test::RunFrame(*b, test::FlatScene(w, h, 0, 0, 0), 1, 16);
+  const auto dark2 = test::RunFrame(*b, test::FlatScene(w, h, 0, 0, 0), 2, 16);
+  const auto lit = test::RunFrame(*b, test::FlatScene(w, h, 6, 6, 6), 3, 16);
+  const double lit_dn = black + K * 6000 * c.sensor.quantum_efficiency[kGreen];
+  const uint32_t max_dn = (1u << c.geometry.adc_bits) - 1;
+  std::vector<PixelClass> classes(dark.size(), kNormal);
+  for (size_t i = 0; i < dark.size(); ++i) {
+    if (dark[i] == max_dn && lit[i] == max_dn) {
+      classes[i] = kStuck;
+    } else if (dark[i] > black + K * 400 && dark2[i] > black + K * 400) {
+      classes[i] = kHot;
+      EXPECT_GT(lit[i], lit_dn);
+    } else if (lit[i] < black + K * 30) {
+      classes[i] = kDead;
+    } else {
+      EXPECT_GT(lit[i], lit_dn - K * 400) << i;  // every other pixel responds normally
+    }
+  }
+  return classes;
+}
+
+int Count(const std::vector<PixelClass>& classes, PixelClass which) {
+  return static_cast<int>(std::count(classes.begin(), classes.end(), which));
+}
 
 TEST(SensorArtefacts, DefectPixelsFollowTheirFractions) {
   constexpr int kW = 256, kH = 256;
@@ -85,32 +119,41 @@ TEST(SensorArtefacts, DefectPixelsFollowTheirFractions) {
   c.sensor.dead_pixel_fraction = 0.004;
   c.sensor.stuck_pixel_fraction = 0.003;
   c.sensor.hot_pixel_dark_e_per_s = 1e5;  // 1000 e- median in 10 ms: far above the 2.4 e- read noise
-  auto b = test::Build(c);
-  ASSERT_TRUE(b->status.ok()) << b->status.message();
-  const double K = c.sensor.system_gain_dn_per_e, black = c.sensor.black_level_dn;
-  const auto dark = test::RunFrame(*b, test::FlatScene(kW, kH, 0, 0, 0), 1, 16);
-  const auto dark2 = test::RunFrame(*b, test::FlatScene(kW, kH, 0, 0, 0), 2, 16);
-  const auto lit = test::RunFrame(*b, test::FlatScene(kW, kH, 6, 6, 6), 3, 16);  // 6000 photons, ~3900 e-
-  const double lit_dn = black + K * 6000 * c.sensor.quantum_efficiency[kGreen];
-  const int max_dn = 4095;
-  DefectCounts n;
-  for (size_t i = 0; i < dark.size(); ++i) {
-    if (dark[i] == uint32_t(max_dn) && lit[i] == uint32_t(max_dn)) {
-      ++n.stuck;
-    } else if (dark[i] > black + K * 400 && dark2[i] > black + K * 400) {
-      ++n.hot;  // >= 500 e- of extra dark charge every frame
-      EXPECT_GT(lit[i], lit_dn);
-    } else if (lit[i] < black + K * 30) {
-      ++n.dead;  // no response to ~3900 e- of light
-    } else {
-      EXPECT_GT(lit[i], lit_dn - K * 400) << i;  // every other pixel responds normally
-    }
-  }
+  const std::vector<PixelClass> classes = ClassifyPixels(c, kW, kH);
   // Binomial counts of 65536 pixels: sd = sqrt(N p) ~ 18 for p = 0.005; 4 sd.
   const double N = kW * kH;
-  EXPECT_NEAR(n.hot, N * 0.005, 4 * std::sqrt(N * 0.005));
-  EXPECT_NEAR(n.dead, N * 0.004, 4 * std::sqrt(N * 0.004));
-  EXPECT_NEAR(n.stuck, N * 0.003, 4 * std::sqrt(N * 0.003));
+  EXPECT_NEAR(Count(classes, kHot), N * 0.005, 4 * std::sqrt(N * 0.005));
+  EXPECT_NEAR(Count(classes, kDead), N * 0.004, 4 * std::sqrt(N * 0.004));
+  EXPECT_NEAR(Count(classes, kStuck), N * 0.003, 4 * std::sqrt(N * 0.003));
+}
+
+// Each class has its own band of the defect word (emva.h): a user who raises
+// the share of hot pixels gets more hot pixels, the old ones among them, and
+// the same dead and stuck pixels as before.
+TEST(SensorArtefacts, DefectClassesAreIndependent) {
+  constexpr int kW = 256, kH = 128;
+  PipelineConfig c = test::MonoSensorPath(kW, kH);
+  c.sensor.hot_pixel_dark_e_per_s = 1e5;
+  c.sensor.hot_pixel_fraction = 0.002;
+  c.sensor.dead_pixel_fraction = 0.004;
+  c.sensor.stuck_pixel_fraction = 0.003;
+  const std::vector<PixelClass> before = ClassifyPixels(c, kW, kH);
+  c.sensor.hot_pixel_fraction = 0.008;
+  const std::vector<PixelClass> more_hot = ClassifyPixels(c, kW, kH);
+  c.sensor.dead_pixel_fraction = 0.0;
+  const std::vector<PixelClass> no_dead = ClassifyPixels(c, kW, kH);
+  ASSERT_EQ(before.size(), size_t{kW * kH});
+  ASSERT_EQ(more_hot.size(), before.size());
+  ASSERT_EQ(no_dead.size(), before.size());
+  EXPECT_GT(Count(more_hot, kHot), 2 * Count(before, kHot));
+  EXPECT_GT(Count(before, kDead), 0);
+  EXPECT_GT(Count(before, kStuck), 0);
+  for (size_t i = 0; i < before.size(); ++i) {
+    if (before[i] == kHot) { EXPECT_EQ(more_hot[i], kHot) << i; }
+    if (before[i] == kDead || before[i] == kStuck) { EXPECT_EQ(more_hot[i], before[i]) << i; }
+    if (more_hot[i] != kDead) { EXPECT_EQ(no_dead[i], more_hot[i]) << i; }  // only the dead ones go
+    if (more_hot[i] == kDead) { EXPECT_EQ(no_dead[i], kNormal) << i; }
+  }
 }
 
 TEST(SensorArtefacts, HotPixelStrengthsSpreadHalfToOneAndAHalfTimes) {
