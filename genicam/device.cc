@@ -1140,7 +1140,6 @@ void GigeDevice::AutoAdjust(double frac) {
     // The aperture stays where SimFNumber puts it (no f-number range given).
     if (!RestartAuto()) return;
   }
-  double ev_measured = auto_exposure_.ev();  // the EV of the frame just measured
   ExposureSettings s = auto_exposure_.Update(frac);
   Registers next = AutoRegisters(s);
   std::string error;
@@ -1156,17 +1155,14 @@ void GigeDevice::AutoAdjust(double frac) {
                        ".." + Fmt(c.exposure_time_max_us) + " us, Gain " + Fmt(c.gain_min_db) + ".." +
                        Fmt(c.gain_max_db) + " dB");
     if (!RestartAuto()) return;
-    ev_measured = auto_exposure_.ev();
     s = auto_exposure_.Update(frac);
     next = AutoRegisters(s);
     if (next != applied_ && !Reconfigure(next, &error)) return StopAuto(error);
   }
   // Once ends when the controller settles, or when a frame taken at the end
-  // of its range still asks to go further (the target is out of reach).
-  const double e = auto_exposure_.last_error_ev();
-  const bool pinned = (ev_measured <= auto_exposure_.ev_min() + 1e-9 && e < 0) ||
-                      (ev_measured >= auto_exposure_.ev_max() - 1e-9 && e > 0);
-  const bool once_done = auto_exposure_.done() || !auto_exposure_.active() || pinned;
+  // of its range still asks to go further (pinned: the target is out of
+  // reach). The controller runs Continuous when the other feature is.
+  const bool once_done = auto_exposure_.done() || !auto_exposure_.active() || auto_exposure_.pinned();
   if (ea == kAutoOnce && once_done) next[kExposureAuto] = kAutoOff;
   if (ga == kAutoOnce && once_done) next[kGainAuto] = kAutoOff;
   for (const auto& kv : next)
@@ -1177,10 +1173,14 @@ void GigeDevice::AutoAdjust(double frac) {
 GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const {
   using namespace reg;
   Registers next = applied_;
-  next[kExposureTime] = DoubleBits(s.exposure_time_us);
-  const double g = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
-  next[kGain] = DoubleBits(g);
-  next[kGainRaw] = GainRawOf(g);
+  // A feature that is Off keeps its register (the controller holds it at the
+  // applied value, which need not be on GainRaw's 0.1 dB steps).
+  if (Applied(kExposureAuto) != kAutoOff) next[kExposureTime] = DoubleBits(s.exposure_time_us);
+  if (Applied(kGainAuto) != kAutoOff) {
+    const double g = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
+    next[kGain] = DoubleBits(g);
+    next[kGainRaw] = GainRawOf(g);
+  }
   return next;
 }
 

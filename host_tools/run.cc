@@ -233,15 +233,15 @@ bool MeteringWeights(const io::FloatPlane& map, int width, int height, std::vect
   }
   const io::FloatPlane fitted = FitPlane(map, width, height, SceneFit::kScale);
   out->resize(fitted.data.size());
-  double total = 0;
+  uint64_t total = 0;  // of the Q0.16 weights the meter uses
   for (size_t i = 0; i < out->size(); ++i) {
     const float v = fitted.data[i];
     const double c = v > 0 ? (v < 1 ? v : 1.0) : 0.0;
     (*out)[i] = static_cast<uint16_t>(c * 65535.0 + 0.5);
-    total += c;
+    total += (*out)[i];
   }
-  if (!(total > 0)) {
-    *error = "auto_exposure.metering_image: all weights are 0";
+  if (total == 0) {
+    *error = "auto_exposure.metering_image: all weights are 0 (below 1/131070) at the sensor's size";
     return false;
   }
   return true;

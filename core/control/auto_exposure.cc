@@ -22,10 +22,13 @@ double ExposureValue(const ExposureSettings& s) {
 
 Status AutoExposure::Configure(const AutoExposureConfig& c, const ExposureSettings& initial) {
   if (!InRange(c.target, 0.005, 0.9)) return InvalidArgument("auto_exposure.target", "must be in [0.005, 0.9]");
-  if (!InRange(c.ki, 0.0, 1.0)) return InvalidArgument("auto_exposure.ki", "must be in [0, 1]");
+  if (!(c.ki > 0 && c.ki <= 1)) return InvalidArgument("auto_exposure.ki", "must be in (0, 1]");
   if (!InRange(c.kp, 0.0, 1.0)) return InvalidArgument("auto_exposure.kp", "must be in [0, 1]");
+  if (!(c.ki + 2 * c.kp < 2))
+    return InvalidArgument("auto_exposure.kp", "ki + 2 kp must be below 2, or the exposure swings ever wider");
   if (!InRange(c.max_step_ev, 0.1, 16.0)) return InvalidArgument("auto_exposure.max_step_ev", "must be in [0.1, 16]");
-  if (!InRange(c.settle_ev, 0.0, 2.0)) return InvalidArgument("auto_exposure.settle_ev", "must be in [0, 2]");
+  if (!(c.settle_ev > 0 && c.settle_ev <= 2))
+    return InvalidArgument("auto_exposure.settle_ev", "must be in (0, 2]: with 0 it never settles");
   if (!InRange(c.start_ev, c.settle_ev, 4.0))
     return InvalidArgument("auto_exposure.start_ev", "must be in [settle_ev, 4]");
   if (c.average_frames < 1 || c.average_frames > 8)
@@ -70,8 +73,10 @@ Status AutoExposure::Configure(const AutoExposureConfig& c, const ExposureSettin
   settings_ = c.mode == AutoExposureMode::kOff ? initial : Split(ev_);
   error_count_ = 0;
   have_previous_ = false;
+  have_black_ = have_saturated_ = false;
   active_ = true;
   done_ = false;
+  pinned_ = false;
   last_error_ = 0;
   return Status::Ok();
 }
@@ -109,22 +114,44 @@ ExposureSettings AutoExposure::Split(double ev) const {
   return s;
 }
 
+void AutoExposure::NotePinned(double error) {
+  pinned_ = (ev_ <= ev_min_ && error < 0) || (ev_ >= ev_max_ && error > 0);
+  if (pinned_ && config_.mode == AutoExposureMode::kOnce) done_ = true;  // the target is out of reach
+}
+
 ExposureSettings AutoExposure::Update(double y) {
   if (config_.mode == AutoExposureMode::kOff || done_) return settings_;
   // A black or saturated frame: the sign of the error is known, its size is
-  // not: a full step (at least log2(saturated / target) stops are missing).
+  // not: a full step, or half way into the bracket the extremes give.
   if (!(y > config_.black_fraction) || y >= config_.saturated_fraction) {  // NaN counts as black
-    const double e = y >= config_.saturated_fraction ? -config_.max_step_ev : config_.max_step_ev;
+    const bool saturated = y >= config_.saturated_fraction;
+    const double e = saturated ? -config_.max_step_ev : config_.max_step_ev;
     last_error_ = e;
     error_count_ = 0;  // the decision average restarts
     have_previous_ = false;
     active_ = true;
-    ev_ = Clamp(ev_ + e, ev_min_, ev_max_);
+    NotePinned(e);
+    if (done_) return settings_;
+    if (saturated) {
+      if (have_black_ && !(black_ev_ < ev_)) have_black_ = false;  // the scene changed: forget it
+      saturated_ev_ = have_saturated_ && saturated_ev_ < ev_ ? saturated_ev_ : ev_;
+      have_saturated_ = true;
+    } else {
+      if (have_saturated_ && !(saturated_ev_ > ev_)) have_saturated_ = false;
+      black_ev_ = have_black_ && black_ev_ > ev_ ? black_ev_ : ev_;
+      have_black_ = true;
+    }
+    double step = e;
+    if (have_black_ && have_saturated_) step = Clamp((black_ev_ + saturated_ev_) / 2 - ev_, -config_.max_step_ev, config_.max_step_ev);
+    ev_ = Clamp(ev_ + step, ev_min_, ev_max_);
     settings_ = Split(ev_);
     return settings_;
   }
+  have_black_ = have_saturated_ = false;  // a measured error: the bracket is not needed
   const double e = detmath::Log2(config_.target / y);
   last_error_ = e;
+  NotePinned(e);
+  if (done_) return settings_;
   // Decisions (start / settle) on the mean error of the last average_frames
   // frames, each frame's error carried to the current EV: errors_ holds the EV
   // each frame asked for (its EV + its error), so frames taken before a step

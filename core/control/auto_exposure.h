@@ -13,6 +13,11 @@
 // A black frame (y <= black_fraction) or a saturated one (y >= saturated_fraction)
 // has an error of unknown size and known sign: the EV moves by a full
 // +-max_step_ev (at least log2(saturated_fraction / target) stops are missing).
+// Once both kinds have been seen with no measured frame between them (the
+// highest EV that gave black below the lowest that gave saturated), the
+// target lies between: the EV goes to the middle (bisection), so a step
+// larger than log2(saturated_fraction / black_fraction) cannot swing from one
+// extreme to the other for ever.
 //
 // Averaging: each frame asks for EV_n + e_n; the controller's error m_n is the
 // mean of what the last average_frames frames asked for, minus the current EV
@@ -30,10 +35,17 @@
 // gives no kick). For a static scene the plant is EV -> log2(y) with slope 1
 // and one frame of delay, so after a scene change e_{n+1} = (1 - ki) e_n for
 // kp = 0 (default ki = 0.75, max_step_ev = 3): 8 -> 5 -> 2 -> 0.5 -> 0.125 EV.
+// In general e_{n+1} = (1 - ki - kp) e_n + kp e_{n-1}, stable (Jury) only for
+// ki > 0 and ki + 2 kp < 2, which Configure requires; kp > 0 adds a root
+// below 0, an alternating part that dies out (slowly near the bound: at ki =
+// 0.75, kp = 0.6 the root is -0.97).
 //
 // Deadband with hysteresis: the controller starts moving when |m| > start_ev
-// and stops when |m| < settle_ev, so noise smaller than start_ev changes
-// nothing once settled.
+// and stops when |m| < settle_ev (> 0), so noise smaller than start_ev
+// changes nothing once settled.
+//
+// Once ends (done) when it settles, or when a frame taken at the end of the
+// EV range asks to go further (pinned: the target is out of reach).
 //
 // Split: the EV is spread over the actuators in `priority` order from the
 // darkest setting (shortest time, least gain, largest f-number): the first
@@ -54,12 +66,12 @@ enum class Actuator : uint8_t { kTime, kGain, kAperture };
 struct AutoExposureConfig {
   AutoExposureMode mode = AutoExposureMode::kOff;
   double target = 0.18;               // mean raw signal, fraction of the range above black (middle grey)
-  double ki = 0.75;                   // integral gain, EV per EV of error per frame
-  double kp = 0.0;                    // proportional gain on the change of error
+  double ki = 0.75;                   // integral gain, EV per EV of error per frame, (0, 1]
+  double kp = 0.0;                    // proportional gain on the change of error, [0, 1], ki + 2 kp < 2
   double max_step_ev = 3.0;           // largest EV change per frame
   double start_ev = 0.25;             // deadband: start moving above this error
-  double settle_ev = 1.0 / 12.0;      // ... stop below this one
-  int average_frames = 2;             // errors averaged for the start/settle decisions (1 .. 8)
+  double settle_ev = 1.0 / 12.0;      // ... stop below this one, (0, 2]
+  int average_frames = 2;             // frames averaged into the controller's error m (1 .. 8)
   double black_fraction = 0.002;      // at or below: black frame
   double saturated_fraction = 0.9;    // at or above: saturated frame (below 1: a full well may clip before the ADC)
   double exposure_time_min_us = 20.0;
@@ -95,12 +107,14 @@ class AutoExposure {
   double ev() const { return ev_; }
   double last_error_ev() const { return last_error_; }
   bool active() const { return active_; }  // moving (outside the deadband)
-  bool done() const { return done_; }      // Once: finished (ExposureAuto returns to Off)
+  bool done() const { return done_; }      // Once: settled or pinned (ExposureAuto returns to Off)
+  bool pinned() const { return pinned_; }  // the last frame, at an end of the EV range, asked to go further
   double ev_min() const { return ev_min_; }
   double ev_max() const { return ev_max_; }
 
  private:
   ExposureSettings Split(double ev) const;
+  void NotePinned(double error);  // sets pinned_ for the frame just measured (at ev_), and done_ for Once
 
   AutoExposureConfig config_;
   ExposureSettings settings_;
@@ -110,7 +124,11 @@ class AutoExposure {
   double last_error_ = 0;
   double previous_error_ = 0;
   bool have_previous_ = false;
+  // The bracket from extreme frames since the last measured one (see above).
+  double black_ev_ = 0, saturated_ev_ = 0;
+  bool have_black_ = false, have_saturated_ = false;
   bool active_ = true;
+  bool pinned_ = false;
   bool done_ = false;
 };
 

@@ -7,7 +7,9 @@ uint32_t MeteringWeight(Metering m, int x, int y, int width, int height) {
   const int64_t dx = 2 * int64_t{x} + 1 - width, dy = 2 * int64_t{y} + 1 - height;
   const int64_t num = dx * dx + dy * dy;                                      // r^2 * den
   const int64_t den = int64_t{width} * width + int64_t{height} * height;
-  if (m == Metering::kSpot) return 100 * num < den ? 65536u : 0u;            // r < 0.1
+  // r < 0.1, and always the 1, 2 or 4 pixels nearest the centre (num <= 2),
+  // which a small frame's r < 0.1 disc may not reach.
+  if (m == Metering::kSpot) return 100 * num < den || num <= 2 ? 65536u : 0u;
   const int64_t w = 65536 - (65536 * num) / den;                              // 1 - r^2, Q0.16
   return static_cast<uint32_t>(w < 4096 ? 4096 : w);                          // at least 1/16
 }

@@ -5,7 +5,8 @@
 //   centre   1 - r^2, at least 1/16, with r^2 = ((2x+1-w)^2 + (2y+1-h)^2) /
 //            (w^2 + h^2) the squared distance from the centre, 1 at the corners
 //            (vignetting's normalisation);
-//   spot     1 where r < 0.1 (the central 1 % of the half-diagonal's disc area), else 0;
+//   spot     1 where r < 0.1 (the central 1 % of the half-diagonal's disc area)
+//            and at the 1, 2 or 4 pixels nearest the centre, else 0;
 //   image    the caller's weight map (e.g. a PNG), sensor-sized.
 // Integer sums (uint64), one division at the end.
 #pragma once

@@ -1349,6 +1349,23 @@ TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
   EXPECT_EQ(d->CheckInvariants(), "");
 }
 
+// A feature that is Off keeps its value to the bit: ExposureAuto alone does
+// not round Gain to GainRaw's 0.1 dB steps (the controller holds it).
+TEST(GigeRegisters, AutoExposureLeavesAGainThatIsOffAsWritten) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kGain, Be64(3.14));
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.05));
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
+  d->SyncNow();
+  const double t0 = ReadRegDouble(*d, reg::kExposureTime);
+  std::vector<uint8_t> frame;
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_NE(ReadRegDouble(*d, reg::kExposureTime), t0) << "ExposureAuto did not act";
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.14);
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // Auto exposure asks for what the pipeline refuses: with CCD smear the core
 // needs exposure >= leak (1) x row transfer time (1000 us). The controller's
 // range ends there: Once stops at the limit and turns Off, Continuous holds

@@ -254,5 +254,97 @@ TEST(AutoExposure, ATargetItCannotSettleOnIsRefused) {
   EXPECT_TRUE(ae.done());
 }
 
+// A step larger than log2(saturated / black) (8.8 EV by default) could jump
+// from a saturated frame straight to a black one and back for ever; the
+// bracket the two give is bisected instead, and it settles.
+TEST(AutoExposure, AStepPastBothExtremesBisectsAndSettles) {
+  for (double scene_ev : {6.0, -8.0}) {  // 6 EV up: saturated, then black at -13; 8 down: black first
+    AutoExposureConfig c = Continuous();
+    c.max_step_ev = 13;
+    c.exposure_time_min_us = 1;  // room for 13 EV either way of 50 ms
+    c.exposure_time_max_us = 1e8;
+    AutoExposure ae;
+    const ExposureSettings initial{50000.0, 0.0, 2.8};
+    ASSERT_TRUE(ae.Configure(c, initial).ok());
+    const Plant p{ExposureValue(initial), c.target};
+    const double lum = std::exp2(scene_ev);
+    const Trace t = RunLoop(ae, p, 30, [lum](int) { return lum; });
+    int extremes = 0;
+    for (double e : t.error) {
+      const double y = p.target * std::exp2(e);
+      extremes += y <= c.black_fraction || y >= c.saturated_fraction;
+    }
+    EXPECT_EQ(ExposureValue(t.settings[1]), ExposureValue(initial) + (scene_ev > 0 ? -13 : 13)) << "a full step first";
+    EXPECT_LE(extremes, 3) << scene_ev;  // the step, the overshoot to the other extreme, then at most one more
+    for (int n = 20; n < 30; ++n) EXPECT_LE(std::abs(t.error[n]), kTol) << scene_ev << " frame " << n;
+    EXPECT_FALSE(ae.active()) << scene_ev;
+  }
+}
+
+// The P term's sign and size: for a static scene the error follows
+// m_1 = (1 - ki) m_0 (no P on the first step), then
+// m_{n+1} = (1 - ki - kp) m_n + kp m_{n-1} (auto_exposure.h).
+TEST(AutoExposure, ProportionalTermFollowsTheRecurrence) {
+  AutoExposureConfig c = Continuous();
+  c.ki = 0.5;
+  c.kp = 0.3;
+  c.max_step_ev = 16;
+  Settled s;
+  ASSERT_NO_FATAL_FAILURE(Settle(&s, c));
+  const Trace t = RunLoop(s.ae, s.plant, 8, [](int) { return 0.25; });  // 2 EV too dark
+  double m_prev = 2.0, m = 2.0;
+  for (int n = 0; n < 8; ++n) {
+    ASSERT_NEAR(-t.error[n], m, 1e-9) << n;
+    if (std::abs(m) < c.settle_ev) break;
+    const double next = n == 0 ? (1 - c.ki) * m : (1 - c.ki - c.kp) * m + c.kp * m_prev;
+    m_prev = m;
+    m = next;
+  }
+}
+
+// Gains outside the stable region (ki + 2 kp >= 2) swing ever wider and are
+// refused; a zero integral gain or settle band would never settle.
+TEST(AutoExposure, GainsThatCannotSettleAreRefused) {
+  const ExposureSettings initial{5000.0, 0.0, 2.8};
+  AutoExposure ae;
+  AutoExposureConfig c = Continuous();
+  c.ki = 0.75;
+  c.kp = 0.7;
+  EXPECT_EQ(std::string(ae.Configure(c, initial).field()), "auto_exposure.kp");
+  c.kp = 0.6;  // 1.95: stable, if ringing for long (a root at -0.97)
+  EXPECT_TRUE(ae.Configure(c, initial).ok());
+  c.kp = 0.3;  // roots 0.52 and -0.57
+  ASSERT_TRUE(ae.Configure(c, initial).ok());
+  const Plant p{ExposureValue(initial) + 3.0, c.target};
+  const Trace t = RunLoop(ae, p, 40, [](int) { return 1.0; });
+  EXPECT_LE(std::abs(t.error.back()), kTol);
+  c = Continuous();
+  c.ki = 0;
+  EXPECT_EQ(std::string(ae.Configure(c, initial).field()), "auto_exposure.ki");
+  c = Continuous();
+  c.settle_ev = 0;
+  EXPECT_EQ(std::string(ae.Configure(c, initial).field()), "auto_exposure.settle_ev");
+}
+
+// Once with the target out of reach ends at the end of the range (pinned),
+// not never.
+TEST(AutoExposure, OnceEndsWhenTheTargetIsOutOfReach) {
+  AutoExposureConfig c = Continuous();
+  c.mode = AutoExposureMode::kOnce;
+  c.exposure_time_max_us = 10000;
+  c.gain_max_db = 0;
+  AutoExposure ae;
+  const ExposureSettings initial{5000.0, 0.0, 2.8};
+  ASSERT_TRUE(ae.Configure(c, initial).ok());
+  const Plant p{ExposureValue(initial) + 4.0, 0.18};  // needs 4 EV more, 1 EV is there
+  RunLoop(ae, p, 10, [](int) { return 1.0; });
+  EXPECT_TRUE(ae.pinned());
+  EXPECT_TRUE(ae.done());
+  EXPECT_DOUBLE_EQ(ae.ev(), ae.ev_max());
+  AutoExposure continuous;
+  ASSERT_TRUE(continuous.Configure(Continuous(), initial).ok());
+  EXPECT_FALSE(continuous.pinned());
+}
+
 }  // namespace
 }  // namespace camsim

@@ -45,5 +45,20 @@ TEST(Metering, SpotSeesOnlyTheCentreAndUniformSeesTheMean) {
   EXPECT_EQ(WeightedBrightness(low.data(), kW, kH, kW, 1, kBlack, kMax, Metering::kUniform, nullptr), 0.0);
 }
 
+// On a small frame the r < 0.1 disc holds no pixel centre; the spot still
+// meters the pixels nearest the centre instead of reading the frame as black.
+TEST(Metering, SpotOnASmallFrameMetersTheCentrePixels) {
+  constexpr int kBlack = 64, kMax = 4095;
+  for (int size : {10, 11}) {
+    std::vector<uint16_t> raw(size * size, kBlack + 500);
+    const double got = WeightedBrightness(raw.data(), size, size, size, 1, kBlack, kMax, Metering::kSpot, nullptr);
+    EXPECT_NEAR(got, 500.0 / (kMax - kBlack), 1e-12) << size;
+    int spot = 0;
+    for (int y = 0; y < size; ++y)
+      for (int x = 0; x < size; ++x) spot += MeteringWeight(Metering::kSpot, x, y, size, size) != 0;
+    EXPECT_EQ(spot, size % 2 ? 1 : 4) << size;
+  }
+}
+
 }  // namespace
 }  // namespace camsim
