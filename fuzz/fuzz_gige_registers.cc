@@ -6,38 +6,43 @@
 //   byte 1: bit 0 size (0: 4 bytes, 1: 8 bytes), bit 1 sync after this write,
 //           bit 2 render a frame after the sync
 //   then the value bytes (as a client sends them: big-endian).
-// The device runs without network (DeviceOptions::serve = false) on a 16 x 12
-// demo camera. After every sync its invariants must hold (CheckInvariants:
-// registers hold their values in use, values in use are valid, the window is
-// on the sensor, Gain and GainRaw agree, Line0 has no source) and a rendered
-// frame has the size the registers announce.
+// Each input gets a device made for it (16 x 12 demo camera, no network:
+// DeviceOptions::serve = false), so an input's result depends on that input
+// alone and a saved artifact or seed reproduces it. After every sync, and
+// after every render, its invariants must hold (CheckInvariants: registers
+// hold their values in use, values in use are valid, the window is on the
+// sensor, Gain and GainRaw agree, Line0 has no source); a render must succeed
+// (buffer status SUCCESS) and give a non-empty frame. The fake camera fails a
+// fill only when the buffer is smaller than the payload its registers give;
+// without network the device starts no thread, so nothing changes them
+// between RenderNow's sizing and the fill: a failed render is a bug.
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "genicam/device.h"
 
 namespace {
 
-camsim::genicam::GigeDevice* Device() {
-  static std::unique_ptr<camsim::genicam::GigeDevice> device = [] {
-    camsim::genicam::DeviceOptions o;
-    o.config_path = CAMSIM_SOURCE_DIR "/configs/camera.toml";
-    o.pattern = "gradient";
-    o.overrides = {"sensor.width=16", "sensor.height=12"};
-    o.serve = false;
-    o.threads = 1;
-    std::string error;
-    auto d = camsim::genicam::GigeDevice::Start(o, &error);
-    if (!d) {
-      std::fprintf(stderr, "fuzz_gige_registers: %s\n", error.c_str());
-      std::abort();
-    }
-    return d;
-  }();
-  return device.get();
+// A new device in its initial state (registers, values in use, pipeline,
+// frame index, auto-exposure state).
+std::unique_ptr<camsim::genicam::GigeDevice> NewDevice() {
+  camsim::genicam::DeviceOptions o;
+  o.config_path = CAMSIM_SOURCE_DIR "/configs/camera.toml";
+  o.pattern = "gradient";
+  o.overrides = {"sensor.width=16", "sensor.height=12"};
+  o.serve = false;
+  o.threads = 1;
+  std::string error;
+  auto d = camsim::genicam::GigeDevice::Start(o, &error);
+  if (!d) {
+    std::fprintf(stderr, "fuzz_gige_registers: %s\n", error.c_str());
+    std::abort();
+  }
+  return d;
 }
 
 void Check(camsim::genicam::GigeDevice* d) {
@@ -51,7 +56,8 @@ void Check(camsim::genicam::GigeDevice* d) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  camsim::genicam::GigeDevice* d = Device();
+  const std::unique_ptr<camsim::genicam::GigeDevice> device = NewDevice();
+  camsim::genicam::GigeDevice* d = device.get();
   std::vector<uint32_t> addresses;
   for (const auto& f : camsim::genicam::FeatureRegisters(d->table()))  // each line's and stage's own
     if (f.writable && f.alias_of.empty() && f.kind != camsim::genicam::Kind::kSwissKnife) addresses.push_back(f.address);
@@ -77,7 +83,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       Check(d);
       if (flags & 4) {
         std::vector<uint8_t> frame;
-        if (d->RenderNow(&frame) && frame.empty()) std::abort();
+        if (!d->RenderNow(&frame) || frame.empty()) {
+          std::fprintf(stderr, "render failed or gave an empty frame after the invariants held\n");
+          std::abort();
+        }
         Check(d);
       }
     }

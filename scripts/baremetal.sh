@@ -18,8 +18,9 @@
 # to build/cortex-m7/baremetal-report.txt; docs/portability.md quotes it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh cmake make g++ \
-  gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib
+# The arm-none-eabi toolchain and newlib (the --baremetal group); nothing to
+# do when scripts/test.sh installed them.
+bash scripts/install-deps.sh --baremetal
 
 jobs=$(nproc)
 cmake --preset cortex-m7 >/dev/null

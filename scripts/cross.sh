@@ -9,9 +9,9 @@
 #   CAMSIM_CROSS_ARCHS="aarch64" limits it to one architecture.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# cmake and the host compiler, the two cross compilers (static glibc comes
-# with them: libc6-dev-*-cross), qemu-user for qemu-aarch64 and qemu-arm.
-bash scripts/install-deps.sh cmake make g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user
+# cmake and the host compiler, the two cross compilers, qemu-user (the
+# --cross group); nothing to do when scripts/test.sh installed them.
+bash scripts/install-deps.sh --cross
 jobs=$(nproc)
 # x86-64 first: the core-only preset builds the AVX-512 kernels without their
 # IFMA copies (-DCAMSIM_NO_IFMA), which the release build, on a CPU with

@@ -10,7 +10,13 @@
 # sets the short fuzzing run per target (default 20).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
+# Everything the whole run needs, in one call before any build: sudo (when
+# not root) asks at once, not after the builds when its timeout has passed,
+# and apt-get update runs at most once. The later scripts' own calls then
+# find nothing missing.
+groups=(--native --fuzz)
+[ "${CAMSIM_TEST_CROSS:-1}" = 0 ] || groups+=(--baremetal --cross)
+bash scripts/install-deps.sh "${groups[@]}"
 jobs=$(nproc)
 for preset in ${CAMSIM_TEST_PRESETS:-release debug clang}; do
   echo "=== $preset"
