@@ -47,7 +47,8 @@
 // (by excess summed over R, G, B; ties: smaller y, then smaller x, then larger
 // R, then larger G excess, so equal keys are identical sources) become
 // FlareSources with glare = glare_fraction x excess (the exact fraction, not
-// its Q0.16 share; added light: the texel is not in the frame to lose it) and
+// its Q0.16 share; added light: the texel is not in the frame to lose it;
+// but glare is on only when that share is not 0, as for the frame) and
 // ghosts as for frame sources; weaker
 // candidates count as haze only.
 //

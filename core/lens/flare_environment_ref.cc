@@ -73,7 +73,8 @@ RefEnvironment RefFlareEnvironment(const FlareConfig& c, const SensorGeometry& g
       if (front) {
         s.x = Round(u);
         s.y = Round(v);
-        reaches = s.x >= -R && s.x <= W - 1 + R && s.y >= -R && s.y <= H - 1 + R && c.glare_fraction > 0;
+        // Glare is on when its Q0.16 share is not 0 (flare_environment.h).
+        reaches = s.x >= -R && s.x <= W - 1 + R && s.y >= -R && s.y <= H - 1 + R && c.glare_fraction * 65536 >= 0.5;
         for (int k = 0; k < c.ghost_count && !reaches; ++k) {
           const int r = static_cast<int>(c.ghost_radius_px[k]);
           const int gx = GhostCentre(s.x, c.ghost_scale[k], W), gy = GhostCentre(s.y, c.ghost_scale[k], H);

@@ -206,6 +206,23 @@ TEST(FlareEnvironment, GlareOfAnOffFrameSourceReachesTheEdge) {
   EXPECT_NEAR(at(63, 23), r.planes[1][23 * kW + 63], 1e-4);
 }
 
+// Glare is on when its Q0.16 share is not 0, for the frame's pixels and for
+// the environment's sources alike; the reference keeps the same sources.
+TEST(FlareEnvironment, AGlareFractionBelowItsQ016StepIsOffInStageAndReference) {
+  Map m;
+  m.Set(220, 89, 1000, 1000, 1000);
+  for (double fraction : {5e-6, 7e-6, 1e-5}) {  // 2^-17 = 7.63e-6 rounds to 1/65536
+    FlareConfig f = Bare(m);
+    f.glare_fraction = fraction;
+    auto b = test::Build(FlareOnly(f));
+    ASSERT_TRUE(b->status.ok());
+    const int want = fraction > 7.63e-6 ? 1 : 0;
+    EXPECT_EQ(Summary(*b).sources, want) << fraction;
+    EXPECT_EQ(static_cast<int>(ref::RefFlareEnvironment(f, b->pipeline.config().geometry).sources.size()), want)
+        << fraction;
+  }
+}
+
 // A texel behind the camera adds only haze: flare.haze x excess / pixels on
 // every pixel, no glare, no ghost.
 TEST(FlareEnvironment, BehindTheCameraOnlyHaze) {
