@@ -365,13 +365,17 @@ const std::vector<Field>& Fields() {
                       3, 3, [](RunConfig& c) { return c.core.motion_blur.angular_velocity_rad_s; }));
     v.push_back(Array("motion", "linear_velocity_m_s", "camera linear velocity vx, vy, vz, m/s (needs the input's depth)",
                       3, 3, [](RunConfig& c) { return c.core.motion_blur.linear_velocity_m_s; }));
-    v.push_back(Number("motion", "fx_px", "focal length x, pixels; 0 = lens.focal_length_mm / pixel pitch",
+    v.push_back(Number("motion", "fx_px",
+                       "focal length x, pixels; 0 = lens.focal_length_mm / pixel pitch (distortion.calibration: its fx)",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.fx_px; }));
-    v.push_back(Number("motion", "fy_px", "focal length y, pixels; 0 = lens.focal_length_mm / pixel pitch",
+    v.push_back(Number("motion", "fy_px",
+                       "focal length y, pixels; 0 = lens.focal_length_mm / pixel pitch (distortion.calibration: its fy)",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.fy_px; }));
-    v.push_back(Number("motion", "cx_px", "principal point x, pixels; negative = the centre",
+    v.push_back(Number("motion", "cx_px",
+                       "principal point x, pixels; negative = the centre (distortion.calibration: its cx)",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.cx_px; }));
-    v.push_back(Number("motion", "cy_px", "principal point y, pixels; negative = the centre",
+    v.push_back(Number("motion", "cy_px",
+                       "principal point y, pixels; negative = the centre (distortion.calibration: its cy)",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.cy_px; }));
     v.push_back(Number("motion", "vector_fps", "vectors: frames per second of the render (the vectors span 1 / fps)",
                        [](RunConfig& c) -> double& { return c.core.motion_blur.vector_fps; }));
@@ -415,8 +419,10 @@ const std::vector<Field>& Fields() {
                                       {"off", "brown", "fisheye"},
                                       [](RunConfig& c) -> DistortionModel& { return c.core.distortion.lens.model; }));
     Field calibration = Make("distortion", "calibration", Kind::kString,
-                             "OpenCV FileStorage or ROS camera_info YAML; sets model (ROS), fx fy cx cy, k1..k6, p1 p2 "
-                             "(scaled to the sensor if calibrated at another size of the same aspect ratio)");
+                             "OpenCV FileStorage or ROS camera_info YAML; sets model (ROS; an OpenCV file's is "
+                             "distortion.model, brown or fisheye), fx fy cx cy, k1..k6, p1 p2 (scaled to the sensor "
+                             "if calibrated at another size of the same aspect ratio), and motion.fx_px..cy_px and "
+                             "vignetting.focal_length_px; those keys are refused beside it");
     calibration.get_text = [](const RunConfig& c) { return TomlString(c.calibration); };
     calibration.set_text = [](RunConfig& c, const std::vector<std::string>& s, std::string*) {
       c.calibration = s[0];
@@ -464,7 +470,9 @@ const std::vector<Field>& Fields() {
                                      "off, cos4 (natural fall-off from the lens), table (curve below) or mask (image)",
                                      {"off", "cos4", "table", "mask"},
                                      [](RunConfig& c) -> VignettingMode& { return c.core.vignetting.mode; }));
-    v.push_back(Number("vignetting", "focal_length_px", "cos4 focal length in pixels; 0 = lens.focal_length_mm / pixel pitch",
+    v.push_back(Number("vignetting", "focal_length_px",
+                       "cos4 focal length in pixels; 0 = lens.focal_length_mm / pixel pitch "
+                       "(distortion.calibration: sqrt(fx fy))",
                        [](RunConfig& c) -> double& { return c.core.vignetting.focal_length_px; }));
     v.push_back(Array("vignetting", "table", "table mode: gains from centre (rho 0) to corner (rho 1), 2 .. 64 values",
                       0, VignettingConfig::kMaxTable, [](RunConfig& c) { return c.core.vignetting.table; },
@@ -921,6 +929,14 @@ std::string ConfigToToml(const RunConfig& c, bool annotated) {
 
 std::string DefaultConfigToml() { return ConfigToToml(RunConfig{}, true); }
 
+// Keys a calibration file sets (ResolveDistortion, FinishConfig): refused
+// beside it, and the stages' errors about them (and distortion.model) name
+// the file.
+constexpr const char* kCalibrationKeys[] = {
+    "distortion.fx", "distortion.fy", "distortion.cx", "distortion.cy", "distortion.k1", "distortion.k2",
+    "distortion.k3", "distortion.k4", "distortion.k5", "distortion.k6", "distortion.p1", "distortion.p2",
+    "motion.fx_px",  "motion.fy_px",  "motion.cx_px",  "motion.cy_px",  "vignetting.focal_length_px"};
+
 std::string DescribeStatus(const Status& s, const Origins& origins) {
   const std::string field = s.field();
   const auto origin = [&origins](const std::string& key) {
@@ -936,8 +952,10 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
     // A stage's name: the planner refused where the stage list put it.
     const std::string stages = origin("pipeline.stages");
     where = (stages.empty() ? "the default stage order" : stages) + ": pipeline.stages: ";
-  } else if (field.compare(0, 11, "distortion.") == 0 && !origin("distortion.calibration").empty()) {
-    // The calibration file sets the lens (keys set beside it are refused).
+  } else if (!origin("distortion.calibration").empty() &&
+             (field == "distortion.model" ||
+              std::find(std::begin(kCalibrationKeys), std::end(kCalibrationKeys), field) != std::end(kCalibrationKeys))) {
+    // The calibration file sets the camera (keys set beside it are refused).
     where = origin("distortion.calibration") + ": distortion.calibration gives ";
   } else {
     where = "(not set: the default, or derived from the input's size): ";
@@ -962,18 +980,31 @@ bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, st
     d.mesh.dxdy = data->data();
   }
   if (!c->calibration.empty()) {
-    for (const char* key : {"distortion.fx", "distortion.fy", "distortion.cx", "distortion.cy", "distortion.k1",
-                            "distortion.k2", "distortion.k3", "distortion.k4", "distortion.k5", "distortion.k6",
-                            "distortion.p1", "distortion.p2"})
+    for (const char* key : kCalibrationKeys)
       if (origins.count(key) != 0) {
         *error = origins.at(key) + ": " + key + " is set together with distortion.calibration, which sets it too";
         return false;
       }
+    // distortion.model only says which model an OpenCV file's coefficients
+    // are for (they do not say): brown or fisheye.
+    const bool model_set = origins.count("distortion.model") != 0;
+    if (model_set && d.lens.model == DistortionModel::kOff) {
+      *error = origins.at("distortion.model") +
+               ": distortion.model = \"off\" is set together with distortion.calibration, which distorts; "
+               "with a calibration it may only say brown or fisheye (an OpenCV file's model)";
+      return false;
+    }
     Calibration cal;
     const bool fisheye_hint = d.lens.model == DistortionModel::kFisheye;
     if (!LoadCalibration(c->calibration, fisheye_hint, &cal, error) ||
         !FitCalibration(cal, g.width, g.height, &d.lens, error)) {
       *error = "distortion.calibration: " + *error;
+      return false;
+    }
+    if (model_set && cal.names_model) {
+      *error = origins.at("distortion.model") +
+               ": distortion.model is set together with distortion.calibration, whose file names its model "
+               "(distortion_model: " + cal.model_name + ")";
       return false;
     }
     return true;
@@ -1056,6 +1087,16 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
   p.dof.focal_length_mm = c->focal_length_mm;
   p.dof.pixel_pitch_um = pitch_mm * 1000.0;
   if (!ResolveDistortion(c, pitch_mm, origins, error)) return false;
+  if (!c->calibration.empty()) {
+    // The calibrated camera for the other stages that project: motion blur's
+    // pinhole, and cos4's one focal length (centred on the frame): sqrt(fx fy).
+    const LensModel& lens = p.distortion.lens;
+    p.motion_blur.fx_px = lens.fx;
+    p.motion_blur.fy_px = lens.fy;
+    p.motion_blur.cx_px = lens.cx;
+    p.motion_blur.cy_px = lens.cy;
+    p.vignetting.focal_length_px = std::sqrt(lens.fx * lens.fy);
+  }
   if (!ResolveEnvironment(c, error)) return false;
   p.sensor.defects = nullptr;
   p.sensor.defect_count = 0;
