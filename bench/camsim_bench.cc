@@ -190,9 +190,19 @@ BENCHMARK(BM_MotionBlur)
 
 
 // Distortion/W/H/filter/mode, one thread. mode 0: the stage alone, all three
-// channels (radiance in, radiance out). mode 1: distortion -> exposure ->
+// channels (radiance in, radiance out); mode 2: the same in its most
+// accurate setting (SetMostAccurate). mode 1: distortion -> exposure ->
 // CFA, where distortion computes only each site's colour and writes the
 // mosaic (the CFA is left out; exposure on the mosaic costs about 0.3 ms).
+// The distortion stage's most accurate setting for a band-limited image: no
+// ringing clamp (which cuts a peak between samples), the finest phases and
+// grid.
+void SetMostAccurate(DistortionConfig* d) {
+  d->ringing_clamp = false;
+  d->phases = 256;
+  d->grid_step = 4;
+}
+
 void BM_Distortion(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   PipelineConfig c;
@@ -200,17 +210,20 @@ void BM_Distortion(benchmark::State& state) {
   c.geometry.height = h;
   c.distortion.lens = test::TypicalLens(w, h);
   c.distortion.filter = static_cast<ResampleFilter>(state.range(2));
-  const bool site_only = state.range(3) != 0;
+  const bool site_only = state.range(3) == 1;
+  if (state.range(3) == 2) SetMostAccurate(&c.distortion);
   c.order[0] = StageId::kDistortion;
   c.order[1] = StageId::kExposure;
   c.order[2] = StageId::kCfa;
   c.order_count = site_only ? 3 : 1;
   static constexpr const char* kNames[3] = {"bilinear", "bicubic", "lanczos3"};
   RunPipeline(state, c, 1);
-  state.SetLabel(std::string(kNames[state.range(2)]) + (site_only ? " site-only (+exposure)" : " RGB"));
+  state.SetLabel(std::string(kNames[state.range(2)]) + (site_only ? " site-only (+exposure)" : " RGB") +
+                 (state.range(3) == 2 ? ", no ringing clamp, 256 phases, grid step 4" : ""));
 }
 BENCHMARK(BM_Distortion)
     ->ArgsProduct({{1920}, {1080}, {0, 1, 2}, {0, 1}})
+    ->Args({1920, 1080, 2, 2})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
@@ -483,36 +496,41 @@ void BM_OpenCvRemap(benchmark::State& state) {
     c.distortion.filter = ResampleFilter::kLanczos3;
     c.order[0] = StageId::kDistortion;
     c.order_count = 1;
-    Pipeline p;
-    if (!p.Configure(c, 1, false).ok()) std::abort();
-    std::vector<uint8_t> ws(p.WorkspaceBytes());
-    if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
-    std::vector<uint32_t> ours(static_cast<size_t>(w) * h * 3);
-    Tap tap;
-    tap.format = TapFormat::kU32;
-    tap.data = ours.data();
-    tap.stride = static_cast<ptrdiff_t>(w) * 3;
-    p.ProcessFrame(band.View(), 0, 16, &tap, 1, nullptr, nullptr);
-    double max_cv = 0, sum_cv = 0, max_us = 0, sum_us = 0;
-    long n = 0;
-    for (int y = 0; y < h; y += 5)
-      for (int x = 0; x < w; x += 5)
-        for (int ch = 0; ch < 3; ++ch) {
-          double sx = 0, sy = 0;
-          if (!ref.Source(x, y, ch, &sx, &sy) || sx < 4 || sy < 4 || sx > w - 5 || sy > h - 5) continue;
-          const double exact = BandLimitedRadiance(sx, sy, ch) * 65536.0;
-          const double cvv = band_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
-          const double us = ours[(static_cast<size_t>(y) * w + x) * 3 + ch];
-          max_cv = std::fmax(max_cv, std::fabs(cvv - exact));
-          max_us = std::fmax(max_us, std::fabs(us - exact));
-          sum_cv += (cvv - exact) * (cvv - exact);
-          sum_us += (us - exact) * (us - exact);
-          ++n;
-        }
-    state.counters["cv_rms_lsb"] = std::sqrt(sum_cv / n);
-    state.counters["cv_max_lsb"] = max_cv;
-    state.counters["camsim_rms_lsb"] = std::sqrt(sum_us / n);
-    state.counters["camsim_max_lsb"] = max_us;
+    // camsim by default (with its ringing clamp, which cuts a peak between
+    // samples) and in its most accurate setting (BM_Distortion mode 2).
+    for (bool accurate : {false, true}) {
+      if (accurate) SetMostAccurate(&c.distortion);
+      Pipeline p;
+      if (!p.Configure(c, 1, false).ok()) std::abort();
+      std::vector<uint8_t> ws(p.WorkspaceBytes());
+      if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+      std::vector<uint32_t> ours(static_cast<size_t>(w) * h * 3);
+      Tap tap;
+      tap.format = TapFormat::kU32;
+      tap.data = ours.data();
+      tap.stride = static_cast<ptrdiff_t>(w) * 3;
+      p.ProcessFrame(band.View(), 0, 16, &tap, 1, nullptr, nullptr);
+      double max_cv = 0, sum_cv = 0, max_us = 0, sum_us = 0;
+      long n = 0;
+      for (int y = 0; y < h; y += 5)
+        for (int x = 0; x < w; x += 5)
+          for (int ch = 0; ch < 3; ++ch) {
+            double sx = 0, sy = 0;
+            if (!ref.Source(x, y, ch, &sx, &sy) || sx < 4 || sy < 4 || sx > w - 5 || sy > h - 5) continue;
+            const double exact = BandLimitedRadiance(sx, sy, ch) * 65536.0;
+            const double cvv = band_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
+            const double us = ours[(static_cast<size_t>(y) * w + x) * 3 + ch];
+            max_cv = std::fmax(max_cv, std::fabs(cvv - exact));
+            max_us = std::fmax(max_us, std::fabs(us - exact));
+            sum_cv += (cvv - exact) * (cvv - exact);
+            sum_us += (us - exact) * (us - exact);
+            ++n;
+          }
+      state.counters["cv_rms_lsb"] = std::sqrt(sum_cv / n);
+      state.counters["cv_max_lsb"] = max_cv;
+      state.counters[accurate ? "accurate_rms_lsb" : "camsim_rms_lsb"] = std::sqrt(sum_us / n);
+      state.counters[accurate ? "accurate_max_lsb" : "camsim_max_lsb"] = max_us;
+    }
   }
   state.SetLabel(std::string(interp == cv::INTER_LINEAR ? "INTER_LINEAR" : "INTER_LANCZOS4") +
                  (state.range(1) ? " CV_16SC2 maps" : " CV_32FC1 maps"));
@@ -534,6 +552,10 @@ const bool kRemapPairs = [] {
   bench::AddPeerPair("BM_Distortion/1920/1080/2/0", "BM_OpenCvRemap/4/0", "remap Lanczos-3 vs INTER_LANCZOS4, RGB");
   bench::SetPeerError("remap Lanczos-3 vs INTER_LANCZOS4, RGB",
                       "error vs a band-limited image's true values: BM_OpenCvRemap/4/0 counters (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/2", "BM_OpenCvRemap/4/0",
+                     "remap Lanczos-3 most accurate vs INTER_LANCZOS4, RGB");
+  bench::SetPeerError("remap Lanczos-3 most accurate vs INTER_LANCZOS4, RGB",
+                      "error: BM_OpenCvRemap/4/0 counters accurate_* vs cv_* (Q16.16 LSB)");
   bench::AddPeerPair("BM_Distortion/1920/1080/2/1", "BM_OpenCvRemap/4/0",
                      "remap Lanczos-3 site-only (+exposure) vs LANCZOS4");
   return true;

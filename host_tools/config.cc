@@ -464,6 +464,10 @@ const std::vector<Field>& Fields() {
                         [](RunConfig& c) -> int& { return c.core.distortion.phases; }));
     v.push_back(Integer("distortion", "grid_step", "remap table grid spacing, pixels: 4, 8, 16, 32 or 64 (precision knob)",
                         [](RunConfig& c) -> int& { return c.core.distortion.grid_step; }));
+    v.push_back(Bool("distortion", "ringing_clamp",
+                     "bicubic, lanczos3: clamp to the 2x2 samples around the source (no halo at hard edges; "
+                     "false: the filter as it is, for band-limited images)",
+                     [](RunConfig& c) -> bool& { return c.core.distortion.ringing_clamp; }));
 
     // [vignetting]
     v.push_back(Enum<VignettingMode>("vignetting", "mode",

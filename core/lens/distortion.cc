@@ -53,6 +53,7 @@ struct Source {
   const RowIn* rows;
   int first_row, row_count, width, height, phase_bits;
   const int16_t* weights;
+  bool ring_clamp;  // DistortionConfig::ringing_clamp
 };
 
 template <int N>
@@ -141,6 +142,7 @@ template <int N>
   }
   v = (v + (int64_t{1} << (kF - 1))) >> kF;
   if constexpr (N > 2) {
+    if (!a.ring_clamp) return SatU32(v);
     const uint32_t* r0 = a.rows[t.row[kBefore]].ch[c];
     const uint32_t* r1 = a.rows[t.row[kBefore + 1]].ch[c];
     v = ClampToSamples(v, r0[t.col[kBefore]], r0[t.col[kBefore + 1]], r1[t.col[kBefore]], r1[t.col[kBefore + 1]]);
@@ -152,7 +154,7 @@ template <int N>
 // x0 .. x0 + N - 1 (the fast path's interior case). The same sums as Filter.
 template <int N>
 [[gnu::always_inline]] inline uint32_t FilterInterior(const RowIn* r, int c, int x0, const int16_t* wxp,
-                                                      const int16_t* wyp) {
+                                                      const int16_t* wyp, bool ring_clamp) {
   constexpr int kF = DistortionStage::kWeightFracBits;
   constexpr int64_t kR = int64_t{1} << (kF - 1);
   if constexpr (N == 2) {
@@ -177,6 +179,7 @@ template <int N>
       v += int64_t{wyp[k]} * ((s + kR) >> kF);
     }
     v = (v + kR) >> kF;
+    if (!ring_clamp) return SatU32(v);
     const uint32_t* r0 = r[kBefore].ch[c] + x0 + kBefore;
     const uint32_t* r1 = r[kBefore + 1].ch[c] + x0 + kBefore;
     return static_cast<uint32_t>(ClampToSamples(v, r0[0], r0[1], r1[0], r1[1]));
@@ -625,6 +628,7 @@ struct FilterLanes {
   __m256i wp[3];  // horizontal weights by pairs of taps: w 2k in the low word, w 2k+1 in the high
   __m256i start;  // the row sums' start: 2^15 times the sum of the horizontal weights
   __m256i wy[6];
+  bool ring_clamp;  // else only saturation to [0, 2^32 - 1]
 };
 
 // Each lane's N weights for its phase, tap by tap: the eight lanes' rows of
@@ -707,16 +711,20 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
   const __m256i unbias = _mm256_set1_epi64x(int64_t{1} << 40);
   even = _mm256_sub_epi64(_mm256_srli_epi64(_mm256_add_epi64(even, bias), kF), unbias);
   odd = _mm256_sub_epi64(_mm256_srli_epi64(_mm256_add_epi64(odd, bias), kF), unbias);
-  // Ringing clamp to the 2x2 samples around the source.
-  __m256i s00 = clamp[0][0], s01 = clamp[0][1], s10 = clamp[1][0], s11 = clamp[1][1];
-  if (two) {
-    s00 = _mm256_blendv_epi8(s00, clamp[1][0], in.lower);
-    s01 = _mm256_blendv_epi8(s01, clamp[1][1], in.lower);
-    s10 = _mm256_blendv_epi8(s10, clamp[2][0], in.lower);
-    s11 = _mm256_blendv_epi8(s11, clamp[2][1], in.lower);
+  // Ringing clamp to the 2x2 samples around the source; without it, to
+  // [0, 2^32 - 1] (SatU32).
+  __m256i lo = _mm256_setzero_si256(), hi = _mm256_set1_epi32(-1);
+  if (in.ring_clamp) {
+    __m256i s00 = clamp[0][0], s01 = clamp[0][1], s10 = clamp[1][0], s11 = clamp[1][1];
+    if (two) {
+      s00 = _mm256_blendv_epi8(s00, clamp[1][0], in.lower);
+      s01 = _mm256_blendv_epi8(s01, clamp[1][1], in.lower);
+      s10 = _mm256_blendv_epi8(s10, clamp[2][0], in.lower);
+      s11 = _mm256_blendv_epi8(s11, clamp[2][1], in.lower);
+    }
+    lo = _mm256_min_epu32(_mm256_min_epu32(s00, s01), _mm256_min_epu32(s10, s11));
+    hi = _mm256_max_epu32(_mm256_max_epu32(s00, s01), _mm256_max_epu32(s10, s11));
   }
-  const __m256i lo = _mm256_min_epu32(_mm256_min_epu32(s00, s01), _mm256_min_epu32(s10, s11));
-  const __m256i hi = _mm256_max_epu32(_mm256_max_epu32(s00, s01), _mm256_max_epu32(s10, s11));
   const __m256i low32 = _mm256_set1_epi64x(0xFFFFFFFF);
   const __m256i lo_e = _mm256_and_si256(lo, low32), lo_o = _mm256_srli_epi64(lo, 32);
   const __m256i hi_e = _mm256_and_si256(hi, low32), hi_o = _mm256_srli_epi64(hi, 32);
@@ -742,6 +750,7 @@ CAMSIM_AVX2_TARGET __m256i FilterLanesAvx2(const RowIn* rows, int rmin, bool two
 // of colour plane; RGB, x + i.
 struct LaneSet {
   const int32_t *x0s, *rows, *phx, *phy, *cls;
+  bool ring_clamp;  // DistortionConfig::ringing_clamp
 };
 
 template <int N, bool kSiteOnly>
@@ -776,6 +785,7 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
   if (xmin + 8 * L > width) xmin = width - 8 * L;  // the loads end with the row
   if (rmax - rmin > 1 || xmin < 0 || xmx - xmin + N > 8 * L) return 0;
   FilterLanes in;
+  in.ring_clamp = set.ring_clamp;
   in.x0 = _mm256_sub_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(x0s)), _mm256_set1_epi32(xmin));
   in.lower = _mm256_cmpgt_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(rws)), _mm256_set1_epi32(rmin));
   __m256i wx[6];
@@ -823,6 +833,7 @@ struct FilterLanes16 {
   __m512i x0;                                 // first tap column - xmin
   __mmask16 row_is[kMaxRowSpread16 + 1];      // [d]: lanes whose first tap row is rmin + d
   __m512i wp[3], start, wy[6];                // as FilterLanes'
+  bool ring_clamp;
 };
 
 template <int L>
@@ -862,11 +873,15 @@ CAMSIM_AVX512_TARGET inline __m512i FinishLanes16(const __m512i* sh, const __m51
   const __m512i round = _mm512_set1_epi64(int64_t{1} << (kF - 1));
   even = _mm512_srai_epi64(_mm512_add_epi64(even, round), kF);
   odd = _mm512_srai_epi64(_mm512_add_epi64(odd, round), kF);
-  // Ringing clamp to the 2x2 samples around the source.
-  const __m512i s00 = PickRow<S>(clamp[0], 0, in), s01 = PickRow<S>(clamp[1], 0, in);
-  const __m512i s10 = PickRow<S>(clamp[0], 1, in), s11 = PickRow<S>(clamp[1], 1, in);
-  const __m512i lo = _mm512_min_epu32(_mm512_min_epu32(s00, s01), _mm512_min_epu32(s10, s11));
-  const __m512i hi = _mm512_max_epu32(_mm512_max_epu32(s00, s01), _mm512_max_epu32(s10, s11));
+  // Ringing clamp to the 2x2 samples around the source; without it, to
+  // [0, 2^32 - 1] (SatU32).
+  __m512i lo = _mm512_setzero_si512(), hi = _mm512_set1_epi32(-1);
+  if (in.ring_clamp) {
+    const __m512i s00 = PickRow<S>(clamp[0], 0, in), s01 = PickRow<S>(clamp[1], 0, in);
+    const __m512i s10 = PickRow<S>(clamp[0], 1, in), s11 = PickRow<S>(clamp[1], 1, in);
+    lo = _mm512_min_epu32(_mm512_min_epu32(s00, s01), _mm512_min_epu32(s10, s11));
+    hi = _mm512_max_epu32(_mm512_max_epu32(s00, s01), _mm512_max_epu32(s10, s11));
+  }
   const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFF);
   even = _mm512_min_epi64(_mm512_max_epi64(even, _mm512_and_si512(lo, low32)), _mm512_and_si512(hi, low32));
   odd = _mm512_min_epi64(_mm512_max_epi64(odd, _mm512_srli_epi64(lo, 32)), _mm512_srli_epi64(hi, 32));
@@ -967,6 +982,7 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(const RowIn* rows, int row_count, int 
   const int spread = rmax - rmin;
   if (spread > kMaxRowSpread16 || xmin < 0 || xmx - xmin + N > 16 * L) return 0;
   FilterLanes16 in;
+  in.ring_clamp = set.ring_clamp;
   in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
   for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
   __m512i wx[6];
@@ -1479,7 +1495,8 @@ DistortionStage::RowView DistortionStage::StartRow(const RowArgs& a) const {
   int32_t* vdx = reinterpret_cast<int32_t*>(a.scratch);
   int32_t* vdy = vdx + grid_w_;
   InterpolateRow(a.y, vdx, vdy);
-  return RowView{vdx, vdy, Source{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_},
+  return RowView{vdx, vdy, Source{a.rows, a.first_row, a.row_count, a.width, geometry_.height, phase_bits_, weights_,
+                                          config_.ringing_clamp},
                  // Site only: the one mosaic plane, whichever colour a pixel computes.
                  {a.out[0], site_only_ ? a.out[0] : a.out[1], site_only_ ? a.out[0] : a.out[2]},
                  MakeFastLimits(a, geometry_.height, taps_, phase_bits_)};
@@ -1549,6 +1566,7 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
   const int16_t* const weights = weights_;
   const Cfa cfa = geometry_.cfa;
   const FastLimits& l = row_view.lim;
+  const bool clamp = config_.ringing_clamp;
   CAMSIM_DCHECK(N == taps_);
   constexpr int kBefore = N / 2 - 1;
   int32_t sx[kChunk], sy[kChunk];
@@ -1574,11 +1592,11 @@ void DistortionStage::ProcessRowFast(const RowArgs& a) const {
         const int16_t* wx = weights + (qx & l.mask) * N;
         const int16_t* wy = weights + (qy & l.mask) * N;
         if constexpr (kSiteOnly) {
-          out[c0][x] = FilterInterior<N>(r, c0, x0, wx, wy);
+          out[c0][x] = FilterInterior<N>(r, c0, x0, wx, wy, clamp);
         } else {
-          out[0][x] = FilterInterior<N>(r, 0, x0, wx, wy);
-          out[1][x] = FilterInterior<N>(r, 1, x0, wx, wy);
-          out[2][x] = FilterInterior<N>(r, 2, x0, wx, wy);
+          out[0][x] = FilterInterior<N>(r, 0, x0, wx, wy, clamp);
+          out[1][x] = FilterInterior<N>(r, 1, x0, wx, wy, clamp);
+          out[2][x] = FilterInterior<N>(r, 2, x0, wx, wy, clamp);
         }
         continue;
       }
@@ -1762,7 +1780,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         const int plane = kSiteOnly ? CfaColour(cfa, xs + f, y) : 0;
 #ifdef CAMSIM_X86_AVX512
         if (lanes == 16) {
-          const LaneSet lane_set{x0s + k, rows_ + k, phx + k, phy + k, cls + k};
+          const LaneSet lane_set{x0s + k, rows_ + k, phx + k, phy + k, cls + k, config_.ringing_clamp};
           const uint32_t lanes_done =
               FilterSet16<N, kSiteOnly>(rows, a.row_count, width, wtap_, TapStride(), lane_set, plane, out,
                                         xs + f);
@@ -1771,7 +1789,8 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         }
 #endif
         for (int j0 = 0; j0 < lanes; j0 += 8) {  // sets of eight lanes
-          const LaneSet lane_set{x0s + k + j0, rows_ + k + j0, phx + k + j0, phy + k + j0, cls + k + j0};
+          const LaneSet lane_set{x0s + k + j0, rows_ + k + j0, phx + k + j0, phy + k + j0, cls + k + j0,
+                                 config_.ringing_clamp};
           const int f8 = f + step * j0;  // the first pixel of these eight
           const uint32_t lanes_done =
               FilterSet8<N, kSiteOnly>(rows, a.row_count, width, wt_, lane_set, plane, out, xs + f8);
@@ -1788,7 +1807,7 @@ CAMSIM_AVX2_TARGET void DistortionStage::ProcessRowLanes(const RowArgs& a) const
         const RowIn* r = rows + rows_[k];
         const int16_t* wx = weights_ + phx[k] * N;
         const int16_t* wy = weights_ + phy[k] * N;
-        for (int c = c0; c < c1; ++c) out[c][x] = FilterInterior<N>(r, c, x0s[k], wx, wy);
+        for (int c = c0; c < c1; ++c) out[c][x] = FilterInterior<N>(r, c, x0s[k], wx, wy, config_.ringing_clamp);
         continue;
       }
       Taps<N> t;

@@ -22,7 +22,9 @@
 // field stays exactly flat. Horizontal sums of 64-bit products rounded to
 // integers (ties up), then the vertical sum rounded again; bicubic and
 // Lanczos results are clamped to the range of the 2x2 samples around the
-// source (ringing clamp), and every result to [0, 2^32 - 1].
+// source (ringing clamp: no halo at a hard edge, but a peak between samples
+// is cut; ringing_clamp = false leaves the filter as it is), and every result
+// to [0, 2^32 - 1].
 // Taps beyond the frame are reflected (reflect-101, as the driver does rows).
 //
 // Fill: a source outside [-0.5, W - 0.5] x [-0.5, H - 0.5] (off the rendered
@@ -79,6 +81,7 @@ struct DistortionConfig {
   ResampleFilter filter = ResampleFilter::kLanczos3;
   int phases = 64;     // sub-pixel phases: 16, 32, 64, 128 or 256
   int grid_step = 8;   // remap grid spacing in pixels: 4, 8, 16, 32 or 64 (precision knob)
+  bool ringing_clamp = true;  // bicubic, Lanczos: clamp to the 2x2 samples around the source
 };
 
 class DistortionStage final : public Stage {

@@ -88,7 +88,7 @@ double ReferenceDistortion::FilterAt(const At& at, double sx, double sy) const {
     for (int t = 0; t < n; ++t) h += wx[t] / sumx * at(ix - before + t, iy - before + k);
     v += wy[k] / sumy * h;
   }
-  if (n > 2) {
+  if (n > 2 && config_.ringing_clamp) {
     // The clamp's 2x2 neighbourhood is the stage's: around the position
     // rounded to 1/phases (it differs from floor() just below an integer).
     const double ph = config_.phases;

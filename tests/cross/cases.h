@@ -161,6 +161,16 @@ inline PipelineConfig LensConfig(int width, int height) {
   return c;
 }
 
+// The lens alone in full colour, without the ringing clamp (the filter as it
+// is, saturated to [0, 2^32 - 1]): the distortion stage's other kernel path.
+inline PipelineConfig LensUnclampedConfig(int width, int height) {
+  PipelineConfig c = LensConfig(width, height);
+  c.distortion.ringing_clamp = false;
+  c.order[0] = StageId::kDistortion;
+  c.order_count = 1;
+  return c;
+}
+
 // The radiance of the tests' TexturedScene (tests/support/test_support.cc
 // uses this too) at (x, y) for colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
 // bright (saturating) spot. IEEE basic operations only, so it is the same on

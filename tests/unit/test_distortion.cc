@@ -197,10 +197,12 @@ TEST(Distortion, FlatFieldStaysExactlyFlat) {
 TEST(Distortion, ResamplingErrorAgainstReference) {
   const int w = 320, h = 240;
   const test::Scene scene = SmoothScene(w, h);
-  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
+  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
+  for (bool clamp : {true, false}) {
     DistortionConfig d;
     d.lens = TypicalBrown(w, h);
     d.filter = f;
+    d.ringing_clamp = clamp;
     d.grid_step = 4;
     d.chromatic_scale[0] = 1.003;
     auto b = test::Build(DistortionOnly(w, h, d));
@@ -589,9 +591,11 @@ TEST(Distortion, ExtremeSamplesNeitherWrapNorRing) {
   s.width = w;
   s.height = h;
   for (int c = 0; c < 3; ++c) s.plane[c].assign(static_cast<size_t>(w) * h, 0xFFFFFFFFu);
-  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
+  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
+  for (bool clamp : {true, false}) {  // without the clamp, saturation holds the range
     DistortionConfig d;
     d.lens = TypicalBrown(w, h);
+    d.ringing_clamp = clamp;
     d.filter = f;
     d.grid_step = 4;
     auto b = test::Build(DistortionOnly(w, h, d));
@@ -677,6 +681,9 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
           if (lens == 3) d.mesh = DisplacementMesh{steep.data(), 5, 4, 50.0};
           d.filter = f;
           d.grid_step = step;
+          // With and without the ringing clamp (only saturation), each
+          // filter both ways across the lenses.
+          d.ringing_clamp = (lens + step / 4 + site_only) % 2 == 0;
           // Every phase count (the AVX-512 lanes' weight table has one
           // to eight 32-phase blocks) with every lens and filter.
           d.phases = 16 << ((lens + step) % 5);
