@@ -11,8 +11,9 @@
 // alone and a saved artifact or seed reproduces it. After every sync, and
 // after every render, its invariants must hold (CheckInvariants: registers
 // hold their values in use, values in use are valid, the window is on the
-// sensor, Gain and GainRaw agree, Line0 has no source); a render must succeed
-// (buffer status SUCCESS) and give a non-empty frame. The fake camera fails a
+// sensor, Gain and GainRaw agree, Line0 has no source, no Auto lower limit
+// is above its upper limit); a render must succeed (buffer status SUCCESS)
+// and give a non-empty frame. The fake camera fails a
 // fill only when the buffer is smaller than the payload its registers give;
 // without network the device starts no thread, so nothing changes them
 // between RenderNow's sizing and the fill: a failed render is a bug.

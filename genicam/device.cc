@@ -30,6 +30,15 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
 // sized) and while TLParamsLocked is 1.
 constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
                                            reg::kPixelFormat};
+// The Auto features' limits (Float registers, SFNC names <name>LowerLimit
+// and <name>UpperLimit): the lower one stays at or below the upper one.
+struct AutoLimits {
+  uint32_t lower, upper;
+  const char* name;
+};
+constexpr AutoLimits kAutoLimits[] = {
+    {reg::kAutoExposureTimeLowerLimit, reg::kAutoExposureTimeUpperLimit, "AutoExposureTime"},
+    {reg::kAutoGainLowerLimit, reg::kAutoGainUpperLimit, "AutoGain"}};
 
 // A feature whose value the device checks: writable, its register's own
 // (not an alias), and a value (not a string, command or formula).
@@ -490,6 +499,11 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kGain, DoubleBits(c.sensor.gain_db)},
       {kGainRaw, GainRawOf(c.sensor.gain_db)},
       {kGainAuto, kAutoOff},
+      // The Auto features' range: `camsim run`'s (core/control/auto_exposure.h).
+      {kAutoExposureTimeLowerLimit, DoubleBits(AutoExposureConfig().exposure_time_min_us)},
+      {kAutoExposureTimeUpperLimit, DoubleBits(AutoExposureConfig().exposure_time_max_us)},
+      {kAutoGainLowerLimit, DoubleBits(AutoExposureConfig().gain_min_db)},
+      {kAutoGainUpperLimit, DoubleBits(AutoExposureConfig().gain_max_db)},
       {kBlackLevel, DoubleBits(c.sensor.black_level_dn)},
       {kLineSelector, 0},
       {SelectedAddress(kLineSource, 0), kLineSourceOff},
@@ -584,6 +598,9 @@ std::string GigeDevice::CheckInvariants() const {
     return "the window is off the sensor";
   if (applied_.at(kGainRaw) != GainRawOf(AppliedDouble(kGain)))
     return "Gain and GainRaw disagree";
+  for (const AutoLimits& l : kAutoLimits)
+    if (AppliedDouble(l.lower) > AppliedDouble(l.upper))
+      return std::string(l.name) + "LowerLimit is above " + l.name + "UpperLimit";
   return "";
 }
 
@@ -698,9 +715,9 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // AcquisitionStart, AcquisitionStop and AcquisitionAbort (value 1) set or
 // clear the fake camera's acquisition register and are not stored, so each
 // reads back 0. A value a feature never takes (out of its range, not one of
-// its entries at that selection, e.g. a source for the input Line0) or a
-// window that would leave the sensor is set back to the value in memory:
-// invalid parameter; so is
+// its entries at that selection, e.g. a source for the input Line0), a
+// window that would leave the sensor or an Auto lower limit above its upper
+// limit is set back to the value in memory: invalid parameter; so is
 // half of a Float: bad alignment, and a read-only feature's register:
 // write protect. A change of the pipeline's registers that the pipeline
 // cannot run (a raw format without the sensor, RGB8 without the ISP, ...)
@@ -809,6 +826,24 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (after(extent) + after(offset) <= static_cast<uint64_t>(limits[a])) continue;
     if (covers(offset)) set_back(offset);
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
+    refuse(GevStatus::kInvalidParameter);
+  }
+  // An Auto lower limit stays at or below its upper limit (each one's pMax
+  // or pMin): a write that would cross them is set back, the lower first.
+  for (const AutoLimits& l : kAutoLimits) {
+    const auto touched = [&](uint32_t r) { return covers(r) || covers(r + 4); };
+    const auto after = [&](uint32_t r) {  // the Float as the write leaves it
+      const auto word = [&](uint32_t w) { return uint64_t{covers(w) ? value(w) : d->Read(w)}; };
+      return BitsDouble(word(r) << 32 | word(r + 4));
+    };
+    const auto set_back_float = [&](uint32_t r) {
+      for (const uint32_t w : {r, r + 4})
+        if (covers(w)) set_back(w);
+    };
+    if (!touched(l.lower) && !touched(l.upper)) continue;
+    if (after(l.lower) <= after(l.upper)) continue;
+    set_back_float(l.lower);
+    if (after(l.lower) > after(l.upper)) set_back_float(l.upper);
     refuse(GevStatus::kInvalidParameter);
   }
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
@@ -981,6 +1016,12 @@ void GigeDevice::Sync() {
       if (was_changed(axes[a].second)) refuse(axes[a].second);
       if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
     }
+    // An Auto lower limit stays at or below its upper limit: refuse the lower, then the upper.
+    for (const AutoLimits& l : kAutoLimits) {
+      if (BitsDouble(next[l.lower]) <= BitsDouble(next[l.upper])) continue;
+      if (was_changed(l.lower)) refuse(l.lower);
+      if (BitsDouble(next[l.lower]) > BitsDouble(next[l.upper])) refuse(l.upper);
+    }
     // Gain and GainRaw are one setting in two units.
     if (was_changed(kGain)) {
       next[kGainRaw] = GainRawOf(BitsDouble(next[kGain]));
@@ -1122,21 +1163,21 @@ void GigeDevice::AutoAdjust(double frac) {
   // its GVCP thread, which also runs the filter; RenderNow may not.)
   const ClientWritesHeld hold(fake_);
   // The core's controller (core/control/auto_exposure.h) with the features
-  // that are Off held at their current value. It keeps its state from frame
-  // to frame; a change of mode, target or SimFNumber, or a host write of
-  // ExposureTime or Gain, starts it afresh from the applied values.
+  // that are Off held at their current value, and those that are on in
+  // their Auto limits (which register_table.cc keeps inside the features'
+  // own ranges). It keeps its state from frame to frame; a change of mode,
+  // target, a limit or SimFNumber, or a host write of ExposureTime or Gain,
+  // starts it afresh from the applied values.
   if (!auto_state_valid_ || AutoKey() != auto_key_) {
-    const Feature* ef = FindFeature(table_, "ExposureTime");
-    const Feature* gf = FindFeature(table_, "Gain");
     const double t0 = AppliedDouble(kExposureTime), g0 = AppliedDouble(kGain);
     AutoExposureConfig& c = auto_config_;
     c = AutoExposureConfig();
     c.mode = (ea == kAutoContinuous || ga == kAutoContinuous) ? AutoExposureMode::kContinuous : AutoExposureMode::kOnce;
     c.target = AppliedDouble(kSimAutoTarget);  // the register's range is inside the controller's
-    c.exposure_time_min_us = ea != kAutoOff ? ef->min : t0;
-    c.exposure_time_max_us = ea != kAutoOff ? ef->max : t0;
-    c.gain_min_db = ga != kAutoOff ? gf->min : g0;
-    c.gain_max_db = ga != kAutoOff ? gf->max : g0;
+    c.exposure_time_min_us = ea != kAutoOff ? AppliedDouble(kAutoExposureTimeLowerLimit) : t0;
+    c.exposure_time_max_us = ea != kAutoOff ? AppliedDouble(kAutoExposureTimeUpperLimit) : t0;
+    c.gain_min_db = ga != kAutoOff ? AppliedDouble(kAutoGainLowerLimit) : g0;
+    c.gain_max_db = ga != kAutoOff ? AppliedDouble(kAutoGainUpperLimit) : g0;
     // The aperture stays where SimFNumber puts it (no f-number range given).
     if (!RestartAuto()) return;
   }
@@ -1241,10 +1282,18 @@ void GigeDevice::LogOnce(const std::string& key, const std::string& message) {
   if (logged_.insert(key).second) std::fprintf(stderr, "%s\n", message.c_str());
 }
 
-std::array<uint64_t, 6> GigeDevice::AutoKey() const {
+std::array<uint64_t, 10> GigeDevice::AutoKey() const {
   using namespace reg;
-  return {applied_.at(kExposureAuto), applied_.at(kGainAuto), applied_.at(kSimAutoTarget),
-          applied_.at(kExposureTime), applied_.at(kGain),     applied_.at(kSimFNumber)};
+  return {applied_.at(kExposureAuto),
+          applied_.at(kGainAuto),
+          applied_.at(kSimAutoTarget),
+          applied_.at(kExposureTime),
+          applied_.at(kGain),
+          applied_.at(kSimFNumber),
+          applied_.at(kAutoExposureTimeLowerLimit),
+          applied_.at(kAutoExposureTimeUpperLimit),
+          applied_.at(kAutoGainLowerLimit),
+          applied_.at(kAutoGainUpperLimit)};
 }
 
 std::chrono::steady_clock::duration GigeDevice::FreeRunPeriod() const {

@@ -3,9 +3,10 @@
 //
 // Register writes: a client's write reaches the device's write filter
 // (FilterClientWrite, behind genicam/fake_camera_hooks.h) as it arrives, and
-// a value a feature never takes, a window off the sensor, a window change
-// while acquiring, or a pipeline setting the pipeline cannot run (planned
-// there) is refused with its GVCP status. A sync step (every kSyncPeriodMs,
+// a value a feature never takes, a window off the sensor, an Auto lower
+// limit above its upper limit, a window change while acquiring, or a
+// pipeline setting the pipeline cannot run (planned there) is refused with
+// its GVCP status. A sync step (every kSyncPeriodMs,
 // and before every frame) takes the new values and rebuilds the pipeline for
 // pipeline settings. A refused write reads back as the previous value and
 // never reaches the pipeline. Settings apply from the next frame.
@@ -249,8 +250,8 @@ class GigeDevice {
   bool auto_state_valid_ = false;
   // Modes, target, exposure, gain and f-number applied: a change the
   // controller did not make restarts it.
-  std::array<uint64_t, 6> AutoKey() const;  // under mutex_
-  std::array<uint64_t, 6> auto_key_{};      // AutoKey() as the controller last left it
+  std::array<uint64_t, 10> AutoKey() const;  // under mutex_
+  std::array<uint64_t, 10> auto_key_{};      // AutoKey() as the controller last left it
 
   std::unique_ptr<hal::InputLine> own_trigger_;
   std::unique_ptr<hal::OutputLine> own_strobe_;

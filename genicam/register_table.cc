@@ -101,6 +101,24 @@ bool IsStandard(const std::string& name) {
   return name.rfind("Sim", 0) != 0 && name != "ExposureTimeAbs" && name != "GainRaw";
 }
 
+// An Auto feature's limits (SFNC <prefix>LowerLimit and <prefix>UpperLimit),
+// in the range of the feature `of` they limit. The device refuses a lower
+// limit above the upper one, so each one's maximum (minimum) is the other's value.
+void PushAutoLimits(std::vector<Feature>* t, const Feature& of, const std::string& prefix, const char* auto_name,
+                    uint32_t lower_address, uint32_t upper_address) {
+  Feature lo = Flt("", of.category.c_str(), lower_address, of.min, of.max, "", of.unit.c_str());
+  Feature hi = lo;
+  lo.name = prefix + "LowerLimit";
+  hi.name = prefix + "UpperLimit";
+  hi.address = upper_address;
+  lo.max_feature = hi.name;
+  hi.min_feature = lo.name;
+  lo.description = "Lowest " + of.name + " " + auto_name + " sets (at most " + hi.name + ").";
+  hi.description = "Highest " + of.name + " " + auto_name + " sets (at least " + lo.name + ").";
+  t->push_back(lo);
+  t->push_back(hi);
+}
+
 }  // namespace
 
 uint32_t BayerCode(Cfa cfa, int bits) {
@@ -214,6 +232,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
                    {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
                    "Automatic exposure: scales ExposureTime so the mean raw level reaches SimAutoTarget."));
+  PushAutoLimits(&t, *FindFeature(t, "ExposureTime"), "AutoExposureTime", "ExposureAuto", kAutoExposureTimeLowerLimit,
+                 kAutoExposureTimeUpperLimit);
   t.push_back(Enum("TriggerSelector", ac, kTriggerSelector, true, {{"FrameStart", 0}},
                    "The trigger the other Trigger features configure."));
   t.back().selects = {"TriggerMode", "TriggerSource", "TriggerActivation", "TriggerSoftware"};
@@ -230,6 +250,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Int("GainRaw", an, kGainRaw, true, 0, 480, 1, "Analog gain in 0.1 dB steps (Aravis fake camera name)."));
   t.push_back(Enum("GainAuto", an, kGainAuto, true, {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
                    "Automatic gain, used when ExposureAuto alone cannot reach SimAutoTarget."));
+  PushAutoLimits(&t, *FindFeature(t, "Gain"), "AutoGain", "GainAuto", kAutoGainLowerLimit, kAutoGainUpperLimit);
   t.push_back(Flt("BlackLevel", an, kBlackLevel, 0.0, s.max_black_level_dn, "Offset added by the sensor.", "DN"));
 
   const char* io = "DigitalIOControl";
@@ -396,8 +417,11 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
       case Kind::kFloat:
         x << "  <Float Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
           << "    <Description>" << Xml(f.description) << "</Description>\n"
-          << "    <pValue>" << regname << "</pValue>\n"
-          << "    <Min>" << Num(f.min) << "</Min>\n    <Max>" << Num(f.max) << "</Max>\n";
+          << "    <pValue>" << regname << "</pValue>\n";
+        if (f.min_feature.empty()) x << "    <Min>" << Num(f.min) << "</Min>\n";
+        else x << "    <pMin>" << f.min_feature << "Reg</pMin>\n";
+        if (f.max_feature.empty()) x << "    <Max>" << Num(f.max) << "</Max>\n";
+        else x << "    <pMax>" << f.max_feature << "Reg</pMax>\n";
         if (!f.unit.empty()) x << "    <Unit>" << f.unit << "</Unit>\n";
         x << "  </Float>\n";
         break;

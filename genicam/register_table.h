@@ -48,6 +48,10 @@ struct Feature {
   // kInteger: a maximum that follows other registers (GenICam pMax, an
   // IntSwissKnife over `variables`); `max` stays the largest it can be.
   std::string max_formula;
+  // kFloat: a minimum or maximum that is another Float feature's value
+  // (GenICam pMin / pMax, naming its register); `min` / `max` stay the widest
+  // it can be.
+  std::string min_feature, max_feature;
   // A selected feature has one register per value of its selector, at
   // address + 4 * value (GenICam pIndex): a write never depends on the
   // selector the device last saw, so Selector-then-value writes cannot race.
@@ -95,7 +99,9 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kSimFrameIndex = 0x8084, kSimFNumber = 0x8088, kSimSeed = 0x8090,
                           kSimStageSelector = 0x8094, kTLParamsLocked = 0x80a0, kSimSceneCount = 0x80a4,
                           kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0, kSimFocusDistance = 0x80c0,
-                          kAcquisitionResultingFrameRate = 0x80c8;
+                          kAcquisitionResultingFrameRate = 0x80c8, kAutoExposureTimeLowerLimit = 0x80d0,
+                          kAutoExposureTimeUpperLimit = 0x80d8, kAutoGainLowerLimit = 0x80e0,
+                          kAutoGainUpperLimit = 0x80e8;
 // SimFocusDistance's range (metres): the core takes up to 1e6 m, and more
 // than the focal length (checked when the pipeline is planned).
 inline constexpr double kMinFocusDistanceM = 0.001, kMaxFocusDistanceM = 1e6;

@@ -178,8 +178,13 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
       EXPECT_EQ(arv_gc_integer_get_inc(ARV_GC_INTEGER(node), nullptr), static_cast<int64_t>(f.inc)) << f.name;
     }
     if (f.kind == genicam::Kind::kFloat) {
-      EXPECT_EQ(arv_gc_float_get_min(ARV_GC_FLOAT(node), nullptr), f.min) << f.name;
-      EXPECT_EQ(arv_gc_float_get_max(ARV_GC_FLOAT(node), nullptr), f.max) << f.name;
+      // A pMin or pMax reads the device: GigeE2E.AutoLimitsAreFeaturesBoundingEachOther checks it there.
+      if (f.min_feature.empty()) {
+        EXPECT_EQ(arv_gc_float_get_min(ARV_GC_FLOAT(node), nullptr), f.min) << f.name;
+      }
+      if (f.max_feature.empty()) {
+        EXPECT_EQ(arv_gc_float_get_max(ARV_GC_FLOAT(node), nullptr), f.max) << f.name;
+      }
     }
     if (f.kind == genicam::Kind::kEnum) {
       // Aravis keeps the entries in reverse order: compare as name -> value maps.
@@ -1406,6 +1411,98 @@ TEST(GigeRegisters, AutoExposureStopsWhereThePipelineDoes) {
   for (size_t at = log.find(refused); at != std::string::npos; at = log.find(refused, at + 1)) ++logged;
   EXPECT_EQ(logged, 1u) << log;
   EXPECT_NE(log.find("sensor.smear_row_transfer_us"), std::string::npos) << log;
+}
+
+// The Auto features act inside their limits (AutoExposureTimeLowerLimit ..
+// UpperLimit, AutoGainLowerLimit .. UpperLimit), not the features' whole
+// ranges. A dark scene (the lens closed to f/128) and a target it never
+// reaches: Continuous used to drive ExposureTime to 1e8 us (with
+// AcquisitionFrameRateEnable, a 100 s frame); now exposure and gain stop at
+// the upper limits. A change of a limit restarts the controller inside the
+// new range; a bright scene and a low target stop at the lower limits.
+TEST(GigeRegisters, AutoStopsAtTheAutoLimits) {
+  DeviceOptions o = OfflineDevice();
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  // `camsim run`'s range (core/control/auto_exposure.h, AutoExposureConfig).
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeLowerLimit), 20.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeUpperLimit), 100000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoGainLowerLimit), 0.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoGainUpperLimit), 24.0);
+  WriteReg(*d, reg::kSimFNumber, Be64(128.0));
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.9));  // the controller's largest target
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
+  WriteReg(*d, reg::kGainAuto, Be32(genicam::kAutoContinuous));
+  d->SyncNow();
+  std::vector<uint8_t> frame;
+  // Renders `frames` frames; the gain stays inside [gain_lo, gain_hi] all along.
+  const auto run = [&](int frames, double gain_lo, double gain_hi) {
+    for (int i = 0; i < frames; ++i) {
+      ASSERT_TRUE(d->RenderNow(&frame));
+      const double g = ReadRegDouble(*d, reg::kGain);
+      EXPECT_GE(g, gain_lo) << "frame " << i;
+      EXPECT_LE(g, gain_hi) << "frame " << i;
+    }
+    EXPECT_EQ(d->CheckInvariants(), "");
+  };
+  ASSERT_NO_FATAL_FAILURE(run(12, 0.0, 24.0));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 100000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 24.0);
+  EXPECT_LT(MeanLevel12(frame), 0.9 / 8) << "the target is 3 EV out of reach";
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), uint32_t(genicam::kAutoContinuous));
+  // Narrower limits while running.
+  WriteReg(*d, reg::kAutoExposureTimeUpperLimit, Be64(40000.0));
+  WriteReg(*d, reg::kAutoGainLowerLimit, Be64(3.0));
+  WriteReg(*d, reg::kAutoGainUpperLimit, Be64(6.0));
+  d->SyncNow();
+  ASSERT_NO_FATAL_FAILURE(run(4, 3.0, 6.0));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 40000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0);
+  // The lens open again (f/2.8) and a target below what the scene gives at the lower limits.
+  WriteReg(*d, reg::kAutoExposureTimeLowerLimit, Be64(2000.0));
+  WriteReg(*d, reg::kSimFNumber, Be64(2.8));
+  WriteReg(*d, reg::kSimAutoTarget, Be64(0.01));
+  d->SyncNow();
+  ASSERT_NO_FATAL_FAILURE(run(8, 3.0, 6.0));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.0);
+  EXPECT_GT(MeanLevel12(frame), 0.01 * 2) << "the target is out of reach below";
+}
+
+// An Auto lower limit above its upper limit is refused as it arrives (each
+// one's pMax / pMin in the XML is the other's value); in one block with
+// both, the lower one is set back and the upper one kept, as a window's
+// offset and size are. The limit that widens the range goes first.
+TEST(GigeRegisters, AnAutoLowerLimitAboveTheUpperIsRefused) {
+  static_assert(reg::kAutoExposureTimeUpperLimit == reg::kAutoExposureTimeLowerLimit + 8);
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  WriteRegRefused(*d, reg::kAutoExposureTimeLowerLimit, Be64(200000.0));  // above 100000 us
+  WriteRegRefused(*d, reg::kAutoGainUpperLimit, Be64(-1.0));               // below Gain's range
+  WriteReg(*d, reg::kAutoGainLowerLimit, Be64(10.0));
+  WriteRegRefused(*d, reg::kAutoGainUpperLimit, Be64(5.0));  // below the lower limit just written
+  EXPECT_EQ(d->writes_refused(), 3u);
+  std::vector<uint8_t> block = Be64(500000.0), upper = Be64(400000.0);  // lower, upper: crossed
+  block.insert(block.end(), upper.begin(), upper.end());
+  WriteRegRefused(*d, reg::kAutoExposureTimeLowerLimit, block);
+  EXPECT_EQ(d->writes_refused(), 4u);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeLowerLimit), 20.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeUpperLimit), 400000.0);
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoGainLowerLimit), 10.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoGainUpperLimit), 24.0);
+  block = Be64(400000.0);  // in order, in one block
+  upper = Be64(500000.0);
+  block.insert(block.end(), upper.begin(), upper.end());
+  WriteReg(*d, reg::kAutoExposureTimeLowerLimit, block);
+  WriteReg(*d, reg::kAutoGainLowerLimit, Be64(24.0));  // equal limits: a fixed gain
+  d->SyncNow();
+  EXPECT_EQ(d->writes_refused(), 4u);
+  EXPECT_EQ(d->CheckInvariants(), "");
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeLowerLimit), 400000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoExposureTimeUpperLimit), 500000.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kAutoGainLowerLimit), 24.0);
 }
 
 // An output the device cannot lower: the strobe stays high, and LineStatus says so.
@@ -2704,6 +2801,53 @@ TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
   EXPECT_NEAR(std::log2(levels.back() / (before / 2)), 0.0, 1.0 / 6);
   EXPECT_NEAR(ReadFloat(c, "Gain"), 6.02, 1.0) << "+1 EV from gain";
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), exposure) << "ExposureAuto is Off";
+}
+
+// The Auto limits are features an Aravis client reads and writes; each
+// bound of a lower limit (upper limit) that is the other's value reads it.
+TEST_F(GigeE2E, AutoLimitsAreFeaturesBoundingEachOther) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoExposureTimeLowerLimit"), 20.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoExposureTimeUpperLimit"), 100000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoGainLowerLimit"), 0.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoGainUpperLimit"), 24.0);
+  const auto bounds = [&c](const char* name) {
+    double min = 0, max = 0;
+    GError* e = nullptr;
+    arv_camera_get_float_bounds(c.camera(), name, &min, &max, &e);
+    EXPECT_EQ(e, nullptr) << name;
+    g_clear_error(&e);
+    return std::make_pair(min, max);
+  };
+  EXPECT_EQ(bounds("AutoExposureTimeLowerLimit"), std::make_pair(1.0, 100000.0));
+  EXPECT_EQ(bounds("AutoExposureTimeUpperLimit"), std::make_pair(20.0, 1e8));
+  EXPECT_EQ(bounds("AutoGainLowerLimit"), std::make_pair(0.0, 24.0));
+  EXPECT_EQ(bounds("AutoGainUpperLimit"), std::make_pair(0.0, 48.0));
+  SetFloat(c, "AutoExposureTimeUpperLimit", 50000.0);
+  SetFloat(c, "AutoGainLowerLimit", 2.5);
+  SetFloat(c, "AutoGainUpperLimit", 12.0);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoExposureTimeUpperLimit"), 50000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoGainLowerLimit"), 2.5);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoGainUpperLimit"), 12.0);
+  EXPECT_EQ(bounds("AutoExposureTimeLowerLimit"), std::make_pair(1.0, 50000.0));
+  EXPECT_EQ(bounds("AutoGainUpperLimit"), std::make_pair(2.5, 48.0));
+  // Above the upper limit: refused by the device (Aravis's range checks are
+  // off by default) and, with them on, by the client.
+  GError* e = nullptr;
+  arv_camera_set_float(c.camera(), "AutoExposureTimeLowerLimit", 60000.0, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
+  arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_ENABLE);
+  arv_camera_set_float(c.camera(), "AutoGainUpperLimit", 2.0, &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  arv_camera_set_range_check_policy(c.camera(), ARV_RANGE_CHECK_POLICY_DISABLE);
+  EXPECT_EQ(device_->writes_refused(), 1u);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoExposureTimeLowerLimit"), 20.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "AutoGainUpperLimit"), 12.0);
 }
 
 TEST_F(GigeE2E, StagesCanBeSwitchedButNotBreakTheFormat) {
