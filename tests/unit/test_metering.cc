@@ -60,5 +60,31 @@ TEST(Metering, SpotOnASmallFrameMetersTheCentrePixels) {
   }
 }
 
+// A sensor without a CFA gives 3 interleaved samples per pixel: all three
+// count, each pixel weighs as one, and the stride is in samples.
+TEST(Metering, InterleavedRgbAveragesItsChannels) {
+  constexpr int kW = 6, kH = 4, kBlack = 10, kMax = 1033, kStride = 3 * kW + 3;  // a padded row
+  std::vector<uint16_t> raw(kStride * kH, 0xFFFF);  // padding would show
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) {
+      raw[y * kStride + 3 * x + 0] = kBlack + 100;
+      raw[y * kStride + 3 * x + 1] = kBlack + (x < 3 ? 400 : 0);
+      raw[y * kStride + 3 * x + 2] = kBlack + 700;
+    }
+  const double range = kMax - kBlack;
+  // Uniform: (100 + 200 + 700) / 3 on average.
+  EXPECT_NEAR(WeightedBrightness(raw.data(), kW, kH, kStride, 3, kBlack, kMax, Metering::kUniform, nullptr),
+              (100.0 + 200.0 + 700.0) / 3 / range, 1e-12);
+  // Image weights on the left half only: (100 + 400 + 700) / 3.
+  std::vector<uint16_t> w(kW * kH, 0);
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < 3; ++x) w[y * kW + x] = 65535;
+  EXPECT_NEAR(WeightedBrightness(raw.data(), kW, kH, kStride, 3, kBlack, kMax, Metering::kImage, w.data()),
+              (100.0 + 400.0 + 700.0) / 3 / range, 1e-12);
+  // All-zero weights: 0, which the controller reads as black (the host refuses such an image).
+  std::vector<uint16_t> none(kW * kH, 0);
+  EXPECT_EQ(WeightedBrightness(raw.data(), kW, kH, kStride, 3, kBlack, kMax, Metering::kImage, none.data()), 0.0);
+}
+
 }  // namespace
 }  // namespace camsim
