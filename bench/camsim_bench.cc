@@ -391,6 +391,39 @@ double BandLimitedRadiance(double x, double y, int ch) {
   return v;
 }
 
+// The distortion stage alone (RGB, one thread) on `in`: its w x h x 3 output.
+std::vector<uint32_t> DistortionOutput(const DistortionConfig& d, const FrameInput& in, int w, int h) {
+  PipelineConfig c;
+  c.geometry.width = w;
+  c.geometry.height = h;
+  c.distortion = d;
+  c.order[0] = StageId::kDistortion;
+  c.order_count = 1;
+  Pipeline p;
+  if (!p.Configure(c, 1, false).ok()) std::abort();
+  std::vector<uint8_t> ws(p.WorkspaceBytes());
+  if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
+  std::vector<uint32_t> out(static_cast<size_t>(w) * h * 3);
+  Tap tap;
+  tap.format = TapFormat::kU32;
+  tap.data = out.data();
+  tap.stride = static_cast<ptrdiff_t>(w) * 3;
+  p.ProcessFrame(in, 0, 16, &tap, 1, nullptr, nullptr);
+  return out;
+}
+
+// Max and rms of (got - want) over the samples added.
+struct ErrorStats {
+  double max = 0, sum2 = 0;
+  long n = 0;
+  void Add(double got, double want) {
+    max = std::fmax(max, std::fabs(got - want));
+    sum2 += (got - want) * (got - want);
+    ++n;
+  }
+  double rms() const { return std::sqrt(sum2 / n); }
+};
+
 void BM_OpenCvRemap(benchmark::State& state) {
   const int w = 1920, h = 1080;
   cv::setNumThreads(1);
@@ -429,44 +462,26 @@ void BM_OpenCvRemap(benchmark::State& state) {
     // Q16.16 LSB, every 5th pixel and row, fills (either side 0) left out:
     // OpenCV's timed output, camsim's bilinear stage (64 phases, grid step 8)
     // on the same scene.
-    PipelineConfig c;
-    c.geometry.width = w;
-    c.geometry.height = h;
-    c.distortion.lens = m;
-    c.distortion.filter = ResampleFilter::kBilinear;
-    c.order[0] = StageId::kDistortion;
-    c.order_count = 1;
-    Pipeline p;
-    if (!p.Configure(c, 1, false).ok()) std::abort();
-    std::vector<uint8_t> ws(p.WorkspaceBytes());
-    if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
-    std::vector<uint32_t> ours(static_cast<size_t>(w) * h * 3);
-    Tap tap;
-    tap.format = TapFormat::kU32;
-    tap.data = ours.data();
-    tap.stride = static_cast<ptrdiff_t>(w) * 3;
-    p.ProcessFrame(in.View(), 0, 16, &tap, 1, nullptr, nullptr);
-    const cv::Mat& exact_dst = dst;
-    double max_cv = 0, sum_cv = 0, max_us = 0, sum_us = 0;
-    long n = 0;
+    DistortionConfig d;
+    d.lens = m;
+    d.filter = ResampleFilter::kBilinear;
+    const std::vector<uint32_t> ours = DistortionOutput(d, in.View(), w, h);
+    ErrorStats cv_error, our_error;
     for (int y = 0; y < h; y += 5)
       for (int x = 0; x < w; x += 5)
         for (int ch = 0; ch < 3; ++ch) {
           const ImageView<const uint32_t> plane = MakeImageView<const uint32_t>(in.radiance[ch].data(), w, h);
           const double exact = ref.Sample(plane, x, y, ch);
-          const double cvv = exact_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
+          const double cvv = dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
           const double us = ours[(static_cast<size_t>(y) * w + x) * 3 + ch];
           if (exact == 0.0 || cvv == 0.0 || us == 0.0) continue;
-          max_cv = std::fmax(max_cv, std::fabs(cvv - exact));
-          max_us = std::fmax(max_us, std::fabs(us - exact));
-          sum_cv += (cvv - exact) * (cvv - exact);
-          sum_us += (us - exact) * (us - exact);
-          ++n;
+          cv_error.Add(cvv, exact);
+          our_error.Add(us, exact);
         }
-    state.counters["cv_rms_lsb"] = std::sqrt(sum_cv / n);
-    state.counters["cv_max_lsb"] = max_cv;
-    state.counters["camsim_rms_lsb"] = std::sqrt(sum_us / n);
-    state.counters["camsim_max_lsb"] = max_us;
+    state.counters["cv_rms_lsb"] = cv_error.rms();
+    state.counters["cv_max_lsb"] = cv_error.max;
+    state.counters["camsim_rms_lsb"] = our_error.rms();
+    state.counters["camsim_max_lsb"] = our_error.max;
   }
   if (interp == cv::INTER_LANCZOS4 && state.range(1) == 0) {
     // Lanczos-3 and Lanczos-4 are different filters, so neither is the
@@ -489,48 +504,33 @@ void BM_OpenCvRemap(benchmark::State& state) {
         }
     }
     cv::remap(band_src, band_dst, map1, map2, cv::INTER_LANCZOS4, cv::BORDER_CONSTANT);
-    PipelineConfig c;
-    c.geometry.width = w;
-    c.geometry.height = h;
-    c.distortion.lens = m;
-    c.distortion.filter = ResampleFilter::kLanczos3;
-    c.order[0] = StageId::kDistortion;
-    c.order_count = 1;
+    DistortionConfig d;
+    d.lens = m;
+    d.filter = ResampleFilter::kLanczos3;
+    DistortionConfig accurate = d;
+    SetMostAccurate(&accurate);  // BM_Distortion mode 2
     // camsim by default (with its ringing clamp, which cuts a peak between
-    // samples) and in its most accurate setting (BM_Distortion mode 2).
-    for (bool accurate : {false, true}) {
-      if (accurate) SetMostAccurate(&c.distortion);
-      Pipeline p;
-      if (!p.Configure(c, 1, false).ok()) std::abort();
-      std::vector<uint8_t> ws(p.WorkspaceBytes());
-      if (!p.Init(Span<uint8_t>{ws.data(), ws.size()}).ok()) std::abort();
-      std::vector<uint32_t> ours(static_cast<size_t>(w) * h * 3);
-      Tap tap;
-      tap.format = TapFormat::kU32;
-      tap.data = ours.data();
-      tap.stride = static_cast<ptrdiff_t>(w) * 3;
-      p.ProcessFrame(band.View(), 0, 16, &tap, 1, nullptr, nullptr);
-      double max_cv = 0, sum_cv = 0, max_us = 0, sum_us = 0;
-      long n = 0;
-      for (int y = 0; y < h; y += 5)
-        for (int x = 0; x < w; x += 5)
-          for (int ch = 0; ch < 3; ++ch) {
-            double sx = 0, sy = 0;
-            if (!ref.Source(x, y, ch, &sx, &sy) || sx < 4 || sy < 4 || sx > w - 5 || sy > h - 5) continue;
-            const double exact = BandLimitedRadiance(sx, sy, ch) * 65536.0;
-            const double cvv = band_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0;
-            const double us = ours[(static_cast<size_t>(y) * w + x) * 3 + ch];
-            max_cv = std::fmax(max_cv, std::fabs(cvv - exact));
-            max_us = std::fmax(max_us, std::fabs(us - exact));
-            sum_cv += (cvv - exact) * (cvv - exact);
-            sum_us += (us - exact) * (us - exact);
-            ++n;
-          }
-      state.counters["cv_rms_lsb"] = std::sqrt(sum_cv / n);
-      state.counters["cv_max_lsb"] = max_cv;
-      state.counters[accurate ? "accurate_rms_lsb" : "camsim_rms_lsb"] = std::sqrt(sum_us / n);
-      state.counters[accurate ? "accurate_max_lsb" : "camsim_max_lsb"] = max_us;
-    }
+    // samples) and in its most accurate setting.
+    const std::vector<uint32_t> ours = DistortionOutput(d, band.View(), w, h);
+    const std::vector<uint32_t> ours_accurate = DistortionOutput(accurate, band.View(), w, h);
+    ErrorStats cv_error, our_error, accurate_error;
+    for (int y = 0; y < h; y += 5)
+      for (int x = 0; x < w; x += 5)
+        for (int ch = 0; ch < 3; ++ch) {
+          double sx = 0, sy = 0;
+          if (!ref.Source(x, y, ch, &sx, &sy) || sx < 4 || sy < 4 || sx > w - 5 || sy > h - 5) continue;
+          const double exact = BandLimitedRadiance(sx, sy, ch) * 65536.0;
+          const size_t i = (static_cast<size_t>(y) * w + x) * 3 + ch;
+          cv_error.Add(band_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0, exact);
+          our_error.Add(ours[i], exact);
+          accurate_error.Add(ours_accurate[i], exact);
+        }
+    state.counters["cv_rms_lsb"] = cv_error.rms();
+    state.counters["cv_max_lsb"] = cv_error.max;
+    state.counters["camsim_rms_lsb"] = our_error.rms();
+    state.counters["camsim_max_lsb"] = our_error.max;
+    state.counters["accurate_rms_lsb"] = accurate_error.rms();
+    state.counters["accurate_max_lsb"] = accurate_error.max;
   }
   state.SetLabel(std::string(interp == cv::INTER_LINEAR ? "INTER_LINEAR" : "INTER_LANCZOS4") +
                  (state.range(1) ? " CV_16SC2 maps" : " CV_32FC1 maps"));
