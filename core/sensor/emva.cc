@@ -119,10 +119,10 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   const auto width = [](double fraction) { return static_cast<uint32_t>(fraction * 4294967296.0); };
   const uint32_t hot = width(c.hot_pixel_fraction), dead = width(c.dead_pixel_fraction),
                  stuck = width(c.stuck_pixel_fraction);
-  hot_end_ = hot;
-  dead_end_ = kDefectBand + dead;
-  stuck_end_ = 2 * kDefectBand + stuck;
-  any_defect_below_ = stuck != 0 ? stuck_end_ : (dead != 0 ? dead_end_ : hot_end_);
+  hot_width_ = hot;
+  dead_width_ = dead;
+  stuck_width_ = stuck;
+  defects_on_ = (hot | dead | stuck) != 0;
   const double hot_e = DarkElectrons(c, exposure_time_us, c.hot_pixel_dark_e_per_s);
   if (!InRange(hot_e, 0.0, kMaxFullWell))
     return InvalidArgument("sensor.hot_pixel_dark_e_per_s", "hot-pixel charge per exposure exceeds 1e6 electrons");
@@ -597,13 +597,16 @@ CAMSIM_AVX512_TARGET void ReadoutAvx512(const ReadoutIn& b, int count, uint32_t*
 // rounds back to mu) and the DSNU term 0, so both are skipped. The two
 // switches are tested per pixel but never change within a row, so the
 // branches cost nothing (specialised copies of the loop measured no faster).
+bool SensorStage::InDead(uint32_t u) const { return u - kDefectBand < dead_width_; }
+bool SensorStage::InStuck(uint32_t u) const { return u - 2 * kDefectBand < stuck_width_; }
+
 void SensorStage::ProcessRow(const RowArgs& a) const {
   constexpr int kBlock = 2 * RandomLanes::kLanes;
   constexpr int kWords = 4 * RandomLanes::kLanes;
   using Normals = int32_t[4][RandomLanes::kLanes];  // G(word) for the words of a RandomLanes
   static_assert(kBlock % 2 == 0, "blocks start on even columns: the parity of i is column parity");
   const int channels = a.out[1] != nullptr ? 3 : 1;
-  const bool defects = any_defect_below_ != 0;
+  const bool defects = defects_on_;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool draw_patterns = patterns && pattern_ == nullptr;
   CAMSIM_DCHECK(pattern_ == nullptr || channels == input_channels_);  // the planner's SetInputChannels
@@ -668,7 +671,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
         // Seeded defects: the lanes stop before the group of four that holds
         // the block's first defect pixel (most blocks have none).
         for (int i = 0; defects && i < lanes; ++i)
-          if (d.v[2 * (i & 1)][i >> 1] < any_defect_below_) lanes = i & ~3;
+          if (IsDefect(d.v[2 * (i & 1)][i >> 1])) lanes = i & ~3;
         static_assert(sizeof(PatternEntry) == 2 * sizeof(int32_t), "(gain, DSNU) pairs");
         const sensor_lanes::MeanIn m{in,
                                      {qe[0], qe[1]},
@@ -709,16 +712,16 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
             mu = RoundShiftU(mu * static_cast<uint64_t>(p.gain_q16), 16);
             dsnu += p.dsnu_q8;
           }
-          if (defects && hit == nullptr && d.v[w][lane] < any_defect_below_) {
+          if (defects && hit == nullptr && IsDefect(d.v[w][lane])) {
             const uint32_t u = d.v[w][lane];
-            if (u < hot_end_) {
+            if (InHot(u)) {
               // Extra dark charge times (0.5 + u'), u' = word / 2^32: a factor in [0.5, 1.5) as Q.32.
               const uint64_t factor = (uint64_t{1} << 31) + d.v[w + 1][lane];
               dark = SatU32(dark + RoundShiftU(uint64_t{hot_q8_} * factor, 32));
-            } else if (u >= kDefectBand && u < dead_end_) {
+            } else if (InDead(u)) {
               mu = 0;
               dark = 0;
-            } else if (u >= 2 * kDefectBand && u < stuck_end_) {
+            } else {
               out[i] = static_cast<uint32_t>(max_dn_);  // stuck
               continue;
             }

@@ -163,10 +163,17 @@ class SensorStage final : public Stage {
   int64_t read_q8_ = 0;      // dark noise sigma, Q.8 electrons
   int64_t row_fpn_q8_ = 0;   // row FPN sigma, Q.8 electrons
   int64_t col_fpn_q8_ = 0;   // column FPN sigma, Q.8 electrons
-  // Defect bands on u (emva.h, top): hot [0, hot_end_), dead [B, dead_end_),
-  // stuck [2B, stuck_end_); any_defect_below_: the end of the highest band
-  // in use (0: no seeded defects).
-  uint32_t hot_end_ = 0, dead_end_ = 0, stuck_end_ = 0, any_defect_below_ = 0;
+  // Defect bands on u (emva.h, top): hot [0, hot_width_), dead [B, B +
+  // dead_width_), stuck [2B, 2B + stuck_width_); the widths are the
+  // fractions times 2^32.
+  uint32_t hot_width_ = 0, dead_width_ = 0, stuck_width_ = 0;
+  bool defects_on_ = false;
+  // Whether u falls in a band: one unsigned compare each (u - start wraps
+  // above the band for u below its start).
+  bool InHot(uint32_t u) const { return u < hot_width_; }
+  bool InDead(uint32_t u) const;
+  bool InStuck(uint32_t u) const;
+  bool IsDefect(uint32_t u) const { return InHot(u) || InDead(u) || InStuck(u); }
   uint32_t hot_q8_ = 0;      // median hot-pixel extra dark charge per exposure, Q24.8
   struct ListedDefect {
     uint32_t x;
