@@ -69,6 +69,9 @@ Status AutoExposure::Configure(const AutoExposureConfig& c, const ExposureSettin
   const ExposureSettings brightest{config_.exposure_time_max_us, config_.gain_max_db, config_.f_number_min};
   ev_min_ = ExposureValue(darkest);
   ev_max_ = ExposureValue(brightest);
+  // With a margin of 1 EV for noise at the thresholds; no bracket when
+  // black means y = 0 (a black scene is black at every EV).
+  min_bracket_ev_ = c.black_fraction > 0 ? detmath::Log2(c.saturated_fraction / c.black_fraction) - 1.0 : 1e300;
   ev_ = Clamp(ExposureValue(initial), ev_min_, ev_max_);
   settings_ = c.mode == AutoExposureMode::kOff ? initial : Split(ev_);
   error_count_ = 0;
@@ -132,12 +135,16 @@ ExposureSettings AutoExposure::Update(double y) {
     active_ = true;
     NotePinned(e);
     if (done_) return settings_;
+    // A static scene's brightness changes at most as fast as the exposure
+    // (clipping only slows it), so it is black and saturated only at EVs
+    // at least log2(saturated / black) apart: a closer side is from before
+    // the scene changed, and is forgotten.
     if (saturated) {
-      if (have_black_ && !(black_ev_ < ev_)) have_black_ = false;  // the scene changed: forget it
+      if (have_black_ && !(ev_ - black_ev_ >= min_bracket_ev_)) have_black_ = false;
       saturated_ev_ = have_saturated_ && saturated_ev_ < ev_ ? saturated_ev_ : ev_;
       have_saturated_ = true;
     } else {
-      if (have_saturated_ && !(saturated_ev_ > ev_)) have_saturated_ = false;
+      if (have_saturated_ && !(saturated_ev_ - ev_ >= min_bracket_ev_)) have_saturated_ = false;
       black_ev_ = have_black_ && black_ev_ > ev_ ? black_ev_ : ev_;
       have_black_ = true;
     }
@@ -148,10 +155,9 @@ ExposureSettings AutoExposure::Update(double y) {
     return settings_;
   }
   have_black_ = have_saturated_ = false;  // a measured error: the bracket is not needed
+  pinned_ = false;
   const double e = detmath::Log2(config_.target / y);
   last_error_ = e;
-  NotePinned(e);
-  if (done_) return settings_;
   // Decisions (start / settle) on the mean error of the last average_frames
   // frames, each frame's error carried to the current EV: errors_ holds the EV
   // each frame asked for (its EV + its error), so frames taken before a step
@@ -170,6 +176,10 @@ ExposureSettings AutoExposure::Update(double y) {
   double mean = 0;
   for (int i = 0; i < error_count_; ++i) mean += errors_[i];
   mean = mean / error_count_ - ev_;
+  // Pinned on the averaged error, once the average is full (one flickering
+  // frame does not end Once).
+  if (error_count_ == n) NotePinned(mean);
+  if (done_) return settings_;
   const double mag = mean < 0 ? -mean : mean;
   if (active_ && error_count_ == n && mag < config_.settle_ev) {
     active_ = false;

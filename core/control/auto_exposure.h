@@ -17,7 +17,10 @@
 // highest EV that gave black below the lowest that gave saturated), the
 // target lies between: the EV goes to the middle (bisection), so a step
 // larger than log2(saturated_fraction / black_fraction) cannot swing from one
-// extreme to the other for ever.
+// extreme to the other for ever. A static scene is black and saturated only
+// at EVs at least that far apart (its brightness changes at most as fast as
+// the exposure); a side closer than that, less 1 EV, is from before a scene
+// change and is forgotten (full steps again).
 //
 // Averaging: each frame asks for EV_n + e_n; the controller's error m_n is the
 // mean of what the last average_frames frames asked for, minus the current EV
@@ -44,8 +47,9 @@
 // and stops when |m| < settle_ev (> 0), so noise smaller than start_ev
 // changes nothing once settled.
 //
-// Once ends (done) when it settles, or when a frame taken at the end of the
-// EV range asks to go further (pinned: the target is out of reach).
+// Once ends (done) when it settles, or when at an end of the EV range the
+// averaged error (a full average) or a black or saturated frame asks to go
+// further (pinned: the target is out of reach).
 //
 // Split: the EV is spread over the actuators in `priority` order from the
 // darkest setting (shortest time, least gain, largest f-number): the first
@@ -108,7 +112,7 @@ class AutoExposure {
   double last_error_ev() const { return last_error_; }
   bool active() const { return active_; }  // moving (outside the deadband)
   bool done() const { return done_; }      // Once: settled or pinned (ExposureAuto returns to Off)
-  bool pinned() const { return pinned_; }  // the last frame, at an end of the EV range, asked to go further
+  bool pinned() const { return pinned_; }  // at an end of the EV range, the last decision asked to go further
   double ev_min() const { return ev_min_; }
   double ev_max() const { return ev_max_; }
 
@@ -126,6 +130,7 @@ class AutoExposure {
   bool have_previous_ = false;
   // The bracket from extreme frames since the last measured one (see above).
   double black_ev_ = 0, saturated_ev_ = 0;
+  double min_bracket_ev_ = 0;  // log2(saturated / black) - 1: closer sides are stale
   bool have_black_ = false, have_saturated_ = false;
   bool active_ = true;
   bool pinned_ = false;

@@ -346,5 +346,35 @@ TEST(AutoExposure, OnceEndsWhenTheTargetIsOutOfReach) {
   EXPECT_FALSE(continuous.pinned());
 }
 
+// A bracket from before a scene change must not hold the EV: black frames
+// (lights off) raise the EV, then the lights come on far brighter and every
+// frame is saturated. The black side is too close to be the same scene's
+// and is forgotten; full steps bring the EV down and it settles.
+TEST(AutoExposure, AStaleBracketFromBeforeASceneChangeIsForgotten) {
+  AutoExposure ae;
+  const ExposureSettings initial{5000.0, 0.0, 2.8};
+  ASSERT_TRUE(ae.Configure(Continuous(), initial).ok());
+  const Plant p{ExposureValue(initial), 0.18};
+  const Trace t = RunLoop(ae, p, 40, [](int n) { return n < 2 ? 0.0 : 64.0; });  // dark, then 6 EV above the target
+  for (int n = 30; n < 40; ++n) EXPECT_LE(std::abs(t.error[n]), kTol) << n;
+  EXPECT_FALSE(ae.active());
+}
+
+// Once at the end of its range is pinned on the averaged error: one frame of
+// +-0.5 EV flicker that asks for more does not end it 0.3 EV off target.
+TEST(AutoExposure, OnceIsNotPinnedByOneFlickeringFrame) {
+  AutoExposureConfig c = Continuous();
+  c.mode = AutoExposureMode::kOnce;
+  AutoExposure ae;
+  const ExposureSettings brightest{c.exposure_time_max_us, c.gain_max_db, 2.8};
+  ASSERT_TRUE(ae.Configure(c, brightest).ok());
+  ASSERT_DOUBLE_EQ(ae.ev(), ae.ev_max());
+  const Plant p{ae.ev_max() - 0.3, c.target};  // the target lies 0.3 EV below the top
+  const Trace t = RunLoop(ae, p, 30, [](int n) { return std::exp2(n % 2 ? 0.5 : -0.5); });
+  EXPECT_FALSE(ae.pinned());
+  EXPECT_TRUE(ae.done());
+  EXPECT_NEAR(ae.ev(), ae.ev_max() - 0.3, 0.1);
+}
+
 }  // namespace
 }  // namespace camsim
