@@ -1218,7 +1218,11 @@ GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const
   // applied value, which need not be on GainRaw's 0.1 dB steps).
   if (Applied(kExposureAuto) != kAutoOff) next[kExposureTime] = DoubleBits(s.exposure_time_us);
   if (Applied(kGainAuto) != kAutoOff) {
-    const double g = std::round(s.gain_db * 10) / 10;  // GainRaw: 0.1 dB steps
+    // GainRaw's 0.1 dB steps, kept inside the AutoGain limits (which need
+    // not lie on a step).
+    const double lower = AppliedDouble(kAutoGainLowerLimit), upper = AppliedDouble(kAutoGainUpperLimit);
+    const double stepped = std::round(s.gain_db * 10) / 10;
+    const double g = stepped < lower ? lower : (stepped > upper ? upper : stepped);
     next[kGain] = DoubleBits(g);
     next[kGainRaw] = GainRawOf(g);
   }

@@ -1450,22 +1450,22 @@ TEST(GigeRegisters, AutoStopsAtTheAutoLimits) {
   EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 24.0);
   EXPECT_LT(MeanLevel12(frame), 0.9 / 8) << "the target is 3 EV out of reach";
   EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), uint32_t(genicam::kAutoContinuous));
-  // Narrower limits while running.
+  // Narrower limits while running, the gain's between GainRaw's 0.1 dB steps.
   WriteReg(*d, reg::kAutoExposureTimeUpperLimit, Be64(40000.0));
-  WriteReg(*d, reg::kAutoGainLowerLimit, Be64(3.0));
-  WriteReg(*d, reg::kAutoGainUpperLimit, Be64(6.0));
+  WriteReg(*d, reg::kAutoGainLowerLimit, Be64(3.04));
+  WriteReg(*d, reg::kAutoGainUpperLimit, Be64(6.06));
   d->SyncNow();
-  ASSERT_NO_FATAL_FAILURE(run(4, 3.0, 6.0));
+  ASSERT_NO_FATAL_FAILURE(run(4, 3.04, 6.06));
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 40000.0);
-  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.06) << "not rounded to 6.1, past the limit";
   // The lens open again (f/2.8) and a target below what the scene gives at the lower limits.
   WriteReg(*d, reg::kAutoExposureTimeLowerLimit, Be64(2000.0));
   WriteReg(*d, reg::kSimFNumber, Be64(2.8));
   WriteReg(*d, reg::kSimAutoTarget, Be64(0.01));
   d->SyncNow();
-  ASSERT_NO_FATAL_FAILURE(run(8, 3.0, 6.0));
+  ASSERT_NO_FATAL_FAILURE(run(8, 3.04, 6.06));
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
-  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.0);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.04);
   EXPECT_GT(MeanLevel12(frame), 0.01 * 2) << "the target is out of reach below";
 }
 
