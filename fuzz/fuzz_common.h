@@ -22,7 +22,8 @@
 //   vignetting mask, the inverse depth plane (any uint32, the invalid marker
 //   included) and the motion vectors (any int32) are derived from the radiance.
 //   The enum bytes of the later stages (dof method, structural-only, motion
-//   source, distortion model, resampling filter, blooming on, flare on)
+//   source, distortion model, resampling filter (top bit: no ringing clamp),
+//   blooming on, flare on)
 //   follow the numbers, before the samples.
 //
 // A number byte b: 0 keeps the default; 1..8 are specials {NaN, +inf, -inf, 0,
@@ -239,7 +240,9 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   c.motion_blur.source = static_cast<MotionSource>(r.Byte() % 3);
   c.distortion.lens.model = static_cast<DistortionModel>(r.Byte() % 3);
   c.distortion.lens.fy = c.distortion.lens.fx;
-  c.distortion.filter = static_cast<ResampleFilter>(r.Byte() % 3);
+  const uint8_t filter = r.Byte();
+  c.distortion.filter = static_cast<ResampleFilter>(filter % 3);
+  c.distortion.ringing_clamp = (filter & 0x80) == 0;  // the filter byte's top bit turns the clamp off
   c.blooming.enabled = r.Byte() & 1;
   c.flare.enabled = r.Byte() & 1;
   // Table entries not named in Params() repeat the decoded ones.
@@ -298,7 +301,7 @@ inline std::vector<uint8_t> EncodeCoreCase(const PipelineConfig& config, bool ha
   b.push_back(c.dof.structural_only ? 1 : 0);
   b.push_back(static_cast<uint8_t>(c.motion_blur.source));
   b.push_back(static_cast<uint8_t>(c.distortion.lens.model));
-  b.push_back(static_cast<uint8_t>(c.distortion.filter));
+  b.push_back(static_cast<uint8_t>(static_cast<uint8_t>(c.distortion.filter) | (c.distortion.ringing_clamp ? 0 : 0x80)));
   b.push_back(c.blooming.enabled ? 1 : 0);
   b.push_back(c.flare.enabled ? 1 : 0);
   for (uint32_t s : samples)
@@ -321,7 +324,7 @@ inline uint32_t DomainMax(Domain d, int adc_bits) {
 // Changes a reconfiguration may make besides Params(): what sizes or fills a
 // stage's tables (fuzz_reconfigure). Selector s >= Params().size() picks
 // (s - Params().size()) % kExtraChanges; one value byte follows.
-inline constexpr int kExtraChanges = 8;
+inline constexpr int kExtraChanges = 9;
 inline void DecodeChange(ByteReader& r, PipelineConfig* c) {
   const size_t n = Params().size();
   const size_t s = r.Byte();
@@ -340,6 +343,7 @@ inline void DecodeChange(ByteReader& r, PipelineConfig* c) {
     case 5: c->sensor.fixed_pattern_table = b & 1; break;
     case 6: c->sensor.column_fpn_e = b / 8.0; break;
     case 7: c->distortion.filter = static_cast<ResampleFilter>(b % 3); break;
+    case 8: c->distortion.ringing_clamp = b & 1; break;
   }
 }
 
