@@ -1189,8 +1189,15 @@ void GigeDevice::AutoAdjust(double frac) {
     // minimum exposure, for example): the controller's range ends where the
     // pipeline's does, and it starts afresh from the applied settings.
     const double t1 = s.exposure_time_us, g1 = std::round(s.gain_db * 10) / 10;
+    const AutoExposureConfig limits = auto_config_;
     LimitAutoRange(s);
     const AutoExposureConfig& c = auto_config_;
+    // The applied settings may lie outside the Auto limits (written before
+    // the Auto feature went on): then the pipeline may take nothing inside.
+    if (c.exposure_time_min_us > c.exposure_time_max_us || c.gain_min_db > c.gain_max_db)
+      return StopAuto("the pipeline refuses every setting within the Auto limits, ExposureTime " +
+                      Fmt(limits.exposure_time_min_us) + ".." + Fmt(limits.exposure_time_max_us) + " us and Gain " +
+                      Fmt(limits.gain_min_db) + ".." + Fmt(limits.gain_max_db) + " dB (" + error + ")");
     LogOnce(error, "camsim-gige: auto exposure: the pipeline refuses ExposureTime " + Fmt(t1) + " us, Gain " +
                        Fmt(g1) + " dB (" + error + "); its range is now ExposureTime " + Fmt(c.exposure_time_min_us) +
                        ".." + Fmt(c.exposure_time_max_us) + " us, Gain " + Fmt(c.gain_min_db) + ".." +

@@ -149,7 +149,8 @@ ExposureSettings AutoExposure::Update(double y) {
       have_black_ = true;
     }
     double step = e;
-    if (have_black_ && have_saturated_) step = Clamp((black_ev_ + saturated_ev_) / 2 - ev_, -config_.max_step_ev, config_.max_step_ev);
+    if (have_black_ && have_saturated_)
+      step = Clamp((black_ev_ + saturated_ev_) / 2 - ev_, -config_.max_step_ev, config_.max_step_ev);
     ev_ = Clamp(ev_ + step, ev_min_, ev_max_);
     settings_ = Split(ev_);
     return settings_;

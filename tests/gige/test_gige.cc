@@ -1469,6 +1469,31 @@ TEST(GigeRegisters, AutoStopsAtTheAutoLimits) {
   EXPECT_GT(MeanLevel12(frame), 0.01 * 2) << "the target is out of reach below";
 }
 
+// ExposureTime written above the Auto limits before ExposureAuto goes on,
+// and a pipeline that needs more than the upper limit (CCD smear: at least
+// 1000 us): nothing within the limits runs. Both Auto features turn Off
+// with an error that names the limits, not the controller's own keys.
+TEST(GigeRegisters, AutoLimitsThePipelineRefusesTurnAutoOffNamingThem) {
+  DeviceOptions o = OfflineDevice();
+  o.overrides.push_back("sensor.smear_row_transfer_us=1000");
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kExposureTime, Be64(5000.0));
+  WriteReg(*d, reg::kAutoExposureTimeUpperLimit, Be64(500.0));
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
+  d->SyncNow();
+  testing::internal::CaptureStderr();
+  std::vector<uint8_t> frame;
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(d->RenderNow(&frame));
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), uint32_t(genicam::kAutoOff));
+  EXPECT_NE(log.find("the pipeline refuses every setting within the Auto limits, ExposureTime 20..500 us"),
+            std::string::npos)
+      << log;
+  EXPECT_GE(ReadRegDouble(*d, reg::kExposureTime), 1000.0);
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // An Auto lower limit above its upper limit is refused as it arrives (each
 // one's pMax / pMin in the XML is the other's value); in one block with
 // both, the lower one is set back and the upper one kept, as a window's
