@@ -8,14 +8,11 @@
 #include <utility>
 #include <vector>
 
+#include "core/lens/distortion.h"
 #include "host_tools/io/text_read.h"
 
 namespace camsim::host {
 namespace {
-
-// The focal lengths the distortion stage takes (core/lens/distortion.cc
-// kMinFocal, kMaxFocal): below 1 pixel a pixel spans more than 45 degrees.
-constexpr double kMinFocalPx = 1.0, kMaxFocalPx = 1e6;
 
 // True when a scalar starts after `so_far` (only there does a quote open a
 // quoted string; "bob's" is plain): at a line's start or after ':', '[', '{',

@@ -19,7 +19,6 @@ constexpr int32_t kNoSource = INT32_MIN;
 // Largest displacement a node stores, pixels: Q15.16 signed.
 constexpr double kMaxDisplacement = 32767.0;
 // Configuration limits (each named in its error).
-constexpr double kMinFocal = 1.0, kMaxFocal = 1e6;        // pixels
 constexpr double kMaxCoefficient = 1e6;                    // |k|
 constexpr double kMaxTangential = 1.0;                     // |p|
 constexpr double kMinChromatic = 0.5, kMaxChromatic = 2.0;
@@ -1086,8 +1085,8 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
     }
   }
 
-  if (!(m.fx >= kMinFocal && m.fx <= kMaxFocal)) return InvalidArgument("distortion.fx", "must be in [1, 1e6] pixels");
-  if (!(m.fy >= kMinFocal && m.fy <= kMaxFocal)) return InvalidArgument("distortion.fy", "must be in [1, 1e6] pixels");
+  if (!(m.fx >= kMinFocalPx && m.fx <= kMaxFocalPx)) return InvalidArgument("distortion.fx", "must be in [1, 1e6] pixels");
+  if (!(m.fy >= kMinFocalPx && m.fy <= kMaxFocalPx)) return InvalidArgument("distortion.fy", "must be in [1, 1e6] pixels");
   if (!(m.cx >= -g.width && m.cx <= 2.0 * g.width))
     return InvalidArgument("distortion.cx", "must be within one frame width of the frame");
   if (!(m.cy >= -g.height && m.cy <= 2.0 * g.height))

@@ -74,6 +74,10 @@ struct DisplacementMesh {
   double step = 0.0;  // pixels between nodes
 };
 
+// The focal lengths (pixels) the stage takes: below 1 pixel a pixel spans
+// more than 45 degrees. The calibration reader checks a file against them.
+inline constexpr double kMinFocalPx = 1.0, kMaxFocalPx = 1e6;
+
 struct DistortionConfig {
   LensModel lens;
   DisplacementMesh mesh;
