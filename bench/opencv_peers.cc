@@ -19,6 +19,7 @@
 //     stored as camsim's sensor.fixed_pattern_table stores it).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -194,63 +195,186 @@ BENCHMARK(BM_Peer_CamsimNoise)->Args({1920, 1080, 0})->Args({1920, 1080, 1})->Un
 // The same EMVA 1288 model as OpenCV operations on float images, what one
 // would write without camsim, on the same photons and parameters: QE per CFA
 // site; PRNU gain 1 + prnu z1 and DSNU offset dsnu z2 from cv::randn, drawn
-// every frame (last argument 1, as camsim's default) or once (0, as
-// sensor.fixed_pattern_table); shot noise by the normal approximation
-// mu + sqrt(mu) z3 for every mean (OpenCV has no Poisson sampler; camsim draws
-// the exact Poisson below 12 e-), clipped at the full well; read noise
-// sigma_d z4; DN = K v + black level, rounded and saturated by convertTo.
+// every frame (BM_Peer_OpenCVEmva's last argument 1, as camsim's default) or
+// once (0, as sensor.fixed_pattern_table); shot noise by the normal
+// approximation mu + sqrt(mu) z3 for every mean (OpenCV has no Poisson
+// sampler; camsim draws the exact Poisson below 12 e-), clipped at the full
+// well; read noise sigma_d z4; DN = K v + black level, rounded and saturated
+// by convertTo.
+struct OpenCvEmva {
+  const SensorConfig sc;
+  const double k, dark_e;
+  cv::Mat qe, gain, dsnu, mu, sigma, z, v;
+  OpenCvEmva(const SensorAlone& s, int w, int h)
+      : sc(s.pipeline.config().sensor),
+        k(s.stage().system_gain()),
+        dark_e(s.stage().dark_electrons()),
+        qe(h, w, CV_32FC1),
+        gain(h, w, CV_32FC1),
+        dsnu(h, w, CV_32FC1),
+        z(h, w, CV_32FC1) {
+    const Cfa cfa = s.pipeline.config().geometry.cfa;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) qe.at<float>(y, x) = static_cast<float>(sc.quantum_efficiency[CfaColour(cfa, x, y)]);
+    DrawPattern();
+  }
+  void DrawPattern() {
+    cv::randn(gain, 1.0, sc.prnu_percent / 100.0);  // 1 + prnu z1
+    cv::randn(dsnu, 0.0, sc.dsnu_e);
+  }
+  void Frame(const cv::Mat& photons, cv::Mat* dn) {
+    cv::multiply(photons, qe, mu);
+    cv::multiply(mu, gain, mu);
+    cv::add(mu, cv::Scalar(dark_e), mu);
+    cv::sqrt(mu, sigma);
+    cv::randn(z, 0.0, 1.0);
+    cv::multiply(sigma, z, sigma);
+    cv::add(mu, sigma, v);
+    cv::min(v, cv::Scalar(sc.full_well_e), v);
+    cv::randn(z, 0.0, sc.dark_noise_e);
+    cv::add(v, z, v);
+    cv::add(v, dsnu, v);
+    v.convertTo(*dn, CV_16U, k, sc.black_level_dn);
+  }
+};
+
+// The photons of a captured sensor input (Q24.8) as a float image.
+cv::Mat PhotonsImage(const std::vector<uint32_t>& q8, int w, int h) {
+  cv::Mat photons(h, w, CV_32FC1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) photons.at<float>(y, x) = static_cast<float>(q8[static_cast<size_t>(y) * w + x] / 256.0);
+  return photons;
+}
+
+// The noise pair's error, measured once: flat fields at a ladder of levels
+// through camsim's sensor stage and the OpenCV model. Over each CFA site's
+// pixels of one frame (the patterns vary over pixels as the temporal noise
+// does), the mean and variance against the model's:
+//   mean = K m + black,  var = K^2 (m + (p QE prnu)^2 + dsnu^2 + sigma_d^2) + 1/12,
+// m = p QE + dark charge: Poisson variance m plus PRNU's, the offsets, read
+// noise and the rounding. The levels stay 5 sd below the full well, so
+// neither clip matters.
+void MeasureNoiseErrors(const SensorAlone& s, OpenCvEmva& model, int w, int h) {
+  static bool done = false;
+  if (done) return;
+  done = true;
+  const FrameInput in = Scene(w).View();
+  bench::StageRunner runner(s.pipeline, s.index, in, 1);
+  runner.SetOutput(TapFormat::kU16);
+  const SensorConfig& sc = model.sc;
+  const Cfa cfa = s.pipeline.config().geometry.cfa;
+  const double prnu = sc.prnu_percent / 100.0;
+  constexpr double kGreenElectrons[] = {0, 1, 3, 10, 30, 100, 300, 1000, 3000, 8000};
+  double worst_z[2] = {0, 0}, worst_var[2] = {0, 0}, var_sd = 0;
+  cv::Mat dn;
+  for (const double level : kGreenElectrons) {
+    const uint32_t q8 = static_cast<uint32_t>(std::lround(level / sc.quantum_efficiency[kGreen] * 256.0));
+    const double p = q8 / 256.0;
+    runner.SetInput(std::vector<uint32_t>(static_cast<size_t>(w) * h, q8));
+    runner.RunFrame(0);
+    model.Frame(PhotonsImage(runner.input_frame(), w, h), &dn);
+    const auto* ours = reinterpret_cast<const uint16_t*>(runner.output_frame().data());
+    for (int site = 0; site < 4; ++site) {
+      const int sx = site & 1, sy = site >> 1;
+      const double m = p * sc.quantum_efficiency[CfaColour(cfa, sx, sy)] + model.dark_e;
+      const double signal_prnu = (m - model.dark_e) * prnu;
+      const double want_mean = model.k * m + sc.black_level_dn;
+      const double want_var = model.k * model.k *
+                                  (m + signal_prnu * signal_prnu + sc.dsnu_e * sc.dsnu_e +
+                                   sc.dark_noise_e * sc.dark_noise_e) +
+                              1.0 / 12.0;
+      for (int who = 0; who < 2; ++who) {
+        double sum = 0, sum2 = 0, n = 0;
+        for (int y = sy; y < h; y += 2)
+          for (int x = sx; x < w; x += 2) {
+            const double d = (who == 0 ? ours[static_cast<size_t>(y) * w + x] : dn.at<uint16_t>(y, x)) - want_mean;
+            sum += d;
+            sum2 += d * d;
+            n += 1;
+          }
+        const double mean_err = sum / n, var = sum2 / n - mean_err * mean_err;
+        worst_z[who] = std::fmax(worst_z[who], std::fabs(mean_err) / std::sqrt(want_var / n));
+        worst_var[who] = std::fmax(worst_var[who], std::fabs(var / want_var - 1.0));
+        var_sd = std::sqrt(2.0 / n);  // the variance's relative sampling sd (normal samples)
+      }
+    }
+  }
+  static char note[200];
+  std::snprintf(note, sizeof note,
+                "flat fields 0..8000 e-, 4 sites: worst mean error camsim %.1f, OpenCV %.1f standard errors; "
+                "variance camsim %.2f %%, OpenCV %.2f %% (sampling sd %.2f %%)",
+                worst_z[0], worst_z[1], 100 * worst_var[0], 100 * worst_var[1], 100 * var_sd);
+  bench::SetPeerError("sensor noise vs the model in OpenCV", note);
+  bench::SetPeerError("the same, fixed pattern stored", note);
+}
+
 void BM_Peer_OpenCVEmva(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   const bool pattern_per_frame = state.range(2) != 0;
   cv::setNumThreads(1);
   SensorAlone s(w, h, false);
-  const PipelineConfig config = Demo(w, h);
-  const SensorConfig& sc = config.sensor;
+  const PipelineConfig& config = s.pipeline.config();
   const FrameInput in = Scene(w).View();
   const bench::StageRunner runner(s.pipeline, s.index, in, 1);
   if (runner.input_channels() != 1) std::abort();
-  cv::Mat photons(h, w, CV_32FC1), qe(h, w, CV_32FC1);
-  const Cfa cfa = config.geometry.cfa;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      photons.at<float>(y, x) = static_cast<float>(runner.input_frame()[static_cast<size_t>(y) * w + x] / 256.0);
-      qe.at<float>(y, x) = static_cast<float>(sc.quantum_efficiency[CfaColour(cfa, x, y)]);
-    }
-  const double prnu = sc.prnu_percent / 100.0, full_well = sc.full_well_e;
-  cv::Mat gain(h, w, CV_32FC1), dsnu(h, w, CV_32FC1), mu, sigma, z(h, w, CV_32FC1), v, dn;
-  const auto draw_pattern = [&] {
-    cv::randn(gain, 1.0, prnu);  // 1 + prnu z1
-    cv::randn(dsnu, 0.0, sc.dsnu_e);
-  };
-  draw_pattern();
+  OpenCvEmva model(s, w, h);
+  MeasureNoiseErrors(s, model, w, h);
+  const cv::Mat photons = PhotonsImage(runner.input_frame(), w, h);
+  cv::Mat dn;
   for (auto _ : state) {
-    if (pattern_per_frame) draw_pattern();
-    cv::multiply(photons, qe, mu);
-    cv::multiply(mu, gain, mu);
-    cv::add(mu, cv::Scalar(s.stage().dark_electrons()), mu);
-    cv::sqrt(mu, sigma);
-    cv::randn(z, 0.0, 1.0);
-    cv::multiply(sigma, z, sigma);
-    cv::add(mu, sigma, v);
-    cv::min(v, cv::Scalar(full_well), v);
-    cv::randn(z, 0.0, sc.dark_noise_e);
-    cv::add(v, z, v);
-    cv::add(v, dsnu, v);
-    v.convertTo(dn, CV_16U, s.stage().system_gain(), sc.black_level_dn);
+    if (pattern_per_frame) model.DrawPattern();
+    model.Frame(photons, &dn);
     benchmark::DoNotOptimize(dn.data);
   }
   // A check that it is the same job: the frame's mean DN against the model's
   // mean (ReferenceSensorMeanDn per pixel; the patterns and noises have zero mean).
+  const Cfa cfa = config.geometry.cfa;
   double got = 0.0, want = 0.0;
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       got += dn.at<uint16_t>(y, x);
-      want += ReferenceSensorMeanDn(sc, config.geometry, config.exposure.exposure_time_us, CfaColour(cfa, x, y),
-                                    photons.at<float>(y, x));
+      want += ReferenceSensorMeanDn(config.sensor, config.geometry, config.exposure.exposure_time_us,
+                                    CfaColour(cfa, x, y), photons.at<float>(y, x));
     }
   state.counters["mean_dn_minus_model"] = (got - want) / (static_cast<double>(w) * h);
 }
 BENCHMARK(BM_Peer_OpenCVEmva)->Args({1920, 1080, 1})->Args({1920, 1080, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// How close a plane of samples is to the standard normal: the
+// Kolmogorov-Smirnov distance sup |F_n - Phi| (a perfect generator gives
+// about 0.87 / sqrt(n)), and the count beyond 4 sd against Phi's (expected
+// n * 6.33e-5).
+struct NormalFit {
+  double ks = 0, tail_ratio = 0;
+  bool done = false;
+};
+NormalFit FitNormal(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const double n = static_cast<double>(v.size());
+  NormalFit fit;
+  double tail = 0;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const double phi = 0.5 * std::erfc(-v[i] / std::sqrt(2.0));
+    fit.ks = std::fmax(fit.ks, std::fmax(static_cast<double>(i + 1) / n - phi, phi - static_cast<double>(i) / n));
+    if (std::fabs(v[i]) > 4.0) tail += 1;
+  }
+  fit.tail_ratio = tail / (n * std::erfc(4.0 / std::sqrt(2.0)));
+  fit.done = true;
+  return fit;
+}
+
+// The Gaussian pair's error note, once both sides have measured theirs.
+NormalFit camsim_fit, randn_fit;
+void SetGaussianError() {
+  if (!camsim_fit.done || !randn_fit.done) return;
+  static char note[200];
+  std::snprintf(note, sizeof note,
+                "against N(0, 1): KS distance camsim %.5f, randn %.5f (sampling ~%.5f); beyond 4 sd camsim %.2f, "
+                "randn %.2f x expected",
+                camsim_fit.ks, randn_fit.ks, 0.87 / std::sqrt(1920.0 * 1080.0), camsim_fit.tail_ratio,
+                randn_fit.tail_ratio);
+  bench::SetPeerError("one Gaussian per pixel, counter-based vs randn", note);
+}
 
 void BM_Peer_OpenCVRandn(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
@@ -259,6 +383,10 @@ void BM_Peer_OpenCVRandn(benchmark::State& state) {
   for (auto _ : state) {
     cv::randn(noise, 0.0, 1.0);
     benchmark::DoNotOptimize(noise.data);
+  }
+  if (!randn_fit.done && w == 1920 && h == 1080) {
+    randn_fit = FitNormal(std::vector<double>(noise.begin<float>(), noise.end<float>()));
+    SetGaussianError();
   }
 }
 BENCHMARK(BM_Peer_OpenCVRandn)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -297,14 +425,12 @@ void BM_Peer_CamsimGaussian(benchmark::State& state) {
     ++frame;
   }
   // A check that the plane is standard normal (so the pair compares like with like).
-  double sum = 0.0, sum2 = 0.0;
-  for (const int32_t v : plane) {
-    sum += v / 65536.0;
-    sum2 += (v / 65536.0) * (v / 65536.0);
+  if (!camsim_fit.done && w == 1920 && h == 1080) {
+    std::vector<double> z(plane.size());
+    for (size_t i = 0; i < plane.size(); ++i) z[i] = plane[i] / 65536.0;
+    camsim_fit = FitNormal(std::move(z));
+    SetGaussianError();
   }
-  const double n = static_cast<double>(plane.size()), mean = sum / n;
-  state.counters["mean"] = mean;
-  state.counters["sd"] = std::sqrt(sum2 / n - mean * mean);
 }
 BENCHMARK(BM_Peer_CamsimGaussian)->Args({1920, 1080})->Unit(benchmark::kMillisecond)->UseRealTime();
 

@@ -16,34 +16,44 @@ StageRunner::StageRunner(const Pipeline& pipeline, int index, const FrameInput& 
       pool_(threads) {
   const size_t w = static_cast<size_t>(width_), h = static_cast<size_t>(height_);
   // The stage's input frame: the scene, or the previous stage's output.
-  std::vector<uint32_t>& frame = frame_;
-  frame.resize(w * h * static_cast<size_t>(channels_));
+  frame_.resize(w * h * static_cast<size_t>(channels_));
   if (index == 0) {
     for (size_t y = 0; y < h; ++y)
       for (size_t x = 0; x < w; ++x)
-        for (int c = 0; c < 3; ++c) frame[(y * w + x) * 3 + c] = input.radiance[c].row(static_cast<int>(y))[x];
+        for (int c = 0; c < 3; ++c) frame_[(y * w + x) * 3 + c] = input.radiance[c].row(static_cast<int>(y))[x];
   } else {
     Tap tap;
     tap.stage = index - 1;
     tap.format = TapFormat::kU32;
-    tap.data = frame.data();
+    tap.data = frame_.data();
     tap.stride = static_cast<ptrdiff_t>(w) * channels_;
     pipeline.ProcessFrame(input, 0, height_, &tap, 1, nullptr, nullptr);
   }
-  padded_.resize(h * static_cast<size_t>(channels_));
-  for (size_t y = 0; y < h; ++y)
-    for (int c = 0; c < channels_; ++c) {
-      std::vector<uint32_t>& row = padded_[y * channels_ + c];
-      row.resize(w + 2 * static_cast<size_t>(margin_));
-      for (int i = -margin_; i < width_ + margin_; ++i)
-        row[static_cast<size_t>(i + margin_)] = frame[(y * w + static_cast<size_t>(Reflect101(i, width_))) * channels_ + c];
-    }
+  Pad();
   workers_.resize(static_cast<size_t>(threads));
   for (Worker& wk : workers_) {
     wk.rows.resize(kMaxWindowRows);
     wk.out.assign(static_cast<size_t>(out_channels_), std::vector<uint32_t>(w + 2 * static_cast<size_t>(margin_)));
     wk.scratch.resize(stage_.ScratchBytes(width_) + 64);
   }
+}
+
+void StageRunner::SetInput(const std::vector<uint32_t>& frame) {
+  if (frame.size() != frame_.size()) std::abort();
+  frame_ = frame;
+  Pad();
+}
+
+void StageRunner::Pad() {
+  const size_t w = static_cast<size_t>(width_), h = static_cast<size_t>(height_);
+  padded_.resize(h * static_cast<size_t>(channels_));
+  for (size_t y = 0; y < h; ++y)
+    for (int c = 0; c < channels_; ++c) {
+      std::vector<uint32_t>& row = padded_[y * channels_ + c];
+      row.resize(w + 2 * static_cast<size_t>(margin_));
+      for (int i = -margin_; i < width_ + margin_; ++i)
+        row[static_cast<size_t>(i + margin_)] = frame_[(y * w + static_cast<size_t>(Reflect101(i, width_))) * channels_ + c];
+    }
 }
 
 void StageRunner::SetOutput(TapFormat format) {

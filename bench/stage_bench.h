@@ -29,8 +29,13 @@ class StageRunner {
   // The captured input: interleaved channels, width x height.
   const std::vector<uint32_t>& input_frame() const { return frame_; }
   int input_channels() const { return channels_; }
+  // Replaces the captured input with another frame of the same size and
+  // channels (a synthetic test frame).
+  void SetInput(const std::vector<uint32_t>& frame);
 
  private:
+  void Pad();  // fills padded_ from frame_
+
   const Stage& stage_;
   const FrameInput* input_;
   int width_, height_, channels_, margin_;
