@@ -216,14 +216,15 @@ void BM_Distortion(benchmark::State& state) {
   c.order[1] = StageId::kExposure;
   c.order[2] = StageId::kCfa;
   c.order_count = site_only ? 3 : 1;
-  static constexpr const char* kNames[3] = {"bilinear", "bicubic", "lanczos3"};
+  static constexpr const char* kNames[4] = {"bilinear", "bicubic", "lanczos3", "lanczos4"};
   RunPipeline(state, c, 1);
   state.SetLabel(std::string(kNames[state.range(2)]) + (site_only ? " site-only (+exposure)" : " RGB") +
                  (state.range(3) == 2 ? ", no ringing clamp, 256 phases, grid step 4" : ""));
 }
 BENCHMARK(BM_Distortion)
-    ->ArgsProduct({{1920}, {1080}, {0, 1, 2}, {0, 1}})
+    ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3}, {0, 1}})
     ->Args({1920, 1080, 2, 2})
+    ->Args({1920, 1080, 3, 2})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
@@ -504,16 +505,19 @@ void BM_OpenCvRemap(benchmark::State& state) {
         }
     }
     cv::remap(band_src, band_dst, map1, map2, cv::INTER_LANCZOS4, cv::BORDER_CONSTANT);
-    DistortionConfig d;
-    d.lens = m;
-    d.filter = ResampleFilter::kLanczos3;
-    DistortionConfig accurate = d;
-    SetMostAccurate(&accurate);  // BM_Distortion mode 2
-    // camsim by default (with its ringing clamp, which cuts a peak between
-    // samples) and in its most accurate setting.
-    const std::vector<uint32_t> ours = DistortionOutput(d, band.View(), w, h);
-    const std::vector<uint32_t> ours_accurate = DistortionOutput(accurate, band.View(), w, h);
-    ErrorStats cv_error, our_error, accurate_error;
+    // camsim's Lanczos-3 and Lanczos-4, each by default (with its ringing
+    // clamp, which cuts a peak between samples) and in its most accurate
+    // setting (BM_Distortion mode 2).
+    ErrorStats cv_error, ours[2][2];  // [Lanczos-3, -4][default, most accurate]
+    std::vector<uint32_t> out[2][2];
+    for (int f = 0; f < 2; ++f)
+      for (int a = 0; a < 2; ++a) {
+        DistortionConfig d;
+        d.lens = m;
+        d.filter = f == 0 ? ResampleFilter::kLanczos3 : ResampleFilter::kLanczos4;
+        if (a == 1) SetMostAccurate(&d);
+        out[f][a] = DistortionOutput(d, band.View(), w, h);
+      }
     for (int y = 0; y < h; y += 5)
       for (int x = 0; x < w; x += 5)
         for (int ch = 0; ch < 3; ++ch) {
@@ -522,15 +526,17 @@ void BM_OpenCvRemap(benchmark::State& state) {
           const double exact = BandLimitedRadiance(sx, sy, ch) * 65536.0;
           const size_t i = (static_cast<size_t>(y) * w + x) * 3 + ch;
           cv_error.Add(band_dst.at<cv::Vec3f>(y, x)[ch] * 65536.0, exact);
-          our_error.Add(ours[i], exact);
-          accurate_error.Add(ours_accurate[i], exact);
+          for (int f = 0; f < 2; ++f)
+            for (int a = 0; a < 2; ++a) ours[f][a].Add(out[f][a][i], exact);
         }
     state.counters["cv_rms_lsb"] = cv_error.rms();
     state.counters["cv_max_lsb"] = cv_error.max;
-    state.counters["camsim_rms_lsb"] = our_error.rms();
-    state.counters["camsim_max_lsb"] = our_error.max;
-    state.counters["accurate_rms_lsb"] = accurate_error.rms();
-    state.counters["accurate_max_lsb"] = accurate_error.max;
+    static constexpr const char* kCounter[2][2] = {{"camsim", "accurate"}, {"l4", "l4_accurate"}};
+    for (int f = 0; f < 2; ++f)
+      for (int a = 0; a < 2; ++a) {
+        state.counters[std::string(kCounter[f][a]) + "_rms_lsb"] = ours[f][a].rms();
+        state.counters[std::string(kCounter[f][a]) + "_max_lsb"] = ours[f][a].max;
+      }
   }
   state.SetLabel(std::string(interp == cv::INTER_LINEAR ? "INTER_LINEAR" : "INTER_LANCZOS4") +
                  (state.range(1) ? " CV_16SC2 maps" : " CV_32FC1 maps"));
@@ -558,6 +564,14 @@ const bool kRemapPairs = [] {
                       "error: BM_OpenCvRemap/4/0 counters accurate_* vs cv_* (Q16.16 LSB)");
   bench::AddPeerPair("BM_Distortion/1920/1080/2/1", "BM_OpenCvRemap/4/0",
                      "remap Lanczos-3 site-only (+exposure) vs LANCZOS4");
+  // The same filter as OpenCV's (distortion.filter = "lanczos4").
+  bench::AddPeerPair("BM_Distortion/1920/1080/3/0", "BM_OpenCvRemap/4/0", "remap Lanczos-4 vs INTER_LANCZOS4, RGB");
+  bench::SetPeerError("remap Lanczos-4 vs INTER_LANCZOS4, RGB",
+                      "error: BM_OpenCvRemap/4/0 counters l4_* vs cv_* (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/3/2", "BM_OpenCvRemap/4/0",
+                     "remap Lanczos-4 most accurate vs INTER_LANCZOS4, RGB");
+  bench::SetPeerError("remap Lanczos-4 most accurate vs INTER_LANCZOS4, RGB",
+                      "error: BM_OpenCvRemap/4/0 counters l4_accurate_* vs cv_* (Q16.16 LSB)");
   return true;
 }();
 #endif

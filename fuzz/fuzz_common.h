@@ -241,7 +241,7 @@ inline CoreCase DecodeCoreCase(const uint8_t* data, size_t size) {
   c.distortion.lens.model = static_cast<DistortionModel>(r.Byte() % 3);
   c.distortion.lens.fy = c.distortion.lens.fx;
   const uint8_t filter = r.Byte();
-  c.distortion.filter = static_cast<ResampleFilter>(filter % 3);
+  c.distortion.filter = static_cast<ResampleFilter>((filter & 0x7F) % 4);
   c.distortion.ringing_clamp = (filter & 0x80) == 0;  // the filter byte's top bit turns the clamp off
   c.blooming.enabled = r.Byte() & 1;
   c.flare.enabled = r.Byte() & 1;
@@ -342,7 +342,7 @@ inline void DecodeChange(ByteReader& r, PipelineConfig* c) {
     case 4: c->distortion.grid_step = 4 << (b % 6); break;  // 128: refused
     case 5: c->sensor.fixed_pattern_table = b & 1; break;
     case 6: c->sensor.column_fpn_e = b / 8.0; break;
-    case 7: c->distortion.filter = static_cast<ResampleFilter>(b % 3); break;
+    case 7: c->distortion.filter = static_cast<ResampleFilter>(b % 4); break;
     case 8: c->distortion.ringing_clamp = b & 1; break;
   }
 }

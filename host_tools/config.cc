@@ -457,15 +457,15 @@ const std::vector<Field>& Fields() {
     v.push_back(Array("distortion", "chromatic_scale",
                       "lateral chromatic aberration: radial scale of R, G, B about (cx, cy), 0.5 .. 2 (1 = none)", 3, 3,
                       [](RunConfig& c) { return c.core.distortion.chromatic_scale; }));
-    v.push_back(Enum<ResampleFilter>("distortion", "filter", "resampling: bilinear, bicubic (Keys a = -0.5) or lanczos3",
-                                     {"bilinear", "bicubic", "lanczos3"},
+    v.push_back(Enum<ResampleFilter>("distortion", "filter", "resampling: bilinear, bicubic (Keys a = -0.5), lanczos3 or lanczos4 (OpenCV's INTER_LANCZOS4)",
+                                     {"bilinear", "bicubic", "lanczos3", "lanczos4"},
                                      [](RunConfig& c) -> ResampleFilter& { return c.core.distortion.filter; }));
     v.push_back(Integer("distortion", "phases", "sub-pixel filter phases: 16, 32, 64, 128 or 256",
                         [](RunConfig& c) -> int& { return c.core.distortion.phases; }));
     v.push_back(Integer("distortion", "grid_step", "remap table grid spacing, pixels: 4, 8, 16, 32 or 64 (precision knob)",
                         [](RunConfig& c) -> int& { return c.core.distortion.grid_step; }));
     v.push_back(Bool("distortion", "ringing_clamp",
-                     "bicubic, lanczos3: clamp to the 2x2 samples around the source (no halo at hard edges; "
+                     "bicubic, lanczos: clamp to the 2x2 samples around the source (no halo at hard edges; "
                      "false: the filter as it is, for band-limited images)",
                      [](RunConfig& c) -> bool& { return c.core.distortion.ringing_clamp; }));
 

@@ -624,9 +624,9 @@ void BilinearChunkAvx512(const RowIn* rows, int row_count, const BilinearSetUp& 
 struct FilterLanes {
   __m256i x0;     // first tap column - xmin
   __m256i lower;  // all ones where the first tap row is rmin + 1
-  __m256i wp[3];  // horizontal weights by pairs of taps: w 2k in the low word, w 2k+1 in the high
+  __m256i wp[DistortionStage::kLaneTaps / 2];  // horizontal weights by pairs of taps: w 2k in the low word, w 2k+1 in the high
   __m256i start;  // the row sums' start: 2^15 times the sum of the horizontal weights
-  __m256i wy[6];
+  __m256i wy[DistortionStage::kLaneTaps];
   bool ring_clamp;  // else only saturation to [0, 2^32 - 1]
 };
 
@@ -787,7 +787,7 @@ CAMSIM_AVX2_TARGET uint32_t FilterSet8(const RowIn* rows, int row_count, int wid
   in.ring_clamp = set.ring_clamp;
   in.x0 = _mm256_sub_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(x0s)), _mm256_set1_epi32(xmin));
   in.lower = _mm256_cmpgt_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(rws)), _mm256_set1_epi32(rmin));
-  __m256i wx[6];
+  __m256i wx[N];
   LaneWeights<N>(wt, set.phx, wx);
   const __m256i low = _mm256_set1_epi32(0xFFFF);
   in.start = _mm256_setzero_si256();
@@ -831,7 +831,7 @@ constexpr int kMaxRowSpread16 = 5;
 struct FilterLanes16 {
   __m512i x0;                                 // first tap column - xmin
   __mmask16 row_is[kMaxRowSpread16 + 1];      // [d]: lanes whose first tap row is rmin + d
-  __m512i wp[3], start, wy[6];                // as FilterLanes'
+  __m512i wp[DistortionStage::kLaneTaps / 2], start, wy[DistortionStage::kLaneTaps];  // as FilterLanes'
   bool ring_clamp;
 };
 
@@ -984,7 +984,7 @@ CAMSIM_AVX512_TARGET uint32_t FilterSet16(const RowIn* rows, int row_count, int 
   in.ring_clamp = set.ring_clamp;
   in.x0 = _mm512_sub_epi32(x0v, _mm512_set1_epi32(xmin));
   for (int d = 1; d <= spread; ++d) in.row_is[d] = _mm512_cmpeq_epi32_mask(rv, _mm512_set1_epi32(rmin + d));
-  __m512i wx[6];
+  __m512i wx[N];
   LaneWeights16<N>(wtap, tap_stride, set.phx, wx);
   const __m512i low = _mm512_set1_epi32(0xFFFF);
   in.start = _mm512_setzero_si512();
@@ -1019,6 +1019,7 @@ int ResampleTaps(ResampleFilter f) {
     case ResampleFilter::kBilinear: return 2;
     case ResampleFilter::kBicubic: return 4;
     case ResampleFilter::kLanczos3: return 6;
+    case ResampleFilter::kLanczos4: return 8;
   }
   return 2;
 }
@@ -1035,6 +1036,7 @@ double ResampleKernel(ResampleFilter f, double t) {
       return 0.0;
     }
     case ResampleFilter::kLanczos3: return a < 3.0 ? Sinc(a) * Sinc(a / 3.0) : 0.0;
+    case ResampleFilter::kLanczos4: return a < 4.0 ? Sinc(a) * Sinc(a / 4.0) : 0.0;
   }
   return 0.0;
 }
@@ -1052,8 +1054,8 @@ Status DistortionStage::Configure(const DistortionConfig& c, const SensorGeometr
   const LensModel& m = config_.lens;
   if (static_cast<uint8_t>(m.model) > static_cast<uint8_t>(DistortionModel::kFisheye))
     return InvalidArgument("distortion.model", "must be off, brown or fisheye");
-  if (static_cast<uint8_t>(c.filter) > static_cast<uint8_t>(ResampleFilter::kLanczos3))
-    return InvalidArgument("distortion.filter", "must be bilinear, bicubic or lanczos3");
+  if (static_cast<uint8_t>(c.filter) > static_cast<uint8_t>(ResampleFilter::kLanczos4))
+    return InvalidArgument("distortion.filter", "must be bilinear, bicubic, lanczos3 or lanczos4");
   phase_bits_ = Log2Exact(c.phases);
   if (phase_bits_ < 4 || phase_bits_ > 8) return InvalidArgument("distortion.phases", "must be 16, 32, 64, 128 or 256");
   step_bits_ = Log2Exact(c.grid_step);
@@ -1365,7 +1367,7 @@ Status DistortionStage::Build(Arena& tables, const DistortionStage* same) {
   // rounded to Q1.14, the remainder to 2^14 put on the largest tap.
   const int phases = 1 << phase_bits_, before = taps_ / 2 - 1;
   for (int p = 0; p < phases; ++p) {
-    double w[6] = {}, sum = 0.0;
+    double w[kLaneTaps] = {}, sum = 0.0;
     for (int t = 0; t < taps_; ++t) {
       w[t] = ResampleKernel(config_.filter, static_cast<double>(t - before) - static_cast<double>(p) / phases);
       sum += w[t];
@@ -1829,19 +1831,24 @@ void DistortionStage::ProcessRow(const RowArgs& a) const {
       case 8: avx2_ ? ProcessRowLanes<4, false>(a) : ProcessRowFast<4, false>(a); return;
       case 9: avx2_ ? ProcessRowLanes<4, true>(a) : ProcessRowFast<4, true>(a); return;
       case 12: avx2_ ? ProcessRowLanes<6, false>(a) : ProcessRowFast<6, false>(a); return;
-      default: avx2_ ? ProcessRowLanes<6, true>(a) : ProcessRowFast<6, true>(a); return;
+      case 13: avx2_ ? ProcessRowLanes<6, true>(a) : ProcessRowFast<6, true>(a); return;
+      case 16: avx2_ ? ProcessRowLanes<8, false>(a) : ProcessRowFast<8, false>(a); return;
+      default: avx2_ ? ProcessRowLanes<8, true>(a) : ProcessRowFast<8, true>(a); return;
 #else
       case 8: ProcessRowFast<4, false>(a); return;
       case 9: ProcessRowFast<4, true>(a); return;
       case 12: ProcessRowFast<6, false>(a); return;
-      default: ProcessRowFast<6, true>(a); return;
+      case 13: ProcessRowFast<6, true>(a); return;
+      case 16: ProcessRowFast<8, false>(a); return;
+      default: ProcessRowFast<8, true>(a); return;
 #endif
     }
   }
   switch (taps_) {
     case 2: ProcessRowN<2>(a); break;
     case 4: ProcessRowN<4>(a); break;
-    default: ProcessRowN<6>(a); break;
+    case 6: ProcessRowN<6>(a); break;
+    default: ProcessRowN<8>(a); break;
   }
 }
 

@@ -17,7 +17,7 @@
 //
 // Resampling: the source position is rounded to 1/phases of a pixel; a
 // separable filter of N taps (bilinear 2, bicubic 4 = Keys a = -0.5,
-// Lanczos-3 6) with weights per phase in Q1.14 (int16), each phase's weights
+// Lanczos-3 6, Lanczos-4 8 as OpenCV's INTER_LANCZOS4) with weights per phase in Q1.14 (int16), each phase's weights
 // summing to exactly 2^14 (rounding remainder on the largest tap), so a flat
 // field stays exactly flat. Horizontal sums of 64-bit products rounded to
 // integers (ties up), then the vertical sum rounded again; bicubic and
@@ -60,7 +60,7 @@
 
 namespace camsim {
 
-enum class ResampleFilter : uint8_t { kBilinear, kBicubic, kLanczos3 };
+enum class ResampleFilter : uint8_t { kBilinear, kBicubic, kLanczos3, kLanczos4 };
 
 // An arbitrary displacement mesh (paper section 4.1: asymmetric distortion,
 // e.g. measured): node (i, j) sits at output pixel (i * step, j * step) and

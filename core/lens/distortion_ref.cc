@@ -75,7 +75,7 @@ double ReferenceDistortion::FilterAt(const At& at, double sx, double sy) const {
   const int n = ResampleTaps(config_.filter), before = n / 2 - 1;
   const double fx = std::floor(sx), fy = std::floor(sy);
   const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
-  double wx[6], wy[6], sumx = 0.0, sumy = 0.0;
+  double wx[8], wy[8], sumx = 0.0, sumy = 0.0;  // up to Lanczos-4
   for (int t = 0; t < n; ++t) {
     wx[t] = ResampleKernel(config_.filter, (ix - before + t) - sx);
     wy[t] = ResampleKernel(config_.filter, (iy - before + t) - sy);

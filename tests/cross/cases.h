@@ -171,6 +171,14 @@ inline PipelineConfig LensUnclampedConfig(int width, int height) {
   return c;
 }
 
+// The lens with Lanczos-4 resampling (8 taps, OpenCV's INTER_LANCZOS4),
+// CFA site only as in LensConfig: the widest filter's kernel paths.
+inline PipelineConfig LensLanczos4Config(int width, int height) {
+  PipelineConfig c = LensConfig(width, height);
+  c.distortion.filter = ResampleFilter::kLanczos4;
+  return c;
+}
+
 // The radiance of the tests' TexturedScene (tests/support/test_support.cc
 // uses this too) at (x, y) for colour c, Q16.16: smooth gradients, a checkerboard of 8-pixel cells and a
 // bright (saturating) spot. IEEE basic operations only, so it is the same on

@@ -288,6 +288,7 @@ int main(int argc, char** argv) {
       {"structural_blur", cross::StructuralBlurConfig, 1},
       {"lens", cross::LensConfig, 5},
       {"lens_unclamped", cross::LensUnclampedConfig, 5},
+      {"lens_lanczos4", cross::LensLanczos4Config, 5},
       {"artefacts", cross::ArtefactsConfig, 11},
       {"listed_defects", cross::ListedDefectsConfig, 13},
       {"flare_environment", cross::EnvironmentFlareConfig, 17},

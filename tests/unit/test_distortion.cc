@@ -154,7 +154,7 @@ TEST(Distortion, TableErrorAgainstExactInverse) {
 
 TEST(Distortion, FlatFieldStaysExactlyFlat) {
   const int w = 160, h = 120;
-  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
+  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3, ResampleFilter::kLanczos4}) {
     for (const LensModel& m : {TypicalBrown(w, h), FisheyeLens(w, h)}) {
       DistortionConfig d;
       d.lens = m;
@@ -197,7 +197,7 @@ TEST(Distortion, FlatFieldStaysExactlyFlat) {
 TEST(Distortion, ResamplingErrorAgainstReference) {
   const int w = 320, h = 240;
   const test::Scene scene = SmoothScene(w, h);
-  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
+  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3, ResampleFilter::kLanczos4})
   for (bool clamp : {true, false}) {
     DistortionConfig d;
     d.lens = TypicalBrown(w, h);
@@ -591,7 +591,7 @@ TEST(Distortion, ExtremeSamplesNeitherWrapNorRing) {
   s.width = w;
   s.height = h;
   for (int c = 0; c < 3; ++c) s.plane[c].assign(static_cast<size_t>(w) * h, 0xFFFFFFFFu);
-  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
+  for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3, ResampleFilter::kLanczos4})
   for (bool clamp : {true, false}) {  // without the clamp, saturation holds the range
     DistortionConfig d;
     d.lens = TypicalBrown(w, h);
@@ -668,7 +668,7 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
   for (size_t i = 0; i < mesh.size(); ++i) steep[i] = 2.0f * mesh[i];
   int fast_cases = 0;
   for (int lens = 0; lens < 5; ++lens)
-    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3})
+    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3, ResampleFilter::kLanczos4})
       for (int step : {4, 8, 64})
         for (bool site_only : {false, true}) {
           DistortionConfig d;
@@ -724,7 +724,7 @@ TEST(Distortion, FastPathEqualsGeneralPath) {
           EXPECT_EQ(unwritten_first, 0u);
           EXPECT_EQ(unwritten_rest, site_only ? 2 * plane : 0u);
         }
-  EXPECT_EQ(fast_cases, 72);
+  EXPECT_EQ(fast_cases, 96);
 }
 
 }  // namespace

@@ -100,8 +100,8 @@ TEST(Golden, StageOutputsOnBundledScenes) {
     m.p2 = -0.0007;
     lens.distortion.chromatic_scale[0] = 1.003;
     lens.distortion.chromatic_scale[2] = 0.998;
-    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3}) {
-      static constexpr const char* kFilterNames[3] = {"bilinear", "bicubic", "lanczos3"};
+    for (ResampleFilter f : {ResampleFilter::kBilinear, ResampleFilter::kBicubic, ResampleFilter::kLanczos3, ResampleFilter::kLanczos4}) {
+      static constexpr const char* kFilterNames[4] = {"bilinear", "bicubic", "lanczos3", "lanczos4"};
       lens.distortion.filter = f;
       int cut = 0;  // the order up to distortion (the scene-space stages before it are off)
       while (lens.order[cut] != StageId::kDistortion) ++cut;
