@@ -205,11 +205,17 @@ RefImage RunStageReference(const Pipeline& p, int index, const RefImage& in, con
       return out;
     }
     case StageId::kSensor: {
-      RefImage out = Like(in, 1);
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x)
-          out.planes[0][at(x, y)] = ReferenceSensorMeanDn(c.sensor, g, c.exposure.exposure_time_us,
-                                                          CfaColour(g.cfa, x, y), in.planes[0][at(x, y)]);
+      // A mosaic (one plane, each site's colour) or one sensor per colour
+      // (three planes, without a CFA stage before it).
+      RefImage out = Like(in, in.planes.size());
+      const int planes = static_cast<int>(in.planes.size());
+      for (int k = 0; k < planes; ++k)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) {
+            const Colour col = planes == 3 ? static_cast<Colour>(k) : CfaColour(g.cfa, x, y);
+            out.planes[k][at(x, y)] = ReferenceSensorMeanDn(c.sensor, g, c.exposure.exposure_time_us, col,
+                                                            in.planes[k][at(x, y)]);
+          }
       return out;
     }
     case StageId::kBlackLevel: return RefBlackLevel(in, BlackLevelInUse(c.black_level, c.sensor.black_level_dn), g.adc_bits);

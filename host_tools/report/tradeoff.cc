@@ -23,7 +23,8 @@ namespace camsim::host {
 
 const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
-      {"distortion", "distortion.filter", {"bilinear", "bicubic", "lanczos3"}, "resampling kernel (2, 4, 6 taps)"},
+      {"distortion", "distortion.filter", {"bilinear", "bicubic", "lanczos3", "lanczos4"},
+       "resampling kernel (2, 4, 6, 8 taps)"},
       {"distortion", "distortion.grid_step", {"4", "8", "16", "32"}, "remap table spacing, pixels"},
       {"distortion", "distortion.phases", {"16", "64", "256"}, "sub-pixel filter phases"},
       {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
@@ -31,6 +32,8 @@ const std::vector<PrecisionKnob>& PrecisionKnobs() {
       {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},
        "diffusion DoF: rows solved each side per column (truncation of the column solve)"},
       {"dof_gather", "dof.max_radius_px", {"4", "8", "16", "32"}, "gather DoF: disc radius cap"},
+      {"blooming", "blooming.rows", {"1", "4", "16", "64"},
+       "rows a spill is followed each way (truncation of the column's charge flow)"},
   };
   return knobs;
 }
@@ -57,6 +60,16 @@ struct StageResult {
   Error error;
 };
 
+// The end-to-end error per pixel, kept until every setting has run: the
+// pixels left out are the union of every setting's (FillSpread), so that all
+// settings' errors are over the same pixels.
+struct PixelErrors {
+  std::vector<float> sum2, max_abs;  // over the pixel's channels
+  std::vector<uint8_t> skip;         // this setting's pixels to leave out
+  int channels = 0;
+  double peak = 1;
+};
+
 // What one run of a configuration measured.
 struct Measured {
   double frame_ms = 0;
@@ -64,6 +77,7 @@ struct Measured {
   Error end_to_end;
   size_t fill_edge = 0;  // pixels where distortion and its reference disagree on the fill
   std::string output_unit;
+  PixelErrors pixels;
 };
 
 // One row of the results: a knob's value and what its run measured.
@@ -89,27 +103,44 @@ double Peak(Domain d, int adc_bits, const ref::RefImage& want) {
   return peak > 0 ? peak : 1.0;
 }
 
-// `skip` (empty, or one byte per pixel) marks pixels left out of the error.
-Error Compare(const std::vector<uint32_t>& got, Domain d, const ref::RefImage& want, double peak,
-              const std::vector<uint8_t>& skip) {
-  Error e;
+// Per pixel, the squared differences summed over channels and the largest
+// one; `got` interleaves want's planes.
+PixelErrors PerPixel(const std::vector<uint32_t>& got, Domain d, const ref::RefImage& want, double peak) {
+  PixelErrors e;
   const size_t planes = want.planes.size(), n = want.planes.empty() ? 0 : want.planes[0].size();
+  e.channels = static_cast<int>(planes);
+  e.peak = peak;
+  e.sum2.assign(n, 0.0f);
+  e.max_abs.assign(n, 0.0f);
+  for (size_t i = 0; i < n; ++i) {
+    double sum2 = 0, worst = 0;
+    for (size_t c = 0; c < planes; ++c) {
+      const double diff = ref::SampleToReal(d, got[i * planes + c]) - want.planes[c][i];
+      worst = std::max(worst, std::fabs(diff));
+      sum2 += diff * diff;
+    }
+    e.sum2[i] = static_cast<float>(sum2);
+    e.max_abs[i] = static_cast<float>(worst);
+  }
+  return e;
+}
+
+// The error over the pixels `skip` (empty, or one byte per pixel) does not mark.
+Error Summarise(const PixelErrors& p, const std::vector<uint8_t>& skip) {
+  Error e;
   double sum2 = 0;
   size_t counted = 0;
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 0; i < p.sum2.size(); ++i) {
     if (!skip.empty() && skip[i]) {
       ++e.excluded;
       continue;
     }
     ++counted;
-    for (size_t c = 0; c < planes; ++c) {
-      const double diff = ref::SampleToReal(d, got[i * planes + c]) - want.planes[c][i];
-      e.max_abs = std::max(e.max_abs, std::fabs(diff));
-      sum2 += diff * diff;
-    }
+    e.max_abs = std::max(e.max_abs, static_cast<double>(p.max_abs[i]));
+    sum2 += p.sum2[i];
   }
-  e.rms = counted ? std::sqrt(sum2 / static_cast<double>(counted * planes)) : 0.0;
-  e.psnr_db = e.rms > 0 ? 20.0 * std::log10(peak / e.rms) : INFINITY;
+  e.rms = counted ? std::sqrt(sum2 / static_cast<double>(counted * static_cast<size_t>(p.channels))) : 0.0;
+  e.psnr_db = e.rms > 0 ? 20.0 * std::log10(p.peak / e.rms) : INFINITY;
   return e;
 }
 
@@ -125,20 +156,27 @@ ref::RefImage ToRef(const std::vector<uint32_t>& data, Domain d, int channels, i
 
 // The pixels whose error the fill disagreement at stage `at` (FillDisagreement)
 // reaches through the later stages' neighbourhoods (demosaic's 5x5 and so on):
-// `flip` dilated by the sum of their row and column reaches.
+// `flip` dilated by the sum of their row reaches (from each stage's input row
+// window over the frame) and, apart, of their column reaches (Margin).
 std::vector<uint8_t> FillSpread(const Pipeline& p, int at, const std::vector<uint8_t>& flip) {
-  int reach = 0;
+  const int w = p.width(), h = p.height();
+  int rows = 0, cols = 0;
   for (int i = at + 1; i < p.plan().running; ++i) {
     const Stage& s = p.running_stage(i);
-    reach += std::max({s.RowsAbove(), s.RowsBelow(), s.Margin()});
+    int reach = 0;
+    for (int y = 0; y < h; ++y) {
+      const RowWindow win = s.InputRows(y, h);
+      reach = std::max({reach, y - win.first, win.last - y});
+    }
+    rows += reach;
+    cols += s.Margin();
   }
-  const int w = p.width(), h = p.height();
   std::vector<uint8_t> out(flip.size(), 0);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       if (!flip[static_cast<size_t>(y) * w + x]) continue;
-      for (int v = std::max(0, y - reach); v <= std::min(h - 1, y + reach); ++v)
-        for (int u = std::max(0, x - reach); u <= std::min(w - 1, x + reach); ++u) out[static_cast<size_t>(v) * w + u] = 1;
+      for (int v = std::max(0, y - rows); v <= std::min(h - 1, y + rows); ++v)
+        for (int u = std::max(0, x - cols); u <= std::min(w - 1, x + cols); ++u) out[static_cast<size_t>(v) * w + u] = 1;
     }
   return out;
 }
@@ -229,8 +267,9 @@ void TimeFrame(Run* run) {
   }
 }
 
-// One untimed run with every stage tapped, against the references.
-void Errors(const Run& run, Measured* out) {
+// One untimed run with every stage tapped, against the references. False
+// when a reference does not model the stage's output (its plane count).
+bool Errors(const Run& run, Measured* out, std::string* error) {
   Pipeline& p = *run.p;
   const Pipeline& ref_p = *run.ref_p;
   const FrameInput& view = run.view;
@@ -264,18 +303,30 @@ void Errors(const Run& run, Measured* out) {
     r.name = p.running_stage(i).name();
     r.unit = UnitName(f.domain);
     r.ms = run.best_stats.stage[i].ticks / 1e6;
+    if (want.planes.size() != static_cast<size_t>(f.channels)) {
+      *error = std::string("the ") + r.name + " stage's reference has " + std::to_string(want.planes.size()) +
+               " planes for its " + std::to_string(f.channels) + " channels";
+      return false;
+    }
     const std::vector<uint8_t> flip = ref::FillDisagreement(p, i);
     if (!flip.empty()) {
       out->fill_edge = static_cast<size_t>(std::count(flip.begin(), flip.end(), 1));
       chain_skip = FillSpread(p, i, flip);
     }
-    r.error = Compare(taps[i], f.domain, want, Peak(f.domain, bits, want), flip);
+    r.error = Summarise(PerPixel(taps[i], f.domain, want, Peak(f.domain, bits, want)), flip);
     out->stages.push_back(r);
     chain = ref::RunStageReference(ref_p, i, chain, view);
   }
   const LineFormat last = p.running_format(n - 1);
-  out->end_to_end = Compare(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain), chain_skip);
+  if (chain.planes.size() != static_cast<size_t>(last.channels)) {
+    *error = "the reference chain ends with " + std::to_string(chain.planes.size()) + " planes for " +
+             std::to_string(last.channels) + " channels";
+    return false;
+  }
+  out->pixels = PerPixel(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain));
+  out->pixels.skip = std::move(chain_skip);
   out->output_unit = UnitName(last.domain);
+  return true;
 }
 
 std::string Fmt(double v, const char* f = "%.4g") {
@@ -387,7 +438,23 @@ int TradeoffCommand(const TradeoffOptions& o) {
   for (int f = 0; f < o.frames; ++f)
     for (size_t i = 0; i < runs.size(); ++i) TimeFrame(runs[(i + static_cast<size_t>(f)) % runs.size()].get());
   std::vector<Measured> measured(runs.size());
-  for (size_t r = 0; r < runs.size(); ++r) Errors(*runs[r], &measured[r]);
+  for (size_t r = 0; r < runs.size(); ++r)
+    if (!Errors(*runs[r], &measured[r], &error)) {
+      std::fprintf(stderr, "camsim: tradeoff: %s\n", error.c_str());
+      return 2;
+    }
+  // The end-to-end errors over the same pixels for every setting: all
+  // settings' left-out pixels together.
+  std::vector<uint8_t> left_out;
+  for (const Measured& m : measured)
+    if (!m.pixels.skip.empty()) {
+      if (left_out.empty()) left_out.assign(m.pixels.skip.size(), 0);
+      for (size_t i = 0; i < left_out.size(); ++i) left_out[i] |= m.pixels.skip[i];
+    }
+  for (Measured& m : measured) {
+    m.end_to_end = Summarise(m.pixels, left_out);
+    m.pixels = PixelErrors();
+  }
   for (size_t i = 0; i < settings.size(); ++i) {
     static_cast<Measured&>(settings[i]) = measured[run_of[i]];
     if (i > 0)
@@ -407,15 +474,15 @@ int TradeoffCommand(const TradeoffOptions& o) {
   }
 
   std::ostringstream csv, md;
-  csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px\n";
+  csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px,frontier\n";
   for (const Setting& s : settings) {
     csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << ",end_to_end," << Fmt(s.frame_ms) << ","
         << Fmt(s.end_to_end.max_abs) << "," << Fmt(s.end_to_end.rms) << "," << Fmt(s.end_to_end.psnr_db) << ","
-        << s.output_unit << "," << s.end_to_end.excluded << "\n";
+        << s.output_unit << "," << s.end_to_end.excluded << "," << (s.frontier ? 1 : 0) << "\n";
     for (const StageResult& r : s.stages)
       csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << "," << r.name << "," << Fmt(r.ms) << ","
           << Fmt(r.error.max_abs) << "," << Fmt(r.error.rms) << "," << Fmt(r.error.psnr_db) << "," << r.unit << ","
-          << r.error.excluded << "\n";
+          << r.error.excluded << ",\n";
   }
   md << "# Error against run time\n\n";
   md << "Generated by `camsim tradeoff` on `" << o.input << "` (" << scene.width << "x" << scene.height
@@ -429,7 +496,11 @@ int TradeoffCommand(const TradeoffOptions& o) {
         "stage and its exact reference can put it on different sides, one reading the scene and the other the "
         "black fill (docs/lens-distortion.md). That difference is a whole pixel value, not precision, so those "
         "pixels (column \"fill edge\") are counted apart and left out of the distortion stage's error; the end "
-        "to end error also leaves out what the later stages spread them to (column \"left out\").\n\n";
+        "to end error also leaves out what the later stages spread them to (column \"left out\"), the same "
+        "pixels for every setting: all settings' together.\n\n"
+        "Frontier: the settings no other setting beats on both time per frame and end-to-end RMS error.\n\n"
+        "No stage's fixed-point fractional bits are configurable (each stage's header states its formats as "
+        "constants), so none is swept.\n\n";
   md << "Knobs swept" << (swept.empty() ? std::string(": none (no stage with a knob runs)") : ":") << "\n\n";
   for (const std::string& k : swept) md << "- `" << k << "`\n";
   md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | unit | fill edge | left out | "
@@ -460,7 +531,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
   PlotSpec spec;
   spec.title = "Error against time per frame";
   spec.x_label = "ms per frame (1 thread)";
-  spec.y_label = "RMS error, " + base.output_unit;
+  spec.y_label = "RMS error, " + settings[0].output_unit;
   spec.log_y = true;
   // The three files belong together: each is written as NAME.new, and only
   // when all are written (and no directory takes a final name, which rename

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -180,24 +181,55 @@ TEST(PipelineReference, FillDisagreementOnlyWhereTheSourceIsNearTheEdge) {
   EXPECT_LE(marked[0], marked[1]);
 }
 
+// A sensor without a CFA stage before it is one sensor per colour: its
+// reference models three planes, each with its colour's QE.
+TEST(PipelineReference, ASensorWithoutACfaIsModelledPerColour) {
+  constexpr int kW = 23, kH = 17;
+  PipelineConfig c = test::DemoConfig(kW, kH);
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kSensor;
+  c.order_count = 2;
+  const Tapped t = RunTapped(c, kW, kH);
+  const Pipeline& p = t.built->pipeline;
+  ASSERT_EQ(p.plan().running, 2);
+  const LineFormat f = p.running_format(1);
+  ASSERT_EQ(f.channels, 3);
+  const ref::RefImage want =
+      ref::RunStageReference(p, 1, AsRef(t.out[0], p.running_format(0), kW, kH), t.scene.View());
+  ASSERT_EQ(want.planes.size(), 3u);
+  const ref::RefImage got = AsRef(t.out[1], f, kW, kH);
+  double worst = 0;
+  for (size_t k = 0; k < 3; ++k)
+    for (size_t j = 0; j < want.planes[k].size(); ++j)
+      worst = std::fmax(worst, std::fabs(got.planes[k][j] - want.planes[k][j]));
+  EXPECT_LE(worst, 0.53);  // as EveryStageWithinItsStatedRounding's sensor
+}
+
 TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
   const std::string dir = testing::TempDir() + "camsim_tradeoff_" + std::to_string(getpid());
+  // A barrel lens: its grid steps flip different edge pixels to the fill.
   const std::string cmd = std::string(CAMSIM_BINARY) + " tradeoff --config " CAMSIM_SOURCE_DIR
                           "/configs/camera.toml --input " CAMSIM_SOURCE_DIR "/scenes/aisle_0001.exr --set sensor.width=160"
-                          " --set sensor.height=120 --frames 1 --out '" + dir + "' 2>/dev/null";
+                          " --set sensor.height=120 --set distortion.model=brown --set distortion.k1=-0.1"
+                          " --frames 1 --out '" + dir + "' 2>/dev/null";
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
   std::ifstream csv(dir + "/tradeoff.csv");
   std::string line;
   std::getline(csv, line);
-  EXPECT_EQ(line, "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px");
-  int end_to_end = 0, demosaic_rows = 0;
+  EXPECT_EQ(line, "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px,frontier");
+  int end_to_end = 0, demosaic_rows = 0, frontier = 0;
+  std::set<std::string> left_out;
   while (std::getline(csv, line)) {
     std::stringstream s(line);
-    std::string f[9];
+    std::string f[11];
     for (std::string& x : f) std::getline(s, x, ',');
-    if (f[3] == "end_to_end") ++end_to_end;
-    if (f[3] == "demosaic") {
+    if (f[3] == "end_to_end") {
+      ++end_to_end;
+      left_out.insert(f[9]);
+      frontier += f[10] == "1";
+    }
+    if (f[3] == "demosaic" && f[0] == "demosaic.method") {
       ++demosaic_rows;
       // Against the configured (Malvar) reference: Malvar rounds once;
       // bilinear shows what the cheaper model costs, not its own rounding.
@@ -206,8 +238,12 @@ TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
       EXPECT_GT(std::stod(f[4]), 0.0) << line;  // it was timed
     }
   }
-  EXPECT_EQ(end_to_end, 2);  // demosaic.method = bilinear, malvar
+  EXPECT_EQ(end_to_end, 4 + 4 + 3 + 2);  // filter, grid step, phases, demosaic.method
   EXPECT_EQ(demosaic_rows, 2);
+  EXPECT_GE(frontier, 1);
+  // Every setting's end-to-end error leaves out the same pixels.
+  ASSERT_EQ(left_out.size(), 1u);
+  EXPECT_NE(*left_out.begin(), "0");
   std::ifstream png(dir + "/tradeoff.png", std::ios::binary);
   char sig[8] = {};
   png.read(sig, 8);
