@@ -35,6 +35,7 @@ const char kUsage[] =
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "      --depth: a separate depth file, for a single input frame\n"
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
+    "      --stages: run only these stages, in the configured order ([pipeline] stages)\n"
     "      --measure-savings: time each frame N (1..1000) more times with the stages' skipping on and off\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
@@ -78,10 +79,21 @@ bool ReadOptionPairs(int argc, char** argv, Take take) {
   return true;
 }
 
+// A bad command line does not stop the parse: the rest may hold --report,
+// where RunCommand then writes the error (so an older report cannot pass for
+// this run's). The first error counts.
 int Run(int argc, char** argv) {
   camsim::host::RunOptions o;
+  bool usage = false;
+  const auto bad = [&o](const std::string& message) {
+    if (o.option_error.empty()) o.option_error = message;
+  };
   for (int i = 2; i < argc; ++i) {
     const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
     auto value = [&](const char* what) -> const char* {
       if (i + 1 >= argc) {
         std::fprintf(stderr, "camsim: %s needs %s\n", a.c_str(), what);
@@ -101,37 +113,42 @@ int Run(int argc, char** argv) {
     else if (a == "--calibration") {
       // distortion.calibration as a TOML literal string.
       const std::string path = value("an OpenCV or ROS calibration YAML file");
-      if (path.find_first_of("'\n") != std::string::npos) {
-        std::fprintf(stderr, "camsim: --calibration: the path must not contain ' or a newline\n");
-        return 1;
-      }
-      o.calibration_path = path;
+      if (path.find_first_of("'\n") != std::string::npos)
+        bad("--calibration: the path must not contain ' or a newline");
+      else
+        o.calibration_path = path;
     }
-    else if (a == "--stages") o.stages = value("a list");
+    else if (a == "--stages") {
+      o.stages = value("a list");
+      o.stages_given = true;
+    }
     else if (a == "--report") o.report_path = value("a file");
     else if (a == "--dump-stages") o.dump_stages = true;
     else if (a == "--quiet") o.quiet = true;
     else if (a == "--threads" || a == "--strip-rows" || a == "--first-frame" || a == "--measure-savings") {
       const char* v = value("a number");
+      const long lo = a == "--first-frame" ? 0 : 1;
       const long hi = a == "--threads" ? 64 : (a == "--measure-savings" ? 1000 : 2147483647L);
-      if (!ParseInt(v, a == "--first-frame" ? 0 : 1, hi, &n)) {
-        std::fprintf(stderr, "camsim: %s: '%s' is not a valid number\n", a.c_str(), v);
-        return 1;
+      if (!ParseInt(v, lo, hi, &n)) {
+        bad(a + ": '" + v + "' is not a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+        continue;
       }
       if (a == "--threads") o.threads = static_cast<int>(n);
       else if (a == "--strip-rows") o.strip_rows = static_cast<int>(n);
       else if (a == "--measure-savings") o.savings_rounds = static_cast<int>(n);
       else o.first_frame = static_cast<uint32_t>(n);
     } else {
-      std::fprintf(stderr, "camsim: unknown option '%s'\n%s", a.c_str(), kUsage);
-      return 1;
+      bad("unknown option '" + a + "'");
+      usage = true;
     }
   }
   if (o.inputs.empty()) {
-    std::fprintf(stderr, "camsim: --input is required\n%s", kUsage);
-    return 1;
+    bad("--input is required");
+    usage = true;
   }
-  return camsim::host::RunCommand(o);
+  const int code = camsim::host::RunCommand(o);
+  if (usage) std::fputs(kUsage, stderr);
+  return code;
 }
 
 int Config(int argc, char** argv) {

@@ -948,8 +948,8 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
     return it != origins.end() ? it->second : std::string();
   };
   std::string where;
-  if (field.empty()) {
-    // A message of its own.
+  if (field.empty() || field.rfind("input.", 0) == 0) {
+    // A message of its own, or about the input (no key sets it).
   } else if (!origin(field).empty()) {
     where = origin(field) + ": ";
   } else if (field.find('.') == std::string::npos) {

@@ -8,7 +8,7 @@
 namespace camsim::host {
 
 int StripRows(int requested, int height, int threads) {
-  if (requested > 0) return requested;
+  if (requested > 0) return requested < height ? requested : (height > 1 ? height : 1);
   const int strips = threads < 1 ? 1 : threads;
   const int rows = (height + strips - 1) / strips;
   return rows < 1 ? 1 : rows;
@@ -53,6 +53,7 @@ bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std
   }
   pipeline_ = std::move(p);
   workspace_ = std::move(workspace);
+  origins_ = origins;
   // The scene stays when its size and fit still hold; the pre-passes follow
   // the new settings (smear depends on the exposure time, flare on its threshold).
   has_scene_ = has_scene_ && rc.fit == fit_ && input_.width == pipeline_->width() &&
@@ -76,7 +77,7 @@ bool FrameRenderer::SetScene(const io::SceneFrame& scene, std::string* error) {
   RunPrepasses();
   const Status cs = pipeline_->CheckInput(View());
   if (!cs.ok()) {
-    *error = scene.source + ": " + cs.message();
+    *error = scene.source + ": " + DescribeStatus(cs, origins_);  // names the key and where it was set
     return false;
   }
   return true;
@@ -87,11 +88,13 @@ void FrameRenderer::Render(uint32_t frame, const Tap* taps, int tap_count, std::
   const FrameInput view = View();
   const int h = pipeline_->height();
   const int rows = strip_rows();
+  const int strips = (h + rows - 1) / rows;  // rows <= h (StripRows): no overflow
   std::atomic<int> next_strip{0};
   pool_.Run([&](int worker) {
     for (;;) {
-      const int y0 = next_strip.fetch_add(1) * rows;
-      if (y0 >= h) break;
+      const int strip = next_strip.fetch_add(1);
+      if (strip >= strips) break;
+      const int y0 = strip * rows;
       pipeline_->ProcessStrip(view, frame, y0, y0 + rows, worker, taps, tap_count,
                               stats ? &(*stats)[static_cast<size_t>(worker)] : nullptr, &clock_);
     }

@@ -26,6 +26,7 @@ namespace camsim::host {
 // BM_PipelineDof/1920/1080/2 one strip per thread won (56-63 ms against
 // 66-70 ms for four; docs/performance.md). The bytes are the same for any
 // strip height.
+// A request above the height is one strip.
 int StripRows(int requested, int height, int threads);
 
 // A pipeline configured for a renderer but not yet initialised (no tables
@@ -53,7 +54,8 @@ class FrameRenderer {
   bool Install(PlannedPipeline planned, const Origins& origins, std::string* error);
 
   // Fits a scene to the sensor, runs the pre-passes and checks the frame
-  // against the configuration.
+  // against the configuration (an error names the key that needs what the
+  // frame lacks, and where it was set).
   bool SetScene(const io::SceneFrame& scene, std::string* error);
 
   // Renders frame `frame` of the current scene into the taps; per-worker
@@ -86,6 +88,7 @@ class FrameRenderer {
   std::vector<uint32_t> smear_;             // smear's column sums
   FrameInput view_;                         // input_ with them attached (View)
   SceneFit fit_ = SceneFit::kCrop;
+  Origins origins_;  // of the installed configuration, for SetScene's errors
   hal::ThreadPool pool_;
   Clock clock_;
 };

@@ -417,7 +417,9 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     << StripRows(o.strip_rows, p.height(), threads) << ",\n";
   j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
     << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
-  if (rc.core.flare.enabled && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
+  bool flare_runs = false;
+  for (int i = 0; i < plan.count; ++i) flare_runs = flare_runs || (plan.entries[i].id == StageId::kFlare && plan.entries[i].runs);
+  if (flare_runs && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
     const FlareEnvironmentSummary& e = p.flare_stage().environment_summary();
     const io::InputSanitizeStats& st = rc.environment_data->stats;
     j << "  \"flare_environment\": {\"map\": " << JsonString(rc.environment_map) << ", \"width\": "
@@ -564,40 +566,49 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
     }
   }
   PipelineConfig& p = rc->core;
+  for (const std::string& n : names) {
+    bool configured = false;
+    for (int i = 0; i < p.order_count; ++i) configured = configured || n == StageName(p.order[i]);
+    if (!configured) {
+      *error = "--stages: stage '" + n + "' is not in [pipeline] stages, so it cannot run";
+      return false;
+    }
+  }
   StageId kept[kStageCount];
   int count = 0;
   for (int i = 0; i < p.order_count; ++i)
     for (const std::string& n : names)
       if (n == StageName(p.order[i])) kept[count++] = p.order[i];
-  if (count != static_cast<int>(names.size())) {
-    *error = "--stages: every named stage must be in [pipeline] stages, once";
-    return false;
-  }
   for (int i = 0; i < count; ++i) p.order[i] = kept[i];
   p.order_count = count;
   return true;
 }
 
-// A failure before the run knows its inputs (so before --report is claimed):
-// the error goes to the report only where that cannot lose a file, i.e. when
-// nothing is at that path, or an earlier camsim report is (which would
-// otherwise pass for this run's). Anything else there is left alone.
-int FailBeforeClaim(const RunOptions& o, const std::string& message) {
-  std::fprintf(stderr, "camsim: %s\n", message.c_str());
-  if (o.report_path.empty()) return 1;
+// Whether a failed run may write its report at `path`: only where that
+// cannot lose a file, i.e. when nothing is there, or an earlier camsim report
+// is (which would otherwise pass for this run's). Anything else there (a
+// frame of an earlier run, say) is left alone, with a note on stderr.
+bool ReportReplaceable(const std::string& path) {
   std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::symlink_status(o.report_path, ec);
+  const std::filesystem::file_status st = std::filesystem::symlink_status(path, ec);
   bool ours = !std::filesystem::exists(st);
   if (std::filesystem::is_regular_file(st)) {
     const std::string head = std::string("{\n  \"camsim_version\": \"");
-    std::ifstream in(o.report_path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary);
     std::string start(head.size(), '\0');
     ours = in.read(start.data(), static_cast<std::streamsize>(start.size())) && start == head;
   }
+  if (!ours) std::fprintf(stderr, "camsim: --report '%s' is not a camsim report: left as it is\n", path.c_str());
+  return ours;
+}
+
+// A failure before the run knows its inputs (so before --report is claimed):
+// the error goes to the report where ReportReplaceable allows.
+int FailBeforeClaim(const RunOptions& o, const std::string& message) {
+  std::fprintf(stderr, "camsim: %s\n", message.c_str());
+  if (o.report_path.empty() || !ReportReplaceable(o.report_path)) return 1;
   std::string werr;
-  if (!ours)
-    std::fprintf(stderr, "camsim: --report '%s' is not a camsim report: left as it is\n", o.report_path.c_str());
-  else if (!io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
+  if (!io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
     std::fprintf(stderr, "camsim: %s\n", werr.c_str());
   return 1;
 }
@@ -608,6 +619,7 @@ int RunCommand(const RunOptions& o) {
   RunConfig rc;
   Origins origins;
   std::string error;
+  if (!o.option_error.empty()) return FailBeforeClaim(o, o.option_error);
   if (!o.preset.empty() && !ApplyPreset(o.preset, &rc, &origins, &error)) return FailBeforeClaim(o, error);
   if (!o.config_path.empty() && !LoadConfigFile(o.config_path, &rc, &origins, &error))
     return FailBeforeClaim(o, error);
@@ -618,8 +630,8 @@ int RunCommand(const RunOptions& o) {
       return FailBeforeClaim(o, error);
     origins["distortion.calibration"] = "--calibration '" + o.calibration_path + "'";
   }
-  if (!o.stages.empty() && !SplitStages(o.stages, &rc, &error)) return FailBeforeClaim(o, error);
-  if (!o.stages.empty()) origins["pipeline.stages"] = "--stages";
+  if (o.stages_given && !SplitStages(o.stages, &rc, &error)) return FailBeforeClaim(o, error);
+  if (o.stages_given) origins["pipeline.stages"] = "--stages";
   if (o.threads < 1 || o.threads > 64 || o.strip_rows < 0)
     return FailBeforeClaim(o, "--threads must be 1..64 and --strip-rows >= 1");
   // Every file the run reads (scenes, depth, the configuration and the files
@@ -698,7 +710,7 @@ int RunCommand(const RunOptions& o) {
     const bool reconfigures = f == 0 || (ae_on && ae_changed);  // the renderer's configuration changes
     io::SceneFrame scene;
     if (!io::LoadSceneExr(files[f], o.depth_path, &scene, &error)) {
-      error = "frame " + std::to_string(f) + ": " + error;
+      error = "frame " + std::to_string(o.first_frame + f) + ": " + error;
       exit_code = 1;
       break;
     }
@@ -797,7 +809,9 @@ int RunCommand(const RunOptions& o) {
 
     // Before the first frame writes anything, every frame's files under this
     // plan; later frames again, in case auto exposure changed the plan.
-    const auto frame_name = [&](size_t g) { return "frame " + std::to_string(g) + " (" + files[g] + ")"; };
+    const auto frame_name = [&](size_t g) {
+      return "frame " + std::to_string(o.first_frame + g) + " (" + files[g] + ")";
+    };
     bool claims_ok = true;
     const size_t claim_end = f == 0 ? files.size() : f + 1;
     for (size_t g = f; g < claim_end && claims_ok; ++g)
@@ -876,8 +890,8 @@ int RunCommand(const RunOptions& o) {
       rec.ae_settings = before;
       rec.has_ae = true;
       if (!o.quiet)
-        std::fprintf(stderr, "auto exposure: frame %u at %.1f us, %.2f dB, f/%.2f: brightness %.4f (%+.2f EV) -> %.1f us, %.2f dB, f/%.2f\n",
-                     frame_index, before.exposure_time_us, before.gain_db, before.f_number, y, -ae.last_error_ev(),
+        std::fprintf(stderr, "auto exposure: frame %u at %.1f us, %.2f dB, f/%.2f: brightness %.4f (error_ev %+.2f) -> %.1f us, %.2f dB, f/%.2f\n",
+                     frame_index, before.exposure_time_us, before.gain_db, before.f_number, y, ae.last_error_ev(),
                      next.exposure_time_us, next.gain_db, next.f_number);
       ApplyExposure(next, &rc);
     }
@@ -968,7 +982,9 @@ int RunCommand(const RunOptions& o) {
                    total / acc.frames.size(), o.threads, o.out_dir.c_str());
     }
   }
-  if (!o.report_path.empty()) {
+  // A failed run writes its report only where ReportReplaceable allows: a
+  // clash of --report with a frame's output must not replace that frame.
+  if (!o.report_path.empty() && (exit_code == 0 || ReportReplaceable(o.report_path))) {
     // A run that failed before it had a pipeline still writes its error.
     const std::string report = renderer.pipeline().plan().count > 0
                                    ? ReportJson(o, rc, renderer.pipeline(), o.threads, acc, error)

@@ -17,6 +17,7 @@ struct RunOptions {
   std::vector<std::string> overrides;  // --set section.key=value
   std::string calibration_path;        // --calibration YAML: distortion.calibration, named as such in errors
   std::string stages;                  // --stages a,b,c (comma-separated)
+  bool stages_given = false;           // --stages was given (an empty list is an error, not "all")
   std::string report_path;             // --report FILE (JSON)
   int threads = 1;
   int strip_rows = 0;                  // 0: StripRows' default (one strip per thread)
@@ -24,6 +25,7 @@ struct RunOptions {
   int savings_rounds = 0;              // --measure-savings N: each frame N more times with skipping on and off
   bool dump_stages = false;
   bool quiet = false;
+  std::string option_error;            // a bad command line: RunCommand reports it (to --report too)
 };
 
 // Returns the process exit code (0 ok, 1 input/config error, 2 output error).

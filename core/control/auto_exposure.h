@@ -109,6 +109,8 @@ class AutoExposure {
 
   const ExposureSettings& settings() const { return settings_; }
   double ev() const { return ev_; }
+  // log2(target / brightness) of the last frame (+: too dark); for a black
+  // or saturated frame, +max_step_ev or -max_step_ev (its sign is known, its size not).
   double last_error_ev() const { return last_error_; }
   bool active() const { return active_; }  // moving (outside the deadband)
   bool done() const { return done_; }      // Once: settled or pinned (ExposureAuto returns to Off)

@@ -453,19 +453,29 @@ Status Pipeline::Init(Span<uint8_t> workspace, const Pipeline* previous) {
   return Status::Ok();
 }
 
-int Pipeline::PrepassFlareSources() const { return config_.flare.enabled ? FlareMaxSources(config_.geometry) : 0; }
+bool Pipeline::Runs(StageId id) const {
+  for (int i = 0; i < plan_.count; ++i)
+    if (plan_.entries[i].id == id) return plan_.entries[i].runs;
+  return false;
+}
 
-int Pipeline::PrepassSmearEntries() const { return SmearEnabled(config_) ? SmearEntries(config_) : 0; }
+// The pre-passes serve their stage only: none for a stage left out.
+bool Pipeline::FlarePrepass() const { return config_.flare.enabled && Runs(StageId::kFlare); }
+bool Pipeline::SmearPrepass() const { return SmearEnabled(config_) && Runs(StageId::kSensor); }
+
+int Pipeline::PrepassFlareSources() const { return FlarePrepass() ? FlareMaxSources(config_.geometry) : 0; }
+
+int Pipeline::PrepassSmearEntries() const { return SmearPrepass() ? SmearEntries(config_) : 0; }
 
 FrameInput Pipeline::RunPrepasses(const FrameInput& input, Span<FlareSource> flare_sources, FlareFrame* flare,
                                   Span<uint32_t> smear) const {
   FrameInput out = input;
-  if (config_.flare.enabled) {
+  if (FlarePrepass()) {
     CAMSIM_DCHECK(flare_sources.size >= static_cast<size_t>(PrepassFlareSources()) && flare != nullptr);
     ComputeFlare(config_.flare, config_.geometry, input, flare_sources, flare);
     out.flare = flare;
   }
-  if (SmearEnabled(config_)) {
+  if (SmearPrepass()) {
     CAMSIM_DCHECK(smear.size >= static_cast<size_t>(PrepassSmearEntries()));
     ComputeSmear(config_, input, smear);
     out.smear_e = smear.data;
@@ -509,9 +519,9 @@ Status Pipeline::CheckInput(const FrameInput& input) const {
       if (m.data == nullptr || m.width != w || m.height != h || m.channels != 1 || m.stride < w)
         return InvalidArgument("motion.source", "'vectors' needs sensor-sized motion vector planes (x and y)");
     }
-  if (config_.flare.enabled && input.flare == nullptr)
+  if (FlarePrepass() && input.flare == nullptr)
     return InvalidArgument("flare.enabled", "flare needs FrameInput::flare (ComputeFlare)");
-  if (config_.sensor.smear_row_transfer_us > 0 && input.smear_e == nullptr)
+  if (SmearPrepass() && input.smear_e == nullptr)
     return InvalidArgument("sensor.smear_row_transfer_us", "smear needs FrameInput::smear_e (ComputeSmear)");
   return Status::Ok();
 }

@@ -180,9 +180,9 @@ class Pipeline {
   // planes). Call before ProcessStrip: processing itself cannot fail.
   Status CheckInput(const FrameInput& input) const;
 
-  // The per-frame pre-passes CheckInput asks for, each when it is on: the
-  // flare's bright tiles and haze (ComputeFlare) and the smear's column
-  // charges (ComputeSmear). The caller's storage holds PrepassFlareSources()
+  // The per-frame pre-passes CheckInput asks for, each when it is on and its
+  // stage runs: the flare's bright tiles and haze (ComputeFlare) and the
+  // smear's column charges (ComputeSmear, for the sensor). The caller's storage holds PrepassFlareSources()
   // FlareSource and PrepassSmearEntries() uint32 entries (0 when off, then
   // empty spans do). Returns `input` with them attached; the storage and
   // *flare must outlive its use. Call after Init.
@@ -214,6 +214,9 @@ class Pipeline {
   const FlareStage& flare_stage() const { return flare_; }
 
  private:
+  bool Runs(StageId id) const;  // in the plan and running
+  bool FlarePrepass() const;
+  bool SmearPrepass() const;
   struct StripState;
   Status SizeRing(int stage, int* slots, int* widest) const;
   uint32_t* RingRow(const StripState& s, int ring, int row, int channel) const;

@@ -708,6 +708,65 @@ TEST(Cli, AFailedRunReplacesAnOlderReportWithItsError) {
   EXPECT_EQ(o.err.find('\x1b'), std::string::npos) << "an escape sequence reached the terminal";
 }
 
+// A strip taller than the frame is the whole frame: before, the strip
+// index times the height overflowed int and workers rendered the frame again
+// from row 0, concurrently (a data race, and stage statistics counted twice).
+TEST(Cli, AStripTallerThanTheFrameIsOneStrip) {
+  EXPECT_EQ(camsim::host::StripRows(2147483647, 480, 4), 480);
+  EXPECT_EQ(camsim::host::StripRows(5, 480, 4), 5);
+  const std::string a = TempDir("tall_a"), b = TempDir("tall_b");
+  ASSERT_EQ(Camsim("run --input " + kScene + " --out " + a + " --quiet --threads 2 --report " + a + "/r.json").code, 0);
+  ASSERT_EQ(Camsim("run --input " + kScene + " --out " + b + " --quiet --threads 4 --strip-rows 2147483647 --report " +
+                   b + "/r.json")
+                .code,
+            0);
+  EXPECT_EQ(Slurp(a + "/aisle_0001.png"), Slurp(b + "/aisle_0001.png"));
+  EXPECT_NE(Slurp(b + "/r.json").find("\"strip_rows\": 480,"), std::string::npos) << Slurp(b + "/r.json");
+}
+
+// Review findings on the run's errors: a refused run leaves a file its
+// --report clashes with alone; a bad option, and an empty --stages, fail
+// through the report like a bad --set; a scene without what a key needs
+// names the key and where it was set.
+TEST(Cli, RefusedRunsKeepFilesAndReportTheirErrors) {
+  const std::string dir = TempDir("refused");
+  ASSERT_EQ(Camsim("run --input " + kScene + " --out " + dir + " --quiet").code, 0);
+  const std::string png = Slurp(dir + "/aisle_0001.png");
+  ASSERT_FALSE(png.empty());
+  const Result clash = Camsim("run --input " + kScene + " --out " + dir + " --quiet --report " + dir + "/aisle_0001.png");
+  EXPECT_EQ(clash.code, 1);
+  EXPECT_NE(clash.err.find("would both write"), std::string::npos) << clash.err;
+  EXPECT_EQ(Slurp(dir + "/aisle_0001.png"), png);
+
+  const std::string report = dir + "/r.json";
+  for (const char* bad : {"--threads 0", "--strip-rows x", "--bogus", "--stages ''"}) {
+    ASSERT_EQ(Camsim("run --input " + kScene + " --out " + dir + " --quiet --report " + report).code, 0);
+    const Result r = Camsim("run --input " + kScene + " --out " + dir + " --quiet " + bad + " --report " + report);
+    EXPECT_EQ(r.code, 1) << bad;
+    EXPECT_EQ(Slurp(report).find("\"error\": null"), std::string::npos) << bad << ": " << Slurp(report);
+  }
+  EXPECT_NE(Camsim("run --input " + kScene + " --out " + dir + " --threads 65").err.find("[1, 64]"), std::string::npos);
+
+  const std::string board = dir + "/board.exr";
+  ASSERT_EQ(Camsim("pattern checkerboard --width 64 --height 48 --out " + board).code, 0);
+  const Result vectors = Camsim("run --input " + board + " --out " + dir + " --set motion.source=vectors");
+  EXPECT_EQ(vectors.code, 1);
+  EXPECT_NE(vectors.err.find("--set: motion.source"), std::string::npos) << vectors.err;
+}
+
+// Flare left out by --stages: no flare pre-pass and no flare numbers in the
+// report (they came from a stage that did not run: all zero).
+TEST(Cli, AFlareLeftOutReportsNoFlare) {
+  const std::string dir = TempDir("flare_out");
+  const std::string env = std::string(CAMSIM_SOURCE_DIR) + "/scenes/environment/sky_env.exr";
+  const std::string common = "run --input " + kScene + " --out " + dir + " --quiet --set flare.enabled=true" +
+                             " --set flare.environment_map=" + env + " --report " + dir + "/r.json";
+  ASSERT_EQ(Camsim(common).code, 0);
+  EXPECT_NE(Slurp(dir + "/r.json").find("\"flare_environment\""), std::string::npos);
+  ASSERT_EQ(Camsim(common + " --stages exposure,cfa,sensor").code, 0);
+  EXPECT_EQ(Slurp(dir + "/r.json").find("\"flare_environment\""), std::string::npos) << Slurp(dir + "/r.json");
+}
+
 // tradeoff checks its input as `camsim run` does: a stage without its depth
 // plane is an error naming it (it used to read a plane that is not there).
 TEST(Cli, TradeoffRefusesAnInputWithoutTheDepthItNeeds) {

@@ -233,8 +233,12 @@ TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
       ++demosaic_rows;
       // Against the configured (Malvar) reference: Malvar rounds once;
       // bilinear shows what the cheaper model costs, not its own rounding.
-      if (f[1] == "malvar") EXPECT_LE(std::stod(f[5]), 0.5 + 1e-9) << line;
-      if (f[1] == "bilinear") EXPECT_GT(std::stod(f[5]), 100.0) << line;
+      if (f[1] == "malvar") {
+        EXPECT_LE(std::stod(f[5]), 0.5 + 1e-9) << line;
+      }
+      if (f[1] == "bilinear") {
+        EXPECT_GT(std::stod(f[5]), 100.0) << line;
+      }
       EXPECT_GT(std::stod(f[4]), 0.0) << line;  // it was timed
     }
   }
