@@ -1,9 +1,12 @@
 // Metering weights and the weighted brightness auto exposure measures.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "core/control/metering.h"
+#include "core/control/metering_ref.h"
 
 namespace camsim {
 namespace {
@@ -84,6 +87,37 @@ TEST(Metering, InterleavedRgbAveragesItsChannels) {
   // All-zero weights: 0, which the controller reads as black (the host refuses such an image).
   std::vector<uint16_t> none(kW * kH, 0);
   EXPECT_EQ(WeightedBrightness(raw.data(), kW, kH, kStride, 3, kBlack, kMax, Metering::kImage, none.data()), 0.0);
+}
+
+// Against the double reference, on a frame of pseudo-random values: the
+// fixed-point weights' truncation moves the mean by under 2 x 2^-12 of the
+// range (metering_ref.h); spot and uniform weights are exact.
+TEST(Metering, WithinItsWeightsRoundingOfTheDoubleReference) {
+  constexpr int kW = 97, kH = 61, kBlack = 64, kMax = 4095;
+  std::vector<uint16_t> raw(kW * kH * 3);
+  uint32_t state = 12345;
+  for (uint16_t& v : raw) {
+    state = state * 1664525u + 1013904223u;
+    v = static_cast<uint16_t>((state >> 8) % 4096);
+  }
+  std::vector<uint16_t> image(kW * kH);
+  std::vector<double> image_ref(kW * kH);
+  for (size_t i = 0; i < image.size(); ++i) {
+    image[i] = static_cast<uint16_t>((i * 7919) % 65536);
+    image_ref[i] = image[i] / 65536.0;
+  }
+  for (int channels : {1, 3})
+    for (Metering m : {Metering::kUniform, Metering::kCentre, Metering::kSpot, Metering::kImage}) {
+      const double got = WeightedBrightness(raw.data(), kW, kH, kW * channels, channels, kBlack, kMax, m, image.data());
+      const double want =
+          ref::RefWeightedBrightness(raw.data(), kW, kH, kW * channels, channels, kBlack, kMax, m, image_ref.data());
+      const double bound = m == Metering::kCentre ? 2.0 / 4096 : 1e-12;
+      EXPECT_LE(std::fabs(got - want), bound) << static_cast<int>(m) << " channels " << channels;
+      EXPECT_GT(want, 0.3);  // a frame of real signal
+    }
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x)
+      EXPECT_EQ(MeteringWeight(Metering::kSpot, x, y, kW, kH) / 65536.0, ref::RefMeteringWeight(Metering::kSpot, x, y, kW, kH));
 }
 
 }  // namespace
