@@ -160,6 +160,7 @@ constexpr DD kAtanThreeHalves = {0x1.f730bd281f69bp-1, 0x1.007887af0cbbdp-56};  
 constexpr DD kTwoOverSqrtPi = {0x1.20dd750429b6dp+0, 0x1.1ae3a914fed80p-56};
 constexpr double kSqrt2 = 0x1.6a09e667f3bcdp+0;
 constexpr double kInvSqrt2 = 0x1.6a09e667f3bcdp-1;
+constexpr DD kInvSqrt2DD = {kInvSqrt2, -0x1.bdd3413b26456p-55};
 constexpr double kSqrt2Pi = 0x1.40d931ff62706p+1;    // sqrt(2 pi)
 constexpr double kInvSqrtPi = 0x1.20dd750429b6dp-1;  // 1/sqrt(pi)
 
@@ -564,6 +565,21 @@ double Atan2(double y, double x) {
   if (neg_x) angle = Add(kPi, Neg(angle));
   const double r = Round(angle);
   return neg_y ? -r : r;
+}
+
+double NormalCdf(double x) {
+  if (x != x) return x;
+  if (x < -40.0) return 0.0;
+  if (x > 40.0) return 1.0;
+  const DD z = Mul(kInvSqrt2DD, x);  // x / sqrt 2; erf and erfc below take z.hi
+  const DD x2 = TwoProd(x, x);
+  const double g = ExpDD(DD{-0.5 * x2.hi, -0.5 * x2.lo});  // exp(-z^2), from the exact x^2 / 2
+  if (z.hi >= -1.5 && z.hi <= 1.5) {
+    // 1/2 + erf(z.hi) / 2, plus erf's slope times z.lo (the rounding of z).
+    return Round(Add(Add(DD{0.5, 0.0}, Mul(ErfDD(z.hi), 0.5)), DD{kInvSqrtPi * g * z.lo, 0.0}));
+  }
+  const double tail = 0.5 * Erfcx(z.hi < 0 ? -z.hi : z.hi) * g;  // erfc(|z|) / 2
+  return z.hi < 0 ? tail : 1.0 - tail;
 }
 
 double InvNormalCdf(double p) {

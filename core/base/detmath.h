@@ -62,6 +62,14 @@ double Atan(double x);
 // Angle of the point (x, y) in [-pi, pi]; signed zeros and infinities as in C99 atan2.
 double Atan2(double y, double x);
 
+// Standard normal distribution function Phi(x) = erfc(-x / sqrt 2) / 2, from
+// the same erf series and erfc continued fraction as InvNormalCdf's residual,
+// with exp(-x^2 / 2) from the exact x^2. Measured against long double erfc at
+// 200 000 x per range: max 0.53 ulp for x >= -2.12, 3.9 ulp below (the
+// continued fraction is summed in plain double). Phi(0) == 0.5; 0 below -40
+// (where Phi underflows), 1 above 40; NaN -> NaN.
+double NormalCdf(double x);
+
 // Standard normal quantile: the z with Phi(z) = p. InvNormalCdf(0) = -inf,
 // InvNormalCdf(1) = +inf, p outside [0, 1] or NaN -> NaN. Exactly antisymmetric:
 // InvNormalCdf(1 - p) == -InvNormalCdf(p) whenever 1 - p is exact (p >= 0.25).
