@@ -7,11 +7,13 @@
 #include <vector>
 
 #include "core/aperture/exposure.h"
+#include "core/base/detmath.h"
 
 namespace camsim::host {
 namespace {
 
 constexpr double kQuantisationVariance = 1.0 / 12.0;  // DN^2, uniform rounding
+constexpr double kInvSqrt2Pi = 0x1.9884533d43651p-2;  // 1 / sqrt(2 pi)
 // EMVA 1288 4.0: a dark variance below this is limited by the quantisation;
 // sigma_d is then given as the upper limit it sets.
 constexpr double kDarkVarianceFloor = 0.24;  // DN^2
@@ -148,25 +150,60 @@ double SlopeThroughOrigin(const std::vector<double>& x, const std::vector<double
 
 // Where EMVA 1288 puts saturation for a signal clipped at c (electrons): the
 // mean of min(X, c) at the maximum of its variance, X ~ N(m, m + read^2) (the
-// Poisson charge with read noise). A clipped signal's variance peaks a few
-// sigma below the clip (about 2.5 sigma for a 10 000 e- well), so an EMVA
-// saturation capacity is always somewhat less than the full well.
+// Poisson charge with read noise). A clipped signal's variance peaks some
+// sigma below the clip (2.9 sigma for a 10 000 e- well; 2.5 at 1 000 e-, 3.3
+// at 100 000 e-), so an EMVA saturation capacity is always somewhat less than
+// the full well (the exact clipped Poisson distribution's peak is within 2 e-
+// of this one for the presets). The peak is found by golden-section search over m (the
+// variance rises with the Poisson charge, then falls as the clip takes over),
+// with detmath and IEEE basic operations only, so that a well derived from it
+// (FullWellForEmvaSaturation) is the same on every platform.
 double EmvaSaturation(double c, double read_e) {
-  double best_var = -1, best_mean = c;
-  const double s0 = std::sqrt(c + read_e * read_e);
-  for (double m = c - 8 * s0; m <= c + 2 * s0; m += s0 / 200) {
+  // Mean and variance of min(X, c) = m + s min(Z, a), X = m + s Z, a = (c - m) / s,
+  // from the moments of the clipped standard normal min(Z, a).
+  const auto moments = [&](double m, double* mean, double* var) {
     const double s = std::sqrt(std::max(m, 0.0) + read_e * read_e);
     const double a = (c - m) / s;
-    const double phi = std::exp(-0.5 * a * a) / std::sqrt(2 * M_PI), Phi = 0.5 * std::erfc(-a / std::sqrt(2.0));
-    const double mean = m - s * (phi - a * (1 - Phi));
-    const double second = m * m * Phi - 2 * m * s * phi + s * s * (Phi - a * phi) + c * c * (1 - Phi);
-    const double var = second - mean * mean;
-    if (var > best_var) {
-      best_var = var;
-      best_mean = mean;
+    const double phi = detmath::Exp(-0.5 * a * a) * kInvSqrt2Pi, Phi = detmath::NormalCdf(a);
+    const double m1 = a * (1 - Phi) - phi;                 // E[min(Z, a)]
+    const double m2 = Phi - a * phi + a * a * (1 - Phi);  // E[min(Z, a)^2]
+    *mean = m + s * m1;
+    *var = s * s * (m2 - m1 * m1);
+  };
+  const auto variance = [&](double m) {
+    double mean, var;
+    moments(m, &mean, &var);
+    return var;
+  };
+  const double s0 = std::sqrt(c + read_e * read_e);
+  double lo = std::max(c - 8 * s0, 0.01 * c), hi = c + 2 * s0;  // m > 0 keeps s > 0 without read noise
+  constexpr double kGolden = 0.6180339887498949;  // (sqrt(5) - 1) / 2
+  double x1 = hi - kGolden * (hi - lo), x2 = lo + kGolden * (hi - lo);
+  double v1 = variance(x1), v2 = variance(x2);
+  for (int i = 0; i < 40; ++i) {  // the bracket shrinks to 0.618^40 = 4e-9 of its 10 sigma
+    if (v1 < v2) {
+      lo = x1;
+      x1 = x2;
+      v1 = v2;
+      x2 = lo + kGolden * (hi - lo);
+      v2 = variance(x2);
+    } else {
+      hi = x2;
+      x2 = x1;
+      v2 = v1;
+      x1 = hi - kGolden * (hi - lo);
+      v1 = variance(x1);
     }
   }
-  return best_mean;
+  double mean, var;
+  moments(0.5 * (lo + hi), &mean, &var);
+  return mean;
+}
+
+// The ADC's clip in electrons above the black level.
+double AdcClipElectrons(const RunConfig& config, double system_gain) {
+  const double max_dn = (1 << config.core.geometry.adc_bits) - 1;
+  return (max_dn - config.core.sensor.black_level_dn) / system_gain;
 }
 
 }  // namespace
@@ -174,21 +211,49 @@ double EmvaSaturation(double c, double read_e) {
 EmvaFigures ConfiguredEmva(const RunConfig& config) {
   const SensorConfig& s = config.core.sensor;
   EmvaFigures f;
-  f.system_gain = s.system_gain_dn_per_e * std::pow(10.0, s.gain_db / 20.0);
+  // detmath, as the sensor stage computes them (and deterministic for FullWellForEmvaSaturation).
+  f.system_gain = s.system_gain_dn_per_e * detmath::Pow(10.0, s.gain_db / 20.0);
   for (int c = 0; c < 3; ++c) f.qe[c] = s.quantum_efficiency[c];
-  const double dark_e = s.dark_current_e_per_s * config.core.exposure.exposure_time_us * 1e-6 *
-                        std::pow(2.0, (s.temperature_c - s.dark_current_ref_c) / s.dark_current_doubling_c);
+  const double dark_e = s.dark_current_e_per_s * (config.core.exposure.exposure_time_us * 1e-6) *
+                        detmath::Exp2((s.temperature_c - s.dark_current_ref_c) / s.dark_current_doubling_c);
   // Dark-current shot noise is temporal noise in the dark: EMVA folds it into sigma_d.
   f.dark_noise_e = std::sqrt(s.dark_noise_e * s.dark_noise_e + (s.shot_noise ? dark_e : 0.0));
   // Photo charge that fits: the well less the dark charge, or the ADC's range if that ends first.
-  const double max_dn = (1 << config.core.geometry.adc_bits) - 1;
-  const double adc_e = (max_dn - s.black_level_dn) / f.system_gain;
-  f.full_well_e = std::min(s.full_well_e, adc_e);
+  f.full_well_e = std::min(s.full_well_e, AdcClipElectrons(config, f.system_gain));
+  // PRNU is left out: it spreads the pixels' clips over their responses, and
+  // the variance averaged over the pixels peaks a little earlier (by 0.3-0.6 %
+  // for the presets' 0.43-0.8 % PRNU, in the clipped-normal model).
   f.saturation_e = EmvaSaturation(f.full_well_e, s.dark_noise_e) - dark_e;
   // EMVA's DSNU is the total spatial offset variance: pixel, row and column patterns together.
   f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e);
   f.prnu_percent = s.prnu_percent;
   return f;
+}
+
+bool FullWellForEmvaSaturation(const RunConfig& config, double saturation_e, double* full_well_e,
+                               std::string* error) {
+  RunConfig c = config;
+  const auto saturation = [&](double well) {
+    c.core.sensor.full_well_e = well;
+    return ConfiguredEmva(c).saturation_e;
+  };
+  // Bisection between the saturation itself (a well there saturates below it)
+  // and the ADC's clip (above it the ADC clips first and the saturation stops
+  // growing); 50 halvings leave far less than 0.001 e-.
+  double lo = saturation_e, hi = AdcClipElectrons(config, ConfiguredEmva(config).system_gain);
+  if (!(saturation(hi) > saturation_e)) {
+    char b[200];
+    std::snprintf(b, sizeof b, "an EMVA saturation capacity of %.1f e- needs a well at or above the ADC's clip (%.1f e-)",
+                  saturation_e, hi);
+    *error = b;
+    return false;
+  }
+  for (int i = 0; i < 50; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (saturation(mid) < saturation_e ? lo : hi) = mid;
+  }
+  *full_well_e = hi;
+  return true;
 }
 
 bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOptions& o, EmvaReport* report,

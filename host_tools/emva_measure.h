@@ -65,6 +65,14 @@ struct EmvaReport {
 // full; dark charge taking part of the well).
 EmvaFigures ConfiguredEmva(const RunConfig& config);
 
+// The sensor.full_well_e that gives this configuration an EMVA saturation
+// capacity (as ConfiguredEmva computes it) of saturation_e: how a preset turns
+// a datasheet's saturation capacity into the well the sensor clips at. False
+// (and *error says why) when that well would reach the ADC's clip.
+// Deterministic: the same well on every platform.
+bool FullWellForEmvaSaturation(const RunConfig& config, double saturation_e, double* full_well_e,
+                               std::string* error);
+
 // Measures the configuration's sensor (its [sensor] and [exposure] settings;
 // frame size, CFA and every other stage are replaced by the set-up above).
 // Range errors name the key's origin (file:line or --set).

@@ -1,17 +1,32 @@
 #include "host_tools/presets.h"
 
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "host_tools/emva_measure.h"
+
 namespace camsim::host {
+namespace {
 
 // Each preset sets only [sensor] keys (and the CFA). The frame size and pixel
 // pitch are left to the scene (the bundled scenes assume a 36 mm wide sensor);
 // the native resolution is given as a comment. Values marked "assumption" are
 // not in the cited source: they are typical of the sensor class and stated so
 // that `camsim emva` can measure them back like the cited ones.
-const std::vector<Preset>& Presets() {
-  static const std::vector<Preset> presets = {
-      {"basler_emva_ref001_vga_ccd",
-       "A Basler VGA CCD camera, 12-bit, mono: measured here from its public EMVA 1288 dataset",
-       R"(# A Basler 640 x 480 interline CCD camera, monochrome, 12-bit output: the
+//
+// A source's EMVA 1288 saturation capacity is not the well: EMVA takes the
+// mean at the peak of the temporal variance, about 3 sigma below the clip
+// (emva_measure.cc). Such a preset cites the capacity (saturation_e) and
+// writes kWell for full_well_e; Presets() puts in the well whose configured
+// EMVA saturation (FullWellForEmvaSaturation) is the cited capacity, rounded
+// to 1 e- (`camsim config --preset NAME` prints it).
+constexpr char kWell[] = "@WELL@";
+
+const Preset kSources[] = {
+    {"basler_emva_ref001_vga_ccd",
+     "A Basler VGA CCD camera, 12-bit, mono: measured here from its public EMVA 1288 dataset",
+     R"(# A Basler 640 x 480 interline CCD camera, monochrome, 12-bit output: the
 # camera recorded in the EMVA 1288 reference dataset 001 (Basler AG, Marco
 # Grimm, 2011, CC BY-SA 3.0; EMVA 1288 Release 3.0 measurement: 50 flat-field
 # pairs, dark pairs at every exposure, 50-frame dark and bright stacks),
@@ -23,21 +38,25 @@ const std::vector<Preset>& Presets() {
 # DSNU 0.55 e-, PRNU 0.43 %, dark signal 2.85e-8 e- per unit of exposure.
 # The EMVA 1288 reference implementation's published results for the same
 # dataset: K 0.2808, QE 45.14 %, sigma_d 10.90 e-, 13 973 e- at 30 957 photons.
+# The reference implementation's DSNU 0.5518 e-, PRNU 0.4327 % and dark current
+# 28.41 e-/s (doc/datasets/datasets_results.rst of github.com/EMVA1288/emva1288)
+# agree with these.
 # A VGA CCD like the seed paper's camera; a 7.4 um pixel is typical of the class.
 [sensor]
 cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.4525, 0.4525, 0.4525]  # source (the wavelength is not in the dataset)
 dark_noise_e = 10.93                           # source
-full_well_e = 14200.0                          # near the source: camsim emva measures 13 660 e- with it, 2.5 % below the dataset's 14 010 (the variance peak lies ~2.5 sigma below the clip)
+full_well_e = @WELL@                          # derived from the source's 14 010 e- saturation capacity
 system_gain_dn_per_e = 0.2801                  # source
 black_level_dn = 14.7                          # source (dark level at the shortest exposure)
 dsnu_e = 0.55                                  # source
 prnu_percent = 0.43                            # source
-dark_current_e_per_s = 28.5                    # source, assuming the dataset's exposure unit is ns (2.85e-8 e-/ns)
-)"},
-      {"basler_pia2400_17gm", "Basler piA2400-17gm: Sony ICX625 interline CCD, 5 MP, mono",
-       R"(# Basler piA2400-17gm: Sony ICX625 interline-transfer CCD, 2448 x 2050 px,
+dark_current_e_per_s = 28.5                    # source: the exposure unit is ns (2.85e-8 e-/ns; the reference implementation reads 28.41 e-/s)
+)",
+     14010.0},
+    {"basler_pia2400_17gm", "Basler piA2400-17gm: Sony ICX625 interline CCD, 5 MP, mono",
+     R"(# Basler piA2400-17gm: Sony ICX625 interline-transfer CCD, 2448 x 2050 px,
 # 3.45 um pixels, global shutter (CCD), monochrome, 12-bit output.
 # Source: Basler's EMVA 1288 data for the piA2400-17gm, as tabulated next to
 # Point Grey's GS3-PGE-50S5M (same sensor) at
@@ -49,15 +68,16 @@ cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.47, 0.47, 0.47]  # source (mono: G is used)
 dark_noise_e = 13.0                      # source
-full_well_e = 7000.0                     # the source's saturation capacity as the well: camsim emva measures 6782 e-
+full_well_e = @WELL@                    # derived from the source's 7000 e- saturation capacity
 system_gain_dn_per_e = 0.55              # assumption: saturation at ~3900 of 4095 DN
 black_level_dn = 64.0                    # assumption
 dsnu_e = 3.0                             # assumption (CCD class)
 prnu_percent = 0.6                       # assumption (CCD class)
 dark_current_e_per_s = 10.0              # assumption
-)"},
-      {"rpi_hq_imx477", "Raspberry Pi HQ Camera: Sony IMX477 rolling-shutter CMOS, 12 MP, Bayer",
-       R"(# Raspberry Pi High Quality Camera: Sony IMX477, 4056 x 3040 px, 1.55 um
+)",
+     7000.0},
+    {"rpi_hq_imx477", "Raspberry Pi HQ Camera: Sony IMX477 rolling-shutter CMOS, 12 MP, Bayer",
+     R"(# Raspberry Pi High Quality Camera: Sony IMX477, 4056 x 3040 px, 1.55 um
 # pixels, rolling shutter, BayerBG, 12-bit raw.
 # Source: photon-transfer measurement (the EMVA 1288 method, not a vendor
 # sheet), "Pi HQ Cam Sensor Performance" on strollswithmydog.com,
@@ -65,7 +85,9 @@ dark_current_e_per_s = 10.0              # assumption
 # summary table at analog gain 1: black level 256 DN, white level 4095 DN,
 # read noise 3 e-, clipping (full well) 8180 e-, system gain 0.47 DN/e-.
 # The source's full well is where the raw data clips: (4095 - 256) / 0.47 =
-# 8168 e-, so here too the ADC clips just before the well is full.
+# 8168 e-, so here too the ADC clips just before the well is full. The source
+# gives this clip, not an EMVA saturation capacity, so the well is its value
+# (camsim emva reports the saturation ~3 sigma below it).
 # CFA phase: BGGR per https://github.com/aaronwmorris/indi-allsky/wiki/Camera-Information
 [sensor]
 cfa = "BayerBG"
@@ -78,9 +100,10 @@ black_level_dn = 256.0                   # source
 dsnu_e = 1.0                             # assumption
 prnu_percent = 0.8                       # assumption
 dark_current_e_per_s = 5.0               # assumption
-)"},
-      {"flir_bfs_u3_200s6m", "FLIR Blackfly S BFS-U3-200S6M: Sony IMX183 rolling-shutter CMOS, 20 MP, mono",
-       R"(# FLIR Blackfly S BFS-U3-200S6M: Sony IMX183, 5472 x 3648 px, 2.4 um pixels,
+)",
+     0.0},
+    {"flir_bfs_u3_200s6m", "FLIR Blackfly S BFS-U3-200S6M: Sony IMX183 rolling-shutter CMOS, 20 MP, mono",
+     R"(# FLIR Blackfly S BFS-U3-200S6M: Sony IMX183, 5472 x 3648 px, 2.4 um pixels,
 # rolling shutter, monochrome, 12-bit ADC.
 # Source: FLIR's EMVA 1288 data for the camera as quoted at
 #   https://www.uniquephoto.com/community/qa/why-doesnt-full-well-capacity-match-the-adc-range-on-my-flir-blackfly-sensor
@@ -96,14 +119,56 @@ cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.53, 0.53, 0.53]  # assumption (FSI CMOS class at 525 nm)
 dark_noise_e = 3.8                       # derived from the source's dynamic range
-full_well_e = 14837.0                    # source (camsim emva measures 14 250 e- with it)
+full_well_e = @WELL@                    # derived from the source's 14837 e- saturation capacity
 system_gain_dn_per_e = 0.24              # source
 black_level_dn = 64.0                    # assumption
 dsnu_e = 1.5                             # assumption
 prnu_percent = 0.5                       # assumption
 dark_current_e_per_s = 3.0               # assumption
-)"},
-  };
+)",
+     14837.0},
+};
+
+// The preset's TOML with kWell replaced by the well derived from its cited
+// saturation capacity.
+std::string WithDerivedWell(const Preset& p) {
+  std::string text = p.toml;
+  if (p.saturation_e == 0) return text;
+  const size_t at = text.find(kWell);
+  RunConfig rc;
+  Origins origins;
+  std::string error = "no full_well_e = @WELL@ line";
+  double well = 0;
+  bool ok = at != std::string::npos;
+  if (ok) {
+    std::string draft = text;
+    draft.replace(at, sizeof kWell - 1, "1.0");  // a stand-in: the solver sets the well
+    ok = ParseConfig(draft, std::string("preset ") + p.name, &rc, &origins, &error) &&
+         FullWellForEmvaSaturation(rc, p.saturation_e, &well, &error);
+  }
+  if (!ok) {  // the table above is wrong: a bug, which the unit tests catch
+    std::fprintf(stderr, "camsim: preset %s: %s\n", p.name, error.c_str());
+    std::abort();
+  }
+  char number[32];
+  std::snprintf(number, sizeof number, "%.0f", well);
+  return text.replace(at, sizeof kWell - 1, number);
+}
+
+}  // namespace
+
+const std::vector<Preset>& Presets() {
+  static const std::vector<std::string> texts = [] {
+    std::vector<std::string> t;
+    for (const Preset& p : kSources) t.push_back(WithDerivedWell(p));
+    return t;
+  }();
+  static const std::vector<Preset> presets = [] {
+    std::vector<Preset> v;
+    for (size_t i = 0; i < texts.size(); ++i)
+      v.push_back({kSources[i].name, kSources[i].summary, texts[i].c_str(), kSources[i].saturation_e});
+    return v;
+  }();
   return presets;
 }
 

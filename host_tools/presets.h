@@ -20,6 +20,10 @@ struct Preset {
   const char* name;
   const char* summary;  // one line: camera, sensor, source
   const char* toml;     // the preset's configuration, with its citations as comments
+  // The source's EMVA 1288 saturation capacity, electrons, from which the
+  // TOML's full_well_e is derived (presets.cc); 0 when the source gives the
+  // clip itself and the TOML sets it.
+  double saturation_e;
 };
 
 const std::vector<Preset>& Presets();

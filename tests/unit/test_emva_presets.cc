@@ -37,6 +37,46 @@ TEST(Presets, EveryPresetIsAValidConfiguration) {
   }
 }
 
+// A preset citing an EMVA 1288 saturation capacity is configured to give
+// that capacity, not to clip at it: its well was the cited value (or near
+// it), and the measured saturation came out 2-4 % low because EMVA's
+// saturation lies ~3 sigma below the clip.
+TEST(Presets, ConfiguredSaturationIsTheCitedOne) {
+  int cited = 0;
+  for (const Preset& p : Presets()) {
+    if (p.saturation_e == 0) continue;
+    ++cited;
+    RunConfig rc;
+    Origins origins;
+    std::string error;
+    ASSERT_TRUE(ApplyPreset(p.name, &rc, &origins, &error)) << p.name << ": " << error;
+    const EmvaFigures f = ConfiguredEmva(rc);
+    // The well is rounded to 1 e-, which moves the saturation by up to 0.5 e-.
+    EXPECT_NEAR(f.saturation_e, p.saturation_e, 0.5) << p.name;
+    // The well, not the ADC, clips.
+    const double adc_e =
+        ((1 << rc.core.geometry.adc_bits) - 1 - rc.core.sensor.black_level_dn) / rc.core.sensor.system_gain_dn_per_e;
+    EXPECT_LT(rc.core.sensor.full_well_e, adc_e) << p.name;
+    EXPECT_EQ(f.full_well_e, rc.core.sensor.full_well_e) << p.name;
+  }
+  EXPECT_GE(cited, 3);
+}
+
+// A saturation capacity the ADC clips before is refused, naming the ADC's clip.
+TEST(Presets, WellForASaturationAboveTheAdcIsRefused) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error)) << error;
+  double well = 0;
+  // The ADC clips at (4095 - 64) / 0.24 = 16796 e-.
+  EXPECT_FALSE(FullWellForEmvaSaturation(rc, 16700.0, &well, &error));
+  EXPECT_NE(error.find("the ADC's clip (16795.8 e-)"), std::string::npos) << error;
+  ASSERT_TRUE(FullWellForEmvaSaturation(rc, 16000.0, &well, &error)) << error;
+  rc.core.sensor.full_well_e = well;
+  EXPECT_NEAR(ConfiguredEmva(rc).saturation_e, 16000.0, 1e-3);
+}
+
 TEST(Presets, UnknownNameListsThePresets) {
   RunConfig rc;
   Origins origins;
@@ -85,6 +125,7 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     for (int c = 0; c < 3; ++c) ExpectNearRel(r.measured.qe[c], r.configured.qe[c], kQeTol, n + " QE");
     ExpectNearRel(r.measured.dark_noise_e, r.configured.dark_noise_e, kDarkNoiseTol, n + " dark noise");
     ExpectNearRel(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol, n + " saturation");
+    if (p.saturation_e > 0) ExpectNearRel(r.measured.saturation_e, p.saturation_e, kSaturationTol, n + " vs cited");
     ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, dsnu_tol, n + " DSNU");
     ExpectNearRel(r.measured.prnu_percent, r.configured.prnu_percent, kNonUniformityTol, n + " PRNU");
     RecordProperty("emva_" + n, FormatEmvaReport(n, r));
