@@ -44,19 +44,24 @@ class Bench {
     }
     size_ = size;
     photons_per_radiance_ = ExposurePhotonsPerRadiance(p.exposure);
+    // The exposure stage's output saturates at 2^32 - 1 in Q24.8 photons,
+    // its Q16.16 radiance input at 2^32 - 1 as well.
+    max_photons_ = std::min(4294967295.0 / 256.0, 4294967295.0 / 65536.0 * photons_per_radiance_);
     for (auto& plane : planes_) plane.resize(static_cast<size_t>(size) * size);
     out_.resize(static_cast<size_t>(size) * size * 3);
     return true;
   }
 
   // Sets the flat field for a mean photon count per pixel; returns the exact
-  // photon count of the Q16.16 radiance actually used.
+  // photon count of the Q16.16 radiance actually used, at most max_photons().
   double SetPhotons(double photons) {
     const double radiance = photons / photons_per_radiance_;
     const uint32_t raw = static_cast<uint32_t>(std::min(std::llround(radiance * 65536.0), 0xFFFFFFFFll));
     for (auto& plane : planes_) std::fill(plane.begin(), plane.end(), raw);
-    return raw / 65536.0 * photons_per_radiance_;
+    return std::min(raw / 65536.0 * photons_per_radiance_, max_photons_);
   }
+  // The most photons per pixel the exposure stage delivers (16.7 M).
+  double max_photons() const { return max_photons_; }
 
   // One frame's output plane of channel c (after Run).
   const std::vector<uint32_t>& Run(uint32_t frame) {
@@ -77,6 +82,7 @@ class Bench {
   std::vector<uint32_t> planes_[3];
   std::vector<uint32_t> out_;
   double photons_per_radiance_ = 0;
+  double max_photons_ = 0;
   int size_ = 0;
 };
 
@@ -270,10 +276,23 @@ bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOpti
   const PairStats dark = MeasurePair(bench, 0.0, frame);
   frame += 2;
 
-  // Past saturation: the signal above dark stops doubling when the photons double.
+  // Past saturation: the signal above dark stops doubling when the photons
+  // double. The search must stay within what the exposure stage delivers:
+  // beyond that the photons stop growing, not the signal.
   double p_max = 16.0;
   double previous = 0;
-  for (int i = 0; i < 40; ++i, p_max *= 2.0) {
+  for (int i = 0;; ++i, p_max *= 2.0) {
+    if (p_max > bench.max_photons()) {
+      const EmvaFigures c = ConfiguredEmva(config);
+      char b[400];
+      std::snprintf(b, sizeof b,
+                    "emva: no saturation below %.0f photons per pixel, the most the exposure stage delivers (its "
+                    "Q24.8 output): the clip of %.0f e- (the well or the ADC's range) at G's quantum efficiency "
+                    "%.3g takes %.0f; lower sensor.full_well_e or raise sensor.quantum_efficiency",
+                    bench.max_photons(), c.full_well_e, c.qe[kG], c.full_well_e / c.qe[kG]);
+      *error = b;
+      return false;
+    }
     const PairStats s = MeasurePair(bench, p_max, frame);
     frame += 2;
     const double signal = s.mean[kG] - dark.mean[kG];

@@ -187,5 +187,25 @@ TEST(Emva, DarkNoiseBelowTheQuantisationIsAnUpperLimit) {
   EXPECT_FALSE(MeasureBlackfly({}).measured.dark_noise_upper_limit);
 }
 
+// The exposure stage delivers at most 2^32 - 1 Q24.8 photons (16.7 M) per
+// pixel. A sensor that saturates beyond that is refused: the search used to
+// double on past it into photons that did not grow, and reported saturation
+// at 33 554 432 photons, above this 500 000 e- well at QE 0.02.
+TEST(Emva, SaturationBeyondTheExposureStageIsRefused) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  for (const char* o : {"sensor.quantum_efficiency=[0.02, 0.02, 0.02]", "sensor.full_well_e=500000",
+                        "sensor.system_gain_dn_per_e=0.1", "sensor.adc_bits=16"})
+    ASSERT_TRUE(ApplyOverride(o, &rc, &origins, &error)) << o << ": " << error;
+  EmvaOptions o;
+  o.size = 16;
+  EmvaReport r;
+  EXPECT_FALSE(MeasureEmva(rc, origins, o, &r, &error)) << "saturation at " << r.saturation_photons << " photons";
+  EXPECT_NE(error.find("no saturation below 16777216 photons per pixel"), std::string::npos) << error;
+  EXPECT_NE(error.find("the clip of 500000 e-"), std::string::npos) << error;
+  EXPECT_NE(error.find("takes 25000000"), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace camsim::host
