@@ -15,7 +15,9 @@
 //                               descriptor, '\' or '/' separators
 // Images: PNG, gray, 8 or 16 bits, holding the raw values (0 .. 2^BITS - 1).
 // Every bright pair needs a dark pair at the same exposure time; DSNU and
-// PRNU need one dark and one bright stack (else they are not reported).
+// PRNU need one dark and one bright stack (else they are not reported). A
+// dark pair with more than 0.5 % of its pixels at 0 is refused (EMVA 1288:
+// the offset was too low, the dark signal is clipped).
 // Errors name the file and line (descriptor) or the image.
 #pragma once
 

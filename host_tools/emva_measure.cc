@@ -91,6 +91,7 @@ struct PairStats {
   double photons = 0;
   double mean[3] = {};
   double var[3] = {};
+  double zero_share[3] = {};  // share of the pixels (both frames) that read 0
 };
 
 PairStats MeasurePair(Bench& bench, double photons, uint32_t frame) {
@@ -101,13 +102,16 @@ PairStats MeasurePair(Bench& bench, double photons, uint32_t frame) {
   const int n = bench.pixels();
   for (int c = 0; c < 3; ++c) {
     double sum = 0, dsum = 0, dsq = 0;
+    int zeros = 0;
     for (int i = 0; i < n; ++i) {
       const double va = a[static_cast<size_t>(i) * 3 + c], vb = b[static_cast<size_t>(i) * 3 + c];
       sum += va + vb;
       dsum += va - vb;
       dsq += (va - vb) * (va - vb);
+      zeros += (va == 0) + (vb == 0);
     }
     s.mean[c] = sum / (2.0 * n);
+    s.zero_share[c] = zeros / (2.0 * n);
     const double dmean = dsum / n;
     s.var[c] = (dsq / n - dmean * dmean) * n / (n - 1.0) / 2.0;
   }
@@ -275,6 +279,17 @@ bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOpti
   uint32_t frame = 0;  // every frame pair gets its own frame numbers (independent noise)
   const PairStats dark = MeasurePair(bench, 0.0, frame);
   frame += 2;
+  if (dark.zero_share[kG] > kEmvaMaxDarkZeroShare) {
+    const auto origin = origins.find("sensor.black_level_dn");
+    char b[400];
+    std::snprintf(b, sizeof b,
+                  "emva: %.3g %% of the dark pixels read 0, more than the 0.5 %% EMVA 1288 allows: the dark signal "
+                  "is clipped at 0, so its noise and DSNU would read low; raise sensor.black_level_dn (%g DN, %s)",
+                  100.0 * dark.zero_share[kG], config.core.sensor.black_level_dn,
+                  origin != origins.end() ? ("from " + origin->second).c_str() : "the default");
+    *error = b;
+    return false;
+  }
 
   // Past saturation: the signal above dark stops doubling when the photons
   // double. The search must stay within what the exposure stage delivers:

@@ -7,7 +7,8 @@
 // Procedure (per colour channel; the sensor runs without a CFA, one sensor per
 // colour, so R, G and B are three independent planes; K, noise, saturation,
 // DSNU and PRNU are reported for G, which mono sensors use):
-//   1. Dark pair: mu_y.dark and sigma^2_y.dark (variance of the difference / 2).
+//   1. Dark pair: mu_y.dark and sigma^2_y.dark (variance of the difference / 2);
+//      refused when more than 0.5 % of its pixels read 0 (the offset is too low).
 //   2. Find a photon level past saturation by doubling until the signal stops
 //      doubling; then `levels` equally spaced levels from 0 to it, a frame
 //      pair each: mean mu_y and temporal variance sigma^2_y.
@@ -33,6 +34,11 @@
 #include "host_tools/config.h"
 
 namespace camsim::host {
+
+// EMVA 1288: the offset must keep the dark signal off 0; at most this share
+// of the dark pixels may read 0. A dark signal clipped at 0 shows too little
+// noise and DSNU, so both measurements refuse darker data.
+inline constexpr double kEmvaMaxDarkZeroShare = 0.005;
 
 struct EmvaOptions {
   int size = 256;           // frame side, pixels (256 x 256 = 65536 per estimate)

@@ -147,6 +147,19 @@ TEST(EmvaDataset, MalformedDatasetsNameTheFileAndLine) {
             dir + "/nowhere/bad.txt: cannot read the EMVA 1288 descriptor: No such file or directory");
 }
 
+// EMVA 1288: at most 0.5 % of the dark pixels may read 0. With no offset the
+// dark signal is clipped at 0 and its noise and DSNU read low; such a dark
+// pair is refused, naming its line.
+TEST(EmvaDataset, DarkPairClippedAtZeroIsRefused) {
+  Camera cam;
+  cam.black_dn = 0.0;
+  const std::string dir = TempDir("emva_zero_");
+  const std::string error = MeasureError("n 12 128 128\nd 1000\n" + WriteSeries(cam, dir, "z", 0, 2), dir);
+  EXPECT_NE(error.find("bad.txt:2: "), std::string::npos) << error;
+  EXPECT_NE(error.find("% of the dark pixels read 0, more than the 0.5 % EMVA 1288 allows"), std::string::npos)
+      << error;
+}
+
 // A directory opens as a file on Linux and reads as nothing, and a read error
 // used to end the text early: both are refused, with the file and the reason.
 TEST(EmvaDataset, DirectoryAndReadErrorAreRefused) {
