@@ -10,8 +10,11 @@
 //   1. Dark pair: mu_y.dark and sigma^2_y.dark (variance of the difference / 2);
 //      refused when more than 0.5 % of its pixels read 0 (the offset is too low).
 //   2. Find a photon level past saturation by doubling until the signal stops
-//      doubling; then `levels` equally spaced levels from 0 to it, a frame
-//      pair each: mean mu_y and temporal variance sigma^2_y.
+//      doubling (refused past the exposure stage's 16.7 M photons); bisect
+//      for the photons at half that clipped signal; then `levels` equally
+//      spaced levels from 0 to 2.4 times it (1.2 times the clip, 1.2-1.35
+//      times saturation), a frame pair each: mean mu_y and temporal variance
+//      sigma^2_y.
 //   3. Saturation: the level of maximum temporal variance (EMVA 1288 4.0).
 //   4. K: least-squares slope through the origin of sigma^2_y - sigma^2_y.dark
 //      against mu_y - mu_y.dark, over points below 70 % of the saturation
@@ -62,6 +65,7 @@ struct EmvaReport {
   EmvaFigures measured;
   EmvaFigures configured;  // what the configuration says the measurement should give
   double saturation_photons = 0;  // mu_p.sat (G)
+  double top_photons = 0;         // the highest level's mu_p
   int fit_points = 0;             // levels used for K and R
 };
 

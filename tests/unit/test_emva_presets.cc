@@ -20,7 +20,9 @@ namespace {
 constexpr double kGainTol = 0.02;        // K
 constexpr double kQeTol = 0.02;          // QE (R / K)
 constexpr double kDarkNoiseTol = 0.04;   // one dark pair: 1.1 % on the variance, more on small sigma
-constexpr double kSaturationTol = 0.04;  // level spacing (p_max / 100 <= 2 % of saturation) + peak noise
+// Saturation: the highest level's variance scatters (20 seeds: sd 0.55-0.8 %,
+// worst -3.3 %), and PRNU puts the peak 0.3-0.6 % below the configured one.
+constexpr double kSaturationTol = 0.04;
 constexpr double kNonUniformityTol = 0.06;  // DSNU, PRNU: spatial variance of a 16-frame average
 
 TEST(Presets, EveryPresetIsAValidConfiguration) {
@@ -125,6 +127,10 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     for (int c = 0; c < 3; ++c) ExpectNearRel(r.measured.qe[c], r.configured.qe[c], kQeTol, n + " QE");
     ExpectNearRel(r.measured.dark_noise_e, r.configured.dark_noise_e, kDarkNoiseTol, n + " dark noise");
     ExpectNearRel(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol, n + " saturation");
+    // The levels end just past saturation, so they are close around it (they
+    // used to reach 1.7-3.3 times it, 1.7-3.3 % of it apart).
+    EXPECT_GT(r.top_photons, 1.15 * r.saturation_photons) << n;
+    EXPECT_LT(r.top_photons, 1.45 * r.saturation_photons) << n;
     if (p.saturation_e > 0) ExpectNearRel(r.measured.saturation_e, p.saturation_e, kSaturationTol, n + " vs cited");
     ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, dsnu_tol, n + " DSNU");
     ExpectNearRel(r.measured.prnu_percent, r.configured.prnu_percent, kNonUniformityTol, n + " PRNU");
@@ -180,7 +186,8 @@ TEST(Emva, EachChannelsQeIsFittedBelowItsOwnSaturation) {
 TEST(Emva, DarkNoiseBelowTheQuantisationIsAnUpperLimit) {
   const EmvaReport r = MeasureBlackfly({"sensor.system_gain_dn_per_e=0.05", "sensor.dark_noise_e=3"});
   EXPECT_TRUE(r.measured.dark_noise_upper_limit);
-  EXPECT_NEAR(r.measured.dark_noise_e, std::sqrt(0.24 - 1.0 / 12.0) / 0.05, 0.05);
+  EXPECT_NEAR(r.measured.system_gain, 0.05, 0.02 * 0.05);
+  EXPECT_NEAR(r.measured.dark_noise_e, std::sqrt(0.24 - 1.0 / 12.0) / r.measured.system_gain, 1e-9);
   EXPECT_GT(r.measured.dark_noise_e, 3.0) << "an upper limit below the true 3 e-";
   EXPECT_NE(FormatEmvaReport("test", r).find("an upper limit"), std::string::npos);
   // The preset's dark noise is well above it: a figure, not a limit.
