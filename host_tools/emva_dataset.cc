@@ -283,18 +283,19 @@ std::string FormatEmvaDatasetReport(const std::string& descriptor, const EmvaDat
   std::snprintf(b, sizeof b,
                 "EMVA 1288 photon-transfer measurement of the dataset %s\n"
                 "(%dx%d, %d bits, %d bright pairs, exposure %g .. %g as written)\n"
-                "%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n"
-                "%-30s %12.4g  (per unit of exposure as written)\n"
+                "%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n%-30s %12.4g\n"
+                "%-30s %12.4g\n%-30s %12.4g  (per unit of exposure as written)\n"
                 "(saturation at %.0f photons; K and QE fitted on %d levels)\n",
                 descriptor.c_str(), r.width, r.height, r.bits, r.levels, r.exposure_min, r.exposure_max,
                 "system gain K (DN/e-)", r.fit.system_gain, "quantum efficiency", qe, "temporal dark noise (e-)",
-                r.fit.dark_noise_e, "saturation capacity (e-)", r.fit.saturation_e, "dark level (DN)", r.dark_mean_dn,
+                r.fit.dark_noise_e, "saturation capacity (e-)", r.fit.saturation_e, "dynamic range (bit)",
+                r.fit.dynamic_range_bits, "maximum SNR", r.fit.snr_max, "dark level (DN)", r.dark_mean_dn,
                 "dark current (e-)", r.dark_current_e, r.fit.saturation_photons, r.fit.fit_points);
   std::string t = b;
   // EMVA 1288 4.0: a dark variance below 0.24 DN^2 gives only an upper limit.
   if (r.fit.dark_noise_upper_limit)
-    t += "note: the temporal dark noise is an upper limit: the dark variance is below 0.24 DN^2, where "
-         "quantisation hides the dark noise\n";
+    t += "note: the temporal dark noise is an upper limit, and the dynamic range a lower one: the dark variance is "
+         "below 0.24 DN^2, where quantisation hides the dark noise\n";
   if (r.has_nonuniformity) {
     std::snprintf(b, sizeof b, "%-30s %12.4g\n%-30s %12.4g\n(non-uniformity: stacks at 0 and %.0f photons)\n",
                   "DSNU (e-)", r.dsnu_e, "PRNU (%)", r.prnu_percent, r.stack_photons);

@@ -234,6 +234,9 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   // the variance averaged over the pixels peaks a little earlier (by 0.3-0.6 %
   // for the presets' 0.43-0.8 % PRNU, in the clipped-normal model).
   f.saturation_e = EmvaSaturation(f.full_well_e, s.dark_noise_e) - dark_e;
+  const double dark_var_dn2 = f.system_gain * f.system_gain * f.dark_noise_e * f.dark_noise_e + kQuantisationVariance;
+  f.dynamic_range_bits = EmvaDynamicRangeBits(f.saturation_e, dark_var_dn2, f.system_gain);
+  f.snr_max = std::sqrt(f.saturation_e);
   // EMVA's DSNU is the total spatial offset variance: pixel, row and column patterns together.
   f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e);
   f.prnu_percent = s.prnu_percent;
@@ -380,6 +383,8 @@ bool MeasureEmva(const RunConfig& config, const Origins& origins, const EmvaOpti
   r.measured.dark_noise_e = fit.dark_noise_e;
   r.measured.dark_noise_upper_limit = fit.dark_noise_upper_limit;
   r.measured.saturation_e = fit.saturation_e;
+  r.measured.dynamic_range_bits = fit.dynamic_range_bits;
+  r.measured.snr_max = fit.snr_max;
 
   // DSNU and PRNU from averages of L frames.
   const int L = o.average_frames;
@@ -440,8 +445,15 @@ bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var
   f.dark_noise_upper_limit = dark_var < kDarkVarianceFloor;
   f.dark_noise_e = std::sqrt(std::max(dark_var, kDarkVarianceFloor) - kQuantisationVariance) / f.system_gain;
   f.saturation_e = f.responsivity / f.system_gain * f.saturation_photons;  // QE * mu_p.sat
+  f.dynamic_range_bits = EmvaDynamicRangeBits(f.saturation_e, dark_var, f.system_gain);
+  f.snr_max = std::sqrt(f.saturation_e);
   *fit = f;
   return true;
+}
+
+double EmvaDynamicRangeBits(double saturation_e, double dark_var_dn2, double system_gain) {
+  const double sigma_y_dark = std::sqrt(std::max(dark_var_dn2, kDarkVarianceFloor));
+  return std::log2(saturation_e / (sigma_y_dark / system_gain + 0.5));
 }
 
 bool NonUniformity(const FrameStack& dark, const FrameStack& bright, double K, double* dsnu_e, double* prnu_percent,
@@ -475,10 +487,13 @@ std::string FormatEmvaReport(const std::string& title, const EmvaReport& r) {
   row("quantum efficiency B", r.configured.qe[2], r.measured.qe[2]);
   row("temporal dark noise (e-)", r.configured.dark_noise_e, r.measured.dark_noise_e);
   if (r.measured.dark_noise_upper_limit)
-    t += "  (an upper limit: the dark variance is below 0.24 DN^2, where quantisation hides the dark noise)\n";
+    t += "  (an upper limit, and the dynamic range a lower one: the dark variance is below 0.24 DN^2, where "
+         "quantisation hides the dark noise)\n";
   std::snprintf(line, sizeof line, "%-30s %12.4g\n", "full well or ADC clip (e-)", r.configured.full_well_e);
   t += line;
   row("saturation capacity (e-)", r.configured.saturation_e, r.measured.saturation_e);
+  row("dynamic range (bit)", r.configured.dynamic_range_bits, r.measured.dynamic_range_bits);
+  row("maximum SNR", r.configured.snr_max, r.measured.snr_max);
   row("DSNU (e-)", r.configured.dsnu_e, r.measured.dsnu_e);
   row("PRNU (%)", r.configured.prnu_percent, r.measured.prnu_percent);
   std::snprintf(line, sizeof line,

@@ -56,6 +56,8 @@ struct EmvaFigures {
   double dark_noise_e = 0;     // temporal dark noise, electrons
   bool dark_noise_upper_limit = false;  // measured only: the dark variance was below 0.24 DN^2
   double saturation_e = 0;     // saturation capacity (EMVA: at the variance maximum), electrons
+  double dynamic_range_bits = 0;  // DR = mu_p.sat / mu_p.min (below), log2
+  double snr_max = 0;             // sqrt(saturation_e)
   double full_well_e = 0;      // configured only: the clip (well, or the ADC if it ends first)
   double dsnu_e = 0;           // dark signal non-uniformity, electrons
   double prnu_percent = 0;     // photo response non-uniformity, %
@@ -112,6 +114,8 @@ struct TransferFit {
   bool dark_noise_upper_limit = false;  // dark_var below 0.24 DN^2: dark_noise_e is an upper limit
   double saturation_e = 0;   // QE * mu_p.sat = R / K * mu_p.sat
   double saturation_photons = 0;
+  double dynamic_range_bits = 0;  // log2 of DR = mu_p.sat / mu_p.min (EmvaDynamicRangeBits)
+  double snr_max = 0;             // sqrt(saturation_e)
   int fit_points = 0;
 };
 // Steps 3-5 of the procedure above on levels in ascending photons; dark_var
@@ -119,6 +123,12 @@ struct TransferFit {
 // than 5 levels below 70 % of saturation.
 bool FitPhotonTransfer(const std::vector<TransferLevel>& levels, double dark_var, TransferFit* fit,
                        std::string* error);
+// EMVA 1288's dynamic range in bits: log2(mu_p.sat / mu_p.min) with the
+// absolute sensitivity threshold mu_p.min = (sigma_y.dark / K + 1/2) / QE, so
+// log2(mu_e.sat / (sigma_y.dark / K + 1/2)). sigma^2_y.dark (DN^2) includes
+// the quantisation noise, and is taken as at least 0.24 DN^2 as for sigma_d
+// (the DR is then a lower limit).
+double EmvaDynamicRangeBits(double saturation_e, double dark_var_dn2, double system_gain);
 // Step 6: DSNU (e-) and PRNU (%) from a dark and a bright stack. Fails
 // (naming why) when the bright stack is not brighter than the dark one.
 bool NonUniformity(const FrameStack& dark, const FrameStack& bright, double system_gain, double* dsnu_e,

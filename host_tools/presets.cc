@@ -109,16 +109,19 @@ dark_current_e_per_s = 5.0               # assumption
 #   https://www.uniquephoto.com/community/qa/why-doesnt-full-well-capacity-match-the-adc-range-on-my-flir-blackfly-sensor
 # (Photography Stack Exchange, CC BY-SA 4.0): system gain 0.24 (listed as
 # e-/ADU; the quoted 4096 / 0.24 = 17067 e- only holds for 0.24 DN/e-),
-# 12-bit ADC, saturation capacity 14837 e-, dynamic range 11.93 bit. Dark
-# noise derived from the dynamic range as mu_e.sat / sigma_d: 14837 / 2^11.93
-# = 3.80 e- (EMVA 1288's DR = mu_p.sat / mu_p.min also counts the
-# quantisation noise and would give about 3.05 e-; the source does not say
-# which it used).
+# 12-bit ADC, saturation capacity 14837 e-, dynamic range 11.93 bit.
+# Dark noise derived from the dynamic range as EMVA 1288 defines it, DR =
+# mu_p.sat / mu_p.min with mu_p.min = (sigma_y.dark / K + 1/2) / QE (the QE
+# cancels): sigma_y.dark / K = 14837 / 2^11.93 - 1/2 = 3.302 e-, which holds
+# the quantisation noise, so sigma_d = sqrt(3.302^2 - 1 / (12 K^2)) = 3.076 e-
+# (3.061-3.090 for 11.925-11.935 bit); less the dark current's 0.03 e-^2 of
+# shot noise, 3.07 e- of read noise. (Not 14837 / 2^11.93 = 3.80 e-: that
+# leaves out the quantisation noise and the 1/2.)
 [sensor]
 cfa = "Mono"
 adc_bits = 12
 quantum_efficiency = [0.53, 0.53, 0.53]  # assumption (FSI CMOS class at 525 nm)
-dark_noise_e = 3.8                       # derived from the source's dynamic range
+dark_noise_e = 3.07                      # derived from the source's dynamic range (above)
 full_well_e = @WELL@                    # derived from the source's 14837 e- saturation capacity
 system_gain_dn_per_e = 0.24              # source
 black_level_dn = 64.0                    # assumption

@@ -64,6 +64,19 @@ TEST(Presets, ConfiguredSaturationIsTheCitedOne) {
   EXPECT_GE(cited, 3);
 }
 
+// The Blackfly's dark noise comes from its cited dynamic range, 11.93 bit,
+// as EMVA 1288 defines it (mu_p.sat / mu_p.min, with the quantisation noise
+// and the 1/2 e- in mu_p.min); it was 3.80 e- from 14837 / 2^11.93, 11.69 bit.
+TEST(Presets, BlackflyHasItsCitedDynamicRange) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("flir_bfs_u3_200s6m", &rc, &origins, &error)) << error;
+  const EmvaFigures f = ConfiguredEmva(rc);
+  EXPECT_NEAR(f.dynamic_range_bits, 11.93, 0.005);
+  EXPECT_NEAR(f.snr_max, std::sqrt(14837.0), 0.01);
+}
+
 // A saturation capacity the ADC clips before is refused, naming the ADC's clip.
 TEST(Presets, WellForASaturationAboveTheAdcIsRefused) {
   RunConfig rc;
@@ -132,6 +145,11 @@ TEST(Emva, PhotonTransferRecoversEveryPreset) {
     EXPECT_GT(r.top_photons, 1.15 * r.saturation_photons) << n;
     EXPECT_LT(r.top_photons, 1.45 * r.saturation_photons) << n;
     if (p.saturation_e > 0) ExpectNearRel(r.measured.saturation_e, p.saturation_e, kSaturationTol, n + " vs cited");
+    // DR: the dark noise's and the saturation's tolerances, in bits.
+    EXPECT_NEAR(r.measured.dynamic_range_bits, r.configured.dynamic_range_bits,
+                std::log2((1 + kDarkNoiseTol) * (1 + kSaturationTol)))
+        << n;
+    ExpectNearRel(r.measured.snr_max, r.configured.snr_max, kSaturationTol / 2, n + " SNR max");
     ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, dsnu_tol, n + " DSNU");
     ExpectNearRel(r.measured.prnu_percent, r.configured.prnu_percent, kNonUniformityTol, n + " PRNU");
     RecordProperty("emva_" + n, FormatEmvaReport(n, r));
