@@ -1,7 +1,7 @@
 // camsim: command-line front end.
 //   camsim run --config FILE --input EXR... --out DIR [options]
 //   camsim config --default | --check FILE | --preset NAME | --presets
-//   camsim emva --preset NAME | --config FILE [--set k=v]... [--size N]
+//   camsim emva --preset NAME | --config FILE [--set k=v]... [--size N] [--levels N]
 //   camsim emva --dataset EMVA1288_DESCRIPTOR
 #include <cstdio>
 #include <cstdlib>
