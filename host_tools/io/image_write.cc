@@ -18,6 +18,7 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <png.h>
 
@@ -123,6 +124,40 @@ bool CheckImage(const std::string& path, const void* data, int width, int height
   }
   return false;
 }
+
+// OpenEXR's output through a stdio stream that remembers its first failure
+// and then writes nothing more. Imf::OutputFile's own file stream buffered
+// the last bytes until ~OutputFile, which swallows errors: a full disk went
+// unnoticed. Nothing is thrown: some of ~OutputFile's calls are outside its
+// try block.
+class ExrFileStream : public Imf::OStream {
+ public:
+  ExrFileStream(std::FILE* f, const std::string& path) : Imf::OStream(path.c_str()), f_(f) {}
+
+  void write(const char c[], int n) override {
+    if (error_ == 0 && std::fwrite(c, 1, static_cast<size_t>(n), f_) != static_cast<size_t>(n)) Fail();
+  }
+  uint64_t tellp() override {
+    const off_t pos = ftello(f_);
+    if (pos >= 0) return static_cast<uint64_t>(pos);
+    Fail();
+    return 0;
+  }
+  void seekp(uint64_t pos) override {
+    if (error_ == 0 && fseeko(f_, static_cast<off_t>(pos), SEEK_SET) != 0) Fail();
+  }
+
+  // errno of the first failure, 0 if none.
+  int error() const { return error_; }
+
+ private:
+  void Fail() {
+    if (error_ == 0) error_ = errno != 0 ? errno : EIO;
+  }
+
+  std::FILE* f_;
+  int error_ = 0;
+};
 
 using detail::OnPngError;
 using detail::OnPngWarning;
@@ -277,9 +312,9 @@ bool WriteExrFloat(const std::string& path, int width, int height,
     }
     if (!CheckImage(path, c.data, width, height, 1, c.stride_samples, error)) return false;
   }
-  return WriteAtomically(
+  return WriteViaFile(
       path,
-      [&](const std::string& tmp, std::string*) {
+      [&](std::FILE* f, std::string* err) {
         Imf::Header header(width, height);
         header.compression() = Imf::ZIP_COMPRESSION;
         Imf::FrameBuffer fb;
@@ -288,10 +323,16 @@ bool WriteExrFloat(const std::string& path, int width, int height,
           fb.insert(c.name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(c.data)),
                                        sizeof(float), static_cast<size_t>(c.stride_samples) * sizeof(float)));
         }
-        Imf::OutputFile file(tmp.c_str(), header);
-        file.setFrameBuffer(fb);
-        file.writePixels(height);
-        return true;
+        ExrFileStream stream(f, path);
+        {
+          // ~OutputFile writes the line-offset table and swallows any error.
+          Imf::OutputFile file(stream, header);
+          file.setFrameBuffer(fb);
+          file.writePixels(height);
+        }
+        if (stream.error() == 0) return true;  // WriteViaFile checks fclose
+        *err = "cannot write " + Quoted(path) + ": " + std::strerror(stream.error());
+        return false;
       },
       error);
 }

@@ -2,10 +2,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <csetjmp>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -24,6 +27,7 @@
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfPartType.h>
 #include <png.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "tests/support/exr_fixture.h"
@@ -619,6 +623,61 @@ TEST_F(IoTest, FailedWriteKeepsExistingFile) {
   EXPECT_NE(error.find(target_dir), std::string::npos) << error;
   EXPECT_TRUE(fs::is_directory(target_dir));
   EXPECT_EQ(DirEntries(), std::vector<std::string>{"adir"});  // its temporary file is gone
+}
+
+// While it lives, writes past `bytes` in any file fail with EFBIG
+// (RLIMIT_FSIZE, SIGXFSZ ignored): a disk that fills up during a write.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    if (getrlimit(RLIMIT_FSIZE, &old_) != 0) return;
+    rlimit lower = old_;
+    lower.rlim_cur = bytes;
+    ok_ = setrlimit(RLIMIT_FSIZE, &lower) == 0;
+  }
+  ~FileSizeLimit() {
+    if (ok_) setrlimit(RLIMIT_FSIZE, &old_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  bool ok() const { return ok_; }
+
+ private:
+  rlimit old_{};
+  void (*old_handler_)(int) = SIG_DFL;
+  bool ok_ = false;
+};
+
+// OpenEXR's own file stream kept a small file's bytes in its buffer until
+// ~OutputFile, which swallows errors: a truncated file replaced the old one
+// and the write reported success.
+TEST_F(IoTest, ExrWriteThatFailsKeepsExistingFile) {
+  std::vector<float> noise(64 * 64);  // random mantissas: ZIP cannot shrink them below the limit
+  uint32_t state = 1;
+  for (float& v : noise) {
+    state = state * 1664525u + 1013904223u;
+    v = static_cast<float>(state) / 4294967296.0f;
+  }
+  const std::string path = Path("frame.exr");
+  std::string error;
+  ASSERT_TRUE(WriteExrFloat(path, 4, 4, {{"Y", noise.data(), 4}}, &error)) << error;
+  const std::string before = ReadBytes(path);
+  // 8 x 64: chunks of 16 rows (under 512 bytes each, about 2.5 KB in all)
+  // stayed in the stream's buffer until the end. 64 x 64: 16 KB, fails while
+  // the pixels are written.
+  for (const int width : {8, 64}) {
+    bool written = true;
+    {
+      const FileSizeLimit limit(1024);
+      ASSERT_TRUE(limit.ok());
+      written = WriteExrFloat(path, width, 64, {{"Y", noise.data(), width}}, &error);
+    }
+    EXPECT_FALSE(written) << width;
+    EXPECT_NE(error.find("'" + path + "'"), std::string::npos) << error;
+    EXPECT_NE(error.find(std::strerror(EFBIG)), std::string::npos) << error;
+    EXPECT_TRUE(ReadBytes(path) == before) << width;  // (a short message, not the bytes)
+    EXPECT_EQ(DirEntries(), std::vector<std::string>{"frame.exr"});  // its temporary file is gone
+  }
 }
 
 // A file or directory with the old fixed temporary name (`path.tmp`), e.g.
