@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <limits>
 #include <new>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,45 @@
 #include <OpenEXR/openexr.h>
 
 namespace camsim::io::detail {
+
+namespace {
+
+// An OpenEXRCore read context on `path` (headers checked strictly), closed
+// when it goes. Core's messages are kept: they say more than its error codes.
+class CoreFile {
+ public:
+  explicit CoreFile(const std::string& path) {
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.flags = EXR_CONTEXT_FLAG_STRICT_HEADER;
+    init.user_data = &said_;
+    init.error_handler_fn = [](exr_const_context_t c, exr_result_t, const char* message) {
+      void* said = nullptr;
+      if (exr_get_user_data(c, &said) == EXR_ERR_SUCCESS && said != nullptr)
+        static_cast<std::vector<std::string>*>(said)->push_back(message);
+    };
+    opened_ = exr_start_read(&ctx_, path.c_str(), &init);
+  }
+  ~CoreFile() {
+    if (ctx_ != nullptr) exr_finish(&ctx_);
+  }
+  CoreFile(const CoreFile&) = delete;
+  CoreFile& operator=(const CoreFile&) = delete;
+
+  exr_result_t opened() const { return opened_; }
+  exr_const_context_t context() const { return ctx_; }
+  // Core's text for `r`, with the first message it gave (if any) in brackets.
+  std::string Reason(exr_result_t r) const {
+    return std::string(exr_get_default_error_message(r)) +
+           (said_.empty() ? "" : " (" + Printable(said_.front()) + ")");
+  }
+
+ private:
+  exr_context_t ctx_ = nullptr;
+  exr_result_t opened_ = EXR_ERR_UNKNOWN;
+  std::vector<std::string> said_;
+};
+
+}  // namespace
 
 std::unique_ptr<Imf::MultiPartInputFile> OpenExr(const std::string& path, std::string* error) {
   std::error_code ec;
@@ -43,21 +83,9 @@ std::unique_ptr<Imf::MultiPartInputFile> OpenExr(const std::string& path, std::s
   // deep part needs a `version` attribute on every part: Core 3.1 refuses it
   // otherwise, with or without the flag).
   {
-    std::vector<std::string> said;
-    exr_context_t ctx = nullptr;
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.flags = EXR_CONTEXT_FLAG_STRICT_HEADER;
-    init.user_data = &said;
-    init.error_handler_fn = [](exr_const_context_t c, exr_result_t, const char* message) {
-      void* said_list = nullptr;
-      if (exr_get_user_data(c, &said_list) == EXR_ERR_SUCCESS && said_list != nullptr)
-        static_cast<std::vector<std::string>*>(said_list)->push_back(message);
-    };
-    const exr_result_t r = exr_start_read(&ctx, path.c_str(), &init);
-    if (ctx != nullptr) exr_finish(&ctx);
-    if (r != EXR_ERR_SUCCESS) {
-      *error = "'" + path + "' is not a readable OpenEXR file: " + exr_get_default_error_message(r) +
-               (said.empty() ? "" : " (" + Printable(said.front()) + ")");
+    CoreFile core(path);
+    if (core.opened() != EXR_ERR_SUCCESS) {
+      *error = "'" + path + "' is not a readable OpenEXR file: " + core.Reason(core.opened());
       return nullptr;
     }
   }
@@ -156,6 +184,93 @@ std::string BoxText(const Imath::Box2i& b) {
          std::to_string(b.max.x) + "," + std::to_string(b.max.y) + ")";
 }
 
+// Throws (naming the chunk) unless every chunk of flat part `part` holding
+// rows y0..y1 of its data window decompresses to the size its rows need.
+// OpenEXR 3.1's C++ reader does not check that: the rows of a ZIP chunk
+// that inflated short were filled from uninitialised memory. Core's decoder
+// checks it; here it only decompresses (the pixels are read by Imf after).
+void CheckChunks(const std::string& path, int part, int y0, int y1) {
+  CoreFile core(path);
+  const exr_const_context_t ctx = core.context();
+  auto fail = [&](const std::string& where, const std::string& why) {
+    int parts = 1;
+    exr_get_count(ctx, &parts);
+    throw std::runtime_error("corrupt chunk at " + where + (parts > 1 ? " of part " + std::to_string(part) : "") +
+                             " (" + why + ")");
+  };
+  exr_storage_t storage = EXR_STORAGE_SCANLINE;
+  exr_compression_t compression = EXR_COMPRESSION_NONE;
+  exr_attr_box2i_t dw{};
+  exr_result_t r = core.opened();
+  if (r == EXR_ERR_SUCCESS) r = exr_get_storage(ctx, part, &storage);
+  if (r == EXR_ERR_SUCCESS) r = exr_get_compression(ctx, part, &compression);
+  if (r == EXR_ERR_SUCCESS) r = exr_get_data_window(ctx, part, &dw);
+  if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
+
+  exr_decode_pipeline_t decoder{};  // as EXR_DECODE_PIPELINE_INITIALIZER: all zero
+  struct Destroy {
+    exr_const_context_t ctx;
+    exr_decode_pipeline_t* decoder;
+    ~Destroy() { exr_decoding_destroy(ctx, decoder); }
+  } destroy{ctx, &decoder};
+  bool started = false;
+  auto check = [&](const exr_chunk_info_t& chunk, const std::string& where) {
+    // Core passes an empty chunk without a word, and does not decode an uncompressed one.
+    if ((chunk.packed_size == 0 && chunk.unpacked_size != 0) ||
+        (compression == EXR_COMPRESSION_NONE && chunk.packed_size != chunk.unpacked_size)) {
+      fail(where, std::to_string(chunk.packed_size) + " bytes where its rows need " +
+                      std::to_string(chunk.unpacked_size));
+    }
+    // A chunk no smaller than its rows is stored as it is, and Imf reads it so
+    // (Core 3.1 fails on such a B44 tile at the edge). Core 3.1 cannot decode
+    // DWAA/DWAB: those chunks are left to Imf.
+    if (compression == EXR_COMPRESSION_NONE || compression == EXR_COMPRESSION_DWAA ||
+        compression == EXR_COMPRESSION_DWAB || chunk.packed_size >= chunk.unpacked_size) {
+      return;
+    }
+    exr_result_t d = EXR_ERR_SUCCESS;
+    if (!started) {
+      // No channel has a destination: the decoder decompresses and stops.
+      d = exr_decoding_initialize(ctx, part, &chunk, &decoder);
+      if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
+      decoder.unpack_and_convert_fn = nullptr;
+      started = d == EXR_ERR_SUCCESS;
+    } else {
+      d = exr_decoding_update(ctx, part, &chunk, &decoder);
+    }
+    if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
+    if (d != EXR_ERR_SUCCESS) fail(where, core.Reason(d));
+  };
+
+  exr_chunk_info_t chunk{};
+  if (storage == EXR_STORAGE_SCANLINE) {
+    int32_t lines = 1;
+    r = exr_get_scanlines_per_chunk(ctx, part, &lines);
+    if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
+    for (int64_t y = y0; y <= y1; y = int64_t{chunk.start_y} + std::max(lines, 1)) {
+      r = exr_read_scanline_chunk_info(ctx, part, static_cast<int>(y), &chunk);
+      if (r != EXR_ERR_SUCCESS) fail("scan line " + std::to_string(y), core.Reason(r));
+      check(chunk, "scan line " + std::to_string(chunk.start_y));
+    }
+  } else if (storage == EXR_STORAGE_TILED) {
+    // Level 0 only: the others are not read. Whole rows of tiles, as Imf reads them.
+    int32_t tile_w = 1, tile_h = 1;
+    r = exr_get_tile_sizes(ctx, part, 0, 0, &tile_w, &tile_h);
+    if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
+    tile_w = std::max(tile_w, 1);
+    tile_h = std::max(tile_h, 1);
+    const int64_t tiles_x = (int64_t{dw.max.x} - dw.min.x + tile_w) / tile_w;
+    for (int64_t ty = (int64_t{y0} - dw.min.y) / tile_h; ty <= (int64_t{y1} - dw.min.y) / tile_h; ++ty) {
+      for (int64_t tx = 0; tx < tiles_x; ++tx) {
+        const std::string where = "tile (" + std::to_string(tx) + ", " + std::to_string(ty) + ")";
+        r = exr_read_tile_chunk_info(ctx, part, static_cast<int>(tx), static_cast<int>(ty), 0, 0, &chunk);
+        if (r != EXR_ERR_SUCCESS) fail(where, core.Reason(r));
+        check(chunk, where);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 bool DisplaySize(const Imf::Header& header, int* width, int* height) {
@@ -167,7 +282,8 @@ bool DisplaySize(const Imf::Header& header, int* width, int* height) {
   return true;
 }
 
-void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<ChannelRead>& reads) {
+void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int part,
+                  const std::vector<ChannelRead>& reads) {
   // The windows are checked on the header before the part is opened: opening
   // it sizes the decompressor's line buffers from the data window (a 2^30
   // wide window asked for 3 GB; found by fuzz_exr_loader).
@@ -201,6 +317,7 @@ void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<Cha
   const int y0 = std::max(data.min.y, disp.min.y), y1 = std::min(data.max.y, disp.max.y);
   if (x0 > x1 || y0 > y1) return;
 
+  CheckChunks(path, part, y0, y1);
   Imf::InputPart in(file, part);
   // Read strips of whole data-window rows (about 1M samples per channel, so
   // OpenEXR's threads get many blocks at once), copy the overlap.

@@ -57,10 +57,14 @@ struct ChannelRead {
   InputSanitizeStats* stats;  // counts for kRadiance / kDepth; null otherwise
 };
 
-// Reads the channels (all in part `part`) as float into display-window-sized
-// planes. Throws on any problem (OpenEXR's Iex exceptions, UnsupportedExr
-// for unsupported windows or subsampling); the caller catches.
-void ReadChannels(Imf::MultiPartInputFile& file, int part, const std::vector<ChannelRead>& reads);
+// Reads the channels (all in part `part` of `file`, opened from `path`) as
+// float into display-window-sized planes. First every chunk to be read is
+// decompressed by OpenEXRCore, which checks its size (Imf 3.1 does not).
+// Throws on any problem (OpenEXR's Iex exceptions, UnsupportedExr for
+// unsupported windows or subsampling, std::runtime_error naming a corrupt
+// chunk); the caller catches.
+void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int part,
+                  const std::vector<ChannelRead>& reads);
 
 // Formats the error for an exception thrown while reading `path`:
 // "'path': ..." for UnsupportedExr, "'path': out of memory ..." for bad_alloc

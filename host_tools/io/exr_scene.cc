@@ -139,7 +139,7 @@ bool ReadColourFile(Imf::MultiPartInputFile& file, const std::string& path, bool
     frame->has_motion = true;
   }
 
-  for (const auto& [part, list] : reads) detail::ReadChannels(file, part, list);
+  for (const auto& [part, list] : reads) detail::ReadChannels(path, file, part, list);
   if (luminance) {
     frame->g = frame->r;
     frame->b = frame->r;
@@ -205,7 +205,7 @@ bool ReadDepthFile(Imf::MultiPartInputFile& file, const std::string& depth_path,
              " but colour file '" + colour_path + "' is " + SizeText(frame->width, frame->height);
     return false;
   }
-  detail::ReadChannels(file, part, {{name, &frame->depth, Sanitize::kDepth, &frame->depth_stats}});
+  detail::ReadChannels(depth_path, file, part, {{name, &frame->depth, Sanitize::kDepth, &frame->depth_stats}});
   frame->has_depth = true;
   frame->layout += " + separate depth";
   return true;

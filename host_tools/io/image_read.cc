@@ -106,7 +106,7 @@ bool ReadExrMask(const std::string& path, FloatPlane* out, std::string* error) {
              return false;
            }
            FloatPlane plane;
-           detail::ReadChannels(*file, part, {{name, &plane, detail::Sanitize::kNone, nullptr}});
+           detail::ReadChannels(path, *file, part, {{name, &plane, detail::Sanitize::kNone, nullptr}});
            *out = std::move(plane);
            return true;
          });

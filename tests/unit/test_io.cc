@@ -26,6 +26,7 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/openexr.h>
 #include <png.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -461,6 +462,130 @@ TEST_F(IoTest, LoadErrors) {
   EXPECT_FALSE(LoadSceneExr(dir_.string(), "", &f, &error));
   EXPECT_NE(error.find("directory"), std::string::npos) << error;
   EXPECT_EQ(f.width, 0);  // never touched by a failed load
+}
+
+// Gives chunk `index` (in file order) of a single-part scanline or one-level
+// tiled file `data` in place of its own. The rest stays valid: the chunk's
+// size field and the offsets of the chunks after it are changed to match.
+void ReplaceChunkData(const std::string& path, int index, const std::string& data) {
+  exr_context_t ctx = nullptr;
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  ASSERT_EQ(exr_start_read(&ctx, path.c_str(), &init), EXR_ERR_SUCCESS);
+  int32_t count = 0, lines = 1, tile_w = 1, tile_h = 1;
+  exr_storage_t storage = EXR_STORAGE_SCANLINE;
+  exr_attr_box2i_t dw{};
+  exr_get_chunk_count(ctx, 0, &count);
+  exr_get_storage(ctx, 0, &storage);
+  exr_get_data_window(ctx, 0, &dw);
+  const bool tiled = storage == EXR_STORAGE_TILED;
+  if (tiled) {
+    exr_get_tile_sizes(ctx, 0, 0, 0, &tile_w, &tile_h);
+  } else {
+    exr_get_scanlines_per_chunk(ctx, 0, &lines);
+  }
+  const int tiles_x = (dw.max.x - dw.min.x + tile_w) / tile_w;
+  std::vector<exr_chunk_info_t> chunks(static_cast<size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    exr_chunk_info_t& c = chunks[static_cast<size_t>(i)];
+    EXPECT_EQ(tiled ? exr_read_tile_chunk_info(ctx, 0, i % tiles_x, i / tiles_x, 0, 0, &c)
+                    : exr_read_scanline_chunk_info(ctx, 0, dw.min.y + i * lines, &c),
+              EXR_ERR_SUCCESS);
+  }
+  exr_finish(&ctx);
+
+  // The offset table: where each chunk starts (its header before the data).
+  const uint64_t chunk_header = tiled ? 20 : 8;
+  auto u64 = [](uint64_t v) {
+    std::string b(8, '\0');
+    for (int i = 0; i < 8; ++i) b[static_cast<size_t>(i)] = static_cast<char>(v >> (8 * i));
+    return b;
+  };
+  std::string table;
+  for (const exr_chunk_info_t& c : chunks) table += u64(c.data_offset - chunk_header);
+  std::string bytes = ReadBytes(path);
+  const size_t at = bytes.find(table);
+  ASSERT_NE(at, std::string::npos);
+  const exr_chunk_info_t& target = chunks[static_cast<size_t>(index)];
+  ASSERT_LE(data.size(), target.packed_size);
+  const uint64_t shrink = target.packed_size - data.size();
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    if (chunks[i].data_offset > target.data_offset)
+      bytes.replace(at + 8 * i, 8, u64(chunks[i].data_offset - chunk_header - shrink));
+  }
+  bytes.replace(target.data_offset - 4, 4, u64(data.size()).substr(0, 4));
+  bytes.replace(target.data_offset, target.packed_size, data);
+  WriteBytes(path, bytes);
+}
+
+// OpenEXR 3.1's C++ reader does not check that a chunk decompresses to the
+// size its rows need: the rows of a short ZIP chunk came from uninitialised
+// memory and the load succeeded.
+TEST_F(IoTest, ChunkOfTheWrongSizeIsAnError) {
+  const std::string zip16("\x78\x9c\x63\x60\x40\x05\x00\x00\x10\x00\x01", 11);  // zlib: 16 zero bytes
+  std::vector<float> v(8 * 40);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = 0.37f * static_cast<float>(i % 29);
+  struct Case {
+    const char* name;
+    Imf::Compression compression;
+    bool tiled;
+    int chunk;
+    std::string want;
+  };
+  const Case cases[] = {
+      // 16 rows a chunk, 512 bytes
+      {"zip.exr", Imf::ZIP_COMPRESSION, false, 1, "corrupt chunk at scan line 16 ("},
+      // 4 x 4 tiles (2 a row), 64 bytes
+      {"zip_tiled.exr", Imf::ZIP_COMPRESSION, true, 5, "corrupt chunk at tile (1, 2) ("},
+      // 1 row a chunk, 32 bytes, given 11
+      {"none.exr", Imf::NO_COMPRESSION, false, 3, "corrupt chunk at scan line 3 (11 bytes where its rows need 32)"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = Path(c.name);
+    test::WriteExrFixture(path, Box(0, 0, 7, 39), Box(0, 0, 7, 39), {{"Y", Imf::FLOAT, v}}, c.compression, c.tiled);
+    SceneFrame f;
+    std::string error;
+    ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+    ReplaceChunkData(path, c.chunk, zip16);
+    SceneFrame untouched;
+    EXPECT_FALSE(LoadSceneExr(path, "", &untouched, &error)) << c.name;
+    EXPECT_EQ(error.rfind("'" + path + "' is not a readable OpenEXR file: " + c.want, 0), 0u) << error;
+    EXPECT_EQ(untouched.width, 0);
+    FloatPlane mask;  // every reader checks the chunks
+    EXPECT_FALSE(ReadMaskImage(path, &mask, &error)) << c.name;
+    EXPECT_NE(error.find(c.want), std::string::npos) << error;
+  }
+}
+
+// The chunk check decompresses with OpenEXRCore: valid files of every
+// compression, scanline and tiled, with partial chunks and tiles at the
+// edges, still load (the lossless ones exactly).
+TEST_F(IoTest, EveryCompressionLoads) {
+  const int w = 37, h = 23;
+  std::vector<float> v(static_cast<size_t>(w * h));
+  for (size_t i = 0; i < v.size(); ++i) v[i] = 0.25f * static_cast<float>(i % 17);  // exact in half
+  const Imf::Compression lossless[] = {Imf::NO_COMPRESSION, Imf::RLE_COMPRESSION, Imf::ZIPS_COMPRESSION,
+                                       Imf::ZIP_COMPRESSION, Imf::PIZ_COMPRESSION};
+  const Imf::Compression lossy[] = {Imf::PXR24_COMPRESSION, Imf::B44_COMPRESSION, Imf::B44A_COMPRESSION,
+                                    Imf::DWAA_COMPRESSION, Imf::DWAB_COMPRESSION};
+  for (const bool exact : {true, false}) {
+    for (const Imf::Compression c : exact ? std::vector<Imf::Compression>(std::begin(lossless), std::end(lossless))
+                                          : std::vector<Imf::Compression>(std::begin(lossy), std::end(lossy))) {
+      for (const bool tiled : {false, true}) {
+        const std::string path = Path("c" + std::to_string(static_cast<int>(c)) + (tiled ? "_tiled" : "") + ".exr");
+        test::WriteExrFixture(path, Box(0, 0, w - 1, h - 1), Box(0, 0, w - 1, h - 1),
+                              {{"R", Imf::HALF, v}, {"G", Imf::HALF, v}, {"B", Imf::HALF, v}, {"Z", Imf::FLOAT, v}},
+                              c, tiled);
+        SceneFrame f;
+        std::string error;
+        ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+        ASSERT_TRUE(f.has_depth);
+        if (exact) {
+          EXPECT_EQ(f.r.data, v) << path;
+          EXPECT_EQ(f.depth.data, v) << path;
+        }
+      }
+    }
+  }
 }
 
 // ---- Writers --------------------------------------------------------------
