@@ -160,7 +160,12 @@ std::string JsonString(const std::string& s) {
 // What the EXR reader replaced (exr_scene.h's rules), as a JSON object.
 std::string SanitisedJson(const io::InputSanitizeStats& st) {
   return "{\"nan\": " + std::to_string(st.nan) + ", \"pos_inf\": " + std::to_string(st.pos_inf) +
-         ", \"neg_inf\": " + std::to_string(st.neg_inf) + ", \"negative\": " + std::to_string(st.negative) + "}";
+         ", \"neg_inf\": " + std::to_string(st.neg_inf) + ", \"negative\": " + std::to_string(st.negative) +
+         ", \"first_replaced\": " +
+         (st.first_channel.empty() ? std::string("null")
+                                   : "{\"channel\": " + JsonString(st.first_channel) + ", \"x\": " +
+                                         std::to_string(st.first_x) + ", \"y\": " + std::to_string(st.first_y) + "}") +
+         "}";
 }
 
 // The report of a run that failed before it had a pipeline: its error alone.
@@ -714,6 +719,8 @@ int RunCommand(const RunOptions& o) {
       exit_code = 1;
       break;
     }
+    for (const std::string& w : scene.warnings)  // below the progress bar, if one is drawn
+      std::fprintf(stderr, "%scamsim: warning: %s\n", tty && f > 0 ? "\n" : "", w.c_str());
     if (f == 0) {
       if (!renderer.Configure(user_config, origins, scene.width, scene.height, &rc, &error)) {
         exit_code = 1;

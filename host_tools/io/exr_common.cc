@@ -144,39 +144,54 @@ namespace {
 constexpr float kLargestHalf = 65504.0f;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-float Clean(float v, Sanitize mode, InputSanitizeStats* stats) {
+// Cleans *v per `mode` (exr_scene.h's rules), counting it in *stats; true if
+// it was replaced.
+bool Clean(float* v, Sanitize mode, InputSanitizeStats* stats) {
   switch (mode) {
     case Sanitize::kNone:
-      return v;
+      return false;
     case Sanitize::kRadiance:
-      if (std::isnan(v)) {
+      if (std::isnan(*v)) {
         ++stats->nan;
-        return 0.0f;
-      }
-      if (v < 0.0f) {
-        ++(std::isinf(v) ? stats->neg_inf : stats->negative);
-        return 0.0f;
-      }
-      if (std::isinf(v)) {
+        *v = 0.0f;
+      } else if (*v < 0.0f) {
+        ++(std::isinf(*v) ? stats->neg_inf : stats->negative);
+        *v = 0.0f;
+      } else if (std::isinf(*v)) {
         ++stats->pos_inf;
-        return kLargestHalf;
+        *v = kLargestHalf;
+      } else {
+        return false;
       }
-      return v;
+      return true;
     case Sanitize::kDepth:
-      if (std::isnan(v)) {
+      if (std::isnan(*v)) {
         ++stats->nan;
-        return kInf;
+        *v = kInf;
+        return true;
       }
-      if (std::isinf(v)) {
-        ++(v > 0.0f ? stats->pos_inf : stats->neg_inf);
-      } else if (v < 0.0f) {
+      if (std::isinf(*v)) {
+        ++(*v > 0.0f ? stats->pos_inf : stats->neg_inf);
+      } else if (*v < 0.0f) {
         ++stats->negative;
       }
-      return v;
+      return false;
     case Sanitize::kMotion:
-      return std::isfinite(v) ? v : 0.0f;
+      if (std::isfinite(*v)) return false;
+      ++(std::isnan(*v) ? stats->nan : (*v > 0.0f ? stats->pos_inf : stats->neg_inf));
+      *v = 0.0f;
+      return true;
   }
-  return v;
+  return false;
+}
+
+// Keeps (channel, x, y) as the first sample replaced if it comes before the
+// one kept: a higher row, or the same row further left.
+void NoteReplaced(InputSanitizeStats* stats, const std::string& channel, int x, int y) {
+  if (!stats->first_channel.empty() && (y > stats->first_y || (y == stats->first_y && x >= stats->first_x))) return;
+  stats->first_channel = channel;
+  stats->first_x = x;
+  stats->first_y = y;
 }
 
 std::string BoxText(const Imath::Box2i& b) {
@@ -343,7 +358,13 @@ void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int pa
                            static_cast<size_t>((yy - y) * data_width + (x0 - data.min.x));
         float* dst = r.out->data.data() + static_cast<size_t>((yy - disp.min.y) * width) +
                      static_cast<size_t>(x0 - disp.min.x);
-        for (int x = 0; x <= x1 - x0; ++x) dst[x] = Clean(src[x], r.mode, r.stats);
+        for (int x = 0; x <= x1 - x0; ++x) {
+          float v = src[x];
+          if (Clean(&v, r.mode, r.stats)) {
+            NoteReplaced(r.stats, r.name, x0 - disp.min.x + x, static_cast<int>(yy - disp.min.y));
+          }
+          dst[x] = v;
+        }
       }
     }
   }

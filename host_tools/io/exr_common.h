@@ -54,7 +54,7 @@ struct ChannelRead {
   std::string name;           // channel in the part
   FloatPlane* out;            // resized to the display window
   Sanitize mode;              // kDepth fills with +inf outside the data window, others 0
-  InputSanitizeStats* stats;  // counts for kRadiance / kDepth; null otherwise
+  InputSanitizeStats* stats;  // counts for kRadiance / kDepth / kMotion; null for kNone
 };
 
 // Reads the channels (all in part `part` of `file`, opened from `path`) as

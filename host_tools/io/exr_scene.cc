@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <map>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -134,8 +135,8 @@ bool ReadColourFile(Imf::MultiPartInputFile& file, const std::string& path, bool
 
   const std::string vx = c.layer + "Vector.X", vy = c.layer + "Vector.Y";
   if (const int p = FindPart(file, c.part, {vx, vy}); p >= 0) {
-    reads[p].push_back({vx, &frame->motion_x, Sanitize::kMotion, nullptr});
-    reads[p].push_back({vy, &frame->motion_y, Sanitize::kMotion, nullptr});
+    reads[p].push_back({vx, &frame->motion_x, Sanitize::kMotion, &frame->motion_stats});
+    reads[p].push_back({vy, &frame->motion_y, Sanitize::kMotion, &frame->motion_stats});
     frame->has_motion = true;
   }
 
@@ -211,6 +212,36 @@ bool ReadDepthFile(Imf::MultiPartInputFile& file, const std::string& depth_path,
   return true;
 }
 
+// What was replaced in one kind of samples (`what`), for a warning: "3 NaN,
+// 1 +inf colour samples replaced (first: channel R at x=5, y=7)"; "" if
+// nothing was. `nan_only`: the other counts were kept (depth).
+std::string Replaced(const InputSanitizeStats& s, bool nan_only, const std::string& what, const std::string& by) {
+  if (s.first_channel.empty()) return "";
+  const std::pair<uint64_t, const char*> counts[] = {{s.nan, "NaN"},
+                                                     {nan_only ? 0 : s.pos_inf, "+inf"},
+                                                     {nan_only ? 0 : s.neg_inf, "-inf"},
+                                                     {nan_only ? 0 : s.negative, "negative"}};
+  std::string text;
+  uint64_t total = 0;
+  for (const auto& [n, name] : counts) {
+    if (n == 0) continue;
+    text += (text.empty() ? "" : ", ") + std::to_string(n) + " " + name;
+    total += n;
+  }
+  return text + " " + what + (total == 1 ? " sample" : " samples") + " replaced" + by + " (first: channel " +
+         detail::Printable(s.first_channel) + " at x=" + std::to_string(s.first_x) + ", y=" +
+         std::to_string(s.first_y) + ")";
+}
+
+// Adds "'path': part; part" to *warnings if any part says something.
+void AddWarning(const std::string& path, const std::vector<std::string>& parts, std::vector<std::string>* warnings) {
+  std::string line;
+  for (const std::string& p : parts) {
+    if (!p.empty()) line += (line.empty() ? "'" + path + "': " : "; ") + p;
+  }
+  if (!line.empty()) warnings->push_back(line);
+}
+
 }  // namespace
 
 bool LoadSceneExr(const std::string& path, const std::string& depth_path, SceneFrame* out,
@@ -225,6 +256,11 @@ bool LoadSceneExr(const std::string& path, const std::string& depth_path, SceneF
     return false;
   }
   frame.source = path;
+  AddWarning(path,
+             {Replaced(frame.radiance_stats, false, "colour", ""),
+              depth_path.empty() ? Replaced(frame.depth_stats, true, "depth", " by +inf") : "",
+              Replaced(frame.motion_stats, false, "motion", " by 0")},
+             &frame.warnings);
   if (!depth_path.empty()) {
     const std::unique_ptr<Imf::MultiPartInputFile> depth = detail::OpenExr(depth_path, error);
     if (!depth || !detail::CatchExr(depth_path, error, [&] {
@@ -233,6 +269,7 @@ bool LoadSceneExr(const std::string& path, const std::string& depth_path, SceneF
       return false;
     }
     frame.source += " + " + depth_path;
+    AddWarning(depth_path, {Replaced(frame.depth_stats, true, "depth", " by +inf")}, &frame.warnings);
   }
   *out = std::move(frame);
   return true;

@@ -38,7 +38,7 @@
 //
 // Motion (pixels, Blender's X/Y towards the previous frame): `<Layer>.Vector.X`
 // and `<Layer>.Vector.Y` (plain files: `Vector.X`/`Vector.Y`), both in one part.
-// Z and W are ignored. Non-finite motion becomes 0 (not counted).
+// Z and W are ignored. Non-finite motion becomes 0 (counted in motion_stats).
 //
 // Sample types: HALF and FLOAT are read as float; UINT is converted to float
 // (its integer value). Subsampled channels (x/y sampling != 1) are an error.
@@ -57,6 +57,16 @@
 //  depth: NaN -> +inf (nan); +inf (pos_inf), -inf (neg_inf) and finite < 0
 //    (negative) are counted but kept, like 0 and 1e10 (sky): the depth stage
 //    decides what they mean.
+//  motion (X and Y together): NaN (nan), +inf (pos_inf) and -inf (neg_inf)
+//    -> 0.
+// Each stats also keeps the first sample replaced (not one only counted), in
+// display-window pixels from its top-left: the topmost row, then the
+// leftmost; at a tie the channel read first (R before G before B).
+//
+// Warnings: one line per input file in which samples were replaced (colour,
+// NaN depth, motion), naming the file, the counts and the first sample:
+//  'f.exr': 3 NaN, 1 +inf colour samples replaced (first: channel R at x=5,
+//  y=7); 1 NaN depth sample replaced by +inf (first: channel Z at x=0, y=0)
 //
 // Errors (return false, *error names the file, *out is left unchanged): file
 // missing or a directory; not a readable OpenEXR file, truncated or garbage
@@ -71,6 +81,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "host_tools/io/float_plane.h"
 
@@ -78,6 +89,8 @@ namespace camsim::io {
 
 struct InputSanitizeStats {
   uint64_t nan = 0, pos_inf = 0, neg_inf = 0, negative = 0;  // counts before replacement
+  std::string first_channel;  // the first sample replaced (see above); empty if none was
+  int first_x = 0, first_y = 0;
 };
 
 struct SceneFrame {
@@ -87,7 +100,8 @@ struct SceneFrame {
   FloatPlane depth;  // metres along the view axis
   bool has_motion = false;
   FloatPlane motion_x, motion_y;  // pixels (Blender Vector.X/.Y)
-  InputSanitizeStats radiance_stats, depth_stats;
+  InputSanitizeStats radiance_stats, depth_stats, motion_stats;
+  std::vector<std::string> warnings;  // one line per file with samples replaced (see above)
   std::string source;  // path(s) it came from
   std::string layout;  // e.g. "blender-multilayer ViewLayer", "rgb+z", "rgb + separate depth"
 };

@@ -810,7 +810,8 @@ TEST(Cli, AnInputNamedLikeAnOutputsTemporaryFileSurvives) {
 }
 
 // The report counts what the EXR reader replaced in the depth channel too
-// (NaN, infinities, negative depths), per frame.
+// (NaN, infinities, negative depths), per frame, with the first sample
+// replaced; stderr gets a warning naming the file.
 TEST(Cli, ReportCountsTheDepthsTheReaderReplaced) {
   const std::string dir = TempDir("depthstats");
   const std::string exr = dir + "/rgbz.exr";
@@ -827,9 +828,18 @@ TEST(Cli, ReportCountsTheDepthsTheReaderReplaced) {
                           "/report.json");
   ASSERT_EQ(r.code, 0) << r.err;
   const std::string report = Slurp(dir + "/report.json");
-  EXPECT_NE(report.find("\"depth_sanitised\": {\"nan\": 1, \"pos_inf\": 1, \"neg_inf\": 0, \"negative\": 2}"),
+  EXPECT_NE(report.find("\"depth_sanitised\": {\"nan\": 1, \"pos_inf\": 1, \"neg_inf\": 0, \"negative\": 2, "
+                        "\"first_replaced\": {\"channel\": \"Z\", \"x\": 1, \"y\": 0}}"),
             std::string::npos)
       << report;
+  EXPECT_NE(report.find("\"sanitised\": {\"nan\": 0, \"pos_inf\": 0, \"neg_inf\": 0, \"negative\": 0, "
+                        "\"first_replaced\": null}"),
+            std::string::npos)
+      << report;
+  EXPECT_NE(r.err.find("camsim: warning: '" + exr + "': 1 NaN depth sample replaced by +inf (first: channel Z at "
+                       "x=1, y=0)\n"),
+            std::string::npos)
+      << r.err;
 }
 
 TEST(Cli, OptionErrorsNameTheOptionAndValue) {

@@ -176,6 +176,70 @@ TEST_F(IoTest, FloatRoundTripSanitises) {
   EXPECT_EQ(f.depth_stats.negative, 1u);
 }
 
+// The stats keep the first sample replaced (topmost row, then leftmost; at a
+// tie the channel read first), motion is counted too, and the file gets one
+// warning line saying so.
+TEST_F(IoTest, SanitiseStatsKeepTheFirstSampleReplaced) {
+  // 4x3 frame. Replaced: R (3,1) NaN; G (2,1) +inf, (0,2) -1; B (2,1) NaN;
+  // Z (3,2) NaN (its -2 at (1,0) is counted but kept); Vector.X (1,2) +inf;
+  // Vector.Y (3,1) NaN, (0,2) -inf.
+  std::vector<float> r(12, 1.0f), g = r, b = r, z(12, 5.0f), vx(12, 0.5f), vy = vx;
+  r[4 + 3] = kNaN;
+  g[4 + 2] = kInf;
+  g[8 + 0] = -1.0f;
+  b[4 + 2] = kNaN;
+  z[0 + 1] = -2.0f;
+  z[8 + 3] = kNaN;
+  vx[8 + 1] = kInf;
+  vy[4 + 3] = kNaN;
+  vy[8 + 0] = -kInf;
+  const std::string path = Path("bad.exr");
+  std::string error;
+  ASSERT_TRUE(WriteExrFloat(path, 4, 3,
+                            {{"R", r.data(), 4}, {"G", g.data(), 4}, {"B", b.data(), 4}, {"Z", z.data(), 4},
+                             {"Vector.X", vx.data(), 4}, {"Vector.Y", vy.data(), 4}},
+                            &error))
+      << error;
+  SceneFrame f;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.radiance_stats.nan, 2u);
+  EXPECT_EQ(f.radiance_stats.pos_inf, 1u);
+  EXPECT_EQ(f.radiance_stats.negative, 1u);
+  EXPECT_EQ(f.radiance_stats.first_channel, "G");  // before R's (3,1); B's (2,1) is read after it
+  EXPECT_EQ(f.radiance_stats.first_x, 2);
+  EXPECT_EQ(f.radiance_stats.first_y, 1);
+  EXPECT_EQ(f.depth_stats.first_channel, "Z");  // the NaN, not the -2 that was kept
+  EXPECT_EQ(f.depth_stats.first_x, 3);
+  EXPECT_EQ(f.depth_stats.first_y, 2);
+  ASSERT_TRUE(f.has_motion);
+  EXPECT_EQ(f.motion_stats.nan, 1u);
+  EXPECT_EQ(f.motion_stats.pos_inf, 1u);
+  EXPECT_EQ(f.motion_stats.neg_inf, 1u);
+  EXPECT_EQ(f.motion_stats.negative, 0u);  // negative motion is motion
+  EXPECT_EQ(f.motion_stats.first_channel, "Vector.Y");
+  EXPECT_EQ(f.motion_stats.first_x, 3);
+  EXPECT_EQ(f.motion_stats.first_y, 1);
+  EXPECT_EQ(f.motion_x.at(1, 2), 0.0f);
+  EXPECT_EQ(f.motion_y.at(0, 2), 0.0f);
+  EXPECT_EQ(f.warnings,
+            std::vector<std::string>{"'" + path +
+                                     "': 2 NaN, 1 +inf, 1 negative colour samples replaced (first: channel G at x=2, "
+                                     "y=1); 1 NaN depth sample replaced by +inf (first: channel Z at x=3, y=2); 1 NaN, "
+                                     "1 +inf, 1 -inf motion samples replaced by 0 (first: channel Vector.Y at x=3, "
+                                     "y=1)"});
+
+  // Pixels count from the display window's top-left; a clean file has no warning.
+  const std::string offset = Path("offset.exr"), clean = Path("clean.exr");
+  WriteTestExr(offset, Box(10, 20, 13, 22), Box(11, 21, 12, 22), {{"Y", Imf::FLOAT, {1, kNaN, 3, 4}}});
+  ASSERT_TRUE(LoadSceneExr(offset, "", &f, &error)) << error;
+  EXPECT_EQ(f.warnings, std::vector<std::string>{"'" + offset + "': 1 NaN colour sample replaced (first: "
+                                                 "channel Y at x=2, y=1)"});
+  WriteTestExr(clean, Box(0, 0, 1, 0), Box(0, 0, 1, 0), {{"Y", Imf::FLOAT, {1, 2}}});
+  ASSERT_TRUE(LoadSceneExr(clean, "", &f, &error)) << error;
+  EXPECT_TRUE(f.warnings.empty());
+  EXPECT_TRUE(f.radiance_stats.first_channel.empty());
+}
+
 // Blender writes the compositor's output as a layer "Composite" beside the
 // view layers; it sorts first, but colour comes from the view layer, which
 // holds the depth and motion that go with it.
@@ -270,6 +334,9 @@ TEST_F(IoTest, SeparateDepthFile) {
   ASSERT_TRUE(f.has_depth);
   EXPECT_EQ(f.depth.data, (std::vector<float>{1, 2, 3, 4, kInf, 6}));
   EXPECT_EQ(f.depth_stats.nan, 1u);
+  // The warning names the depth file, not the colour file.
+  EXPECT_EQ(f.warnings, std::vector<std::string>{"'" + depth + "': 1 NaN depth sample replaced by +inf (first: "
+                                                 "channel Z at x=1, y=1)"});
 
   ASSERT_TRUE(LoadSceneExr(colour, sole, &f, &error)) << error;
   EXPECT_EQ(f.depth.data, std::vector<float>(6, 8.0f));
