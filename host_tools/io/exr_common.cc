@@ -334,8 +334,8 @@ void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int pa
 
   CheckChunks(path, part, y0, y1);
   Imf::InputPart in(file, part);
-  // Read strips of whole data-window rows (about 1M samples per channel, so
-  // OpenEXR's threads get many blocks at once), copy the overlap.
+  // Read strips of whole data-window rows (about 1M samples per channel: a
+  // bounded buffer, few calls into OpenEXR), copy the overlap.
   const int64_t strip_rows =
       std::min<int64_t>(int64_t{y1} - y0 + 1, std::max<int64_t>(16, (int64_t{1} << 20) / data_width));
   const size_t plane_samples = static_cast<size_t>(data_width * strip_rows);
