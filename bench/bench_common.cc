@@ -43,8 +43,8 @@ std::vector<PeerPair>& Pairs() {
 }
 }  // namespace
 
-void AddPeerPair(const char* camsim, const char* peer, const char* what) {
-  Pairs().push_back(PeerPair{camsim, peer, what, ""});
+void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note) {
+  Pairs().push_back(PeerPair{camsim, peer, what, error_note});
 }
 
 void SetPeerError(const char* what, const char* note) {

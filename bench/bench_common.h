@@ -22,7 +22,8 @@ struct PeerPair {
   const char* what;
   const char* error_note;  // filled at run time by the peer benchmarks (static storage)
 };
-void AddPeerPair(const char* camsim, const char* peer, const char* what);
+// error_note: where the pair's error is, when it is known before the run.
+void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note = "");
 void SetPeerError(const char* what, const char* note);
 const std::vector<PeerPair>& PeerPairs();
 

@@ -552,26 +552,19 @@ BENCHMARK(BM_OpenCvRemap)
 // camsim's distortion stage alone (RGB, one thread) against cv::remap with
 // float maps (exact source positions; its error counters are measured above).
 const bool kRemapPairs = [] {
-  bench::AddPeerPair("BM_Distortion/1920/1080/0/0", "BM_OpenCvRemap/1/0", "remap bilinear vs INTER_LINEAR, RGB");
-  bench::SetPeerError("remap bilinear vs INTER_LINEAR, RGB",
-                      "error vs double: BM_OpenCvRemap/1/0 counters (camsim_* vs cv_*, Q16.16 LSB)");
-  bench::AddPeerPair("BM_Distortion/1920/1080/2/0", "BM_OpenCvRemap/4/0", "remap Lanczos-3 vs INTER_LANCZOS4, RGB");
-  bench::SetPeerError("remap Lanczos-3 vs INTER_LANCZOS4, RGB",
-                      "error vs a band-limited image's true values: BM_OpenCvRemap/4/0 counters (Q16.16 LSB)");
-  bench::AddPeerPair("BM_Distortion/1920/1080/2/2", "BM_OpenCvRemap/4/0",
-                     "remap Lanczos-3 most accurate vs INTER_LANCZOS4, RGB");
-  bench::SetPeerError("remap Lanczos-3 most accurate vs INTER_LANCZOS4, RGB",
-                      "error: BM_OpenCvRemap/4/0 counters accurate_* vs cv_* (Q16.16 LSB)");
-  bench::AddPeerPair("BM_Distortion/1920/1080/2/1", "BM_OpenCvRemap/4/0",
-                     "remap Lanczos-3 site-only (+exposure) vs LANCZOS4");
+  constexpr const char* kLanczos = "BM_OpenCvRemap/4/0";
+  bench::AddPeerPair("BM_Distortion/1920/1080/0/0", "BM_OpenCvRemap/1/0", "remap bilinear vs INTER_LINEAR, RGB",
+                     "error vs double: BM_OpenCvRemap/1/0 counters (camsim_* vs cv_*, Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/0", kLanczos, "remap Lanczos-3 vs INTER_LANCZOS4, RGB",
+                     "error vs a band-limited image's true values: BM_OpenCvRemap/4/0 counters (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/2", kLanczos, "remap Lanczos-3 most accurate vs INTER_LANCZOS4, RGB",
+                     "error: BM_OpenCvRemap/4/0 counters accurate_* vs cv_* (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/2/1", kLanczos, "remap Lanczos-3 site-only (+exposure) vs LANCZOS4");
   // The same filter as OpenCV's (distortion.filter = "lanczos4").
-  bench::AddPeerPair("BM_Distortion/1920/1080/3/0", "BM_OpenCvRemap/4/0", "remap Lanczos-4 vs INTER_LANCZOS4, RGB");
-  bench::SetPeerError("remap Lanczos-4 vs INTER_LANCZOS4, RGB",
-                      "error: BM_OpenCvRemap/4/0 counters l4_* vs cv_* (Q16.16 LSB)");
-  bench::AddPeerPair("BM_Distortion/1920/1080/3/2", "BM_OpenCvRemap/4/0",
-                     "remap Lanczos-4 most accurate vs INTER_LANCZOS4, RGB");
-  bench::SetPeerError("remap Lanczos-4 most accurate vs INTER_LANCZOS4, RGB",
-                      "error: BM_OpenCvRemap/4/0 counters l4_accurate_* vs cv_* (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/3/0", kLanczos, "remap Lanczos-4 vs INTER_LANCZOS4, RGB",
+                     "error: BM_OpenCvRemap/4/0 counters l4_* vs cv_* (Q16.16 LSB)");
+  bench::AddPeerPair("BM_Distortion/1920/1080/3/2", kLanczos, "remap Lanczos-4 most accurate vs INTER_LANCZOS4, RGB",
+                     "error: BM_OpenCvRemap/4/0 counters l4_accurate_* vs cv_* (Q16.16 LSB)");
   return true;
 }();
 #endif
