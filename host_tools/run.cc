@@ -422,9 +422,7 @@ std::string ReportJson(const RunOptions& o, const RunConfig& rc, const Pipeline&
     << StripRows(o.strip_rows, p.height(), threads) << ",\n";
   j << "  \"workspace_bytes\": {\"total\": " << p.WorkspaceBytes() << ", \"tables\": " << p.TableBytes()
     << ", \"per_worker\": " << p.WorkerBytes() << "},\n";
-  bool flare_runs = false;
-  for (int i = 0; i < plan.count; ++i) flare_runs = flare_runs || (plan.entries[i].id == StageId::kFlare && plan.entries[i].runs);
-  if (flare_runs && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
+  if (p.Runs(StageId::kFlare) && rc.core.flare.environment.texels != nullptr && rc.environment_data) {
     const FlareEnvironmentSummary& e = p.flare_stage().environment_summary();
     const io::InputSanitizeStats& st = rc.environment_data->stats;
     j << "  \"flare_environment\": {\"map\": " << JsonString(rc.environment_map) << ", \"width\": "

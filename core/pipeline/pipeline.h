@@ -180,6 +180,9 @@ class Pipeline {
   // planes). Call before ProcessStrip: processing itself cannot fail.
   Status CheckInput(const FrameInput& input) const;
 
+  // Whether stage `id` is in the plan and runs (after Configure).
+  bool Runs(StageId id) const;
+
   // The per-frame pre-passes CheckInput asks for, each when it is on and its
   // stage runs: the flare's bright tiles and haze (ComputeFlare) and the
   // smear's column charges (ComputeSmear, for the sensor). The caller's storage holds PrepassFlareSources()
@@ -214,7 +217,6 @@ class Pipeline {
   const FlareStage& flare_stage() const { return flare_; }
 
  private:
-  bool Runs(StageId id) const;  // in the plan and running
   bool FlarePrepass() const;
   bool SmearPrepass() const;
   struct StripState;
