@@ -28,8 +28,18 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
                                            reg::kSimFNumber,   reg::kSimSeed, reg::kSimFocusDistance};
 // The payload's registers: frozen while acquiring (the stream's buffers are
 // sized) and while TLParamsLocked is 1.
-constexpr uint32_t kGeometryRegisters[] = {reg::kWidth, reg::kHeight, reg::kOffsetX, reg::kOffsetY,
-                                           reg::kPixelFormat};
+static_assert(kChunkCount == 5);
+constexpr uint32_t kGeometryRegisters[] = {reg::kWidth,
+                                           reg::kHeight,
+                                           reg::kOffsetX,
+                                           reg::kOffsetY,
+                                           reg::kPixelFormat,
+                                           reg::kChunkModeActive,
+                                           reg::SelectedAddress(reg::kChunkEnable, kChunkTimestamp),
+                                           reg::SelectedAddress(reg::kChunkEnable, kChunkFrameID),
+                                           reg::SelectedAddress(reg::kChunkEnable, kChunkExposureTime),
+                                           reg::SelectedAddress(reg::kChunkEnable, kChunkGain),
+                                           reg::SelectedAddress(reg::kChunkEnable, kChunkSimFrameIndex)};
 // The Auto features' limits (Float registers, SFNC names <name>LowerLimit
 // and <name>UpperLimit): the lower one stays at or below the upper one.
 struct AutoLimits {
@@ -522,10 +532,14 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimSeed, c.seed & 0x7fffffff},
       {kSimStageSelector, 0},
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
+      {kChunkModeActive, 0},
+      {kChunkSelector, 0},
   };
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
   for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SelectedAddress(kSimStageEnable, i), 1);
+  // Every chunk on: ChunkModeActive alone sends them all.
+  for (int i = 0; i < kChunkCount; ++i) SetApplied(SelectedAddress(kChunkEnable, static_cast<size_t>(i)), 1);
   seed_register_at_start_ = applied_[kSimSeed];
   Write(SelectedAddress(kLineMode, 0), 0);  // Line0: Input (the trigger)
   Write(SelectedAddress(kLineMode, 1), 1);  // Line1: Output (the strobe)
@@ -1338,6 +1352,7 @@ void GigeDevice::TakeFrameSlot() {
 
 void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
   uint64_t dest = 0;
+  bool chunks = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     TakeFrameSlot();
@@ -1352,15 +1367,50 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
     arv_buffer_set_system_timestamp(buffer, slot_ns);
     const bool first = !was_acquiring_;
     FillLocked(buffer, pixel_format);
+    chunks = Applied(reg::kChunkModeActive) != 0;
+    if (chunks) QueueChunks(buffer, pixel_format);
     PaceFreeRun();  // the next frame at once when its slot has passed, or frames come as fast as they are made
     dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
     if (!gv_ || !prime_first_frame_ || dest == 0 || (!first && dest == primed_dest_)) return;
     primed_dest_ = dest;
   }
-  PrimeReceiver(buffer, dest);
+  PrimeReceiver(buffer, dest, chunks);
 }
 
-void GigeDevice::PrimeReceiver(ArvBuffer* buffer, uint64_t dest) {
+void GigeDevice::QueueChunks(ArvBuffer* buffer, uint32_t pixel_format) {
+  using namespace reg;
+  const size_t image = static_cast<size_t>(arv_buffer_get_image_width(buffer)) * arv_buffer_get_image_height(buffer) *
+                       static_cast<size_t>(PixelBits(pixel_format)) / 8;
+  const size_t padded = (image + 3) / 4 * 4;  // chunk lengths are whole 4-byte words
+  uint8_t tail[kMaxChunkTail] = {};
+  size_t n = padded - image;  // the padding's zeros
+  const auto put32 = [&](uint32_t v) {
+    for (int b = 3; b >= 0; --b) tail[n++] = static_cast<uint8_t>(v >> (8 * b));
+  };
+  const auto put64 = [&](uint64_t v) {
+    put32(static_cast<uint32_t>(v >> 32));
+    put32(static_cast<uint32_t>(v));
+  };
+  put32(kChunkIdImage);
+  put32(static_cast<uint32_t>(padded));
+  for (int i = 0; i < kChunkCount; ++i) {
+    if (Applied(SelectedAddress(kChunkEnable, static_cast<size_t>(i))) == 0) continue;
+    switch (i) {
+      case kChunkTimestamp: put64(arv_buffer_get_timestamp(buffer)); break;
+      case kChunkFrameID: put64(arv_buffer_get_frame_id(buffer)); break;
+      case kChunkExposureTime: put64(DoubleBits(frame_exposure_us_)); break;
+      case kChunkGain: put64(DoubleBits(frame_gain_db_)); break;
+      case kChunkSimFrameIndex: put64(frame_index_); break;
+    }
+    put32(kChunkIdBase + static_cast<uint32_t>(i));
+    put32(kChunkDataBytes);
+  }
+  // The fake camera sends packets of GevSCPSPacketSize (read after this, on this thread).
+  const size_t packet_data = (Read(kPacketSize) & 0xffff) - kGvspOverheadBytes;
+  SendChunksWithNextFrame(static_cast<uint16_t>(arv_buffer_get_frame_id(buffer)), image, packet_data, tail, n);
+}
+
+void GigeDevice::PrimeReceiver(ArvBuffer* buffer, uint64_t dest, bool chunks) {
   // Aravis's receiver (arvgvstream.c, 0.8.26) sets its socket buffer size
   // (the stream's socket-buffer-size) only when the first packet of a frame
   // arrives. The fake camera sends a frame as one burst right after this
@@ -1390,10 +1440,10 @@ void GigeDevice::PrimeReceiver(ArvBuffer* buffer, uint64_t dest) {
   // are the packet id 0.
   put16(2, static_cast<uint32_t>(arv_buffer_get_frame_id(buffer) & 0xffff));
   p[4] = 0x01;
-  // Image data leader: flags 0, payload type 1 (image), 64-bit timestamp,
+  // Image data leader: flags 0, payload type 1 (image; 0x4001 with chunks), 64-bit timestamp,
   // pixel format, size x/y, offset x/y, padding x/y 0 -- the values the fake
   // camera puts in its own leader.
-  put16(10, 0x0001);
+  put16(10, chunks ? kGvspPayloadImageWithChunks : 0x0001);
   const uint64_t ts = arv_buffer_get_timestamp(buffer);
   put32(12, static_cast<uint32_t>(ts >> 32));
   put32(16, static_cast<uint32_t>(ts & 0xffffffff));
@@ -1429,6 +1479,10 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     SetApplied(kSimFrameIndex, static_cast<uint64_t>(pulse_index));
     WriteDerived();
   }
+  // The settings this frame is made with (its chunks).
+  frame_exposure_us_ = AppliedDouble(kExposureTime);
+  frame_gain_db_ = AppliedDouble(kGain);
+  frame_index_ = Applied(kSimFrameIndex);
   size_t size = 0;
   uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));
   const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);

@@ -198,7 +198,9 @@ class GigeDevice {
   void TakeFrameSlot();
   std::chrono::steady_clock::duration FreeRunPeriod() const;  // 0: the next frame goes at once
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
-  void PrimeReceiver(ArvBuffer* buffer, uint64_t dest);        // not under mutex_
+  void PrimeReceiver(ArvBuffer* buffer, uint64_t dest, bool chunks);  // not under mutex_
+  // In chunk mode: the frame's chunks, for the hooks to send after its image (under mutex_).
+  void QueueChunks(ArvBuffer* buffer, uint32_t pixel_format);
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
   Registers AutoRegisters(const ExposureSettings& s) const;  // applied_ with the controller's settings
   bool RestartAuto();                       // the controller afresh on auto_config_ from the applied values
@@ -298,6 +300,9 @@ class GigeDevice {
   uint64_t hooks_refused_before_ = 0;  // WritesRefusedAt(address_) before the camera served
   bool prime_first_frame_ = true;
   double last_render_s_ = 0;  // the last frame's rendering time (0: none yet)
+  // What the last frame was rendered with (its chunks).
+  double frame_exposure_us_ = 0, frame_gain_db_ = 0;
+  uint32_t frame_index_ = 0;
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
 };
 

@@ -55,9 +55,11 @@
 #include <netinet/in.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <condition_variable>
 #include <cstdint>
 #include <cstring>
+#include <vector>
 #include <list>
 #include <mutex>
 
@@ -354,6 +356,79 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   return got;
 }
 
+namespace {
+
+// The chunks of the frame this thread sends next (SendChunksWithNextFrame).
+struct ChunkedFrame {
+  bool active = false;
+  uint16_t block_id = 0;
+  size_t image_bytes = 0, packet_data_bytes = 0, image_sent = 0;
+  uint32_t last_packet_id = 0;  // of the frame's last data packet sent so far
+  uint8_t tail[camsim::genicam::kMaxChunkTail];
+  size_t tail_bytes = 0;
+};
+thread_local ChunkedFrame t_chunks;
+
+// GVSP (standard IDs): status (2), block ID (2), packet format (1: bit 7
+// extended IDs, low 4 bits 1 leader / 2 trailer / 3 payload), packet ID (3).
+constexpr size_t kGvspHeader = 8;
+constexpr uint8_t kGvspLeader = 1, kGvspTrailer = 2, kGvspPayload = 3;
+void Put16(uint8_t* p, uint32_t v) {
+  p[0] = static_cast<uint8_t>(v >> 8);
+  p[1] = static_cast<uint8_t>(v);
+}
+
+// One packet of a frame with chunks (t_chunks): the leader and trailer with
+// the payload type of an image with chunks, the trailer after the chunks'
+// packets, and the chunks after the last image byte. Returns `size` when
+// every packet went out (the fake camera only reports failures).
+gssize SendChunkedFramePacket(SendToFn next, GSocket* socket, GSocketAddress* address, const uint8_t* packet,
+                              gsize size, GCancellable* cancellable, GError** error) {
+  using camsim::genicam::kGvspPayloadImageWithChunks;
+  ChunkedFrame& c = t_chunks;
+  std::vector<uint8_t> out(packet, packet + size);
+  const uint8_t format = packet[4] & 0x0f;
+  const auto send = [&](const std::vector<uint8_t>& p) {
+    return next(socket, address, reinterpret_cast<const gchar*>(p.data()), p.size(), cancellable, error);
+  };
+  if (format == kGvspLeader || format == kGvspTrailer) {
+    // Both carry the payload type at bytes 10..11 (after 2 reserved bytes).
+    if (size >= kGvspHeader + 4) Put16(&out[kGvspHeader + 2], kGvspPayloadImageWithChunks);
+    if (format == kGvspTrailer) {
+      const uint32_t id = c.last_packet_id + 1;
+      out[5] = static_cast<uint8_t>(id >> 16);
+      Put16(&out[6], id & 0xffff);
+      c.active = false;
+    }
+    const gssize sent = send(out);
+    return sent == static_cast<gssize>(out.size()) ? static_cast<gssize>(size) : sent;
+  }
+  c.last_packet_id = uint32_t{packet[5]} << 16 | Get16(packet + 6);
+  const size_t data = size - kGvspHeader;
+  const bool last_image_packet = c.image_sent < c.image_bytes && c.image_sent + data >= c.image_bytes;
+  c.image_sent += data;
+  if (!last_image_packet) return next(socket, address, reinterpret_cast<const gchar*>(packet), size, cancellable, error);
+  // The chunks fill this packet up, then packets of their own.
+  size_t taken = std::min(c.tail_bytes, c.packet_data_bytes > data ? c.packet_data_bytes - data : 0);
+  out.insert(out.end(), c.tail, c.tail + taken);
+  gssize sent = send(out);
+  if (sent != static_cast<gssize>(out.size())) return sent;
+  while (taken < c.tail_bytes) {
+    const size_t n = std::min(c.tail_bytes - taken, c.packet_data_bytes);
+    const uint32_t id = ++c.last_packet_id;
+    std::vector<uint8_t> p(packet, packet + kGvspHeader);
+    p[5] = static_cast<uint8_t>(id >> 16);
+    Put16(&p[6], id & 0xffff);
+    p.insert(p.end(), c.tail + taken, c.tail + taken + n);
+    sent = send(p);
+    if (sent != static_cast<gssize>(p.size())) return sent;
+    taken += n;
+  }
+  return static_cast<gssize>(size);
+}
+
+}  // namespace
+
 // The acknowledgement of the packet received: in GVCP's error form when one
 // of its accesses was refused.
 extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size,
@@ -363,6 +438,10 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
     g_set_error_literal(error, G_IO_ERROR, G_IO_ERROR_FAILED, "camsim: no g_socket_send_to");
     return -1;
   }
+  const auto* bytes = reinterpret_cast<const uint8_t*>(buffer);
+  if (t_chunks.active && socket != t_packet.socket && size >= kGvspHeader && Get16(bytes + 2) == t_chunks.block_id &&
+      (bytes[4] & 0x80) == 0 && (bytes[4] & 0x0f) >= kGvspLeader && (bytes[4] & 0x0f) <= kGvspPayload)
+    return SendChunkedFramePacket(next, socket, address, bytes, size, cancellable, error);
   if (t_packet.socket == nullptr || socket != t_packet.socket) return next(socket, address, buffer, size, cancellable, error);
   const ControlPacket packet = t_packet;
   t_packet = ControlPacket{};
@@ -404,6 +483,19 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
       Next<void*>("g_poll") != nullptr;
   return t_reads > reads && t_writes > writes && sockets && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
          Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
+}
+
+void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packet_data_bytes, const uint8_t* tail,
+                             size_t tail_bytes) {
+  ChunkedFrame& c = t_chunks;
+  c = ChunkedFrame{};
+  if (tail_bytes > kMaxChunkTail || packet_data_bytes == 0 || image_bytes == 0) return;  // the device's sizes: not expected
+  c.active = true;
+  c.block_id = block_id;
+  c.image_bytes = image_bytes;
+  c.packet_data_bytes = packet_data_bytes;
+  std::memcpy(c.tail, tail, tail_bytes);
+  c.tail_bytes = tail_bytes;
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {

@@ -119,4 +119,19 @@ class UnfilteredWritesRefused {
   DeviceWrites own_;
 };
 
+// GigE Vision chunk mode for the frame this thread sends next (the fake
+// camera sends each frame right after filling it, on the same thread). The
+// fake camera sends Width * Height * bits / 8 bytes of image only; the send
+// hook puts `tail` (the image's padding and tag and the chunks,
+// register_table.h) after those bytes, in the same sequence of packets of
+// `packet_data_bytes` each (what a receiver assumes: the
+// packet size less the IP, UDP and GVSP headers), and marks the frame's
+// leader and trailer as an image with chunks (payload type 0x4001). Frames
+// of other block IDs go out as they are.
+inline constexpr size_t kMaxChunkTail = 128;
+inline constexpr uint16_t kGvspPayloadImageWithChunks = 0x4001;
+inline constexpr size_t kGvspOverheadBytes = 20 + 8 + 8;  // IPv4, UDP and GVSP (standard IDs) headers
+void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packet_data_bytes, const uint8_t* tail,
+                             size_t tail_bytes);
+
 }  // namespace camsim::genicam

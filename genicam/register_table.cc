@@ -1,9 +1,16 @@
 #include "genicam/register_table.h"
 
 #include <cstdio>
+#include <set>
 #include <sstream>
 
+#include "core/pipeline/pipeline.h"
+
 namespace camsim::genicam {
+
+static_assert(reg::SelectedAddress(reg::kSimStageEnable, kStageCount) <= reg::kChunkEnable,
+              "SimStageEnable's registers run into ChunkEnable's");
+
 namespace {
 
 Feature Int(const char* name, const char* cat, uint32_t addr, bool rw, double min, double max, double inc,
@@ -98,7 +105,26 @@ std::string Hex(uint32_t v) {
 }
 
 bool IsStandard(const std::string& name) {
-  return name.rfind("Sim", 0) != 0 && name != "ExposureTimeAbs" && name != "GainRaw";
+  return name.find("Sim") == std::string::npos && name != "ExposureTimeAbs" && name != "GainRaw";
+}
+
+// A chunk's value: read from the chunk `chunk` of each frame (Feature::chunk_id).
+Feature ChunkValue(Feature f, int64_t chunk) {
+  f.writable = false;
+  f.address = 0;
+  f.length = kChunkDataBytes;
+  f.chunk_id = kChunkIdBase + static_cast<uint32_t>(chunk);
+  return f;
+}
+
+// The register node a formula variable names: a feature's, or for
+// "Feature[i]" the register of selection i of a selected feature (its own node,
+// SelectionNodes).
+std::string VariableNode(const std::string& feature) {
+  std::string node = feature;
+  const size_t open = node.find('[');
+  if (open != std::string::npos) node = node.substr(0, open) + "_" + node.substr(open + 1, node.size() - open - 2);
+  return node + "Reg";
 }
 
 // An Auto feature's limits (SFNC <prefix>LowerLimit and <prefix>UpperLimit),
@@ -273,10 +299,16 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
 
   const char* tl = "TransportLayerControl";
   // Computed by the client from the registers it has just written: never stale.
-  Feature payload = Int("PayloadSize", tl, 0, false, 0, 0, 1, "Bytes per frame: Width * Height * bits per pixel / 8.");
+  Feature payload = Int("PayloadSize", tl, 0, false, 0, 0, 1,
+                        "Bytes per frame: Width * Height * bits per pixel / 8; with ChunkModeActive, that padded "
+                        "to 4 bytes, 8 for the image chunk's tag and 16 per enabled chunk.");
   payload.kind = Kind::kSwissKnife;
-  payload.formula = "(W*H*((PF>>16)&255))/8";
-  payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}};
+  // (kChunkDataBytes + kChunkTagBytes per chunk, kChunkTagBytes for the image's.)
+  static_assert(kChunkDataBytes + kChunkTagBytes == 16 && kChunkTagBytes == 8 && kChunkCount == 5);
+  payload.formula = "(M=0)?((W*H*((PF>>16)&255))/8):(((W*H*((PF>>16)&255))/8+3)/4*4+8+16*(E0+E1+E2+E3+E4))";
+  payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}, {"M", "ChunkModeActive"}};
+  for (int i = 0; i < kChunkCount; ++i)
+    payload.variables.push_back({"E" + std::to_string(i), "ChunkEnable[" + std::to_string(i) + "]"});
   t.push_back(payload);
   // SCPS0's low 16 bits; its high bits are flags (31: fire a test packet,
   // 30: do not fragment, 29: pixel endianness) that a size write keeps.
@@ -284,6 +316,39 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   packet.low_bits = 16;
   t.push_back(packet);
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
+
+  // GigE Vision chunk mode (register_table.h, ChunkSelectorValue): per-frame
+  // metadata after the image, read by clients with a chunk parser.
+  const char* cd = "ChunkDataControl";
+  t.push_back(Bool("ChunkModeActive", cd, kChunkModeActive, true,
+                   "Sends each frame's image as a chunk followed by the enabled chunks (PayloadSize grows)."));
+  t.back().locked_while_acquiring = true;
+  t.push_back(Enum("ChunkSelector", cd, kChunkSelector, true,
+                   {{"Timestamp", kChunkTimestamp},
+                    {"FrameID", kChunkFrameID},
+                    {"ExposureTime", kChunkExposureTime},
+                    {"Gain", kChunkGain},
+                    {"SimFrameIndex", kChunkSimFrameIndex}},
+                   "Chunk ChunkEnable acts on."));
+  t.back().selects = {"ChunkEnable"};
+  t.push_back(Selected(Bool("ChunkEnable", cd, kChunkEnable, true,
+                            "Whether the selected chunk is sent with each frame in chunk mode."),
+                       "ChunkSelector", kChunkCount));
+  t.back().locked_while_acquiring = true;
+  // The largest value an Integer chunk declares (2^62: a double that
+  // converts exactly; a nanosecond timestamp reaches it in 146 years).
+  constexpr double kChunkIntMax = 4611686018427387904.0;
+  t.push_back(ChunkValue(Int("ChunkTimestamp", cd, 0, false, 0, kChunkIntMax, 1,
+                             "Timestamp of the frame (its GVSP leader's).", "ns"),
+                         kChunkTimestamp));
+  t.push_back(ChunkValue(Int("ChunkFrameID", cd, 0, false, 0, kChunkIntMax, 1, "GVSP block ID of the frame."),
+                         kChunkFrameID));
+  t.push_back(ChunkValue(Flt("ChunkExposureTime", cd, 0, 1.0, 1e8, "Exposure time the frame was rendered with.", "us"),
+                         kChunkExposureTime));
+  t.push_back(ChunkValue(Flt("ChunkGain", cd, 0, 0.0, 48.0, "Gain the frame was rendered with.", "dB"), kChunkGain));
+  t.push_back(ChunkValue(Int("ChunkSimFrameIndex", cd, 0, false, 0, 0x7fffffff, 1,
+                             "Frame index the frame was rendered with (SimFrameIndex; `camsim run --first-frame`)."),
+                         kChunkSimFrameIndex));
 
   const char* sim = "Simulation";
   t.push_back(Int("SimSceneCount", sim, kSimSceneCount, false, s.scene_count, s.scene_count, 1, "Scenes loaded."));
@@ -315,6 +380,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
 std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
   std::vector<Feature> out;
   for (const Feature& f : table) {
+    if (f.chunk_id != 0) continue;  // in each frame, not in device memory
     if (f.selected_by.empty()) {
       out.push_back(f);
       continue;
@@ -347,6 +413,7 @@ constexpr char kVersionGuidMark[] = "@VERSION_GUID@";
 std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& d) {
   std::ostringstream x;
   std::ostringstream swiss_knives;  // the entries' availability nodes, after the features
+  std::set<std::string> selections;  // "Feature[i]" a formula reads (VariableNode)
   x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
     << "<!-- Generated by camsim-gige from genicam/register_table.cc; do not edit. -->\n"
     << "<RegisterDescription ModelName=\"" << Xml(d.model) << "\" VendorName=\"" << Xml(d.vendor)
@@ -376,14 +443,17 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     const std::string ns = IsStandard(f.name) ? "Standard" : "Custom";
     const std::string regname = (f.alias_of.empty() ? f.name : f.alias_of) + "Reg";
     const std::string access = f.writable ? "RW" : "RO";
-    const std::string head = "  <!-- " + Hex(f.address) + " -->\n";
+    const std::string head =
+        "  <!-- " + (f.chunk_id != 0 ? "chunk " + Hex(f.chunk_id) + ", at " : std::string()) + Hex(f.address) + " -->\n";
     const std::string locked =
         f.locked_while_acquiring ? std::string("    <pIsLocked>") + kPayloadLocked + "</pIsLocked>\n" : "";
     if (f.kind == Kind::kSwissKnife) {
       x << "  <IntSwissKnife Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
         << "    <Description>" << Xml(f.description) << "</Description>\n";
-      for (const auto& v : f.variables)
-        x << "    <pVariable Name=\"" << v.first << "\">" << v.second << "Reg</pVariable>\n";
+      for (const auto& v : f.variables) {
+        x << "    <pVariable Name=\"" << v.first << "\">" << VariableNode(v.second) << "</pVariable>\n";
+        if (v.second.find('[') != std::string::npos) selections.insert(v.second);
+      }
       x << "    <Formula>" << Xml(f.formula) << "</Formula>\n  </IntSwissKnife>\n";
       continue;
     }
@@ -429,7 +499,8 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         x << "  <Enumeration Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
           << "    <Description>" << Xml(f.description) << "</Description>\n" << locked;
         for (const EnumEntry& e : f.entries) {
-          x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\"" << (IsStandard(f.name) ? "Standard" : "Custom")
+          x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\""
+            << (IsStandard(f.name) && IsStandard(e.name) ? "Standard" : "Custom")
             << "\">\n";
           if (e.only_at_selection >= 0) x << "      <pIsAvailable>" << f.name << e.name << "Available</pIsAvailable>\n";
           x << "      <Value>" << e.value << "</Value>\n    </EnumEntry>\n";
@@ -445,7 +516,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
       case Kind::kBoolean:
         x << "  <Boolean Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
           << "    <Description>" << Xml(f.description) << "</Description>\n"
-          << "    <pValue>" << regname << "</pValue>\n    <OnValue>1</OnValue>\n    <OffValue>0</OffValue>\n"
+          << locked << "    <pValue>" << regname << "</pValue>\n    <OnValue>1</OnValue>\n    <OffValue>0</OffValue>\n"
           << "  </Boolean>\n";
         break;
       case Kind::kCommand:
@@ -463,15 +534,31 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     x << "  <" << reg_kind << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
       << "    <Address>" << Hex(f.address) << "</Address>\n";
     if (!f.selected_by.empty()) x << "    <pIndex Offset=\"4\">" << f.selected_by << "Reg</pIndex>\n";
+    const std::string port = f.chunk_id != 0 ? f.name + "Port" : "Device";
     x << "    <Length>" << f.length << "</Length>\n"
-      << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>Device</pPort>\n"
+      << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>" << port << "</pPort>\n"
       << "    <Cachable>NoCache</Cachable>\n";
     // Big-endian bit numbers count from the most significant bit (0).
     if (masked) x << "    <LSB>" << f.length * 8 - 1 << "</LSB>\n    <MSB>" << f.length * 8 - f.low_bits << "</MSB>\n";
     if (!is_float) x << "    <Sign>Unsigned</Sign>\n";
     x << "    <Endianess>BigEndian</Endianess>\n  </" << reg_kind << ">\n";
+    if (f.chunk_id != 0) {
+      char id[16];
+      std::snprintf(id, sizeof id, "%08X", f.chunk_id);
+      x << "  <Port Name=\"" << port << "\" NameSpace=\"Custom\">\n    <ChunkID>" << id << "</ChunkID>\n  </Port>\n";
+    }
   }
   x << swiss_knives.str();
+  // The registers of single selections that formulas read.
+  for (const std::string& s : selections) {
+    const size_t open = s.find('[');
+    const Feature* f = FindFeature(table, s.substr(0, open));
+    const uint32_t i = static_cast<uint32_t>(std::stoul(s.substr(open + 1)));
+    x << "  <IntReg Name=\"" << VariableNode(s) << "\" NameSpace=\"Custom\">\n"
+      << "    <Address>" << Hex(reg::SelectedAddress(f->address, i)) << "</Address>\n    <Length>4</Length>\n"
+      << "    <AccessMode>RO</AccessMode>\n    <pPort>Device</pPort>\n    <Cachable>NoCache</Cachable>\n"
+      << "    <Sign>Unsigned</Sign>\n    <Endianess>BigEndian</Endianess>\n  </IntReg>\n";
+  }
   x << "  <IntSwissKnife Name=\"" << kPayloadLocked << "\" NameSpace=\"Custom\">\n"
     << "    <pVariable Name=\"T\">TLParamsLockedReg</pVariable>\n"
     << "    <pVariable Name=\"A\">AcquisitionActiveReg</pVariable>\n"

@@ -60,6 +60,9 @@ struct Feature {
   // kInteger: the value is the register's low `low_bits` bits (a GenICam
   // MaskedIntReg; writes keep the other bits); 0: the whole register.
   int low_bits = 0;
+  // Nonzero: the value is not in device memory but in the chunk of this ID
+  // in each frame (GenICam Port with ChunkID), at `address` in it; read-only.
+  uint32_t chunk_id = 0;
   // kEnum, a selector: the features it selects (GenICam pSelected).
   std::vector<std::string> selects;
   // Locked (GenICam pIsLocked: not writable) during an acquisition or while
@@ -101,7 +104,7 @@ inline constexpr uint32_t kWidthMax = 0x8000, kHeightMax = 0x8004, kAcquisitionF
                           kSimAutoTarget = 0x80a8, kSimSyncCount = 0x80b0, kSimFocusDistance = 0x80c0,
                           kAcquisitionResultingFrameRate = 0x80c8, kAutoExposureTimeLowerLimit = 0x80d0,
                           kAutoExposureTimeUpperLimit = 0x80d8, kAutoGainLowerLimit = 0x80e0,
-                          kAutoGainUpperLimit = 0x80e8;
+                          kAutoGainUpperLimit = 0x80e8, kChunkModeActive = 0x80f0, kChunkSelector = 0x80f4;
 // SimFocusDistance's range (metres): the core takes up to 1e6 m, and more
 // than the focal length (checked when the pipeline is planned).
 inline constexpr double kMinFocusDistanceM = 0.001, kMaxFocusDistanceM = 1e6;
@@ -114,10 +117,28 @@ inline constexpr uint32_t kAcquisitionStart = 0x80b4, kAcquisitionStop = 0x80b8,
 // per line (LineSelector: 2); SimStageEnable: one per configured stage
 // (SimStageSelector: kStageCount at most).
 inline constexpr uint32_t kLineMode = 0x8064, kLineSource = 0x806c, kLineStatus = 0x8074, kSimStageEnable = 0x8100;
+// ChunkEnable: one per chunk (ChunkSelector: kChunkCount), after SimStageEnable's kStageCount.
+inline constexpr uint32_t kChunkEnable = 0x8180;
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value) {
   return base + 4 * static_cast<uint32_t>(value);
 }
 }  // namespace reg
+
+// GigE Vision chunk mode (ChunkModeActive): the payload is the image padded
+// to 4 bytes, its tag, then each enabled chunk: 8 bytes of big-endian data
+// and its tag. A tag is the chunk's ID and data length, 4 bytes each,
+// big-endian, after the data (receivers find chunks from the end).
+// ChunkSelector values; each chunk's ID is kChunkIdBase + its value.
+enum ChunkSelectorValue : int64_t {
+  kChunkTimestamp = 0,      // uint64: the frame's timestamp (ns; the GVSP leader's)
+  kChunkFrameID = 1,        // uint64: the GVSP block ID
+  kChunkExposureTime = 2,   // double: the exposure the frame was rendered with (us)
+  kChunkGain = 3,           // double: its gain (dB)
+  kChunkSimFrameIndex = 4,  // uint64: the frame index keying scene and noise (`camsim run --first-frame`)
+  kChunkCount = 5
+};
+inline constexpr uint32_t kChunkIdImage = 0xC5A00000u, kChunkIdBase = 0xC5A00001u;
+inline constexpr uint32_t kChunkDataBytes = 8, kChunkTagBytes = 8;
 
 // Enumeration values of camsim's own enum registers.
 enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiFrame = 2 };
@@ -154,7 +175,7 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);
 // The table with each selected feature spread into one entry per register
 // (named Feature[i], at address + 4 * i, with the entries available at
-// selection i): what the device reads and checks.
+// selection i), and without the chunk features: what the device reads and checks.
 std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table);
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);
 

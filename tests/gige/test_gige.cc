@@ -2595,6 +2595,159 @@ TEST_F(GigeE2E, PayloadFeaturesReadLockedWhenWritesAreRefused) {
 // camera's stream could take the refused size before the sync restored it);
 // stop, a new window and start sent at once (inside one register sync) take
 // the new window.
+// A frame's chunks through Aravis's chunk parser, and its image.
+struct ChunkedFrame {
+  bool ok = false;
+  std::vector<uint8_t> image;      // the image chunk (padded to 4 bytes)
+  bool has_chunks = false;
+  uint64_t frame_id = 0, timestamp = 0;
+  std::map<std::string, double> values;  // chunk features found
+  std::vector<std::string> missing;      // chunk features not found
+};
+ChunkedFrame GrabChunked(Client& c, ArvChunkParser* parser) {
+  ChunkedFrame out;
+  ArvBuffer* b = arv_stream_timeout_pop_buffer(c.stream(), 3000 * 1000);
+  if (b == nullptr) return out;
+  out.ok = arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS;
+  out.has_chunks = out.ok && arv_buffer_has_chunks(b);
+  out.frame_id = arv_buffer_get_frame_id(b);
+  out.timestamp = arv_buffer_get_timestamp(b);
+  if (out.has_chunks) {
+    size_t size = 0;
+    const auto* image = static_cast<const uint8_t*>(arv_buffer_get_chunk_data(b, genicam::kChunkIdImage, &size));
+    if (image != nullptr) out.image.assign(image, image + size);
+    for (const char* name : {"ChunkTimestamp", "ChunkFrameID", "ChunkSimFrameIndex", "ChunkExposureTime", "ChunkGain"}) {
+      GError* e = nullptr;
+      const bool is_float = std::strcmp(name, "ChunkExposureTime") == 0 || std::strcmp(name, "ChunkGain") == 0;
+      const double v = is_float ? arv_chunk_parser_get_float_value(parser, b, name, &e)
+                                : static_cast<double>(arv_chunk_parser_get_integer_value(parser, b, name, &e));
+      if (e == nullptr) out.values[name] = v;
+      else out.missing.push_back(name);
+      g_clear_error(&e);
+    }
+  } else if (out.ok) {
+    size_t size = 0;
+    const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, &size));
+    out.image.assign(data, data + size);
+  }
+  arv_stream_push_buffer(c.stream(), b);
+  return out;
+}
+
+// GigE Vision chunk mode: each frame's image as a chunk, then the enabled
+// chunks (the settings it was rendered with), read by Aravis's chunk parser
+// from the XML's chunk ports. Packet sizes put the chunks inside the last
+// image packet, across two packets, and after a full last image packet.
+TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  constexpr int64_t kImage = 64 * 48 * 2;  // BayerRG12
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage);
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 5 * 16) << "every chunk is on by default";
+  SetFloat(c, "ExposureTime", 4000.0);
+  SetFloat(c, "Gain", 2.5);
+  const std::vector<std::string> kSettings = {"exposure.exposure_time_us=4000", "sensor.gain_db=2.5"};
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  ASSERT_NE(parser, nullptr);
+  // 6144 image bytes in packets of 1364 (chunks in the 5th packet), 1028 (the
+  // 6th packet has room for 24 of their 88 bytes) and 1024 (6 full packets).
+  uint32_t index = 7;
+  for (const int data_bytes : {1364, 1028, 1024}) {
+    SCOPED_TRACE(data_bytes);
+    SetInt(c, "GevSCPSPacketSize", data_bytes + static_cast<int>(genicam::kGvspOverheadBytes));
+    SetInt(c, "SimFrameIndex", index);
+    Settle();
+    ASSERT_TRUE(c.OpenStream()) << c.last_error;
+    Start(c);
+    const ChunkedFrame f0 = GrabChunked(c, parser), f1 = GrabChunked(c, parser);
+    c.CloseStream();
+    for (const ChunkedFrame* f : {&f0, &f1}) {
+      ASSERT_TRUE(f->ok);
+      ASSERT_TRUE(f->has_chunks);
+      const uint32_t i = f == &f0 ? index : index + 1;
+      EXPECT_TRUE(f->image == Reference(i, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, kSettings))
+          << "frame " << i;
+      EXPECT_TRUE(f->missing.empty()) << f->missing.front();
+      EXPECT_EQ(f->values.at("ChunkSimFrameIndex"), i);
+      EXPECT_EQ(f->values.at("ChunkFrameID"), static_cast<double>(f->frame_id));
+      EXPECT_EQ(f->values.at("ChunkTimestamp"), static_cast<double>(f->timestamp));
+      EXPECT_EQ(f->values.at("ChunkExposureTime"), 4000.0);
+      EXPECT_EQ(f->values.at("ChunkGain"), 2.5);
+    }
+    index += 10;
+  }
+  // A chunk switched off is not sent; the payload shrinks by its 16 bytes.
+  Set(c, "ChunkSelector", "Gain");
+  arv_camera_set_boolean(c.camera(), "ChunkEnable", FALSE, &e);
+  ASSERT_EQ(e, nullptr);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 4 * 16);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ChunkedFrame f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok);
+  EXPECT_EQ(f.missing, std::vector<std::string>{"ChunkGain"});
+  EXPECT_EQ(f.values.count("ChunkExposureTime"), 1u);
+  // The payload's layout is frozen while acquiring.
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", FALSE, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
+  Set(c, "ChunkSelector", "Timestamp");
+  arv_camera_set_boolean(c.camera(), "ChunkEnable", FALSE, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
+  c.CloseStream();
+  // Chunk mode off: the image alone, as before.
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", FALSE, &e);
+  ASSERT_EQ(e, nullptr);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage);
+  SetInt(c, "SimFrameIndex", 3);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  f = GrabChunked(c, parser);
+  c.CloseStream();
+  ASSERT_TRUE(f.ok);
+  EXPECT_FALSE(f.has_chunks);
+  EXPECT_TRUE(f.image == Reference(3, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, kSettings));
+  g_object_unref(parser);
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
+// An image whose size is not a whole number of 4-byte words (Mono8, 31 x 23)
+// is padded in its chunk, and PayloadSize counts the padding.
+TEST_F(GigeE2E, AnOddImageIsPaddedInItsChunk) {
+  DeviceOptions o = SmallDevice(32, 24);
+  o.overrides.push_back("sensor.cfa=\"Mono\"");
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), 1, 1, 31, 23, &e);
+  ASSERT_EQ(e, nullptr);
+  Set(c, "PixelFormat", "Mono8");
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 31 * 23);
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 31 * 23 + 3 + 8 + 5 * 16);
+  SetInt(c, "SimFrameIndex", 5);
+  Settle();
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const ChunkedFrame f = GrabChunked(c, parser);
+  c.CloseStream();
+  g_object_unref(parser);
+  ASSERT_TRUE(f.ok);
+  std::vector<uint8_t> want = Reference(5, genicam::kMono8, 1, 1, 31, 23);
+  want.resize(want.size() + 3, 0);
+  EXPECT_TRUE(f.image == want);
+  EXPECT_EQ(f.values.at("ChunkSimFrameIndex"), 5);
+}
+
 TEST_F(GigeE2E, TheWindowChangesBetweenAcquisitionsAndNotDuringOne) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
@@ -2934,7 +3087,7 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
           << f.name << " at " << e.name;
     }
   }
-  EXPECT_EQ(selected, 4) << "LineMode, LineSource, LineStatus, SimStageEnable";
+  EXPECT_EQ(selected, 5) << "LineMode, LineSource, LineStatus, SimStageEnable, ChunkEnable";
   // LineMode at once; LineSource on the input refused, the output's kept.
   Set(c, "LineSelector", "Line1");
   Set(c, "LineSource", "ExposureActive");
