@@ -15,6 +15,13 @@ inline constexpr size_t kWorkspaceAlign = 64;
 
 constexpr size_t AlignUp(size_t n) { return (n + kWorkspaceAlign - 1) & ~(kWorkspaceAlign - 1); }
 
+// The largest count whose bytes, aligned, size_t holds: a block of more
+// elements cannot exist on this platform (on 32-bit ones, 4 GiB).
+template <typename T>
+constexpr size_t MaxWorkspaceCount() {
+  return (static_cast<size_t>(-1) - (kWorkspaceAlign - 1)) / sizeof(T);
+}
+
 // Bump allocator over a caller-provided buffer.
 class Arena {
  public:
@@ -29,6 +36,7 @@ class Arena {
   // Returns nullptr when the arena is exhausted; callers turn that into a Status.
   template <typename T>
   T* Take(size_t count) {
+    if (count > MaxWorkspaceCount<T>()) return nullptr;
     const size_t bytes = AlignUp(count * sizeof(T));
     if (bytes > size_ - used_) return nullptr;
     T* out = reinterpret_cast<T*>(base_ + used_);
@@ -46,17 +54,27 @@ class Arena {
 };
 
 // The bytes a caller must provide so that Take() of the counted blocks succeeds,
-// whatever the buffer's alignment.
+// whatever the buffer's alignment. A total that size_t cannot hold sets
+// overflowed() (the configuration is refused) instead of wrapping.
 class WorkspaceCounter {
  public:
   template <typename T>
-  void Add(size_t count) { bytes_ += AlignUp(count * sizeof(T)); }
-  void AddBytes(size_t n) { bytes_ += AlignUp(n); }
+  void Add(size_t count) {
+    if (count > MaxWorkspaceCount<T>()) overflowed_ = true;
+    else AddBytes(count * sizeof(T));
+  }
+  void AddBytes(size_t n) {
+    if (n > MaxWorkspaceCount<uint8_t>() || AlignUp(n) > static_cast<size_t>(-1) - kWorkspaceAlign - bytes_)
+      overflowed_ = true;
+    else bytes_ += AlignUp(n);
+  }
+  bool overflowed() const { return overflowed_; }
   size_t bytes() const { return bytes_ + kWorkspaceAlign; }  // + worst-case skew
   size_t raw_bytes() const { return bytes_; }
 
  private:
   size_t bytes_ = 0;
+  bool overflowed_ = false;
 };
 
 }  // namespace camsim

@@ -394,6 +394,15 @@ Status Pipeline::Configure(const PipelineConfig& config, int workers, bool has_v
   worker.AddBytes(state_bytes_);
   worker.Add<RowIn>(static_cast<size_t>(max_window_));
   worker_bytes_ = worker.raw_bytes();
+  // WorkspaceBytes() must not wrap either (size_t is 32 bits on armhf).
+  WorkspaceCounter total;
+  total.AddBytes(table_bytes_);
+  for (int i = 0; i < workers_ && !total.overflowed(); ++i) total.AddBytes(worker_bytes_);
+  if (tables.overflowed() || worker.overflowed() || total.overflowed())
+    return Status(StatusCode::kResourceExhausted,
+                  "needs a workspace larger than this platform's address space (smaller sensor, fewer workers, "
+                  "or sensor.fixed_pattern_table off)",
+                  "pipeline");
   configured_ = true;
   return Status::Ok();
 }

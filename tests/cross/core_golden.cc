@@ -363,6 +363,22 @@ int main(int argc, char** argv) {
     }
   }
 
+  // A workspace larger than size_t can count is refused at Configure, not
+  // wrapped (16384 x 16384 x 3 channels of fixed pattern: 6 GiB; on armhf
+  // its size wrapped to 128 KiB and Init wrote past it).
+  {
+    PipelineConfig c = cross::DemoConfig(16384, 16384);
+    c.order[0] = StageId::kExposure;
+    c.order[1] = StageId::kSensor;
+    c.order_count = 2;
+    c.sensor.fixed_pattern_table = true;
+    auto p = std::make_unique<Pipeline>();
+    const Status st = p->Configure(c, kWorkers, false);
+    const bool ok = sizeof(size_t) < 8 ? st.code() == StatusCode::kResourceExhausted
+                                       : st.ok() && p->WorkspaceBytes() >= size_t{24} * 16384 * 16384;
+    std::printf("%s workspace of 6 GiB: %s\n", ok ? "#" : "ERROR", st.ok() ? "configured" : st.message());
+    if (!ok) ++failures;
+  }
 
   PrintWorkspace();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

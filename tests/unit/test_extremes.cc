@@ -455,5 +455,39 @@ TEST(Extremes, EveryCutAsItsOwnPipeline) {
     }
 }
 
+// A block or a total that size_t cannot hold is refused, not wrapped: on
+// 32-bit targets a sensor's fixed-pattern table (24 bytes a pixel for three
+// channels) passed 4 GiB, wrapped to 128 KiB, and Init wrote the pattern past it.
+TEST(Extremes, WorkspaceSizesThatOverflowAreRefusedNotWrapped) {
+  const size_t huge = MaxWorkspaceCount<uint64_t>() + 1;  // its bytes wrap
+  WorkspaceCounter counter;
+  counter.Add<uint64_t>(huge);
+  EXPECT_TRUE(counter.overflowed());
+  WorkspaceCounter total;
+  total.AddBytes(MaxWorkspaceCount<uint8_t>() - 2 * kWorkspaceAlign);
+  EXPECT_FALSE(total.overflowed());
+  total.AddBytes(4 * kWorkspaceAlign);  // the sum wraps
+  EXPECT_TRUE(total.overflowed());
+  std::vector<uint8_t> memory(4096);
+  Arena arena(Span<uint8_t>{memory.data(), memory.size()});
+  EXPECT_EQ(arena.Take<uint64_t>(huge), nullptr);
+  EXPECT_NE(arena.Take<uint64_t>(8), nullptr);
+  // The whole pipeline: 16384 x 16384 x 3 channels of fixed pattern. The
+  // cross-architecture run (tests/cross/core_golden) checks the refusal on armhf.
+  PipelineConfig c = test::DemoConfig(16384, 16384);
+  c.order[0] = StageId::kExposure;
+  c.order[1] = StageId::kSensor;
+  c.order_count = 2;
+  c.sensor.fixed_pattern_table = true;
+  Pipeline p;
+  const Status st = p.Configure(c, 2, false);
+  if (sizeof(size_t) < 8) {
+    EXPECT_EQ(st.code(), StatusCode::kResourceExhausted);
+  } else {
+    ASSERT_TRUE(st.ok()) << st.message();
+    EXPECT_GE(p.WorkspaceBytes(), size_t{24} * 16384 * 16384);
+  }
+}
+
 }  // namespace
 }  // namespace camsim
