@@ -29,12 +29,39 @@ double SystemGain(const SensorConfig& c) {
 
 bool InRange(double v, double lo, double hi) { return v >= lo && v <= hi; }  // false for NaN
 
+// The readout's integers: SensorStage::Configure's, and SensorSaturationDn's.
+struct Readout {
+  UScale k;                   // K
+  uint64_t full_well_q8 = 0;  // Q24.8 electrons
+  int64_t black = 0;          // floor of the black level
+  int64_t black_round = 0;    // 2^(k_shift - 1) + the black level's fraction * 2^k_shift
+};
+Result<Readout> MakeReadout(const SensorConfig& c) {
+  Result<UScale> k = UScale::FromDouble(SystemGain(c), "sensor.system_gain_dn_per_e");
+  if (!k.ok()) return k.status();
+  Readout r;
+  r.k = k.value();
+  r.full_well_q8 = Q<24, 8>::FromDouble(c.full_well_e).raw;
+  // round(K v + BL) = floor((v K_mant + 2^(s-1) + frac(BL) 2^s) / 2^s) + floor(BL), s = K.shift + 8: the
+  // fraction joins the rounding constant (exact: frac(BL) 2^s is a double scaled by a power of two, < 2^49).
+  const double whole_black = std::floor(c.black_level_dn);
+  r.black = static_cast<int64_t>(whole_black);
+  r.black_round = (int64_t{1} << (r.k.shift + 7)) + std::llround(std::ldexp(c.black_level_dn - whole_black, r.k.shift + 8));
+  return r;
+}
+
 }  // namespace
 
 double SensorSaturationDn(const SensorConfig& c, const SensorGeometry& g) {
-  const double dn = std::floor(SystemGain(c) * c.full_well_e + c.black_level_dn + 0.5);  // rounded as the stage rounds
   const double max_dn = (1 << g.adc_bits) - 1;
-  return dn > max_dn ? max_dn : dn;
+  const Result<Readout> r = MakeReadout(c);
+  if (!r.ok() || !InRange(c.full_well_e, 0.0, kMaxFullWell)) return max_dn;  // the sensor stage refuses these
+  // A full well without noise, read out as the stage reads it (ProcessRow):
+  // full_well_q8 < 2^28 and the mantissa < 2^32, so the product fits.
+  const Readout& o = r.value();
+  const int64_t dn =
+      ((static_cast<int64_t>(o.full_well_q8) * o.k.mant + o.black_round) >> (o.k.shift + 8)) + o.black;
+  return dn > max_dn ? max_dn : static_cast<double>(dn);
 }
 
 double ReferenceSensorMeanDn(const SensorConfig& c, const SensorGeometry& g, double exposure_time_us,
@@ -96,21 +123,17 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   dark_e_ = DarkElectrons(c, exposure_time_us);
   if (!InRange(dark_e_, 0.0, kMaxFullWell))
     return InvalidArgument("sensor.dark_current_e_per_s", "dark charge per exposure exceeds 1e6 electrons");
-  Result<UScale> k = UScale::FromDouble(k_, "sensor.system_gain_dn_per_e");
-  if (!k.ok()) return k.status();
-  k_scale_ = k.value();
+  Result<Readout> readout = MakeReadout(c);
+  if (!readout.ok()) return readout.status();
+  k_scale_ = readout.value().k;
   for (int i = 0; i < 3; ++i) qe_q16_[i] = Q<1, 16>::FromDouble(c.quantum_efficiency[i]).raw;
   prnu_q16_ = Q<15, 16>::FromDouble(c.prnu_percent / 100.0).raw;
   dsnu_q8_ = Q<23, 8>::FromDouble(c.dsnu_e).raw;
   read_q8_ = Q<23, 8>::FromDouble(c.dark_noise_e).raw;
   dark_q8_ = Q<24, 8>::FromDouble(dark_e_).raw;
-  full_well_q8_ = Q<24, 8>::FromDouble(c.full_well_e).raw;
-  // round(K v + BL) = floor((v K_mant + 2^(s-1) + frac(BL) 2^s) / 2^s) + floor(BL), s = K.shift + 8: the
-  // fraction joins the rounding constant (exact: frac(BL) 2^s is a double scaled by a power of two, < 2^49).
-  const double whole_black = std::floor(c.black_level_dn);
-  black_ = static_cast<int64_t>(whole_black);
-  black_round_ = (int64_t{1} << (k_scale_.shift + 7)) +
-                 std::llround(std::ldexp(c.black_level_dn - whole_black, k_scale_.shift + 8));
+  full_well_q8_ = readout.value().full_well_q8;
+  black_ = readout.value().black;
+  black_round_ = readout.value().black_round;
   smear_ = c.smear_row_transfer_us > 0 && c.smear_leak > 0;
   row_fpn_q8_ = Q<23, 8>::FromDouble(c.row_fpn_e).raw;
   col_fpn_q8_ = Q<23, 8>::FromDouble(c.column_fpn_e).raw;

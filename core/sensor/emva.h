@@ -211,9 +211,10 @@ class SensorStage final : public Stage {
   bool force_portable_ = false;  // tests only
 };
 
-// The DN of a full well without noise: min(round(K W + black level), 2^bits -
-// 1), ties up as the stage rounds. The ISP's white balance clips highlights
-// there (core/isp/white_balance.h).
+// The DN of a full well without noise, min(round(K W + black level), 2^bits -
+// 1), computed with the stage's integers (K's 32-bit mantissa, W in Q24.8), so
+// it is the level a full pixel reads. The ISP's white balance clips
+// highlights there (core/isp/white_balance.h).
 double SensorSaturationDn(const SensorConfig& config, const SensorGeometry& g);
 
 // Double reference: the mean DN for a mean photon count (no noise, no patterns).

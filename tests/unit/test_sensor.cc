@@ -330,6 +330,33 @@ TEST(Sensor, SaturatesAtFullWellAndAdcMax) {
   for (uint32_t v : test::RunFrame(*gained, s, 0, 16)) ASSERT_EQ(v, 4095u);
 }
 
+// SensorSaturationDn (the white balance's highlight clip) is the level a full
+// pixel reads, also where K W + black level lies near a tie: the stage rounds
+// K to a 32-bit mantissa and W to Q24.8. (A double formula gave 27487 here
+// where the stage reads 27486.)
+TEST(Sensor, SaturationDnIsWhatAFullPixelReads) {
+  struct Case {
+    double full_well_e, k, black_dn;
+  };
+  std::vector<Case> cases = {{337.857, 81.03, 111.0}};
+  for (int i = 0; i < 40; ++i)  // more, spread over the ranges
+    cases.push_back({100.0 + 997.3 * i + 0.129 * i * i, 0.05 + 0.61 * (i % 13) + 0.0037 * i, 7.25 * (i % 9)});
+  const test::Scene s = test::FlatScene(4, 4, 1e4, 1e4, 1e4);  // 1e7 photons: past every well
+  for (const Case& k : cases) {
+    PipelineConfig c = SensorOnly(4, 4, Cfa::kBayerRG);
+    c.geometry.adc_bits = 16;
+    c.sensor = Noiseless();
+    c.sensor.full_well_e = k.full_well_e;
+    c.sensor.system_gain_dn_per_e = k.k;
+    c.sensor.black_level_dn = k.black_dn;
+    auto b = test::Build(c);
+    ASSERT_TRUE(b->status.ok()) << b->status.message();
+    const double want = SensorSaturationDn(c.sensor, c.geometry);
+    for (uint32_t v : test::RunFrame(*b, s, 0, 4))
+      ASSERT_EQ(v, want) << "W " << k.full_well_e << " K " << k.k << " black " << k.black_dn;
+  }
+}
+
 TEST(Sensor, BayerPhasePutsEachColourOnItsSites) {
   for (Cfa cfa : {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG}) {
     for (int colour = 0; colour < 3; ++colour) {
