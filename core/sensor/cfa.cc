@@ -12,8 +12,9 @@ Status CfaStage::Configure(const CfaConfig& c, const SensorGeometry& g) {
     sum += w;
   }
   if (!(sum > 0.0)) return InvalidArgument("cfa.mono_weights", "weights must not all be 0");
-  weight_[0] = Q<0, 16>::FromDouble(c.mono_weights[0] / sum).raw;
-  weight_[2] = Q<0, 16>::FromDouble(c.mono_weights[2] / sum).raw;
+  // Q1.16: a weight of exactly 1 (one colour alone) is 65536, which Q0.16 cannot hold.
+  weight_[0] = static_cast<uint32_t>(Q<1, 16>::FromDouble(c.mono_weights[0] / sum).raw);
+  weight_[2] = static_cast<uint32_t>(Q<1, 16>::FromDouble(c.mono_weights[2] / sum).raw);
   // R and B round on their own, so both can round up a half: with no G weight
   // they could sum to 65537. B gives way then, so G (the remainder) is never
   // negative.

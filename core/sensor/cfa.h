@@ -4,8 +4,9 @@
 //
 // Formats: in  Photons Q24.8, 3 channels
 //          out Photons Q24.8, 1 channel (mosaic for Bayer)
-//          mono weights Q0.16 summing to exactly 65536 (the G weight takes the
-//          rounding remainder); 64-bit sum, one rounding (ties up), saturated.
+//          mono weights Q1.16 in [0, 65536] summing to exactly 65536 (the G
+//          weight takes the rounding remainder; a weight of 1 is exact);
+//          64-bit sum, one rounding (ties up), saturated.
 #pragma once
 
 #include "core/pipeline/stage.h"
@@ -27,7 +28,7 @@ class CfaStage final : public Stage {
 
  private:
   Cfa cfa_ = Cfa::kBayerRG;
-  uint32_t weight_[3] = {};  // Q0.16, sum 65536
+  uint32_t weight_[3] = {};  // Q1.16, sum 65536
 };
 
 }  // namespace camsim

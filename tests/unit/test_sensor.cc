@@ -411,6 +411,19 @@ TEST(Cfa, MonoWeightsNeverLeaveGreyOrWrapGreen) {
   in.ch[0] = in.ch[2] = none;  // green alone: its weight is 0
   s.ProcessRow(a);
   for (int x = 0; x < 4; ++x) EXPECT_EQ(out[x], 0u) << "green " << x;
+  // One colour alone (a weight of exactly 1) passes exactly; the others give 0.
+  for (int only = 0; only < 3; ++only) {
+    SCOPED_TRACE(only);
+    CfaConfig one;
+    for (int k = 0; k < 3; ++k) one.mono_weights[k] = k == only ? 1.0 : 0.0;
+    ASSERT_TRUE(s.Configure(one, SensorGeometry{4, 1, Cfa::kMono, 12}).ok());
+    for (int k = 0; k < 3; ++k) in.ch[k] = k == only ? grey : none;
+    s.ProcessRow(a);
+    for (int x = 0; x < 4; ++x) EXPECT_EQ(out[x], grey[x]) << "the weighted colour " << x;
+    for (int k = 0; k < 3; ++k) in.ch[k] = k == only ? none : grey;
+    s.ProcessRow(a);
+    for (int x = 0; x < 4; ++x) EXPECT_EQ(out[x], 0u) << "the others " << x;
+  }
 }
 
 // Bounds of each stage against its double reference (stated, then measured).
