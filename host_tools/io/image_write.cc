@@ -16,10 +16,12 @@
 #include <set>
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <png.h>
 
 namespace camsim::io {
@@ -297,8 +299,8 @@ bool WriteTextFile(const std::string& path, const std::string& text, std::string
       error);
 }
 
-bool WriteExrFloat(const std::string& path, int width, int height,
-                   const std::vector<ExrChannel>& channels, std::string* error) {
+bool WriteExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
+              const std::vector<ExrAttribute>& attributes, std::string* error) {
   if (channels.empty()) {
     *error = "cannot write " + Quoted(path) + ": no channels";
     return false;
@@ -312,16 +314,36 @@ bool WriteExrFloat(const std::string& path, int width, int height,
     }
     if (!CheckImage(path, c.data, width, height, 1, c.stride_samples, error)) return false;
   }
+  // Imf::Header::insert would replace a required attribute of the same type
+  // (or throw for another type), and OpenEXR reads the multi-part, tiled
+  // and deep ones into the file's structure: such a name is refused here.
+  const Imf::Header required(1, 1);
+  const std::set<std::string> structural = {"name", "type", "version", "chunkCount", "tiles"};
+  names.clear();
+  for (const ExrAttribute& a : attributes) {
+    if (a.name.empty() || !names.insert(a.name).second || required.find(a.name) != required.end() ||
+        structural.count(a.name) != 0) {
+      *error = "cannot write " + Quoted(path) + ": attribute name '" + a.name +
+               "' is empty, repeated or one OpenEXR sets";
+      return false;
+    }
+  }
   return WriteViaFile(
       path,
       [&](std::FILE* f, std::string* err) {
         Imf::Header header(width, height);
         header.compression() = Imf::ZIP_COMPRESSION;
+        for (const ExrAttribute& a : attributes) {
+          if (a.is_text) header.insert(a.name, Imf::StringAttribute(a.text));
+          else header.insert(a.name, Imf::DoubleAttribute(a.number));
+        }
         Imf::FrameBuffer fb;
         for (const ExrChannel& c : channels) {
-          header.channels().insert(c.name, Imf::Channel(Imf::FLOAT));
-          fb.insert(c.name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(c.data)),
-                                       sizeof(float), static_cast<size_t>(c.stride_samples) * sizeof(float)));
+          // Both sample types are 4 bytes.
+          const Imf::PixelType type = c.type == ExrSampleType::kUint ? Imf::UINT : Imf::FLOAT;
+          header.channels().insert(c.name, Imf::Channel(type));
+          fb.insert(c.name, Imf::Slice(type, static_cast<char*>(const_cast<void*>(c.data)), 4,
+                                       static_cast<size_t>(c.stride_samples) * 4));
         }
         ExrFileStream stream(f, path);
         {

@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace camsim::io {
@@ -41,16 +42,47 @@ bool WriteRaw16(const std::string& path, const uint16_t* data, int width, int he
 // The text, byte for byte (JSON sidecars, reports).
 bool WriteTextFile(const std::string& path, const std::string& text, std::string* error);
 
+// A channel of an EXR file: FLOAT samples (32-bit IEEE, what viewers show)
+// or UINT samples (32-bit unsigned integers, exact), by the pointer given.
+enum class ExrSampleType : uint8_t { kFloat, kUint };
 struct ExrChannel {
+  ExrChannel(std::string channel_name, const float* samples, ptrdiff_t stride)
+      : name(std::move(channel_name)), data(samples), stride_samples(stride), type(ExrSampleType::kFloat) {}
+  ExrChannel(std::string channel_name, const uint32_t* samples, ptrdiff_t stride)
+      : name(std::move(channel_name)), data(samples), stride_samples(stride), type(ExrSampleType::kUint) {}
   std::string name;
-  const float* data;
-  ptrdiff_t stride_samples;  // floats between row starts, >= width
+  const void* data;          // float (kFloat) or uint32_t (kUint) samples
+  ptrdiff_t stride_samples;  // samples between row starts, >= width
+  ExrSampleType type;
 };
 
-// Single-part scanline OpenEXR, FLOAT channels, ZIP compression, data window =
-// display window = (0,0)-(width-1,height-1). Channel names must be unique and
-// non-empty.
-bool WriteExrFloat(const std::string& path, int width, int height,
-                   const std::vector<ExrChannel>& channels, std::string* error);
+// A header attribute: OpenEXR "string" (text) or "double" (number).
+struct ExrAttribute {
+  ExrAttribute(std::string attribute_name, std::string value)
+      : name(std::move(attribute_name)), text(std::move(value)), is_text(true) {}
+  ExrAttribute(std::string attribute_name, const char* value) : ExrAttribute(std::move(attribute_name), std::string(value)) {}
+  ExrAttribute(std::string attribute_name, double value)
+      : name(std::move(attribute_name)), number(value), is_text(false) {}
+  std::string name;
+  std::string text;
+  double number = 0;
+  bool is_text;
+};
+
+// Single-part scanline OpenEXR, ZIP compression, data window = display
+// window = (0,0)-(width-1,height-1), each channel of its own sample type,
+// and the attributes in the header besides OpenEXR's required ones. Channel
+// names must be unique and non-empty; attribute names unique, non-empty and
+// none that OpenEXR's header sets itself (channels, compression,
+// dataWindow, ...) or reads as the file's structure (name, type, version,
+// chunkCount, tiles).
+bool WriteExr(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
+              const std::vector<ExrAttribute>& attributes, std::string* error);
+
+// WriteExr without attributes (its callers write FLOAT channels).
+inline bool WriteExrFloat(const std::string& path, int width, int height, const std::vector<ExrChannel>& channels,
+                          std::string* error) {
+  return WriteExr(path, width, height, channels, {}, error);
+}
 
 }  // namespace camsim::io

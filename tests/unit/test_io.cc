@@ -20,12 +20,15 @@
 #include <OpenEXR/ImfDeepFrameBuffer.h>
 #include <OpenEXR/ImfDeepScanLineOutputFile.h>
 #include <OpenEXR/ImfDeepScanLineOutputPart.h>
+#include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/openexr.h>
 #include <png.h>
 #include <sys/resource.h>
@@ -894,6 +897,51 @@ TEST_F(IoTest, WriteExrFloatRejectsBadChannels) {
   EXPECT_NE(error.find("'Y'"), std::string::npos) << error;
   EXPECT_FALSE(WriteExrFloat(Path("x.exr"), 2, 1, {{"Y", f, 1}}, &error));  // stride < width
   EXPECT_NE(error.find("stride"), std::string::npos) << error;
+  EXPECT_TRUE(DirEntries().empty());
+}
+
+// UINT channels keep all 32 bits (FLOAT keeps 24: 2^24 + 1 reads back as
+// 2^24), and the attributes come back with their types.
+TEST_F(IoTest, WriteExrKeepsUintSamplesAndAttributes) {
+  const uint32_t codes[] = {0, 1, (1u << 24) + 1, 4294967295u};
+  const float values[] = {0.0f, 1.0f, 16777216.0f, 4294967296.0f};
+  const std::string path = Path("codes.exr");
+  std::string error;
+  ASSERT_TRUE(WriteExr(path, 2, 2, {{"Y", values, 2}, {"code.Y", codes, 2}},
+                       {{"camsim/code.Y/format", "photons Q24.8"}, {"camsim/code.Y/scale", 0.00390625}}, &error))
+      << error;
+  Imf::InputFile in(path.c_str());
+  const Imf::Header& h = in.header();
+  ASSERT_NE(h.channels().findChannel("code.Y"), nullptr);
+  EXPECT_EQ(h.channels().findChannel("code.Y")->type, Imf::UINT);
+  EXPECT_EQ(h.channels().findChannel("Y")->type, Imf::FLOAT);
+  const auto* format = h.findTypedAttribute<Imf::StringAttribute>("camsim/code.Y/format");
+  const auto* scale = h.findTypedAttribute<Imf::DoubleAttribute>("camsim/code.Y/scale");
+  ASSERT_TRUE(format != nullptr && scale != nullptr);
+  EXPECT_EQ(format->value(), "photons Q24.8");
+  EXPECT_EQ(scale->value(), 0.00390625);
+  uint32_t back[4] = {};
+  float back_f[4] = {};
+  Imf::FrameBuffer fb;
+  fb.insert("code.Y", Imf::Slice(Imf::UINT, reinterpret_cast<char*>(back), 4, 8));
+  fb.insert("Y", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(back_f), 4, 8));
+  in.setFrameBuffer(fb);
+  in.readPixels(0, 1);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(back[i], codes[i]) << i;
+    EXPECT_EQ(back_f[i], values[i]) << i;
+  }
+}
+
+TEST_F(IoTest, WriteExrRejectsBadAttributes) {
+  const float f[] = {1, 2};
+  std::string error;
+  for (const char* name : {"", "channels", "compression", "dataWindow", "type", "tiles"}) {
+    EXPECT_FALSE(WriteExr(Path("x.exr"), 2, 1, {{"Y", f, 2}}, {{name, "x"}}, &error)) << name;
+    EXPECT_NE(error.find("attribute name '" + std::string(name) + "'"), std::string::npos) << error;
+  }
+  EXPECT_FALSE(WriteExr(Path("x.exr"), 2, 1, {{"Y", f, 2}}, {{"camsim/a", 1.0}, {"camsim/a", "b"}}, &error));
+  EXPECT_NE(error.find("repeated"), std::string::npos) << error;
   EXPECT_TRUE(DirEntries().empty());
 }
 
