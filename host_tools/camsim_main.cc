@@ -37,6 +37,8 @@ const char kUsage[] =
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
     "      --stages: run only these stages, in the configured order ([pipeline] stages)\n"
     "      --measure-savings: time each frame N (1..1000) more times with the stages' skipping on and off\n"
+    "      --dump-stages: each running stage's output as NAME.K_STAGE.exr: R, G, B (or Y) as float in its\n"
+    "        unit, and exactly as uint32 line samples in code.R, code.G, code.B (code.Y)\n"
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
     "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"

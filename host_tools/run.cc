@@ -301,21 +301,45 @@ std::string RawPixelFormat(const RunConfig& rc, int channels) {
   return JsonString((channels == 3 ? std::string("RGB") : CfaName(rc.core.geometry.cfa)) + std::to_string(bits));
 }
 
-// Writes one tapped image as the file type its domain calls for.
+// The line samples' fixed-point format (all channels of a line share its
+// domain's), as the --dump-stages images describe their code channels.
+std::vector<io::ExrAttribute> CodeAttributes(const std::string& code_channel, Domain d) {
+  const std::string key = "camsim/" + code_channel + "/";
+  return {{key + "format", DomainName(d)}, {key + "unit", UnitOf(d)},
+          {key + "scale", std::ldexp(1.0, -DomainFracBits(d))}};
+}
+
+// Writes one tapped image as an EXR: FLOAT channels R, G, B (Y for one
+// channel) in the domain's physical unit, code * 2^-DomainFracBits rounded
+// to float (exact up to 2^24 codes). With `stage` (the --dump-stages
+// images), also the exact line samples as UINT channels code.R, code.G,
+// code.B (code.Y), and in the header "camsim/stage" (its name) and per code
+// channel "camsim/code.C/format" (DomainName: "photons Q24.8", ...),
+// "camsim/code.C/unit" and "camsim/code.C/scale" (double: C = code.C * scale).
 bool WriteStageImage(const std::string& path_stem, const LineFormat& f, const std::vector<uint32_t>& data, int w,
-                     int h, std::vector<std::string>* written, std::string* error) {
+                     int h, const char* stage, std::vector<std::string>* written, std::string* error) {
   std::vector<float> planes[3];
+  std::vector<uint32_t> codes[3];
   std::vector<io::ExrChannel> channels;
+  std::vector<io::ExrAttribute> attributes;
   const char* names[3] = {"R", "G", "B"};
   const double scale = std::ldexp(1.0, -DomainFracBits(f.domain));
   for (int c = 0; c < f.channels; ++c) {
+    const std::string name = f.channels == 1 ? "Y" : names[c];
     planes[c].resize(static_cast<size_t>(w) * h);
     for (size_t i = 0; i < planes[c].size(); ++i)
       planes[c][i] = static_cast<float>(data[i * f.channels + c] * scale);
-    channels.push_back({f.channels == 1 ? "Y" : names[c], planes[c].data(), w});
+    channels.push_back({name, planes[c].data(), w});
+    if (stage == nullptr) continue;
+    codes[c].resize(planes[c].size());
+    for (size_t i = 0; i < codes[c].size(); ++i) codes[c][i] = data[i * f.channels + c];
+    channels.push_back({"code." + name, codes[c].data(), w});
+    const std::vector<io::ExrAttribute> a = CodeAttributes("code." + name, f.domain);
+    attributes.insert(attributes.end(), a.begin(), a.end());
   }
+  if (stage != nullptr) attributes.push_back({"camsim/stage", stage});
   const std::string path = path_stem + ".exr";
-  if (!io::WriteExrFloat(path, w, h, channels, error)) return false;
+  if (!io::WriteExr(path, w, h, channels, attributes, error)) return false;
   written->push_back(path);
   return true;
 }
@@ -943,7 +967,7 @@ int RunCommand(const RunOptions& o) {
     } else {
       std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(buffers[0].data()),
                                  reinterpret_cast<const uint32_t*>(buffers[0].data()) + buffers[0].size() / 4);
-      ok = WriteStageImage(stem, out_fmt, data, w, h, &rec.outputs, &error);
+      ok = WriteStageImage(stem, out_fmt, data, w, h, nullptr, &rec.outputs, &error);
     }
     if (ok && raw_tap) write_raw(buffers[1], formats[static_cast<size_t>(sensor_index)].channels);
     if (ok && o.dump_stages) {
@@ -953,8 +977,8 @@ int RunCommand(const RunOptions& o) {
         const std::vector<uint8_t>& b = buffers[first_dump + static_cast<size_t>(r)];
         std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(b.data()),
                                    reinterpret_cast<const uint32_t*>(b.data()) + b.size() / 4);
-        ok = WriteStageImage(stem + DumpSuffix(r, plan.entries[i].id), plan.entries[i].out, data, w, h, &rec.outputs,
-                             &error);
+        ok = WriteStageImage(stem + DumpSuffix(r, plan.entries[i].id), plan.entries[i].out, data, w, h,
+                             StageName(plan.entries[i].id), &rec.outputs, &error);
         ++r;
       }
     }
