@@ -4,7 +4,7 @@
 //   ./build/release/bench/camsim_bench --benchmark_filter=Pipeline/1920
 //
 // Pipeline/W/H/threads: the demo camera (configs/camera.toml) end to end,
-// raw Bayer and RGB8 written to memory. Prefix/W/H/k: the pipeline cut after
+// its RGB8 output written to memory. Prefix/W/H/k: the pipeline cut after
 // its k-th stage, so consecutive rows give each stage's share. Stage/W/H/i/threads:
 // running stage i alone on a captured frame of its input (its label names it;
 // the demo camera runs 8 stages, its colour matrix being the identity).
