@@ -8,6 +8,9 @@
 // its k-th stage, so consecutive rows give each stage's share. Stage/W/H/i/threads:
 // running stage i alone on a captured frame of its input (its label names it;
 // the demo camera runs 8 stages, its colour matrix being the identity).
+// threads: 1 and the machine's hardware threads (ThreadCounts); rows of more
+// than one thread are named .../process_time/real_time, as their CPU time is
+// the whole process's.
 // Peers (OpenCV doing the closest job) are in opencv_peers.cc; bench_main.cc
 // prints the camsim/peer ratios and the seed paper's baseline after the run.
 #include <benchmark/benchmark.h>
@@ -19,6 +22,8 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #ifdef CAMSIM_BENCH_OPENCV
 #include <opencv2/calib3d.hpp>
@@ -44,6 +49,22 @@ namespace {
 
 using bench::Demo;
 using bench::Scene;
+
+// The thread counts of the multi-thread rows: 1 and all the machine's
+// hardware threads (just 1 on a one-thread machine).
+std::vector<int> ThreadCounts() {
+  const int all = static_cast<int>(std::thread::hardware_concurrency());
+  return all > 1 ? std::vector<int>{1, all} : std::vector<int>{1};
+}
+
+// A family of `fn` timed on `threads` threads: real time in ms, and with more
+// than one thread the CPU time of the whole process (every worker's; the
+// calling thread's own is only its share), which names its rows
+// .../process_time/real_time.
+benchmark::internal::Benchmark* Threaded(const char* name, void (*fn)(benchmark::State&), int threads) {
+  benchmark::internal::Benchmark* b = benchmark::RegisterBenchmark(name, fn)->Unit(benchmark::kMillisecond)->UseRealTime();
+  return threads > 1 ? b->MeasureProcessCPUTime() : b;
+}
 
 // strip_rows 0: host::StripRows' default, as `camsim run`.
 void RunPipeline(benchmark::State& state, const PipelineConfig& config, int threads, int strip_rows = 0) {
@@ -80,13 +101,11 @@ void BM_Pipeline(benchmark::State& state) {
   const int w = static_cast<int>(state.range(0)), h = static_cast<int>(state.range(1));
   RunPipeline(state, Demo(w, h), static_cast<int>(state.range(2)));
 }
-BENCHMARK(BM_Pipeline)
-    ->Args({640, 480, 1})
-    ->Args({640, 480, 2})
-    ->Args({1920, 1080, 1})
-    ->Args({1920, 1080, 2})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+const bool kPipelineRows = [] {
+  for (const auto& [w, h] : {std::pair{640, 480}, std::pair{1920, 1080}})
+    for (const int t : ThreadCounts()) Threaded("BM_Pipeline", BM_Pipeline, t)->Args({w, h, t});
+  return true;
+}();
 
 // The demo camera with diffusion depth of field in front (issue 7's "whole
 // default pipeline including diffusion DoF"): the strong blur of dof_bench.cc
@@ -107,15 +126,11 @@ void BM_PipelineDof(benchmark::State& state) {
 // on several times the frame (the column block + 2 x 32 window rows around
 // each strip); 128 rows (a multiple of the column pass's block of 32) bring
 // that to about 1.5x, the whole frame to 1x.
-BENCHMARK(BM_PipelineDof)
-    ->Args({1920, 1080, 1, 16})
-    ->Args({1920, 1080, 2, 16})
-    ->Args({1920, 1080, 1, 128})
-    ->Args({1920, 1080, 2, 128})
-    ->Args({1920, 1080, 1, 0})
-    ->Args({1920, 1080, 2, 0})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+const bool kPipelineDofRows = [] {
+  for (const int strip_rows : {16, 128, 0})
+    for (const int t : ThreadCounts()) Threaded("BM_PipelineDof", BM_PipelineDof, t)->Args({1920, 1080, t, strip_rows});
+  return true;
+}();
 
 // The demo pipeline cut after its k-th running stage (the stages left out by
 // the planner do not count, so k names the same stage whatever the order has).
@@ -235,7 +250,10 @@ void BM_PipelineLens(benchmark::State& state) {
   c.distortion.lens = test::TypicalLens(w, h);
   RunPipeline(state, c, static_cast<int>(state.range(2)));
 }
-BENCHMARK(BM_PipelineLens)->Args({1920, 1080, 1})->Args({1920, 1080, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+const bool kPipelineLensRows = [] {
+  for (const int t : ThreadCounts()) Threaded("BM_PipelineLens", BM_PipelineLens, t)->Args({1920, 1080, t});
+  return true;
+}();
 
 // The issue's "sensor path" to raw Bayer: the demo camera behind the typical
 // lens (distortion Lanczos-3), cut after the sensor. It runs as distortion
@@ -261,13 +279,11 @@ void BM_SensorPath(benchmark::State& state) {
   state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_SensorPath)
-    ->Args({1920, 1080, 1, 0})
-    ->Args({1920, 1080, 2, 0})
-    ->Args({1920, 1080, 1, 1})
-    ->Args({1920, 1080, 2, 1})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+const bool kSensorPathRows = [] {
+  for (const int table : {0, 1})
+    for (const int t : ThreadCounts()) Threaded("BM_SensorPath", BM_SensorPath, t)->Args({1920, 1080, t, table});
+  return true;
+}();
 
 // Configure + Init of a pipeline (its tables built): what a change of a
 // pipeline setting costs the emulated camera (GigeDevice::Reconfigure, e.g.
@@ -587,11 +603,12 @@ void BM_Stage(benchmark::State& state) {
   state.counters["time_per_px"] = benchmark::Counter(static_cast<double>(state.iterations()) * w * h,
                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_Stage)
-    ->ArgsProduct({{640}, {480}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
-    ->ArgsProduct({{1920}, {1080}, {0, 1, 2, 3, 4, 5, 6, 7}, {1, 2}})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime();
+const bool kStageRows = [] {
+  for (const auto& [w, h] : {std::pair{640, 480}, std::pair{1920, 1080}})
+    for (int index = 0; index < 8; ++index)
+      for (const int t : ThreadCounts()) Threaded("BM_Stage", BM_Stage, t)->Args({w, h, index, t});
+  return true;
+}();
 
 // The sensor stage (index 3 of the demo pipeline) in less light: the exposure
 // time divided by the third argument. Below 12 e- a pixel's shot noise is an
