@@ -43,8 +43,8 @@ std::vector<PeerPair>& Pairs() {
 }
 }  // namespace
 
-void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note) {
-  Pairs().push_back(PeerPair{camsim, peer, what, error_note});
+void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note, const char* peer2) {
+  Pairs().push_back(PeerPair{camsim, peer, what, error_note, peer2});
 }
 
 void SetPeerError(const char* what, const char* note) {

@@ -21,9 +21,14 @@ struct PeerPair {
   const char* peer;
   const char* what;
   const char* error_note;  // filled at run time by the peer benchmarks (static storage)
+  const char* peer2;       // nullptr, or another way of the peer's to do the job at the same error
 };
 // error_note: where the pair's error is, when it is known before the run.
-void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note = "");
+// peer2: the peer's other variant (e.g. OpenCV's other map type for remap);
+// bench_main.cc pairs camsim with the faster of peer and peer2, so that the
+// peer is at its best.
+void AddPeerPair(const char* camsim, const char* peer, const char* what, const char* error_note = "",
+                 const char* peer2 = nullptr);
 void SetPeerError(const char* what, const char* note);
 const std::vector<PeerPair>& PeerPairs();
 
