@@ -370,7 +370,9 @@ TEST(MotionBlur, MatchesTheDoubleReference) {
     EXPECT_LT(mean_abs, 24.0);  // measured 15-16 LSB: 2.4e-4 of radiance 1.0
     // Clamped: measured 13.2 LSB (deterministic: the stage is bit-exact); a
     // bound a quarter pixel too far gives 15.4.
-    if (bound > 0) EXPECT_LT(mean_abs, 14.5);
+    if (bound > 0) {
+      EXPECT_LT(mean_abs, 14.5);
+    }
   }
 }
 

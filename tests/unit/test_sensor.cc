@@ -178,13 +178,13 @@ TEST(Sensor, FixedPatternsFollowTheSeed) {
     for (size_t i = 0; i < a.size(); ++i) n += a[i] != b[i];
     return n;
   };
-  EXPECT_GT(differing([](SensorConfig* s) { s->dsnu_e = 5.0; }), 32 * 32 / 2) << "DSNU";
-  EXPECT_GT(differing([](SensorConfig* s) { s->prnu_percent = 3.0; }), 32 * 32 / 2) << "PRNU";
-  EXPECT_GT(differing([](SensorConfig* s) { s->row_fpn_e = 5.0; }), 32 * 32 / 2) << "row FPN";
-  EXPECT_GT(differing([](SensorConfig* s) { s->column_fpn_e = 5.0; }), 32 * 32 / 2) << "column FPN";
+  EXPECT_GT(differing([](SensorConfig* sc) { sc->dsnu_e = 5.0; }), 32 * 32 / 2) << "DSNU";
+  EXPECT_GT(differing([](SensorConfig* sc) { sc->prnu_percent = 3.0; }), 32 * 32 / 2) << "PRNU";
+  EXPECT_GT(differing([](SensorConfig* sc) { sc->row_fpn_e = 5.0; }), 32 * 32 / 2) << "row FPN";
+  EXPECT_GT(differing([](SensorConfig* sc) { sc->column_fpn_e = 5.0; }), 32 * 32 / 2) << "column FPN";
   // 1 % of the pixels hot in each map (about 10 of 1024), almost none shared:
   // about 20 pixels differ.
-  EXPECT_GT(differing([](SensorConfig* s) { s->hot_pixel_fraction = 0.01; }), 10) << "hot pixels";
+  EXPECT_GT(differing([](SensorConfig* sc) { sc->hot_pixel_fraction = 0.01; }), 10) << "hot pixels";
 }
 
 // sensor.fixed_pattern_table builds PRNU and DSNU once at Init: the same bytes
