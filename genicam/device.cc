@@ -396,6 +396,15 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       return false;
     }
   }
+  // Aravis's fake camera counts a frame's bits in 32 bits and its packets in
+  // 16: a larger frame would wrap (and overrun the buffer it sizes).
+  const uint64_t max_payload = MaxPayloadBytes(sensor_);
+  if (max_payload * 8 > kMaxFakeCameraPayloadBits || MinPacketSize(sensor_) > kMaxPacketSize) {
+    *error = "sensor size " + std::to_string(sensor_.width) + "x" + std::to_string(sensor_.height) + ": its largest frame (" +
+             std::to_string(max_payload) + " bytes with chunks) is beyond what Aravis's fake camera sends (" +
+             std::to_string(kMaxFakeCameraPayloadBits / 8) + " bytes, and 65534 packets of at most 9000 bytes)";
+    return false;
+  }
   table_ = RegisterTable(sensor_);
   registers_ = FeatureRegisters(table_);
   raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
@@ -518,7 +527,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kLineSelector, 0},
       {SelectedAddress(kLineSource, 0), kLineSourceOff},
       {SelectedAddress(kLineSource, 1), kLineSourceOff},
-      {kPacketSize, 1400},  // the fake camera's default (fits a 1500-byte MTU)
+      // The fake camera's default (fits a 1500-byte MTU), or what the largest frame needs.
+      {kPacketSize, std::max<uint32_t>(1400, MinPacketSize(sensor_))},
       {kTLParamsLocked, 0},
       {kSimSceneCount, static_cast<uint64_t>(sensor_.scene_count)},
       {kSimSceneFrame, 0},
@@ -781,7 +791,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       ++d->writes_refused_;
       return {false, GevStatus::kInvalidParameter};
     }
-    if (command != reg::kAcquisitionStart) ++d->acquisition_stops_;
+    if (command != reg::kAcquisitionStart) d->WithdrawFreeRun(true);
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
     return {false, GevStatus::kSuccess};
   }
@@ -860,7 +870,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (after(l.lower) > after(l.upper)) set_back_float(l.upper);
     refuse(GevStatus::kInvalidParameter);
   }
-  if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) ++d->acquisition_stops_;  // the fake camera's own register
+  if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) d->WithdrawFreeRun(true);  // the fake camera's own register
   if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
     d->Write(reg::kTLParamsLocked, 0);
   bool geometry = false;
@@ -874,6 +884,13 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       set_back(g);
       refuse(GevStatus::kAccessDenied);
     }
+  }
+  // The packet size (SCPS0's low 16 bits; the flag bits stay free) likewise:
+  // a receiver places each packet by the size its stream started with.
+  if (covers(reg::kPacketSize) && (acquiring || d->Read(reg::kTLParamsLocked) == 1) &&
+      (value(reg::kPacketSize) & 0xffff) != (d->Read(reg::kPacketSize) & 0xffff)) {
+    set_back(reg::kPacketSize);
+    refuse(GevStatus::kAccessDenied);
   }
   // The pipeline must run what the registers then ask for (raw formats need
   // the sensor and the cfa, RGB8 the ISP, the focus lies beyond the focal
@@ -893,8 +910,34 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   } else if (!gain && covers(reg::kGainRaw) && value(reg::kGainRaw) != d->Read(reg::kGainRaw)) {
     d->WriteDouble(reg::kGain, GainDbOf(value(reg::kGainRaw)));
   }
+  // TriggerMode On during an acquisition: a free-run frame asked for and
+  // not yet begun would come without a trigger.
+  if (covers(reg::kTriggerMode) && value(reg::kTriggerMode) == 1 && d->Read(reg::kTriggerMode) != 1)
+    d->WithdrawFreeRun(false);
   if (verdict.status != GevStatus::kSuccess) ++d->writes_refused_;
   return verdict;
+}
+
+void GigeDevice::WithdrawFreeRun(bool stop) {
+  std::lock_guard<std::mutex> t(trigger_mutex_);
+  if (stop) {
+    ++acquisition_stops_;
+    pending_triggers_.clear();  // triggers belong to the acquisition they came in
+  }
+  if (pending_triggers_.empty()) Write(reg::kFakeTriggerSoftware, 0);
+  ++free_run_withdrawn_;
+}
+
+void GigeDevice::TakeClientStops() {
+  const uint64_t stops = acquisition_stops_.load(), withdrawn = free_run_withdrawn_.load();
+  if (withdrawn != withdrawn_seen_) {
+    withdrawn_seen_ = withdrawn;
+    free_run_requested_ = false;
+  }
+  if (stops != stops_seen_) {
+    stops_seen_ = stops;
+    was_acquiring_ = false;  // the next frame starts a new acquisition's count
+  }
 }
 
 std::string GigeDevice::RegisterName(const Feature& r) const {
@@ -955,6 +998,7 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
 void GigeDevice::Sync() {
   using namespace reg;
   const ClientWritesHeld hold(fake_);  // one consistent state of the registers
+  TakeClientStops();
   const bool acquiring = Read(kAcquisition) != 0;
   // Clients that go away. The fake camera picks its stream destination when
   // an acquisition starts and forgets it only when a control packet arrives
@@ -1110,8 +1154,14 @@ void GigeDevice::RestartStream() {
     dropped = GvcpRoundTrip(address_, kRestartAnswerMs) && GvcpRoundTrip(address_, kRestartAnswerMs) &&
               Read(kAcquisition) == 0;
   }
-  const bool stopped = acquisition_stops_ != stops;
-  if (!stopped && Read(kAcquisition) == 0) Write(kAcquisition, 1);
+  bool stopped = false;
+  {
+    // Under the lock a client's write is decided under: a stop cannot come
+    // between the check and the write.
+    const ClientWritesHeld hold(fake_);
+    stopped = acquisition_stops_ != stops;
+    if (!stopped && Read(kAcquisition) == 0) Write(kAcquisition, 1);
+  }
   restarting_ = false;
   if (dropped || stopped) return;
   std::lock_guard<std::mutex> lock(mutex_);
@@ -1332,6 +1382,7 @@ std::chrono::steady_clock::time_point GigeDevice::PaceFreeRun() {
   using namespace reg;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point now = Clock::now();
+  TakeClientStops();
   if (free_run_requested_ || Read(kAcquisition) == 0 || Applied(kTriggerMode) != 0) return Clock::time_point::max();
   const Clock::duration period = FreeRunPeriod();
   if (period > Clock::duration::zero()) {
@@ -1355,6 +1406,7 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
   bool chunks = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    TakeClientStops();  // a stop and a start inside one sync period: this is a new acquisition's first frame
     TakeFrameSlot();
     // The frame's time is its slot on the fake camera's clock (it stamps the
     // buffer itself before this callback): free-run frames keep their cadence,

@@ -196,6 +196,13 @@ class GigeDevice {
   // the next slot starts; TakeFrameSlot records the slot of the frame begun.
   std::chrono::steady_clock::time_point PaceFreeRun();
   void TakeFrameSlot();
+  // Under mutex_: a client's stop since the last look ends the acquisition
+  // (the next frame is a new one's first), and a withdrawn free-run request
+  // is no longer pending, however soon the next start came.
+  void TakeClientStops();
+  // From FilterClientWrite: the fake camera's trigger flag cleared (and, at a
+  // stop, the queued triggers) before its thread can act on them.
+  void WithdrawFreeRun(bool stop);
   std::chrono::steady_clock::duration FreeRunPeriod() const;  // 0: the next frame goes at once
   void FillLocked(ArvBuffer* buffer, uint32_t pixel_format);  // under mutex_
   void PrimeReceiver(ArvBuffer* buffer, uint64_t dest, bool chunks);  // not under mutex_
@@ -296,6 +303,11 @@ class GigeDevice {
   // RestartStream clears the acquisition register for a moment: the window stays locked.
   std::atomic<bool> restarting_{false};
   std::atomic<uint64_t> acquisition_stops_{0};  // clients' stops (FilterClientWrite)
+  // Free-run requests FilterClientWrite withdrew (a stop, TriggerMode On):
+  // it clears the fake camera's flag at once, as the write arrives.
+  std::atomic<uint64_t> free_run_withdrawn_{0};
+  // Under mutex_: the counts TakeClientStops last saw.
+  uint64_t stops_seen_ = 0, withdrawn_seen_ = 0;
   std::string address_;
   uint64_t hooks_refused_before_ = 0;  // WritesRefusedAt(address_) before the camera served
   bool prime_first_frame_ = true;

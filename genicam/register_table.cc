@@ -1,5 +1,6 @@
 #include "genicam/register_table.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <set>
 #include <sstream>
@@ -187,6 +188,19 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
   return out;
 }
 
+uint64_t MaxPayloadBytes(const SensorInfo& s) {
+  int bits = 0;
+  for (const EnumEntry& e : PixelFormats(s)) bits = std::max(bits, PixelBits(static_cast<uint32_t>(e.value)));
+  const uint64_t image = static_cast<uint64_t>(s.width) * static_cast<uint64_t>(s.height) * bits / 8;
+  return (image + 3) / 4 * 4 + kChunkTagBytes + kChunkCount * (kChunkDataBytes + kChunkTagBytes);
+}
+
+uint32_t MinPacketSize(const SensorInfo& s) {
+  const uint64_t overhead = 20 + 8 + 8;  // IPv4, UDP and GVSP headers (fake_camera_hooks.h)
+  const uint64_t data = (MaxPayloadBytes(s) + kMaxGvspDataPackets - 1) / kMaxGvspDataPackets;
+  return static_cast<uint32_t>(std::max<uint64_t>(kMinPacketSize, data + overhead));
+}
+
 std::vector<Feature> RegisterTable(const SensorInfo& s) {
   using namespace reg;
   std::vector<Feature> t;
@@ -312,8 +326,12 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(payload);
   // SCPS0's low 16 bits; its high bits are flags (31: fire a test packet,
   // 30: do not fragment, 29: pixel endianness) that a size write keeps.
-  Feature packet = Int("GevSCPSPacketSize", tl, kPacketSize, true, 576, 9000, 1, "Stream packet size.", "B");
+  // At least what sends the largest frame in the fake camera's 65534 packets;
+  // fixed while acquiring (a receiver places packets by the size it started with).
+  Feature packet = Int("GevSCPSPacketSize", tl, kPacketSize, true, std::min(MinPacketSize(s), kMaxPacketSize),
+                       kMaxPacketSize, 1, "Stream packet size.", "B");
   packet.low_bits = 16;
+  packet.locked_while_acquiring = true;
   t.push_back(packet);
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
 

@@ -169,6 +169,15 @@ struct SensorInfo {
   double min_focus_distance_m = reg::kMinFocusDistanceM;
 };
 
+// The largest payload of the sensor's formats, chunks included (bytes), and
+// the smallest GevSCPSPacketSize that sends it: Aravis's fake camera counts a
+// frame's packets in 16 bits (at most 65534 data packets) and its bits in 32
+// (GigeDevice::Init refuses a sensor whose frame does not fit).
+uint64_t MaxPayloadBytes(const SensorInfo& sensor);
+inline constexpr uint64_t kMaxFakeCameraPayloadBits = 0xFFFFFFFFu;
+inline constexpr uint32_t kMaxGvspDataPackets = 65534, kMinPacketSize = 576, kMaxPacketSize = 9000;
+uint32_t MinPacketSize(const SensorInfo& sensor);
+
 // Pixel formats offered for a sensor, first = default (the raw format at the ADC depth).
 std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 

@@ -2600,7 +2600,7 @@ struct ChunkedFrame {
   bool ok = false;
   std::vector<uint8_t> image;      // the image chunk (padded to 4 bytes)
   bool has_chunks = false;
-  uint64_t frame_id = 0, timestamp = 0;
+  uint64_t frame_id = 0, timestamp = 0, timestamp_chunk = 0;
   std::map<std::string, double> values;  // chunk features found
   std::vector<std::string> missing;      // chunk features not found
 };
@@ -2625,6 +2625,8 @@ ChunkedFrame GrabChunked(Client& c, ArvChunkParser* parser) {
       else out.missing.push_back(name);
       g_clear_error(&e);
     }
+    // The timestamp exactly (a double holds it to ~256 ns).
+    out.timestamp_chunk = static_cast<uint64_t>(arv_chunk_parser_get_integer_value(parser, b, "ChunkTimestamp", nullptr));
   } else if (out.ok) {
     size_t size = 0;
     const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, &size));
@@ -2673,7 +2675,7 @@ TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
       EXPECT_TRUE(f->missing.empty()) << f->missing.front();
       EXPECT_EQ(f->values.at("ChunkSimFrameIndex"), i);
       EXPECT_EQ(f->values.at("ChunkFrameID"), static_cast<double>(f->frame_id));
-      EXPECT_EQ(f->values.at("ChunkTimestamp"), static_cast<double>(f->timestamp));
+      EXPECT_EQ(f->timestamp_chunk, f->timestamp);
       EXPECT_EQ(f->values.at("ChunkExposureTime"), 4000.0);
       EXPECT_EQ(f->values.at("ChunkGain"), 2.5);
     }
@@ -2907,6 +2909,105 @@ TEST_F(GigeE2E, SingleAndMultiFrameModesStopByThemselves) {
   frames = 0;
   while (!c.Grab(500).empty()) ++frames;
   EXPECT_EQ(frames, 1);
+}
+
+// Frames of the stream whose timestamp is at or after `since_ns` (the
+// camera's clock: real time), popped for `ms`.
+int FramesSince(Client& c, uint64_t since_ns, int ms) {
+  int n = 0;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+  while (std::chrono::steady_clock::now() < end) {
+    if (c.Grab(50).empty()) continue;
+    if (c.last_timestamp_ns() >= since_ns) ++n;
+  }
+  return n;
+}
+
+// A client's stop and next start inside one register sync (Aravis sends
+// them well under 2 ms apart) start a new acquisition: no free-run frame of
+// the old one comes after a switch to trigger mode, and a MultiFrame count
+// starts again. (The sync used to be what ended an acquisition, so the old
+// one's free-run request gave a frame without a trigger, and the new
+// acquisition went on with the old count.)
+TEST_F(GigeE2E, AStopAndAStartInOneSyncPeriodStartAfresh) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "AcquisitionFrameRateEnable", FALSE, &e);  // a free-run request always pending
+  ASSERT_EQ(e, nullptr);
+  Settle();
+  ASSERT_TRUE(c.OpenStream(16));
+  for (int trial = 0; trial < 4; ++trial) {
+    SCOPED_TRACE(trial);
+    Set(c, "TriggerMode", "Off");
+    Start(c);
+    ASSERT_FALSE(c.Grab(3000).empty());
+    ASSERT_FALSE(c.Grab(3000).empty());
+    arv_camera_stop_acquisition(c.camera(), &e);
+    ASSERT_EQ(e, nullptr);
+    Set(c, "TriggerMode", "On");
+    Set(c, "TriggerSource", "Software");
+    const uint64_t t0 = static_cast<uint64_t>(g_get_real_time()) * 1000;
+    Start(c);
+    EXPECT_EQ(FramesSince(c, t0, 300), 0) << "a frame without a trigger";
+    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+    ASSERT_EQ(e, nullptr);
+    EXPECT_EQ(FramesSince(c, t0, 500), 1);
+    arv_camera_stop_acquisition(c.camera(), &e);
+    ASSERT_EQ(e, nullptr);
+    FramesSince(c, 0, 100);  // drain
+  }
+  // MultiFrame: a stop and a start after 2 of 5 frames give 5 new ones.
+  Set(c, "TriggerMode", "Off");
+  arv_camera_set_boolean(c.camera(), "AcquisitionFrameRateEnable", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  SetFloat(c, "AcquisitionFrameRate", 40.0);
+  Set(c, "AcquisitionMode", "MultiFrame");
+  SetInt(c, "AcquisitionFrameCount", 5);
+  Settle();
+  for (int trial = 0; trial < 2; ++trial) {
+    SCOPED_TRACE(trial);
+    Start(c);
+    ASSERT_FALSE(c.Grab(3000).empty());
+    ASSERT_FALSE(c.Grab(3000).empty());
+    arv_camera_stop_acquisition(c.camera(), &e);
+    ASSERT_EQ(e, nullptr);
+    const uint64_t t0 = static_cast<uint64_t>(g_get_real_time()) * 1000;
+    Start(c);
+    EXPECT_EQ(FramesSince(c, t0, 600), 5);
+    arv_camera_stop_acquisition(c.camera(), &e);
+    ASSERT_EQ(e, nullptr);
+  }
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
+// GevSCPSPacketSize is fixed while acquiring (its low 16 bits; a receiver
+// places packets by the size its stream started with), and its minimum
+// leaves room for the largest frame in the fake camera's 65534 packets.
+TEST_F(GigeE2E, ThePacketSizeIsFixedWhileAcquiring) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  GError* e = nullptr;
+  arv_device_write_register(c.device(), reg::kPacketSize, 600, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
+  EXPECT_EQ(ReadInt(c, "GevSCPSPacketSize"), 1400);
+  for (int i = 0; i < 3; ++i) EXPECT_FALSE(c.Grab(3000).empty());
+  c.CloseStream();
+  SetInt(c, "GevSCPSPacketSize", 600);
+  EXPECT_EQ(ReadInt(c, "GevSCPSPacketSize"), 600);
+  EXPECT_EQ(c.failed_buffers(), 0u);
+  genicam::SensorInfo big;
+  big.width = big.height = 8192;
+  big.has_isp_rgb = true;  // RGB8: 201 MB
+  EXPECT_EQ(genicam::MinPacketSize(big), (8192u * 8192 * 3 + 92 + 65533) / 65534 + 36);
+  genicam::SensorInfo too_big = big;
+  too_big.width = too_big.height = 16384;  // RGB8: 805 MB, beyond 65534 packets of 9000 bytes and 2^32 bits
+  EXPECT_GT(genicam::MinPacketSize(too_big), genicam::kMaxPacketSize);
 }
 
 TEST_F(GigeE2E, ExposureAutoOnceMovesTheMeanToTheTarget) {
