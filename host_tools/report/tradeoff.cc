@@ -24,10 +24,10 @@ namespace camsim::host {
 const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
       {"distortion", "distortion.filter", {"bilinear", "bicubic", "lanczos3", "lanczos4"},
-       "resampling kernel (2, 4, 6, 8 taps)"},
+       "resampling kernel (2, 4, 6, 8 taps)", true},
       {"distortion", "distortion.grid_step", {"4", "8", "16", "32"}, "remap table spacing, pixels"},
       {"distortion", "distortion.phases", {"16", "64", "256"}, "sub-pixel filter phases"},
-      {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)"},
+      {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)", true},
       {"motion_blur", "motion.samples_per_px", {"0.25", "0.5", "1", "2", "4"}, "time samples per pixel of motion"},
       {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},
        "diffusion DoF: rows solved each side per column (truncation of the column solve)"},
@@ -73,11 +73,12 @@ struct PixelErrors {
 // What one run of a configuration measured.
 struct Measured {
   double frame_ms = 0;
-  std::vector<StageResult> stages;
-  Error end_to_end;
+  std::vector<StageResult> stages;  // each against its own model's reference
+  Error end_to_end;      // against the configured model's reference chain
+  Error own_end_to_end;  // against its own model's (the same unless the knob picks a model)
   size_t fill_edge = 0;  // pixels where distortion and its reference disagree on the fill
   std::string output_unit;
-  PixelErrors pixels;
+  PixelErrors pixels, own_pixels;
 };
 
 // One row of the results: a knob's value and what its run measured.
@@ -194,12 +195,15 @@ const char* UnitName(Domain d) {
 
 // One configuration, ready to run: its pipeline on one worker and its
 // input; `ref_p`, the pipeline of the configuration as given, gives the
-// references, so a knob that picks a cheaper model (the remap filter, the
-// demosaic method) is measured against the configured model, not its own.
+// end-to-end reference, so a knob that picks a cheaper model (the remap
+// filter, the demosaic method) is measured against the configured model;
+// with `own_model` its own model's reference chain is measured too, and
+// gives each stage's error.
 struct Run {
   RunConfig rc;
   std::unique_ptr<Pipeline> p;
   const Pipeline* ref_p = nullptr;
+  bool own_model = false;
   std::vector<uint8_t> workspace;
   CoreInput input;
   std::vector<FlareSource> flare_sources;
@@ -287,7 +291,10 @@ bool Errors(const Run& run, Measured* out, std::string* error) {
   p.ProcessFrame(view, 0, run.strip_rows, tap.data(), n, nullptr, nullptr);
 
   const int bits = run.rc.core.geometry.adc_bits;
+  const Pipeline& own_p = run.own_model ? p : ref_p;  // each stage's model
   ref::RefImage chain = ref::SceneRadiance(view, w, h);
+  ref::RefImage own_chain;  // with own_model: the chain of the run's own model
+  if (run.own_model) own_chain = chain;
   out->stages.clear();
   // From the distortion stage on, the chain's error leaves out the pixels
   // where the fill decision differs (a whole pixel value, not precision).
@@ -298,7 +305,7 @@ bool Errors(const Run& run, Measured* out, std::string* error) {
     const ref::RefImage in = i == 0 ? chain
                                     : ToRef(taps[i - 1], p.running_format(i - 1).domain,
                                             p.running_format(i - 1).channels, w, h);
-    const ref::RefImage want = ref::RunStageReference(ref_p, i, i == 0 ? chain : in, view);
+    const ref::RefImage want = ref::RunStageReference(own_p, i, i == 0 ? chain : in, view);
     StageResult r;
     r.name = p.running_stage(i).name();
     r.unit = UnitName(f.domain);
@@ -316,15 +323,20 @@ bool Errors(const Run& run, Measured* out, std::string* error) {
     r.error = Summarise(PerPixel(taps[i], f.domain, want, Peak(f.domain, bits, want)), flip);
     out->stages.push_back(r);
     chain = ref::RunStageReference(ref_p, i, chain, view);
+    if (run.own_model) own_chain = ref::RunStageReference(p, i, own_chain, view);
   }
   const LineFormat last = p.running_format(n - 1);
-  if (chain.planes.size() != static_cast<size_t>(last.channels)) {
+  if (chain.planes.size() != static_cast<size_t>(last.channels) ||
+      (run.own_model && own_chain.planes.size() != static_cast<size_t>(last.channels))) {
     *error = "the reference chain ends with " + std::to_string(chain.planes.size()) + " planes for " +
              std::to_string(last.channels) + " channels";
     return false;
   }
   out->pixels = PerPixel(taps[n - 1], last.domain, chain, Peak(last.domain, bits, chain));
-  out->pixels.skip = std::move(chain_skip);
+  out->pixels.skip = chain_skip;
+  // (The same peak for both: PSNR on one scale.)
+  if (run.own_model) out->own_pixels = PerPixel(taps[n - 1], last.domain, own_chain, out->pixels.peak);
+  out->own_pixels.skip = std::move(chain_skip);
   out->output_unit = UnitName(last.domain);
   return true;
 }
@@ -423,6 +435,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
       // for all of them, so they share one time and one error.
       if (!s.configured) {
         runs.push_back(std::make_unique<Run>());
+        runs.back()->own_model = k.model;
         if (!Prepare(variant, *reference, vo, scene, mask_plane, runs.back().get(), &error)) {
           std::fprintf(stderr, "camsim: knob %s=%s: %s\n", k.key, v.c_str(), error.c_str());
           return 1;
@@ -453,7 +466,8 @@ int TradeoffCommand(const TradeoffOptions& o) {
     }
   for (Measured& m : measured) {
     m.end_to_end = Summarise(m.pixels, left_out);
-    m.pixels = PixelErrors();
+    m.own_end_to_end = m.own_pixels.sum2.empty() ? m.end_to_end : Summarise(m.own_pixels, left_out);
+    m.pixels = m.own_pixels = PixelErrors();
   }
   for (size_t i = 0; i < settings.size(); ++i) {
     static_cast<Measured&>(settings[i]) = measured[run_of[i]];
@@ -474,11 +488,16 @@ int TradeoffCommand(const TradeoffOptions& o) {
   }
 
   std::ostringstream csv, md;
+  // scope end_to_end: against the configured model's reference; end_to_end_own_model: against the
+  // setting's own (the same unless the knob picks a model); a stage's row: against its own model's.
   csv << "knob,value,configured,scope,ms_per_frame,max_abs,rms,psnr_db,unit,excluded_px,frontier\n";
   for (const Setting& s : settings) {
     csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << ",end_to_end," << Fmt(s.frame_ms) << ","
         << Fmt(s.end_to_end.max_abs) << "," << Fmt(s.end_to_end.rms) << "," << Fmt(s.end_to_end.psnr_db) << ","
         << s.output_unit << "," << s.end_to_end.excluded << "," << (s.frontier ? 1 : 0) << "\n";
+    csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << ",end_to_end_own_model,"
+        << Fmt(s.frame_ms) << "," << Fmt(s.own_end_to_end.max_abs) << "," << Fmt(s.own_end_to_end.rms) << ","
+        << Fmt(s.own_end_to_end.psnr_db) << "," << s.output_unit << "," << s.own_end_to_end.excluded << ",\n";
     for (const StageResult& r : s.stages)
       csv << s.knob << "," << s.value << "," << (s.configured ? 1 : 0) << "," << r.name << "," << Fmt(r.ms) << ","
           << Fmt(r.error.max_abs) << "," << Fmt(r.error.rms) << "," << Fmt(r.error.psnr_db) << "," << r.unit << ","
@@ -488,10 +507,12 @@ int TradeoffCommand(const TradeoffOptions& o) {
   md << "Generated by `camsim tradeoff` on `" << o.input << "` (" << scene.width << "x" << scene.height
      << "), one thread, the fastest of " << o.frames
      << " frames per setting. Errors are against the double-precision reference on the same input, with sensor "
-        "noise, DSNU, PRNU, fixed patterns and defect pixels off. The reference is always the configuration as "
-        "given: a knob that picks a cheaper model (the remap filter, the demosaic method) is measured against "
-        "the configured model's reference. The reference does not round to whole DN, so the ADC's rounding sets "
-        "the floor of the end-to-end error.\n\n"
+        "noise, DSNU, PRNU, fixed patterns and defect pixels off. The end-to-end reference is the configuration as "
+        "given, so a knob that picks another model (the remap filter, the demosaic method) is measured against "
+        "the configured model: what choosing it changes. Column \"RMS own model\" gives that setting's error "
+        "against its own model's reference chain instead (its fixed-point precision; the same as RMS for a knob "
+        "that only sets a precision), and each stage's error (the per-stage table) is against its own model. The "
+        "reference does not round to whole DN, so the ADC's rounding sets the floor of the end-to-end error.\n\n"
         "Fill edge: where a pixel's source lies within the remap grid's error of the frame edge, the distortion "
         "stage and its exact reference can put it on different sides, one reading the scene and the other the "
         "black fill (docs/lens-distortion.md). That difference is a whole pixel value, not precision, so those "
@@ -503,14 +524,14 @@ int TradeoffCommand(const TradeoffOptions& o) {
         "constants), so none is swept.\n\n";
   md << "Knobs swept" << (swept.empty() ? std::string(": none (no stage with a knob runs)") : ":") << "\n\n";
   for (const std::string& k : swept) md << "- `" << k << "`\n";
-  md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | unit | fill edge | left out | "
-        "frontier |\n|---|---|---:|---:|---:|---:|---|---:|---:|---|\n";
+  md << "\n## End to end\n\n| knob | value | ms/frame | max abs | RMS | PSNR dB | RMS own model | unit | fill edge | "
+        "left out | frontier |\n|---|---|---:|---:|---:|---:|---:|---|---:|---:|---|\n";
   for (const Setting& s : settings)
     md << "| " << s.knob << " | " << s.value << (s.configured && !s.value.empty() ? " (configured)" : "") << " | "
        << Fmt(s.frame_ms, "%.2f") << " | " << Fmt(s.end_to_end.max_abs) << " | " << Fmt(s.end_to_end.rms) << " | "
-       << Fmt(s.end_to_end.psnr_db, "%.1f") << " | " << s.output_unit << " | " << s.fill_edge << " | "
-       << s.end_to_end.excluded << " | " << (s.frontier ? "yes" : "") << " |\n";
-  md << "\n## Per stage (each against its reference on its own fixed-point input)\n\n"
+       << Fmt(s.end_to_end.psnr_db, "%.1f") << " | " << Fmt(s.own_end_to_end.rms) << " | " << s.output_unit << " | "
+       << s.fill_edge << " | " << s.end_to_end.excluded << " | " << (s.frontier ? "yes" : "") << " |\n";
+  md << "\n## Per stage (each against its own model's reference on its own fixed-point input)\n\n"
         "| knob | value | stage | ms/frame | max abs | RMS | PSNR dB | unit |\n|---|---|---|---:|---:|---:|---:|---|\n";
   for (const Setting& s : settings)
     for (const StageResult& r : s.stages)

@@ -25,6 +25,10 @@ struct PrecisionKnob {
   const char* key;    // section.key
   std::vector<std::string> values;
   const char* what;
+  // The knob picks another model (the remap filter, the demosaic method), not
+  // a precision of one: its end-to-end error is also given against its own
+  // model's reference, and each stage's against its own.
+  bool model = false;
 };
 const std::vector<PrecisionKnob>& PrecisionKnobs();
 
