@@ -61,6 +61,13 @@ DeviceOptions OfflineDevice() {
   return o;
 }
 
+// A small mono sensor (Mono formats, odd windows allowed).
+DeviceOptions SmallMonoDevice() {
+  DeviceOptions o = SmallDevice(32, 24);
+  o.overrides.push_back("sensor.cfa=\"Mono\"");
+  return o;
+}
+
 std::unique_ptr<GigeDevice> StartDevice(const DeviceOptions& o) {
   std::string error;
   auto d = GigeDevice::Start(o, &error);
@@ -1730,9 +1737,7 @@ TEST_F(GigeE2E, FramesEqualTheCoreOutputInEachFormat) {
 }
 
 TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
-  DeviceOptions o = SmallDevice(32, 24);
-  o.overrides.push_back("sensor.cfa=\"Mono\"");
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallMonoDevice()));
   Client& c = *client_;
   guint n = 0;
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
@@ -2723,9 +2728,7 @@ TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
 // An image whose size is not a whole number of 4-byte words (Mono8, 31 x 23)
 // is padded in its chunk, and PayloadSize counts the padding.
 TEST_F(GigeE2E, AnOddImageIsPaddedInItsChunk) {
-  DeviceOptions o = SmallDevice(32, 24);
-  o.overrides.push_back("sensor.cfa=\"Mono\"");
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallMonoDevice()));
   Client& c = *client_;
   GError* e = nullptr;
   arv_camera_set_region(c.camera(), 1, 1, 31, 23, &e);
