@@ -61,7 +61,8 @@ double SensorSaturationDn(const SensorConfig& c, const SensorGeometry& g) {
   const Readout& o = r.value();
   const int64_t dn =
       ((static_cast<int64_t>(o.full_well_q8) * o.k.mant + o.black_round) >> (o.k.shift + 8)) + o.black;
-  return dn > max_dn ? max_dn : static_cast<double>(dn);
+  const double level = static_cast<double>(dn);  // exact: below 2^53
+  return level > max_dn ? max_dn : level;
 }
 
 double ReferenceSensorMeanDn(const SensorConfig& c, const SensorGeometry& g, double exposure_time_us,
