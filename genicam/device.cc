@@ -85,7 +85,7 @@ constexpr double kTriggerPollHz = 1000.0;
 // and drops it after 100 ms (frame-retention): 10 ms is well inside both and
 // far longer than a receiver thread's wake-up.
 constexpr int kPrimeDelayMs = 10;
-constexpr int kGvspLeaderBytes = 8 + 36;  // GVSP header + image data leader
+constexpr int kGvspLeaderBytes = kGvspHeaderBytes + 36;  // GVSP header + image data leader
 // RestartStream: rounds, and how long the fake camera's thread may take to
 // answer a read (it answers between frames; a debug build renders slowly).
 constexpr int kRestartRounds = 4;

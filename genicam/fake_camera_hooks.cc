@@ -371,7 +371,7 @@ thread_local ChunkedFrame t_chunks;
 
 // GVSP (standard IDs): status (2), block ID (2), packet format (1: bit 7
 // extended IDs, low 4 bits 1 leader / 2 trailer / 3 payload), packet ID (3).
-constexpr size_t kGvspHeader = 8;
+using camsim::genicam::kGvspHeaderBytes;
 constexpr uint8_t kGvspLeader = 1, kGvspTrailer = 2, kGvspPayload = 3;
 void Put16(uint8_t* p, uint32_t v) {
   p[0] = static_cast<uint8_t>(v >> 8);
@@ -393,7 +393,7 @@ gssize SendChunkedFramePacket(SendToFn next, GSocket* socket, GSocketAddress* ad
   };
   if (format == kGvspLeader || format == kGvspTrailer) {
     // Both carry the payload type at bytes 10..11 (after 2 reserved bytes).
-    if (size >= kGvspHeader + 4) Put16(&out[kGvspHeader + 2], kGvspPayloadImageWithChunks);
+    if (size >= kGvspHeaderBytes + 4) Put16(&out[kGvspHeaderBytes + 2], kGvspPayloadImageWithChunks);
     if (format == kGvspTrailer) {
       const uint32_t id = c.last_packet_id + 1;
       out[5] = static_cast<uint8_t>(id >> 16);
@@ -404,7 +404,7 @@ gssize SendChunkedFramePacket(SendToFn next, GSocket* socket, GSocketAddress* ad
     return sent == static_cast<gssize>(out.size()) ? static_cast<gssize>(size) : sent;
   }
   c.last_packet_id = uint32_t{packet[5]} << 16 | Get16(packet + 6);
-  const size_t data = size - kGvspHeader;
+  const size_t data = size - kGvspHeaderBytes;
   const bool last_image_packet = c.image_sent < c.image_bytes && c.image_sent + data >= c.image_bytes;
   c.image_sent += data;
   if (!last_image_packet) return next(socket, address, reinterpret_cast<const gchar*>(packet), size, cancellable, error);
@@ -416,7 +416,7 @@ gssize SendChunkedFramePacket(SendToFn next, GSocket* socket, GSocketAddress* ad
   while (taken < c.tail_bytes) {
     const size_t n = std::min(c.tail_bytes - taken, c.packet_data_bytes);
     const uint32_t id = ++c.last_packet_id;
-    std::vector<uint8_t> p(packet, packet + kGvspHeader);
+    std::vector<uint8_t> p(packet, packet + kGvspHeaderBytes);
     p[5] = static_cast<uint8_t>(id >> 16);
     Put16(&p[6], id & 0xffff);
     p.insert(p.end(), c.tail + taken, c.tail + taken + n);
@@ -439,7 +439,7 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
     return -1;
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(buffer);
-  if (t_chunks.active && socket != t_packet.socket && size >= kGvspHeader && Get16(bytes + 2) == t_chunks.block_id &&
+  if (t_chunks.active && socket != t_packet.socket && size >= kGvspHeaderBytes && Get16(bytes + 2) == t_chunks.block_id &&
       (bytes[4] & 0x80) == 0 && (bytes[4] & 0x0f) >= kGvspLeader && (bytes[4] & 0x0f) <= kGvspPayload)
     return SendChunkedFramePacket(next, socket, address, bytes, size, cancellable, error);
   if (t_packet.socket == nullptr || socket != t_packet.socket) return next(socket, address, buffer, size, cancellable, error);

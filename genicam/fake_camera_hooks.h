@@ -130,7 +130,8 @@ class UnfilteredWritesRefused {
 // of other block IDs go out as they are.
 inline constexpr size_t kMaxChunkTail = 128;
 inline constexpr uint16_t kGvspPayloadImageWithChunks = 0x4001;
-inline constexpr size_t kGvspOverheadBytes = 20 + 8 + 8;  // IPv4, UDP and GVSP (standard IDs) headers
+inline constexpr size_t kGvspHeaderBytes = 8;  // status, block ID, packet format and ID (standard IDs)
+inline constexpr size_t kGvspOverheadBytes = 20 + 8 + kGvspHeaderBytes;  // IPv4, UDP and GVSP headers
 void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packet_data_bytes, const uint8_t* tail,
                              size_t tail_bytes);
 

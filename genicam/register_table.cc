@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/pipeline/pipeline.h"
+#include "genicam/fake_camera_hooks.h"
 
 namespace camsim::genicam {
 
@@ -196,9 +197,8 @@ uint64_t MaxPayloadBytes(const SensorInfo& s) {
 }
 
 uint32_t MinPacketSize(const SensorInfo& s) {
-  const uint64_t overhead = 20 + 8 + 8;  // IPv4, UDP and GVSP headers (fake_camera_hooks.h)
   const uint64_t data = (MaxPayloadBytes(s) + kMaxGvspDataPackets - 1) / kMaxGvspDataPackets;
-  return static_cast<uint32_t>(std::max<uint64_t>(kMinPacketSize, data + overhead));
+  return static_cast<uint32_t>(std::max<uint64_t>(kMinPacketSize, data + kGvspOverheadBytes));
 }
 
 std::vector<Feature> RegisterTable(const SensorInfo& s) {
