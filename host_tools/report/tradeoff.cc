@@ -25,10 +25,11 @@ const std::vector<PrecisionKnob>& PrecisionKnobs() {
   static const std::vector<PrecisionKnob> knobs = {
       {"distortion", "distortion.filter", {"bilinear", "bicubic", "lanczos3", "lanczos4"},
        "resampling kernel (2, 4, 6, 8 taps)", true},
-      {"distortion", "distortion.grid_step", {"4", "8", "16", "32"}, "remap table spacing, pixels"},
-      {"distortion", "distortion.phases", {"16", "64", "256"}, "sub-pixel filter phases"},
+      {"distortion", "distortion.grid_step", {"4", "8", "16", "32", "64"}, "remap table spacing, pixels"},
+      {"distortion", "distortion.phases", {"16", "32", "64", "128", "256"}, "sub-pixel filter phases"},
       {"demosaic", "demosaic.method", {"bilinear", "malvar"}, "interpolation kernel (3x3 vs 5x5)", true},
       {"motion_blur", "motion.samples_per_px", {"0.25", "0.5", "1", "2", "4"}, "time samples per pixel of motion"},
+      {"motion_blur", "motion.max_samples", {"2", "4", "8", "64"}, "bound on the time samples of a pixel"},
       {"dof_columns", "dof.column_window", {"8", "16", "32", "64", "128"},
        "diffusion DoF: rows solved each side per column (truncation of the column solve)"},
       {"dof_gather", "dof.max_radius_px", {"4", "8", "16", "32"}, "gather DoF: disc radius cap"},

@@ -241,7 +241,7 @@ TEST(Tradeoff, WritesEveryKnobValueWithStageErrors) {
       EXPECT_GT(std::stod(f[4]), 0.0) << line;  // it was timed
     }
   }
-  EXPECT_EQ(end_to_end, 4 + 4 + 3 + 2);  // filter, grid step, phases, demosaic.method
+  EXPECT_EQ(end_to_end, 4 + 5 + 5 + 2);  // filter, grid step, phases, demosaic.method
   ASSERT_EQ(own_rms.size(), rms.size());
   // End to end, the bilinear demosaic against the configured (Malvar) model
   // shows what the cheaper model costs; against its own, its precision.
