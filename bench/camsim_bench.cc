@@ -153,8 +153,9 @@ void BM_Prefix(benchmark::State& state) {
     state.SkipWithError("the demo pipeline has fewer running stages");
     return;
   }
-  state.SetLabel(StageName(c.order[c.order_count - 1]));
   RunPipeline(state, c, 1);
+  // After RunPipeline, whose "N stages" label this replaces.
+  state.SetLabel(std::string("up to ") + StageName(c.order[c.order_count - 1]));
 }
 // Cuts after cfa, exposure, vignetting (the planner runs the Bayer CFA
 // first), sensor, black level, white balance, demosaic and gamma (flare,
