@@ -184,8 +184,8 @@ TEST_F(GigeRig, MasterStrobeDrivesTheBus) {
     Settle(*clients_[i]);  // in trigger mode before the acquisition starts
     ASSERT_TRUE(clients_[i]->OpenStream(8));
     Start(i);
+    Settle(*clients_[i]);  // the slave's device has taken its AcquisitionStart before the first pulse
   }
-  Sleep(100);
   ASSERT_TRUE(m.OpenStream(8));
   Start(0);
   const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);

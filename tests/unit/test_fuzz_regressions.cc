@@ -21,13 +21,13 @@ namespace {
 
 // A pipeline on a workspace full of garbage (the core must not rely on zeroed
 // memory: a ring row read before it was written shows up as 0xA5A5A5A5), with
-// every running stage tapped.
+// every running stage tapped into frames prefilled with `fill`.
 struct GarbageRun {
   Status status;
   std::vector<LineFormat> format;           // per running stage
   std::vector<std::vector<uint32_t>> out;   // per running stage, interleaved
 };
-GarbageRun RunOnGarbage(const PipelineConfig& config, const test::Scene& scene, int strip_rows) {
+GarbageRun RunOnGarbage(const PipelineConfig& config, const test::Scene& scene, int strip_rows, uint32_t fill) {
   GarbageRun r;
   Pipeline p;
   r.status = p.Configure(config, 1, false);
@@ -40,7 +40,7 @@ GarbageRun RunOnGarbage(const PipelineConfig& config, const test::Scene& scene, 
   r.out.resize(r.format.size());
   std::vector<Tap> taps(r.format.size());
   for (size_t i = 0; i < taps.size(); ++i) {
-    r.out[i].assign(static_cast<size_t>(scene.width) * scene.height * r.format[i].channels, 0xDEADBEEFu);
+    r.out[i].assign(static_cast<size_t>(scene.width) * scene.height * r.format[i].channels, fill);
     taps[i].stage = static_cast<int>(i);
     taps[i].format = TapFormat::kU32;
     taps[i].data = r.out[i].data();
@@ -50,12 +50,15 @@ GarbageRun RunOnGarbage(const PipelineConfig& config, const test::Scene& scene, 
   return r;
 }
 
-// Samples above their domain's range (DN for 12 bits; photons have none).
+// Samples above their domain's range: DN above 12 bits, Linear or Encoded
+// above Q0.16's 65535 (Radiance Q16.16 and Photons Q24.8 use all of uint32).
 size_t OutOfRange(const GarbageRun& r) {
   size_t bad = 0;
   for (size_t i = 0; i < r.out.size(); ++i) {
     const Domain d = r.format[i].domain;
-    const uint32_t max = d == Domain::kDigital ? 4095u : (d == Domain::kPhotons ? 0xFFFFFFFFu : 65535u);
+    const uint32_t max = d == Domain::kDigital ? 4095u
+                         : (d == Domain::kLinear || d == Domain::kEncoded) ? 65535u
+                                                                             : 0xFFFFFFFFu;
     for (uint32_t v : r.out[i]) bad += v > max;
   }
   return bad;
@@ -65,14 +68,10 @@ size_t OutOfRange(const GarbageRun& r) {
 // = 5, reachable through the core API, not through TOML). Every site then
 // reads as green, demosaic writes G twice and never writes B, and the ISP
 // output's blue channel is whatever the line ring held before.
-// Fix: Pipeline::Configure refuses "sensor.cfa" outside Mono..BayerBG.
-// (The final output hides it: gamma clamps the garbage to 65535; the
-// demosaic tap shows it.) The other enums: demosaic.method and gamma.curve
-// are already refused; vignetting.mode 4 is accepted and acts as a flat curve
-// (no garbage), which this test allows; a `default:` in
-// VignettingStage::Configure's switch would refuse it.
+// Fix: Pipeline::Configure refuses "sensor.cfa" outside Mono..BayerBG; the
+// other enums (vignetting.mode, demosaic.method, gamma.curve) are refused too,
+// each naming its field.
 TEST(FuzzRegressions, EnumValuesOutsideTheirRange) {
-  const test::Scene scene = test::TexturedScene(8, 6);
   struct Case {
     const char* field;
     void (*set)(PipelineConfig&);
@@ -86,15 +85,25 @@ TEST(FuzzRegressions, EnumValuesOutsideTheirRange) {
   for (const Case& k : cases) {
     PipelineConfig c = test::DemoConfig(8, 6);
     k.set(c);
-    const GarbageRun whole = RunOnGarbage(c, scene, 6), strips = RunOnGarbage(c, scene, 1);
-    if (!whole.status.ok()) {
-      EXPECT_STREQ(whole.status.field(), k.field) << whole.status.message();
-      continue;
-    }
-    ASSERT_FALSE(whole.format.empty()) << k.field;
-    EXPECT_EQ(OutOfRange(whole), 0u) << k.field << " was accepted and a stage output samples that were never written";
-    EXPECT_TRUE(whole.out == strips.out) << k.field << ": output depends on the strip height";
+    Pipeline p;
+    const Status status = p.Configure(c, 1, false);
+    ASSERT_FALSE(status.ok()) << k.field << " outside its enum was accepted";
+    EXPECT_STREQ(status.field(), k.field) << status.message();
   }
+}
+
+// What the refusal above protects, on a valid configuration: on a workspace
+// full of garbage every stage writes every sample of its frame (the same
+// output whatever the taps held before), in its domain's range, and the same
+// for any strip height.
+TEST(FuzzRegressions, EveryStageWritesEverySampleOnAGarbageWorkspace) {
+  const test::Scene scene = test::TexturedScene(8, 6);
+  const PipelineConfig c = test::DemoConfig(8, 6);
+  const GarbageRun whole = RunOnGarbage(c, scene, 6, 0xDEADBEEFu), strips = RunOnGarbage(c, scene, 1, 0u);
+  ASSERT_TRUE(whole.status.ok()) << whole.status.message();
+  ASSERT_FALSE(whole.format.empty());
+  EXPECT_EQ(OutOfRange(whole), 0u);
+  EXPECT_TRUE(whole.out == strips.out) << "a sample was never written, or the output depends on the strip height";
 }
 
 // Found reading UScale while writing fuzz_core's number mapping, confirmed

@@ -690,6 +690,7 @@ TEST(IspGamma, PowerAtKnownPointsAndAboveFullScale) {
   const GammaStage stage = MakeGamma({GammaCurve::kPower, 2.2}, tables);
   Image in = MakeImage(4, 1, 1);
   in.planes[0] = {1, 256, 32768, 70000};  // 70000 > full scale reads the last entry
+  // round(65535 (v / 65535)^(1 / 2.2)): 423.81, 5270.14, 47823.85, and 65535 at full scale.
   EXPECT_EQ(RunStage(stage, in, 1).planes[0], (std::vector<uint32_t>{424, 5270, 47824, 65535}));
 }
 
