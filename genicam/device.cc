@@ -3,6 +3,7 @@
 #include <arv.h>
 
 #include <arpa/inet.h>
+#include <ifaddrs.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -121,6 +122,20 @@ const PlanEntry* RunningSensor(const Plan& plan) {
 constexpr const char* kSensorNeedsCfa =
     "the sensor must give one sample per pixel (the raw formats): the cfa stage stays on";
 
+// Whether a network interface has exactly this IPv4 address. Aravis's fake
+// camera serves only on an interface's own address; bind() alone would
+// accept any address of 127.0.0.0/8 on Linux.
+bool InterfaceHasAddress(const in_addr& address) {
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) return true;  // cannot tell: let the fake camera report it
+  bool found = false;
+  for (const ifaddrs* i = list; i && !found; i = i->ifa_next)
+    found = i->ifa_addr && i->ifa_addr->sa_family == AF_INET &&
+            reinterpret_cast<const sockaddr_in*>(i->ifa_addr)->sin_addr.s_addr == address.s_addr;
+  freeifaddrs(list);
+  return found;
+}
+
 // Aravis's fake camera starts even when it cannot bind its GVCP port (it
 // then answers nobody), so the address is tried first: one camera per
 // address, and only addresses an interface has.
@@ -132,6 +147,13 @@ bool CheckGvcpAddress(const std::string& address, std::string* error) {
     *error = "--address '" + address + "': not an IPv4 address";
     return false;
   }
+  const std::string no_interface = "cannot serve on " + address +
+                                   ": no network interface has that address (on Linux: ip addr add " + address +
+                                   "/8 dev lo, or a private namespace, see scripts/netns-run.sh)";
+  if (!InterfaceHasAddress(a.sin_addr)) {
+    *error = no_interface;
+    return false;
+  }
   const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return true;  // let the fake camera report it
   const int r = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
@@ -141,8 +163,7 @@ bool CheckGvcpAddress(const std::string& address, std::string* error) {
   if (e == EADDRINUSE)
     *error = "cannot serve on " + address + ": its GVCP port 3956 is in use (another camera on this address?)";
   else if (e == EADDRNOTAVAIL)
-    *error = "cannot serve on " + address + ": no network interface has that address (on Linux: ip addr add " +
-             address + "/8 dev lo, or a private namespace, see scripts/netns-run.sh)";
+    *error = no_interface;
   else
     *error = "cannot serve on " + address + ": GVCP port 3956: " + std::strerror(e);
   return false;

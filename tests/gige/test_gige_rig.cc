@@ -225,6 +225,10 @@ TEST(GigeRigAddresses, OneCameraPerAddressAndOnlyLocalAddresses) {
   EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
   EXPECT_NE(error.find("127.0.0.9"), std::string::npos) << error;
   EXPECT_NE(error.find("no network interface"), std::string::npos) << error;
+  // Found before the fake camera starts, so the error says what to do, not
+  // "or another camera" (bind() alone takes any 127/8 address on Linux).
+  EXPECT_NE(error.find("ip addr add 127.0.0.9"), std::string::npos) << error;
+  EXPECT_EQ(error.find("another camera"), std::string::npos) << error;
   o.address = "camera.local";
   EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
   EXPECT_NE(error.find("not an IPv4 address"), std::string::npos) << error;
