@@ -34,24 +34,60 @@ int main(int argc, char** argv) {
   int width = 1920, height = 1080, frames = 100, packet = 9000, reconfigures = 0;
   double rate = 0.0;
   std::string format = "BayerRG8", exposure_auto = "Off";
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--width") width = std::atoi(v.c_str());
-    else if (a == "--height") height = std::atoi(v.c_str());
+  const auto usage = [](FILE* f) {
+    std::fputs("usage: camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]\n"
+               "                       [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]\n"
+               "                       [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous]\n",
+               f);
+  };
+  // A whole number in [lo, hi], or a clear error naming the option.
+  bool bad = false;
+  const auto integer = [&](const std::string& a, const std::string& v, int lo, int hi) {
+    char* end = nullptr;
+    const long n = std::strtol(v.c_str(), &end, 10);
+    if (v.empty() || *end != '\0' || n < lo || n > hi) {
+      std::fprintf(stderr, "camsim_gige_fps: %s '%s': a whole number in %d .. %d\n", a.c_str(), v.c_str(), lo, hi);
+      bad = true;
+      return lo;
+    }
+    return static_cast<int>(n);
+  };
+  for (int i = 1; i < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    }
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "camsim_gige_fps: %s needs a value\n", a.c_str());
+      usage(stderr);
+      return 1;
+    }
+    const std::string v = argv[i + 1];
+    if (a == "--width") width = integer(a, v, 2, 16384);
+    else if (a == "--height") height = integer(a, v, 2, 16384);
     else if (a == "--format") format = v;
-    else if (a == "--frames") frames = std::atoi(v.c_str());
-    else if (a == "--threads") o.threads = std::atoi(v.c_str());
-    else if (a == "--packet-size") packet = std::atoi(v.c_str());
+    else if (a == "--frames") frames = integer(a, v, 1, 1000000);
+    else if (a == "--threads") o.threads = integer(a, v, 1, 256);
+    else if (a == "--packet-size") packet = integer(a, v, 576, 16384);
     else if (a == "--config") o.config_path = v;
-    else if (a == "--prime") o.prime_first_frame = v != "0";
-    else if (a == "--reconfigures") reconfigures = std::atoi(v.c_str());
-    else if (a == "--rate") rate = std::atof(v.c_str());
-    else if (a == "--exposure-auto") exposure_auto = v;
+    else if (a == "--prime") o.prime_first_frame = integer(a, v, 0, 1) != 0;
+    else if (a == "--reconfigures") reconfigures = integer(a, v, 0, 1000000);
+    else if (a == "--rate") {
+      char* end = nullptr;
+      rate = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(rate > 0.0 && rate <= 1e6)) {
+        std::fprintf(stderr, "camsim_gige_fps: --rate '%s': frames per second, above 0\n", v.c_str());
+        bad = true;
+      }
+    } else if (a == "--exposure-auto") exposure_auto = v;
     else {
-      std::fprintf(stderr, "unknown option %s\n", a.c_str());
+      std::fprintf(stderr, "camsim_gige_fps: unknown option %s\n", a.c_str());
+      usage(stderr);
       return 1;
     }
   }
+  if (bad) return 1;
   o.overrides = {"sensor.width=" + std::to_string(width), "sensor.height=" + std::to_string(height)};
   std::string error;
   auto device = camsim::genicam::GigeDevice::Start(o, &error);
