@@ -28,19 +28,19 @@ namespace {
 constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg::kBlackLevel,
                                            reg::kSimFNumber,   reg::kSimSeed, reg::kSimFocusDistance};
 // The payload's registers: frozen while acquiring (the stream's buffers are
-// sized) and while TLParamsLocked is 1.
-static_assert(kChunkCount == 5);
-constexpr uint32_t kGeometryRegisters[] = {reg::kWidth,
-                                           reg::kHeight,
-                                           reg::kOffsetX,
-                                           reg::kOffsetY,
-                                           reg::kPixelFormat,
-                                           reg::kChunkModeActive,
-                                           reg::SelectedAddress(reg::kChunkEnable, kChunkTimestamp),
-                                           reg::SelectedAddress(reg::kChunkEnable, kChunkFrameID),
-                                           reg::SelectedAddress(reg::kChunkEnable, kChunkExposureTime),
-                                           reg::SelectedAddress(reg::kChunkEnable, kChunkGain),
-                                           reg::SelectedAddress(reg::kChunkEnable, kChunkSimFrameIndex)};
+// sized) and while TLParamsLocked is 1: the window, the format and chunk mode
+// with every ChunkEnable.
+constexpr uint32_t kWindowRegisters[] = {reg::kWidth,   reg::kHeight,      reg::kOffsetX,
+                                         reg::kOffsetY, reg::kPixelFormat, reg::kChunkModeActive};
+constexpr auto kGeometryRegisters = [] {
+  std::array<uint32_t, std::size(kWindowRegisters) + kChunkCount> r{};
+  size_t n = 0;
+  for (const uint32_t w : kWindowRegisters) r[n++] = w;
+  for (int i = 0; i < kChunkCount; ++i) r[n++] = reg::SelectedAddress(reg::kChunkEnable, static_cast<size_t>(i));
+  return r;
+}();
+// A frame's chunk bytes after its image: at most 3 bytes of padding, the image's tag and every chunk.
+static_assert(3 + kChunkTagBytes + kChunkCount * (kChunkDataBytes + kChunkTagBytes) <= kMaxChunkTail);
 // The Auto features' limits (Float registers, SFNC names <name>LowerLimit
 // and <name>UpperLimit): the lower one stays at or below the upper one.
 struct AutoLimits {
@@ -1474,6 +1474,13 @@ void GigeDevice::QueueChunks(ArvBuffer* buffer, uint32_t pixel_format) {
       case kChunkExposureTime: put64(DoubleBits(frame_exposure_us_)); break;
       case kChunkGain: put64(DoubleBits(frame_gain_db_)); break;
       case kChunkSimFrameIndex: put64(frame_index_); break;
+      case kChunkOffsetX: put64(static_cast<uint64_t>(arv_buffer_get_image_x(buffer))); break;
+      case kChunkOffsetY: put64(static_cast<uint64_t>(arv_buffer_get_image_y(buffer))); break;
+      case kChunkWidth: put64(static_cast<uint64_t>(arv_buffer_get_image_width(buffer))); break;
+      case kChunkHeight: put64(static_cast<uint64_t>(arv_buffer_get_image_height(buffer))); break;
+      case kChunkPixelFormat: put64(pixel_format); break;
+      case kChunkBlackLevel: put64(DoubleBits(frame_black_level_dn_)); break;
+      case kChunkLineStatusAll: put64(frame_line_status_); break;
     }
     put32(kChunkIdBase + static_cast<uint32_t>(i));
     put32(kChunkDataBytes);
@@ -1555,7 +1562,9 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   // The settings this frame is made with (its chunks).
   frame_exposure_us_ = AppliedDouble(kExposureTime);
   frame_gain_db_ = AppliedDouble(kGain);
+  frame_black_level_dn_ = AppliedDouble(kBlackLevel);
   frame_index_ = Applied(kSimFrameIndex);
+  frame_line_status_ = (trigger_level_.load() ? 1u : 0u) | (strobe_level_ ? 2u : 0u);
   size_t size = 0;
   uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));
   const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
@@ -1594,6 +1603,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   // (A falling edge that failed was sent again by the Sync above.)
   if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   if (strobe) DriveStrobe(true);
+  frame_line_status_ = (trigger_level_.load() ? 1u : 0u) | (strobe_level_ ? 2u : 0u);  // as the frame starts
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
   if (strobe) DriveStrobe(false);

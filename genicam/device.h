@@ -313,8 +313,9 @@ class GigeDevice {
   bool prime_first_frame_ = true;
   double last_render_s_ = 0;  // the last frame's rendering time (0: none yet)
   // What the last frame was rendered with (its chunks).
-  double frame_exposure_us_ = 0, frame_gain_db_ = 0;
+  double frame_exposure_us_ = 0, frame_gain_db_ = 0, frame_black_level_dn_ = 0;
   uint32_t frame_index_ = 0;
+  uint32_t frame_line_status_ = 0;  // ChunkLineStatusAll: bit i = line i as the frame started
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
 };
 

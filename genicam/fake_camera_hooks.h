@@ -128,7 +128,7 @@ class UnfilteredWritesRefused {
 // packet size less the IP, UDP and GVSP headers), and marks the frame's
 // leader and trailer as an image with chunks (payload type 0x4001). Frames
 // of other block IDs go out as they are.
-inline constexpr size_t kMaxChunkTail = 128;
+inline constexpr size_t kMaxChunkTail = 256;  // 3 bytes of padding, the image tag and 12 chunks of 16 bytes: 203
 inline constexpr uint16_t kGvspPayloadImageWithChunks = 0x4001;
 inline constexpr size_t kGvspHeaderBytes = 8;  // status, block ID, packet format and ID (standard IDs)
 inline constexpr size_t kGvspOverheadBytes = 20 + 8 + kGvspHeaderBytes;  // IPv4, UDP and GVSP headers

@@ -318,11 +318,14 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                         "to 4 bytes, 8 for the image chunk's tag and 16 per enabled chunk.");
   payload.kind = Kind::kSwissKnife;
   // (kChunkDataBytes + kChunkTagBytes per chunk, kChunkTagBytes for the image's.)
-  static_assert(kChunkDataBytes + kChunkTagBytes == 16 && kChunkTagBytes == 8 && kChunkCount == 5);
-  payload.formula = "(M=0)?((W*H*((PF>>16)&255))/8):(((W*H*((PF>>16)&255))/8+3)/4*4+8+16*(E0+E1+E2+E3+E4))";
+  static_assert(kChunkDataBytes + kChunkTagBytes == 16 && kChunkTagBytes == 8);
+  std::string enabled;  // E0+E1+...: the enabled chunks
   payload.variables = {{"W", "Width"}, {"H", "Height"}, {"PF", "PixelFormat"}, {"M", "ChunkModeActive"}};
-  for (int i = 0; i < kChunkCount; ++i)
+  for (int i = 0; i < kChunkCount; ++i) {
     payload.variables.push_back({"E" + std::to_string(i), "ChunkEnable[" + std::to_string(i) + "]"});
+    enabled += (i ? "+E" : "E") + std::to_string(i);
+  }
+  payload.formula = "(M=0)?((W*H*((PF>>16)&255))/8):(((W*H*((PF>>16)&255))/8+3)/4*4+8+16*(" + enabled + "))";
   t.push_back(payload);
   // SCPS0's low 16 bits; its high bits are flags (31: fire a test packet,
   // 30: do not fragment, 29: pixel endianness) that a size write keeps.
@@ -346,7 +349,14 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                     {"FrameID", kChunkFrameID},
                     {"ExposureTime", kChunkExposureTime},
                     {"Gain", kChunkGain},
-                    {"SimFrameIndex", kChunkSimFrameIndex}},
+                    {"SimFrameIndex", kChunkSimFrameIndex},
+                    {"OffsetX", kChunkOffsetX},
+                    {"OffsetY", kChunkOffsetY},
+                    {"Width", kChunkWidth},
+                    {"Height", kChunkHeight},
+                    {"PixelFormat", kChunkPixelFormat},
+                    {"BlackLevel", kChunkBlackLevel},
+                    {"LineStatusAll", kChunkLineStatusAll}},
                    "Chunk ChunkEnable acts on."));
   t.back().selects = {"ChunkEnable"};
   t.push_back(Selected(Bool("ChunkEnable", cd, kChunkEnable, true,
@@ -367,6 +377,23 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(ChunkValue(Int("ChunkSimFrameIndex", cd, 0, false, 0, 0x7fffffff, 1,
                              "Frame index the frame was rendered with (SimFrameIndex; `camsim run --first-frame`)."),
                          kChunkSimFrameIndex));
+  t.push_back(ChunkValue(Int("ChunkOffsetX", cd, 0, false, 0, s.width - 1, 1, "OffsetX of the frame's window.", "px"),
+                         kChunkOffsetX));
+  t.push_back(ChunkValue(Int("ChunkOffsetY", cd, 0, false, 0, s.height - 1, 1, "OffsetY of the frame's window.", "px"),
+                         kChunkOffsetY));
+  t.push_back(ChunkValue(Int("ChunkWidth", cd, 0, false, 1, s.width, 1, "Width of the frame's window.", "px"),
+                         kChunkWidth));
+  t.push_back(ChunkValue(Int("ChunkHeight", cd, 0, false, 1, s.height, 1, "Height of the frame's window.", "px"),
+                         kChunkHeight));
+  t.push_back(ChunkValue(Enum("ChunkPixelFormat", cd, 0, false, PixelFormats(s), "Pixel format of the frame."),
+                         kChunkPixelFormat));
+  t.push_back(ChunkValue(Flt("ChunkBlackLevel", cd, 0, 0.0, s.max_black_level_dn,
+                             "Black level the frame was rendered with.", "DN"),
+                         kChunkBlackLevel));
+  t.push_back(ChunkValue(Int("ChunkLineStatusAll", cd, 0, false, 0, 3, 1,
+                             "Levels of the lines as the frame started: bit 0 Line0 (the trigger input), bit 1 "
+                             "Line1 (the strobe, high for the frame under ExposureActive)."),
+                         kChunkLineStatusAll));
 
   const char* sim = "Simulation";
   t.push_back(Int("SimSceneCount", sim, kSimSceneCount, false, s.scene_count, s.scene_count, 1, "Scenes loaded."));

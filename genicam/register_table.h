@@ -129,13 +129,22 @@ inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value) {
 // and its tag. A tag is the chunk's ID and data length, 4 bytes each,
 // big-endian, after the data (receivers find chunks from the end).
 // ChunkSelector values; each chunk's ID is kChunkIdBase + its value.
+// The window, format and black level are the frame's own (SFNC's chunks of
+// the same names), so a client need not read registers that may have changed.
 enum ChunkSelectorValue : int64_t {
-  kChunkTimestamp = 0,      // uint64: the frame's timestamp (ns; the GVSP leader's)
-  kChunkFrameID = 1,        // uint64: the GVSP block ID
-  kChunkExposureTime = 2,   // double: the exposure the frame was rendered with (us)
-  kChunkGain = 3,           // double: its gain (dB)
-  kChunkSimFrameIndex = 4,  // uint64: the frame index keying scene and noise (`camsim run --first-frame`)
-  kChunkCount = 5
+  kChunkTimestamp = 0,       // uint64: the frame's timestamp (ns; the GVSP leader's)
+  kChunkFrameID = 1,         // uint64: the GVSP block ID
+  kChunkExposureTime = 2,    // double: the exposure the frame was rendered with (us)
+  kChunkGain = 3,            // double: its gain (dB)
+  kChunkSimFrameIndex = 4,   // uint64: the frame index keying scene and noise (`camsim run --first-frame`)
+  kChunkOffsetX = 5,         // uint64: the frame's window on the sensor
+  kChunkOffsetY = 6,
+  kChunkWidth = 7,
+  kChunkHeight = 8,
+  kChunkPixelFormat = 9,     // uint64: its PFNC code (an Enumeration of PixelFormat's entries)
+  kChunkBlackLevel = 10,     // double: the black level it was rendered with (DN)
+  kChunkLineStatusAll = 11,  // uint64: bit i = line i's level as the frame started (Line1: the strobe as driven for it)
+  kChunkCount = 12
 };
 inline constexpr uint32_t kChunkIdImage = 0xC5A00000u, kChunkIdBase = 0xC5A00001u;
 inline constexpr uint32_t kChunkDataBytes = 8, kChunkTagBytes = 8;

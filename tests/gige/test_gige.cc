@@ -46,6 +46,56 @@ void Settle() {
 int64_t ReadInt(Client& c, const char* name) { return arv_camera_get_integer(c.camera(), name, nullptr); }
 double ReadFloat(Client& c, const char* name) { return arv_camera_get_float(c.camera(), name, nullptr); }
 
+// A frame's chunks through Aravis's chunk parser, and its image.
+struct ChunkedFrame {
+  bool ok = false;
+  std::vector<uint8_t> image;      // the image chunk (padded to 4 bytes)
+  bool has_chunks = false;
+  uint64_t frame_id = 0, timestamp = 0, timestamp_chunk = 0;
+  std::map<std::string, double> values;  // chunk features found
+  std::vector<std::string> missing;      // chunk features not found
+  std::string pixel_format;              // ChunkPixelFormat's entry ("" when missing)
+};
+ChunkedFrame GrabChunked(Client& c, ArvChunkParser* parser) {
+  ChunkedFrame out;
+  ArvBuffer* b = arv_stream_timeout_pop_buffer(c.stream(), 3000 * 1000);
+  if (b == nullptr) return out;
+  out.ok = arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS;
+  out.has_chunks = out.ok && arv_buffer_has_chunks(b);
+  out.frame_id = arv_buffer_get_frame_id(b);
+  out.timestamp = arv_buffer_get_timestamp(b);
+  if (out.has_chunks) {
+    size_t size = 0;
+    const auto* image = static_cast<const uint8_t*>(arv_buffer_get_chunk_data(b, genicam::kChunkIdImage, &size));
+    if (image != nullptr) out.image.assign(image, image + size);
+    for (const char* name : {"ChunkTimestamp", "ChunkFrameID", "ChunkSimFrameIndex", "ChunkExposureTime", "ChunkGain",
+                             "ChunkOffsetX", "ChunkOffsetY", "ChunkWidth", "ChunkHeight", "ChunkBlackLevel",
+                             "ChunkLineStatusAll"}) {
+      GError* e = nullptr;
+      const bool is_float = std::strcmp(name, "ChunkExposureTime") == 0 || std::strcmp(name, "ChunkGain") == 0 ||
+                            std::strcmp(name, "ChunkBlackLevel") == 0;
+      const double v = is_float ? arv_chunk_parser_get_float_value(parser, b, name, &e)
+                                : static_cast<double>(arv_chunk_parser_get_integer_value(parser, b, name, &e));
+      if (e == nullptr) out.values[name] = v;
+      else out.missing.push_back(name);
+      g_clear_error(&e);
+    }
+    GError* e = nullptr;
+    const char* format = arv_chunk_parser_get_string_value(parser, b, "ChunkPixelFormat", &e);
+    if (e == nullptr && format != nullptr) out.pixel_format = format;
+    else out.missing.push_back("ChunkPixelFormat");
+    g_clear_error(&e);
+    // The timestamp exactly (a double holds it to ~256 ns).
+    out.timestamp_chunk = static_cast<uint64_t>(arv_chunk_parser_get_integer_value(parser, b, "ChunkTimestamp", nullptr));
+  } else if (out.ok) {
+    size_t size = 0;
+    const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, &size));
+    out.image.assign(data, data + size);
+  }
+  arv_stream_push_buffer(c.stream(), b);
+  return out;
+}
+
 // Mean raw level (above black, fraction of full scale) of a BayerRG12 frame.
 double MeanLevel12(const std::vector<uint8_t>& f) {
   double sum = 0;
@@ -1999,15 +2049,21 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   Settle();
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Output");
   Set(c, "LineSource", "ExposureActive");
+  // Each frame's ChunkLineStatusAll: the lines as it started.
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   Settle();
-  GError* e = nullptr;
   arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // ignored: the source is Line0
   EXPECT_TRUE(c.Grab(300).empty());
   std::string err;
   trigger.Set(true, &err);  // rising edge: one frame
-  EXPECT_FALSE(c.Grab(3000).empty());
+  ChunkedFrame f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok);
+  EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 3) << "Line0 high after its rising edge, Line1 (the strobe) high";
   trigger.Set(false, &err);  // falling edge: none
   EXPECT_TRUE(c.Grab(300).empty());
   EXPECT_EQ(strobe.edges(), 2);  // high while the frame was made, then low
@@ -2017,7 +2073,10 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   trigger.Set(true, &err);
   EXPECT_TRUE(c.Grab(300).empty());
   trigger.Set(false, &err);
-  EXPECT_FALSE(c.Grab(3000).empty());
+  f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok);
+  EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 2) << "Line0 low after its falling edge, the strobe high";
+  g_object_unref(parser);
 }
 
 // Pulses that come before the fake camera has looked for a trigger (at a
@@ -2598,52 +2657,6 @@ TEST_F(GigeE2E, PayloadFeaturesReadLockedWhenWritesAreRefused) {
   for (const char* f : payload) EXPECT_FALSE(locked(f)) << f << " after the stop";
 }
 
-// Over the network: a window written while streaming is refused as it
-// arrives, so every frame keeps the window in use (until 2026-11-27 the fake
-// camera's stream could take the refused size before the sync restored it);
-// stop, a new window and start sent at once (inside one register sync) take
-// the new window.
-// A frame's chunks through Aravis's chunk parser, and its image.
-struct ChunkedFrame {
-  bool ok = false;
-  std::vector<uint8_t> image;      // the image chunk (padded to 4 bytes)
-  bool has_chunks = false;
-  uint64_t frame_id = 0, timestamp = 0, timestamp_chunk = 0;
-  std::map<std::string, double> values;  // chunk features found
-  std::vector<std::string> missing;      // chunk features not found
-};
-ChunkedFrame GrabChunked(Client& c, ArvChunkParser* parser) {
-  ChunkedFrame out;
-  ArvBuffer* b = arv_stream_timeout_pop_buffer(c.stream(), 3000 * 1000);
-  if (b == nullptr) return out;
-  out.ok = arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS;
-  out.has_chunks = out.ok && arv_buffer_has_chunks(b);
-  out.frame_id = arv_buffer_get_frame_id(b);
-  out.timestamp = arv_buffer_get_timestamp(b);
-  if (out.has_chunks) {
-    size_t size = 0;
-    const auto* image = static_cast<const uint8_t*>(arv_buffer_get_chunk_data(b, genicam::kChunkIdImage, &size));
-    if (image != nullptr) out.image.assign(image, image + size);
-    for (const char* name : {"ChunkTimestamp", "ChunkFrameID", "ChunkSimFrameIndex", "ChunkExposureTime", "ChunkGain"}) {
-      GError* e = nullptr;
-      const bool is_float = std::strcmp(name, "ChunkExposureTime") == 0 || std::strcmp(name, "ChunkGain") == 0;
-      const double v = is_float ? arv_chunk_parser_get_float_value(parser, b, name, &e)
-                                : static_cast<double>(arv_chunk_parser_get_integer_value(parser, b, name, &e));
-      if (e == nullptr) out.values[name] = v;
-      else out.missing.push_back(name);
-      g_clear_error(&e);
-    }
-    // The timestamp exactly (a double holds it to ~256 ns).
-    out.timestamp_chunk = static_cast<uint64_t>(arv_chunk_parser_get_integer_value(parser, b, "ChunkTimestamp", nullptr));
-  } else if (out.ok) {
-    size_t size = 0;
-    const auto* data = static_cast<const uint8_t*>(arv_buffer_get_data(b, &size));
-    out.image.assign(data, data + size);
-  }
-  arv_stream_push_buffer(c.stream(), b);
-  return out;
-}
-
 // GigE Vision chunk mode: each frame's image as a chunk, then the enabled
 // chunks (the settings it was rendered with), read by Aravis's chunk parser
 // from the XML's chunk ports. Packet sizes put the chunks inside the last
@@ -2656,7 +2669,7 @@ TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
   GError* e = nullptr;
   arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
   ASSERT_EQ(e, nullptr);
-  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 5 * 16) << "every chunk is on by default";
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 12 * 16) << "every chunk (12) is on by default";
   SetFloat(c, "ExposureTime", 4000.0);
   SetFloat(c, "Gain", 2.5);
   const std::vector<std::string> kSettings = {"exposure.exposure_time_us=4000", "sensor.gain_db=2.5"};
@@ -2686,6 +2699,11 @@ TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
       EXPECT_EQ(f->timestamp_chunk, f->timestamp);
       EXPECT_EQ(f->values.at("ChunkExposureTime"), 4000.0);
       EXPECT_EQ(f->values.at("ChunkGain"), 2.5);
+      EXPECT_EQ(f->values.at("ChunkWidth"), 64);
+      EXPECT_EQ(f->values.at("ChunkHeight"), 48);
+      EXPECT_EQ(f->pixel_format, "BayerRG12");
+      EXPECT_EQ(f->values.at("ChunkBlackLevel"), ReadFloat(c, "BlackLevel"));
+      EXPECT_EQ(f->values.at("ChunkLineStatusAll"), 0) << "no trigger edge, no strobe";
     }
     index += 10;
   }
@@ -2693,7 +2711,7 @@ TEST_F(GigeE2E, ChunksCarryEachFramesSettings) {
   Set(c, "ChunkSelector", "Gain");
   arv_camera_set_boolean(c.camera(), "ChunkEnable", FALSE, &e);
   ASSERT_EQ(e, nullptr);
-  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 4 * 16);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), kImage + 8 + 11 * 16);
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   ChunkedFrame f = GrabChunked(c, parser);
@@ -2734,13 +2752,13 @@ TEST_F(GigeE2E, AnOddImageIsPaddedInItsChunk) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallMonoDevice()));
   Client& c = *client_;
   GError* e = nullptr;
-  arv_camera_set_region(c.camera(), 1, 1, 31, 23, &e);
+  arv_camera_set_region(c.camera(), 1, 0, 31, 23, &e);
   ASSERT_EQ(e, nullptr);
   Set(c, "PixelFormat", "Mono8");
   EXPECT_EQ(ReadInt(c, "PayloadSize"), 31 * 23);
   arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
   ASSERT_EQ(e, nullptr);
-  EXPECT_EQ(ReadInt(c, "PayloadSize"), 31 * 23 + 3 + 8 + 5 * 16);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 31 * 23 + 3 + 8 + 12 * 16);
   SetInt(c, "SimFrameIndex", 5);
   Settle();
   ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
@@ -2750,12 +2768,23 @@ TEST_F(GigeE2E, AnOddImageIsPaddedInItsChunk) {
   c.CloseStream();
   g_object_unref(parser);
   ASSERT_TRUE(f.ok);
-  std::vector<uint8_t> want = Reference(5, genicam::kMono8, 1, 1, 31, 23);
+  std::vector<uint8_t> want = Reference(5, genicam::kMono8, 1, 0, 31, 23);
   want.resize(want.size() + 3, 0);
   EXPECT_TRUE(f.image == want);
   EXPECT_EQ(f.values.at("ChunkSimFrameIndex"), 5);
+  // The frame's own window and format.
+  EXPECT_EQ(f.values.at("ChunkOffsetX"), 1);
+  EXPECT_EQ(f.values.at("ChunkOffsetY"), 0);
+  EXPECT_EQ(f.values.at("ChunkWidth"), 31);
+  EXPECT_EQ(f.values.at("ChunkHeight"), 23);
+  EXPECT_EQ(f.pixel_format, "Mono8");
 }
 
+// Over the network: a window written while streaming is refused as it
+// arrives, so every frame keeps the window in use (until 2026-11-27 the fake
+// camera's stream could take the refused size before the sync restored it);
+// stop, a new window and start sent at once (inside one register sync) take
+// the new window.
 TEST_F(GigeE2E, TheWindowChangesBetweenAcquisitionsAndNotDuringOne) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
