@@ -65,10 +65,41 @@ double SensorSaturationDn(const SensorConfig& c, const SensorGeometry& g) {
   return level > max_dn ? max_dn : level;
 }
 
+namespace {
+
+// The moments of max(0, 1 + s z) over z standard normal (emva.h, ReferenceDarkChargeMean):
+// with a = 1 / s, the mean Phi(a) + s phi(a) and the second moment (1 + s^2) Phi(a) + s phi(a).
+struct DcnuMoments {
+  double mean = 1.0, second = 1.0;
+};
+DcnuMoments DcnuFactorMoments(double s) {
+  DcnuMoments m;
+  if (!(s > 0)) return m;
+  const double a = 1.0 / s;
+  const double cdf = detmath::NormalCdf(a);
+  const double pdf = detmath::Exp(-0.5 * a * a) * 0.39894228040143267794;  // 1 / sqrt(2 pi)
+  m.mean = cdf + s * pdf;
+  m.second = (1.0 + s * s) * cdf + s * pdf;
+  return m;
+}
+
+}  // namespace
+
+double ReferenceDarkChargeMean(const SensorConfig& c, double exposure_time_us) {
+  const double dark = DarkElectrons(c, exposure_time_us);
+  return c.dcnu_percent > 0 ? dark * DcnuFactorMoments(c.dcnu_percent / 100.0).mean : dark;
+}
+
+double ReferenceDarkChargeRms(const SensorConfig& c, double exposure_time_us) {
+  const DcnuMoments m = DcnuFactorMoments(c.dcnu_percent / 100.0);
+  const double var = m.second - m.mean * m.mean;
+  return DarkElectrons(c, exposure_time_us) * std::sqrt(var > 0 ? var : 0.0);
+}
+
 double ReferenceSensorMeanDn(const SensorConfig& c, const SensorGeometry& g, double exposure_time_us,
                              Colour colour, double photons) {
   const int qe_index = g.cfa == Cfa::kMono ? kGreen : colour;
-  double e = photons * c.quantum_efficiency[qe_index] + DarkElectrons(c, exposure_time_us);
+  double e = photons * c.quantum_efficiency[qe_index] + ReferenceDarkChargeMean(c, exposure_time_us);
   if (e > c.full_well_e) e = c.full_well_e;
   const double dn = SystemGain(c) * e + c.black_level_dn;
   const double max_dn = (1 << g.adc_bits) - 1;
@@ -96,6 +127,7 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
     return InvalidArgument("sensor.dark_current_doubling_c", "must be in [1, 100] kelvin");
   if (!InRange(c.dsnu_e, 0.0, 1000.0)) return InvalidArgument("sensor.dsnu_e", "must be in [0, 1000] electrons");
   if (!InRange(c.prnu_percent, 0.0, 50.0)) return InvalidArgument("sensor.prnu_percent", "must be in [0, 50] %");
+  if (!InRange(c.dcnu_percent, 0.0, 100.0)) return InvalidArgument("sensor.dcnu_percent", "must be in [0, 100] %");
   if (!InRange(c.row_fpn_e, 0.0, 1000.0)) return InvalidArgument("sensor.row_fpn_e", "must be in [0, 1000] electrons");
   if (!InRange(c.column_fpn_e, 0.0, 1000.0))
     return InvalidArgument("sensor.column_fpn_e", "must be in [0, 1000] electrons");
@@ -129,6 +161,7 @@ Status SensorStage::Configure(const SensorConfig& c, const SensorGeometry& g, do
   k_scale_ = readout.value().k;
   for (int i = 0; i < 3; ++i) qe_q16_[i] = Q<1, 16>::FromDouble(c.quantum_efficiency[i]).raw;
   prnu_q16_ = Q<15, 16>::FromDouble(c.prnu_percent / 100.0).raw;
+  dcnu_q16_ = Q<15, 16>::FromDouble(c.dcnu_percent / 100.0).raw;  // <= 65536
   dsnu_q8_ = Q<23, 8>::FromDouble(c.dsnu_e).raw;
   read_q8_ = Q<23, 8>::FromDouble(c.dark_noise_e).raw;
   dark_q8_ = Q<24, 8>::FromDouble(dark_e_).raw;
@@ -183,6 +216,7 @@ void SensorStage::CountTables(WorkspaceCounter& counter) const {
   counter.Add<uint32_t>(PoissonTable::kEntries);
   if (col_fpn_q8_ != 0) counter.Add<int32_t>(static_cast<size_t>(ColumnTableEntries()));
   if (UsesPatternTable()) counter.Add<PatternEntry>(PatternEntries());
+  if (UsesDarkGainTable()) counter.Add<uint32_t>(PatternEntries());
   if (config_.defect_count > 0) {
     counter.Add<ListedDefect>(static_cast<size_t>(config_.defect_count));
     counter.Add<uint32_t>(static_cast<size_t>(geometry_.height) + 1);
@@ -269,6 +303,28 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
           }
     }
   }
+  dark_gain_ = nullptr;
+  if (UsesDarkGainTable()) {
+    // The dark-current gains ProcessRow would draw: pixel x takes word 2 (x & 1)
+    // of the dark-current call for pair x >> 1.
+    uint32_t* t = tables.Take<uint32_t>(PatternEntries());
+    if (t == nullptr) return Status(StatusCode::kResourceExhausted, "workspace too small for the sensor's fixed pattern");
+    dark_gain_ = t;
+    if (same_pixels && previous->dark_gain_ != nullptr && previous->input_channels_ == input_channels_ &&
+        previous->dcnu_q16_ == dcnu_q16_) {
+      std::memcpy(t, previous->dark_gain_, PatternEntries() * sizeof(uint32_t));
+      ++*copied;
+    } else {
+      for (int ch = 0; ch < input_channels_; ++ch)
+        for (int y = 0; y < geometry_.height; ++y)
+          for (int x = 0; x < geometry_.width; x += 2) {
+            const RandomBits b = DrawBits(seed_, kStreamSensorDarkCurrent, 0, static_cast<uint32_t>(x) >> 1,
+                                          static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
+            *t++ = DarkGain(gauss_.Sample(b.v[0]));
+            if (x + 1 < geometry_.width) *t++ = DarkGain(gauss_.Sample(b.v[2]));
+          }
+    }
+  }
   column_offset_ = nullptr;
   if (col_fpn_q8_ != 0) {
     // Column c of channel ch: z from DrawBits(seed, row/column stream, 0, x, 0, 2 * ch).
@@ -296,6 +352,12 @@ SensorStage::PatternEntry SensorStage::Pattern(int32_t z_prnu, int32_t z_dsnu) c
   const int64_t gain = 65536 + RoundShift(prnu_q16_ * z_prnu, 16);  // Q3.16 (< 4.2)
   return PatternEntry{static_cast<int32_t>(gain < 0 ? 0 : gain),
                       static_cast<int32_t>(RoundShift(dsnu_q8_ * z_dsnu, 16))};
+}
+
+uint32_t SensorStage::DarkGain(int32_t z) const {
+  // |dcnu_q16_ * z| <= 2^16 * 415364 < 2^35; the gain < 7.34 * 2^16 < 2^19 (emva.h, Formats).
+  const int64_t gain = 65536 + RoundShift(dcnu_q16_ * z, 16);
+  return static_cast<uint32_t>(gain < 0 ? 0 : gain);
 }
 
 #ifdef CAMSIM_X86_AVX2
@@ -335,6 +397,9 @@ struct MeanIn {
   const int32_t* column;            // column FPN, or null
   const uint32_t* smear;            // smear charge, or null
   uint32_t dark_q8;
+  const Normals* dz;                // DCNU normals (words 0 and 2), or null
+  const uint32_t* dark_gain;        // the DCNU table's gains (Q3.16), or null
+  int64_t dcnu_q16;                 // <= 2^16
 };
 
 // Pass 1 for pixels [0, count), count a multiple of 4.
@@ -344,7 +409,9 @@ CAMSIM_AVX2_TARGET void MeanCharge(const MeanIn& b, int count, uint32_t* mean_q8
   const __m256i u32_max = _mm256_set1_epi64x(0xFFFFFFFF);
   const __m256i prnu = _mm256_set1_epi64x(b.prnu_q16);  // <= 2^15: a signed 32-bit factor
   const __m256i dsnu = _mm256_set1_epi64x(b.dsnu_q8);   // <= 2^18
+  const __m256i dcnu = _mm256_set1_epi64x(b.dcnu_q16);  // <= 2^16
   const bool patterns = b.fz != nullptr || b.pattern != nullptr;
+  const bool dark_pattern = b.dz != nullptr || b.dark_gain != nullptr;  // DCNU
   for (int i = 0; i < count; i += 4) {
     // mu = RoundShiftU(in * qe, 16) < 2^32.
     __m256i mu = _mm256_srli_epi64(_mm256_add_epi64(_mm256_mul_epu32(avx2::LoadU32x4(b.in + i), qe), half16), 16);
@@ -368,6 +435,18 @@ CAMSIM_AVX2_TARGET void MeanCharge(const MeanIn& b, int count, uint32_t* mean_q8
     // The portable pass saturates dark + smear at 2^32 - 1 first (a uint32);
     // in 64 bits that changes nothing, as the sum saturates there too.
     __m256i dark = _mm256_set1_epi64x(b.dark_q8);
+    if (dark_pattern) {
+      // DarkGain (Q3.16 < 2^19, in the low halves), then RoundShiftU(dark * gain, 16) < 2^31.
+      __m256i gain;
+      if (b.dark_gain != nullptr) {
+        gain = avx2::LoadU32x4(b.dark_gain + i);
+      } else {
+        const __m256i z4 = _mm256_cvtepi32_epi64(PixelWords(b.dz, 0, i));
+        gain = _mm256_add_epi32(RoundShift16Low(_mm256_mul_epi32(dcnu, z4)), _mm256_set1_epi64x(65536));
+        gain = _mm256_max_epi32(gain, _mm256_setzero_si256());
+      }
+      dark = _mm256_srli_epi64(_mm256_add_epi64(_mm256_mul_epu32(dark, gain), half16), 16);
+    }
     if (b.smear != nullptr) dark = _mm256_add_epi64(dark, avx2::LoadU32x4(b.smear + i));
     __m256i mean = _mm256_add_epi64(mu, dark);
     mean = Pick(_mm256_cmpgt_epi64(mean, u32_max), u32_max, mean);
@@ -505,8 +584,10 @@ CAMSIM_AVX512_TARGET void MeanChargeAvx512(const MeanIn& b, int count, uint32_t*
   const __m512i zero = _mm512_setzero_si512();
   const __m512i half16 = _mm512_set1_epi64(1 << 15);
   const __m512i prnu = _mm512_set1_epi64(b.prnu_q16), dsnu = _mm512_set1_epi64(b.dsnu_q8);
+  const __m512i dcnu = _mm512_set1_epi64(b.dcnu_q16);
   const __m512i low32 = _mm512_set1_epi64(0xFFFFFFFF);
   const bool patterns = b.fz != nullptr || b.pattern != nullptr;
+  const bool dark_pattern = b.dz != nullptr || b.dark_gain != nullptr;  // DCNU
   CAMSIM_DCHECK(count % 4 == 0);
   for (int i = 0; i < count; i += 8) {
     const __mmask8 live = count - i >= 8 ? 0xFF : 0x0F;
@@ -532,6 +613,17 @@ CAMSIM_AVX512_TARGET void MeanChargeAvx512(const MeanIn& b, int count, uint32_t*
     if (b.column != nullptr)
       offset = _mm512_add_epi64(offset, _mm512_cvtepi32_epi64(_mm256_maskz_loadu_epi32(live, b.column + i)));
     __m512i dark = _mm512_set1_epi64(b.dark_q8);
+    if (dark_pattern) {
+      __m512i gain;  // DarkGain, Q3.16 >= 0
+      if (b.dark_gain != nullptr) {
+        gain = _mm512_cvtepu32_epi64(_mm256_maskz_loadu_epi32(live, b.dark_gain + i));
+      } else {
+        const __m512i z4 = _mm512_cvtepi32_epi64(PixelWords8(b.dz, 0, i));
+        gain = _mm512_srai_epi64(_mm512_add_epi64(_mm512_mul_epi32(dcnu, z4), half16), 16);
+        gain = _mm512_max_epi64(_mm512_add_epi64(gain, _mm512_set1_epi64(65536)), zero);
+      }
+      dark = _mm512_srli_epi64(_mm512_add_epi64(_mm512_mul_epu32(dark, gain), half16), 16);
+    }
     if (b.smear != nullptr)
       dark = _mm512_add_epi64(dark, _mm512_cvtepu32_epi64(_mm256_maskz_loadu_epi32(live, b.smear + i)));
     _mm512_mask_cvtepi64_storeu_epi32(mean_q8 + i, live, _mm512_min_epu64(_mm512_add_epi64(mu, dark), low32));
@@ -618,9 +710,11 @@ CAMSIM_AVX512_TARGET void ReadoutAvx512(const ReadoutIn& b, int count, uint32_t*
 // parity is the parity of i): qe and the electron sums are indexed by
 // parity. The arithmetic is bit for bit the model in emva.h; without
 // patterns, z1 = z2 = 0 makes the PRNU gain exactly 1 (mu * 65536 < 2^49
-// rounds back to mu) and the DSNU term 0, so both are skipped. The two
-// switches are tested per pixel but never change within a row, so the
-// branches cost nothing (specialised copies of the loop measured no faster).
+// rounds back to mu) and the DSNU term 0, so both are skipped; likewise
+// without DCNU every pixel's dark charge is dark_q8_ itself (no dark-current
+// draw, no product). The three switches are tested per pixel but never
+// change within a row, so the branches cost nothing (specialised copies of
+// the loop measured no faster).
 bool SensorStage::InDead(uint32_t u) const { return u - kDefectBand < dead_width_; }
 bool SensorStage::InStuck(uint32_t u) const { return u - 2 * kDefectBand < stuck_width_; }
 
@@ -633,6 +727,9 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
   const bool defects = defects_on_;
   const bool patterns = prnu_q16_ != 0 || dsnu_q8_ != 0;
   const bool draw_patterns = patterns && pattern_ == nullptr;
+  const bool dcnu = dcnu_q16_ != 0;  // off: every pixel's dark charge is dark_q8_ (no draw, no product)
+  const bool draw_dcnu = dcnu && dark_gain_ == nullptr;
+  CAMSIM_DCHECK(dark_gain_ == nullptr || channels == input_channels_);
   CAMSIM_DCHECK(pattern_ == nullptr || channels == input_channels_);  // the planner's SetInputChannels
   const bool shot_noise = config_.shot_noise;
   const uint32_t y = static_cast<uint32_t>(a.y);
@@ -662,6 +759,8 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
     const bool row_listed = next != listed_end;
     const PatternEntry* pattern_row =
         pattern_ != nullptr ? pattern_ + (static_cast<size_t>(c) * geometry_.height + y) * geometry_.width : nullptr;
+    const uint32_t* dark_gain_row =
+        dark_gain_ != nullptr ? dark_gain_ + (static_cast<size_t>(c) * geometry_.height + y) * geometry_.width : nullptr;
     int64_t electrons[2] = {};
     for (int x0 = 0; x0 < a.width; x0 += kBlock) {
       const int n = a.width - x0 < kBlock ? a.width - x0 : kBlock;
@@ -675,6 +774,13 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
       if (draw_patterns) {
         DrawBitsLanes(seed_, kStreamSensorFixedPattern, 0, pair0, y, channel, &f);
         gauss_.SampleLanes(&f.v[0][0], &fz[0][0], kWords);
+      }
+      RandomLanes dc;  // dark current: DCNU z (words 0 and 2; 1 and 3 unused)
+      Normals dz;
+      if (draw_dcnu) {
+        DrawBitsLanes(seed_, kStreamSensorDarkCurrent, 0, pair0, y, channel, &dc);
+        gauss_.SampleLanes(dc.v[0], dz[0], RandomLanes::kLanes);
+        gauss_.SampleLanes(dc.v[2], dz[2], RandomLanes::kLanes);
       }
       RandomLanes d;  // defects: class u, hot-pixel strength u'
       if (defects) DrawBitsLanes(seed_, kStreamSensorDefects, 0, pair0, y, channel, &d);
@@ -706,9 +812,12 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
                                      static_cast<int32_t>(row_offset),
                                      column_offset != nullptr ? column_offset + x0 : nullptr,
                                      smear != nullptr ? smear + x0 : nullptr,
-                                     dark_q8_};
+                                     dark_q8_,
+                                     draw_dcnu ? dz : nullptr,
+                                     dark_gain_row != nullptr ? dark_gain_row + x0 : nullptr,
+                                     dcnu_q16_};
 #ifdef CAMSIM_X86_AVX512
-        if (avx512_) {
+        if (avx512_ && !force_avx2_) {
           sensor_lanes::MeanChargeAvx512(m, lanes, mean_q8, offset_q8);
         } else
 #endif
@@ -731,6 +840,10 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
           uint64_t mu = RoundShiftU(static_cast<uint64_t>(in[i]) * qe[i & 1], 16);
           int64_t dsnu = row_offset;  // offset patterns, Q.8 electrons
           uint32_t dark = dark_q8_;
+          if (dcnu) {  // < 2^28 * 7.34 < 2^31: no saturation needed
+            const uint32_t gain = dark_gain_row != nullptr ? dark_gain_row[x0 + i] : DarkGain(dz[w][lane]);
+            dark = static_cast<uint32_t>(RoundShiftU(uint64_t{dark_q8_} * gain, 16));
+          }
           if (patterns) {
             const PatternEntry p = pattern_row != nullptr ? pattern_row[x0 + i] : Pattern(fz[w][lane], fz[w + 1][lane]);
             mu = RoundShiftU(mu * static_cast<uint64_t>(p.gain_q16), 16);
@@ -780,7 +893,7 @@ void SensorStage::ProcessRow(const RowArgs& a) const {
                                         shot_noise ? &poisson_ : nullptr,      full_well_q8_, read_q8_,
                                         k_scale_.mant, k_shift,      black_round_, black_, max_dn_};
 #ifdef CAMSIM_X86_AVX512
-        if (avx512_) {
+        if (avx512_ && !force_avx2_) {
           sensor_lanes::ReadoutAvx512(r, lanes, out, electrons);
         } else
 #endif

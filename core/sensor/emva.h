@@ -1,12 +1,22 @@
 // Sensor: the EMVA 1288 linear camera model (replaces the paper's eq. 17).
 //
 // Per pixel with CFA colour c, photons p (mean over the exposure):
-//   mu_e  = p * QE[c] * (1 + prnu * z1) + dark_current * t * 2^((T - T_ref) / T_double)
+//   mu_e  = p * QE[c] * (1 + prnu * z1) + dark_e * max(0, 1 + dcnu * z4)
+//   dark_e = dark_current * t * 2^((T - T_ref) / T_double)    mean dark charge per exposure
 //   n     = min(Poisson(mu_e), full_well)               shot noise, saturation
 //   v     = n + dsnu * z2 + dark_noise * z3             offset pattern, read noise
 //   DN    = clamp(round(K * v + black_level), 0, 2^bits - 1)   one rounding: the black level may be fractional
-// z1, z2: fixed-pattern normals keyed by (seed, x, y) only, the same every
+// z1, z2, z4: fixed-pattern normals keyed by (seed, x, y) only, the same every
 // frame; z3 and the Poisson draw: keyed by (seed, frame, x, y).
+// DCNU (dark current non-uniformity, SensorConfig::dcnu_percent): each
+// pixel's dark current is the mean times its own factor max(0, 1 + dcnu z4),
+// so its dark charge's spatial spread grows with the exposure time and the
+// temperature as the mean does (EMVA 1288's dark signal non-uniformity at
+// longer exposures; dsnu is the part that does not grow). The clamp at 0
+// (z4 < -1 / dcnu: 16 % of the pixels at 100 %, none up to 15.7 %, as |z4|
+// <= 6.34) lifts the mean over the pixels to dark_e (Phi(1 / dcnu) + dcnu
+// phi(1 / dcnu)): 1.00003 dark_e at 30 %, 1.083 dark_e at 100 %
+// (ReferenceDarkChargeMean), and trims the spread below dark_e dcnu.
 //
 // Random words: one Philox4x32 call (4 words) serves the pixel pair
 // (2j, 2j + 1) of a row: pixel x takes words 2 (x & 1) and 2 (x & 1) + 1 of
@@ -19,7 +29,10 @@
 //                       PRNU or DSNU is on (per frame, or once at Init into
 //                       a table with SensorConfig::fixed_pattern_table);
 //   defects (0):        class u, strength u' (below), drawn only when a
-//                       defect fraction is on.
+//                       defect fraction is on;
+//   dark current (0):   z4 = G(word 2 (x & 1)), drawn only when DCNU is on
+//                       (per frame, or once at Init into a table with
+//                       fixed_pattern_table); word 2 (x & 1) + 1 is unused.
 // G = GaussianTable::Sample. Sharing a call between two pixels halves the
 // Philox work (the sensor's largest cost: docs/performance.md). K is the
 // system gain at 0 dB times 10^(gain_db / 20) (the analog gain, which is eq.
@@ -32,7 +45,8 @@
 //     x, channel) only; the column offsets are a table built at Init, one
 //     int32 per channel and column).
 //   defect pixels (a seeded map): the defect draw's first word u picks
-//     hot   (u < h):           extra dark charge hot_pixel_dark_e_per_s * t
+//     hot   (u < h):           extra dark charge (on top of the pixel's own,
+//                              DCNU included) hot_pixel_dark_e_per_s * t
 //                              * 2^((T - T_ref) / T_double) * (0.5 + u'),
 //                              u' uniform in [0, 1) from its second word (a
 //                              spread of hot-pixel strengths), with shot noise;
@@ -60,6 +74,11 @@
 //          out Digital DN integer, 1 or 3 channels
 //          QE, PRNU gain: Q1.16 / Q3.16 (1.0 = 65536; the gain 1 + prnu z reaches
 //          1 + 0.5 * 6.34 at 50 % PRNU; 64-bit products, rounded ties up)
+//          DCNU gain 1 + dcnu z4: Q3.16 (dcnu <= 100 % as Q.16 <= 65536, times
+//          z4 Q15.16, rounded ties up, clamped at 0; < 7.34 * 65536 < 2^19),
+//          the pixel's dark charge RoundShiftU(dark_e Q24.8 * gain, 16)
+//          (< 2^28 * 7.34 < 2^31, 64-bit product); with dcnu 0 the stage
+//          uses dark_e as it is (no draw, no product)
 //          mean and charge: Q24.8 electrons (uint32, saturating; full well <= 1e6 e-)
 //          v: int64 Q.8; K as UScale, v * K in int64 (|v| < 2^29, mantissa < 2^32)
 //          normals: Q15.16 from GaussianTable; Poisson: PoissonTable (exact
@@ -95,11 +114,13 @@ struct SensorConfig {
   double dark_current_doubling_c = 7.0; // dark current doubles every this many kelvin
   double dsnu_e = 1.0;                  // dark signal non-uniformity, electrons rms
   double prnu_percent = 0.5;            // photo response non-uniformity, % rms
+  double dcnu_percent = 0.0;            // dark current non-uniformity, % rms of the mean dark current (0 .. 100)
   double black_level_dn = 64.0;         // offset added to the output, DN
   bool shot_noise = true;               // Poisson photon/dark-current noise
   // Build the fixed pattern (PRNU gain, DSNU offset) once at Init, one entry
   // of 8 bytes per pixel and channel in the workspace's tables (16.6 MB for a
-  // 1920x1080 Bayer sensor), instead of drawing it every frame. Same bytes
+  // 1920x1080 Bayer sensor), instead of drawing it every frame; with DCNU on,
+  // also its dark-current gain, 4 more bytes per pixel and channel. Same bytes
   // either way; only speed and memory differ.
   bool fixed_pattern_table = false;
   // Artefacts (off by default).
@@ -123,6 +144,7 @@ inline constexpr uint32_t kStreamSensorTemporal = 1;
 inline constexpr uint32_t kStreamSensorFixedPattern = 2;
 inline constexpr uint32_t kStreamSensorRowColumn = 3;  // row FPN at (0, y), column FPN at (x, 0)
 inline constexpr uint32_t kStreamSensorDefects = 4;    // defect class and hot-pixel strength
+inline constexpr uint32_t kStreamSensorDarkCurrent = 5;  // DCNU: the pixel's dark-current factor
 
 class SensorStage final : public Stage {
  public:
@@ -147,6 +169,9 @@ class SensorStage final : public Stage {
   // Tests only: run every pixel through the portable per-pixel passes even
   // where the AVX2 lanes would take them (the same bytes either way).
   void ForcePortablePathForTest(bool force) { force_portable_ = force; }
+  // Tests only: take the AVX2 lanes even where the CPU has AVX-512 (no
+  // effect without AVX-512, or with ForcePortablePathForTest).
+  void ForceAvx2PathForTest(bool force) { force_avx2_ = force; }
 
  private:
   // Init; copies from `previous` (an initialised sensor stage) what it can.
@@ -159,6 +184,7 @@ class SensorStage final : public Stage {
   double dark_e_ = 0.0;
   uint32_t qe_q16_[3] = {};
   int64_t prnu_q16_ = 0;     // PRNU sigma, Q.16 of gain
+  int64_t dcnu_q16_ = 0;     // DCNU sigma, Q.16 of the dark current (<= 65536)
   int64_t dsnu_q8_ = 0;      // DSNU sigma, Q.8 electrons
   int64_t read_q8_ = 0;      // dark noise sigma, Q.8 electrons
   int64_t row_fpn_q8_ = 0;   // row FPN sigma, Q.8 electrons
@@ -196,6 +222,12 @@ class SensorStage final : public Stage {
   }
   PatternEntry Pattern(int32_t z_prnu, int32_t z_dsnu) const;  // from the two normals
   const PatternEntry* pattern_ = nullptr;  // PatternEntries() entries, null when not used
+  // DCNU: the dark-current gain max(0, 1 + dcnu z4), Q3.16, from the normal
+  // z4; with fixed_pattern_table a table of it in the pattern's order
+  // (PatternEntries() entries, only when DCNU is on; null otherwise).
+  bool UsesDarkGainTable() const { return config_.fixed_pattern_table && dcnu_q16_ != 0; }
+  uint32_t DarkGain(int32_t z) const;
+  const uint32_t* dark_gain_ = nullptr;
   int input_channels_ = 1;
   uint32_t dark_q8_ = 0;     // mean dark charge, Q24.8
   uint64_t full_well_q8_ = 0;
@@ -209,6 +241,7 @@ class SensorStage final : public Stage {
   bool avx2_ = false;           // passes 1 and 3 in AVX2 lanes where a row allows (chosen at Init)
   bool avx512_ = false;         // pass 3 in AVX-512 lanes instead (chosen at Init)
   bool force_portable_ = false;  // tests only
+  bool force_avx2_ = false;      // tests only
 };
 
 // The DN of a full well without noise, min(round(K W + black level), 2^bits -
@@ -217,8 +250,20 @@ class SensorStage final : public Stage {
 // highlights there (core/isp/white_balance.h).
 double SensorSaturationDn(const SensorConfig& config, const SensorGeometry& g);
 
-// Double reference: the mean DN for a mean photon count (no noise, no patterns).
+// Double reference: the mean DN for a mean photon count (no noise, no
+// patterns; the dark charge is its mean over the pixels,
+// ReferenceDarkChargeMean).
 double ReferenceSensorMeanDn(const SensorConfig& config, const SensorGeometry& g, double exposure_time_us,
                              Colour colour, double photons);
+
+// Double reference for the dark charge per exposure of the pixels that are
+// not defects, electrons, over the DCNU pattern (z4 standard normal, the
+// factor max(0, 1 + s z4), s = dcnu_percent / 100, a = 1 / s):
+//   mean: dark_e (Phi(a) + s phi(a))   (dark_e exactly when s = 0)
+//   rms:  dark_e sqrt((1 + s^2) Phi(a) + s phi(a) - (Phi(a) + s phi(a))^2)
+//         (dark_e s to 3e-5 relative up to s = 0.25), the spatial standard
+//         deviation DCNU adds to the dark signal (in quadrature with the DSNU).
+double ReferenceDarkChargeMean(const SensorConfig& config, double exposure_time_us);
+double ReferenceDarkChargeRms(const SensorConfig& config, double exposure_time_us);
 
 }  // namespace camsim

@@ -59,7 +59,8 @@ struct Change {
 };
 
 // Distortion: its 4 tables. Flare: the glare kernel. Sensor: the Gaussian and
-// Poisson constants, the fixed pattern, the column offsets. Gamma: its curve.
+// Poisson constants, the fixed pattern, the column offsets (and the DCNU
+// gains, when on). Gamma: its curve.
 const std::vector<Change>& Changes() {
   static const std::vector<Change> changes = {
       {"ExposureTime", [](Base& b) { b.config.exposure.exposure_time_us *= 1.5; },
@@ -102,6 +103,15 @@ const std::vector<Change>& Changes() {
        [](Base& b) { b.config.gamma.curve = GammaCurve::kPower; }},
       {"DSNU", [](Base& b) { b.config.sensor.dsnu_e = 2.5; },
        {{"distortion", 4}, {"flare", 1}, {"sensor", 3}, {"gamma", 1}}},
+      // With DCNU the sensor also stores its dark-current gains: a new
+      // exposure time (auto exposure) copies them (they do not hold the
+      // exposure's dark charge), a new DCNU does not.
+      {"ExposureTime with DCNU", [](Base& b) { b.config.exposure.exposure_time_us *= 1.5; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 5}, {"gamma", 1}},
+       [](Base& b) { b.config.sensor.dcnu_percent = 20.0, b.config.sensor.dark_current_e_per_s = 2e4; }},
+      {"DCNU", [](Base& b) { b.config.sensor.dcnu_percent = 25.0; },
+       {{"distortion", 4}, {"flare", 1}, {"sensor", 4}, {"gamma", 1}},
+       [](Base& b) { b.config.sensor.dcnu_percent = 20.0, b.config.sensor.dark_current_e_per_s = 2e4; }},
       // Without the CFA, a sensor per colour: its fixed pattern has three planes.
       {"sensor channels",
        [](Base& b) {

@@ -236,11 +236,15 @@ TEST(Sensor, FixedPatternTableGivesTheSameBytes) {
   EXPECT_EQ(a->pipeline.TableBytes(), b->pipeline.TableBytes());
 }
 
+// Which of the sensor's code paths runs the pixels that lanes may take.
+enum class SensorPath { kPortable, kAvx2, kWidest };
+
 // The sensor stage run directly on channel planes (channels x h x w of
 // photons, Q24.8): output planes, then the electron sums per colour.
 std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uint32_t>& photons, int w, int h,
-                                     int channels, uint32_t frame, const FrameInput* input, bool portable) {
-  const_cast<SensorStage&>(s).ForcePortablePathForTest(portable);
+                                     int channels, uint32_t frame, const FrameInput* input, SensorPath path) {
+  const_cast<SensorStage&>(s).ForcePortablePathForTest(path == SensorPath::kPortable);
+  const_cast<SensorStage&>(s).ForceAvx2PathForTest(path == SensorPath::kAvx2);
   std::vector<uint32_t> out(photons.size(), 0xDEADBEEFu);
   StageStats stats;
   for (int y = 0; y < h; ++y) {
@@ -261,6 +265,7 @@ std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uin
     s.ProcessRow(a);
   }
   const_cast<SensorStage&>(s).ForcePortablePathForTest(false);
+  const_cast<SensorStage&>(s).ForceAvx2PathForTest(false);
   std::vector<int64_t> result(out.begin(), out.end());
   result.insert(result.end(), std::begin(stats.aux_sum), std::end(stats.aux_sum));
   return result;
@@ -276,13 +281,16 @@ std::vector<int64_t> RunSensorDirect(const SensorStage& s, const std::vector<uin
 // end a block on a masked group of four at any of AVX-512's positions (44,
 // 60: 12 and 28 pixels), a listed defect (its row goes the portable way),
 // and seeded defects (a block's lanes stop before its first defect pixel),
-// also with stored patterns, FPN and smear on a 3-channel sensor.
+// also with stored patterns, FPN and smear on a 3-channel sensor; DCNU drawn
+// and stored, at 100 % (gains clamped at 0 and up to 7.3) with a dark charge
+// near the 1e6 e- limit, and with hot and dead pixels. Both SIMD tiers: the
+// AVX2 lanes also where the CPU has AVX-512 (ForceAvx2PathForTest).
 TEST(Sensor, LanesGiveThePortableBytes) {
   CAMSIM_SKIP_WITHOUT_LANE_KERNELS();
   const int h = 9;
   std::mt19937 rng(5);
   const DefectPixel listed[] = {{3, 4, DefectKind::kHot, -1.0}};
-  for (int variant = 0; variant < 9; ++variant)
+  for (int variant = 0; variant < 12; ++variant)
     for (const int w : {37, 70, 67, 44, 60}) {
       SensorConfig c;
       c.prnu_percent = 2.0;
@@ -298,7 +306,15 @@ TEST(Sensor, LanesGiveThePortableBytes) {
       if (variant == 8)
         c.hot_pixel_fraction = c.dead_pixel_fraction = c.stuck_pixel_fraction = 0.003, c.fixed_pattern_table = true,
         c.row_fpn_e = 40.0, c.column_fpn_e = 25.0, c.smear_row_transfer_us = 1.0;
-      const int channels = variant == 5 || variant == 8 ? 3 : 1;
+      if (variant == 9)  // 1e6 e-/s x 2^(68 / 7) x 1 ms: 8.4e5 e-, near the 1e6 e- limit
+        c.dcnu_percent = 100.0, c.dark_current_e_per_s = 1e6, c.temperature_c = c.dark_current_ref_c + 68.0;
+      if (variant == 10)
+        c.dcnu_percent = 37.0, c.dark_current_e_per_s = 1e6, c.fixed_pattern_table = true,
+        c.smear_row_transfer_us = 1.0;
+      if (variant == 11)
+        c.dcnu_percent = 60.0, c.dark_current_e_per_s = 5e4, c.hot_pixel_fraction = c.dead_pixel_fraction = 0.01,
+        c.prnu_percent = 0.0, c.dsnu_e = 0.0;
+      const int channels = variant == 5 || variant == 8 || variant == 10 ? 3 : 1;
       SensorStage s;
       ASSERT_TRUE(s.Configure(c, SensorGeometry{w, h, Cfa::kBayerGB, 12}, 1000.0, 99).ok()) << variant;
       s.SetInputChannels(channels);
@@ -315,9 +331,11 @@ TEST(Sensor, LanesGiveThePortableBytes) {
       FrameInput input;
       input.smear_e = smear.data();
       for (const uint32_t frame : {0u, 3u}) {
-        const auto want = RunSensorDirect(s, photons, w, h, channels, frame, &input, true);
-        EXPECT_EQ(RunSensorDirect(s, photons, w, h, channels, frame, &input, false), want)
+        const auto want = RunSensorDirect(s, photons, w, h, channels, frame, &input, SensorPath::kPortable);
+        EXPECT_EQ(RunSensorDirect(s, photons, w, h, channels, frame, &input, SensorPath::kWidest), want)
             << "variant " << variant << " width " << w << " frame " << frame;
+        EXPECT_EQ(RunSensorDirect(s, photons, w, h, channels, frame, &input, SensorPath::kAvx2), want)
+            << "AVX2 lanes: variant " << variant << " width " << w << " frame " << frame;
       }
     }
 }
