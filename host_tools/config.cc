@@ -177,13 +177,17 @@ const std::vector<Field>& Fields() {
                        [](RunConfig& c) -> double& { return c.core.sensor.dsnu_e; }));
     v.push_back(Number("sensor", "prnu_percent", "photo response non-uniformity (gain pattern), % rms",
                        [](RunConfig& c) -> double& { return c.core.sensor.prnu_percent; }));
+    v.push_back(Number("sensor", "dcnu_percent",
+                       "dark current non-uniformity (dark-current gain pattern: grows with exposure time and "
+                       "temperature), % rms of the mean dark current (0 .. 100)",
+                       [](RunConfig& c) -> double& { return c.core.sensor.dcnu_percent; }));
     v.push_back(Number("sensor", "black_level_dn", "offset added to the raw output, DN",
                        [](RunConfig& c) -> double& { return c.core.sensor.black_level_dn; }));
     v.push_back(Bool("sensor", "shot_noise", "Poisson noise of photo and dark charge",
                      [](RunConfig& c) -> bool& { return c.core.sensor.shot_noise; }));
     v.push_back(Bool("sensor", "fixed_pattern_table",
-                     "build PRNU/DSNU once per configuration (8 bytes per pixel and channel) instead of every frame: "
-                     "same output, faster",
+                     "build PRNU/DSNU once per configuration (8 bytes per pixel and channel; 4 more with DCNU) "
+                     "instead of every frame: same output, faster",
                      [](RunConfig& c) -> bool& { return c.core.sensor.fixed_pattern_table; }));
     v.push_back(Number("sensor", "row_fpn_e", "row offset pattern, electrons rms (0 = off)",
                        [](RunConfig& c) -> double& { return c.core.sensor.row_fpn_e; }));

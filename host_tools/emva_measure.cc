@@ -210,6 +210,21 @@ double EmvaSaturation(double c, double read_e) {
   return mean;
 }
 
+// DCNU: the pixels' dark currents are the mean times max(0, 1 + s z), z
+// standard normal (s = dcnu_percent / 100; emva.h). With a = 1 / s, the
+// factor's mean is Phi(a) + s phi(a) and its mean square (1 + s^2) Phi(a) +
+// s phi(a); *rms is its standard deviation (mean 1, rms 0 for s = 0).
+void DcnuFactor(double dcnu_percent, double* mean, double* rms) {
+  *mean = 1.0;
+  *rms = 0.0;
+  const double s = dcnu_percent / 100.0;
+  if (!(s > 0)) return;
+  const double a = 1.0 / s, cdf = detmath::NormalCdf(a);
+  const double pdf = std::exp(-0.5 * a * a) * 0.39894228040143267794;  // phi(a): 1 / sqrt(2 pi)
+  *mean = cdf + s * pdf;
+  *rms = std::sqrt(std::max(0.0, (1.0 + s * s) * cdf + s * pdf - *mean * *mean));
+}
+
 // The ADC's clip in electrons above the black level.
 double AdcClipElectrons(const RunConfig& config, double system_gain) {
   const double max_dn = (1 << config.core.geometry.adc_bits) - 1;
@@ -224,8 +239,13 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   // detmath, as the sensor stage computes them (and deterministic for FullWellForEmvaSaturation).
   f.system_gain = s.system_gain_dn_per_e * detmath::Pow(10.0, s.gain_db / 20.0);
   for (int c = 0; c < 3; ++c) f.qe[c] = s.quantum_efficiency[c];
-  const double dark_e = s.dark_current_e_per_s * (config.core.exposure.exposure_time_us * 1e-6) *
-                        detmath::Exp2((s.temperature_c - s.dark_current_ref_c) / s.dark_current_doubling_c);
+  // The dark charge of the mean dark current, and its pixels' mean and spread with DCNU.
+  const double mean_dark_e = s.dark_current_e_per_s * (config.core.exposure.exposure_time_us * 1e-6) *
+                             detmath::Exp2((s.temperature_c - s.dark_current_ref_c) / s.dark_current_doubling_c);
+  double dcnu_mean = 1.0, dcnu_rms = 0.0;
+  DcnuFactor(s.dcnu_percent, &dcnu_mean, &dcnu_rms);
+  const double dark_e = s.dcnu_percent > 0 ? mean_dark_e * dcnu_mean : mean_dark_e;
+  const double dcnu_e = mean_dark_e * dcnu_rms;
   // Dark-current shot noise is temporal noise in the dark: EMVA folds it into sigma_d.
   f.dark_noise_e = std::sqrt(s.dark_noise_e * s.dark_noise_e + (s.shot_noise ? dark_e : 0.0));
   // Photo charge that fits: the well less the dark charge, or the ADC's range if that ends first.
@@ -237,8 +257,10 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   const double dark_var_dn2 = f.system_gain * f.system_gain * f.dark_noise_e * f.dark_noise_e + kQuantisationVariance;
   f.dynamic_range_bits = EmvaDynamicRangeBits(f.saturation_e, dark_var_dn2, f.system_gain);
   f.snr_max = std::sqrt(f.saturation_e);
-  // EMVA's DSNU is the total spatial offset variance: pixel, row and column patterns together.
-  f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e);
+  // EMVA's DSNU is the total spatial offset variance of the dark signal at this
+  // exposure time: pixel, row and column patterns and the DCNU's spread together.
+  f.dsnu_e = std::sqrt(s.dsnu_e * s.dsnu_e + s.row_fpn_e * s.row_fpn_e + s.column_fpn_e * s.column_fpn_e +
+                       dcnu_e * dcnu_e);
   f.prnu_percent = s.prnu_percent;
   return f;
 }

@@ -45,6 +45,7 @@ namespace {
 // fixed patterns, no defect pixels).
 constexpr const char* kNoiseOff[] = {"sensor.shot_noise=false",      "sensor.dark_noise_e=0",
                                      "sensor.dsnu_e=0",              "sensor.prnu_percent=0",
+                                     "sensor.dcnu_percent=0",
                                      "sensor.row_fpn_e=0",           "sensor.column_fpn_e=0",
                                      "sensor.hot_pixel_fraction=0",  "sensor.dead_pixel_fraction=0",
                                      "sensor.stuck_pixel_fraction=0", "sensor.defects_file=\"\""};

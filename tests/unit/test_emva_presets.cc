@@ -174,6 +174,29 @@ TEST(Emva, AnalogGainScalesTheMeasuredK) {
   EXPECT_NEAR(r.measured.saturation_e, r.configured.saturation_e, kSaturationTol * r.configured.saturation_e);
 }
 
+// DCNU spreads the dark signal by dark_e * dcnu at the measurement's
+// exposure time (20 % of 2e4 e-/s x 10 ms = 40 e-, next to the preset's
+// 1 e- DSNU): the configured DSNU adds it in quadrature, and the dark stack
+// measures it (128 x 128 pixels: the sd's relative standard error is
+// 1 / sqrt(2 N) = 0.55 %; the 16-frame average's temporal part, 14.5 e- /
+// 4, is subtracted; 3 %).
+TEST(Emva, DsnuIncludesTheDarkCurrentNonUniformity) {
+  RunConfig rc;
+  Origins origins;
+  std::string error;
+  ASSERT_TRUE(ApplyPreset("rpi_hq_imx477", &rc, &origins, &error)) << error;
+  rc.core.sensor.dcnu_percent = 20.0;
+  rc.core.sensor.dark_current_e_per_s = 2e4;
+  const double dark_e = 2e4 * rc.core.exposure.exposure_time_us * 1e-6;
+  ASSERT_NEAR(dark_e, 200.0, 1e-9) << "the measurement's exposure time changed: adjust the comment";
+  EXPECT_NEAR(ConfiguredEmva(rc).dsnu_e, std::sqrt(1.0 + 0.2 * dark_e * 0.2 * dark_e), 1e-3);
+  EmvaOptions o;
+  o.size = 128;
+  EmvaReport r;
+  ASSERT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;
+  ExpectNearRel(r.measured.dsnu_e, r.configured.dsnu_e, 0.03, "DSNU with DCNU");
+}
+
 // The Blackfly preset with `overrides`, measured at 96 x 96.
 EmvaReport MeasureBlackfly(const std::vector<std::string>& overrides) {
   RunConfig rc;
