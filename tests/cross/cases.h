@@ -221,6 +221,24 @@ inline PipelineConfig ArtefactsConfig(int width, int height) {
   return c;
 }
 
+// Dark current non-uniformity (DCNU 30 %: the gain max(0, 1 + 0.3 z4)
+// clamps at 0 for z4 < -3.3) on a warm BayerBG sensor with a long exposure,
+// so that the dark charge (800 e-/s x 4 x 50 ms = 160 e-) shows next to the
+// signal; PRNU and DSNU at their defaults, drawn per frame, and hot pixels
+// (which add to the DCNU charge).
+inline PipelineConfig DcnuConfig(int width, int height) {
+  PipelineConfig c = DemoConfig(width, height);
+  c.geometry.cfa = Cfa::kBayerBG;
+  c.seed = 19;
+  c.exposure.exposure_time_us = 50000.0;
+  c.exposure.f_number = 8.0;
+  c.sensor.dark_current_e_per_s = 800.0;
+  c.sensor.temperature_c = c.sensor.dark_current_ref_c + 2.0 * c.sensor.dark_current_doubling_c;
+  c.sensor.dcnu_percent = 30.0;
+  c.sensor.hot_pixel_fraction = 0.002;
+  return c;
+}
+
 // Listed defect pixels (each kind, at the corners and the centre, over a
 // seeded map) and CCD smear under cos4 vignetting (the smear pre-pass applies
 // the vignetting gains). The list lives in static storage refilled by each

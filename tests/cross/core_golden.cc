@@ -17,7 +17,8 @@
 // Cases, part 2: the pipeline configurations of tests/cross/cases.h (the
 // demo camera, a mono sensor, bilinear BayerBG with a colour matrix, motion
 // blur and rolling shutter, a distorting lens, depth of field and structural
-// blur, sensor artefacts, listed defects, flare) x two synthetic scenes
+// blur, sensor artefacts, listed defects, flare, dark current
+// non-uniformity) x two synthetic scenes
 // (the TexturedScene formula and a flat field) x three sizes (67x53, 640x480
 // and the tiny 5x3, smaller than the Malvar kernel) x every cut of the
 // pipeline after a running stage. Each case's output (uint32 samples, the
@@ -292,6 +293,7 @@ int main(int argc, char** argv) {
       {"artefacts", cross::ArtefactsConfig, 11},
       {"listed_defects", cross::ListedDefectsConfig, 13},
       {"flare_environment", cross::EnvironmentFlareConfig, 17},
+      {"dcnu", cross::DcnuConfig, 19},
   };
   const int sizes[][2] = {{67, 53}, {640, 480}, {5, 3}};
 
