@@ -10,7 +10,7 @@ uint32_t MeteringWeight(Metering m, int x, int y, int width, int height) {
   // r < 0.1, and always the 1, 2 or 4 pixels nearest the centre (num <= 2),
   // which a small frame's r < 0.1 disc may not reach.
   if (m == Metering::kSpot) return 100 * num < den || num <= 2 ? 65536u : 0u;
-  const int64_t w = 65536 - (65536 * num) / den;                              // 1 - r^2, Q0.16
+  const int64_t w = 65536 - (65536 * num) / den;                              // 1 - r^2, Q1.16
   return static_cast<uint32_t>(w < 4096 ? 4096 : w);                          // at least 1/16
 }
 

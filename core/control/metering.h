@@ -1,5 +1,5 @@
 // Metering for auto exposure (paper eq. 8): the weighted mean brightness of a
-// frame. Weights per pixel, Q0.16:
+// frame. Weights per pixel, Q1.16 (1 = 65536, the largest):
 //   uniform  1 everywhere (the free case: `camsim run` then uses the sensor
 //            stage's StageStats sums, gathered while rows are hot);
 //   centre   1 - r^2, at least 1/16, with r^2 = ((2x+1-w)^2 + (2y+1-h)^2) /
@@ -18,7 +18,7 @@ namespace camsim {
 
 enum class Metering : uint8_t { kUniform, kCentre, kSpot, kImage };
 
-// Weight of pixel (x, y) of a width x height frame, Q0.16 (kImage: not used, returns 65536).
+// Weight of pixel (x, y) of a width x height frame, Q1.16 (kImage: not used, returns 65536).
 uint32_t MeteringWeight(Metering m, int x, int y, int width, int height);
 
 // Weighted mean of (raw - black) / (max_dn - black) over a raw frame of

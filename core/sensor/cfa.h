@@ -2,8 +2,9 @@
 // its filter passes: a Bayer mosaic in any of the four GenICam phases, or, for
 // a mono sensor, a weighted sum of R, G, B (the filter-less spectral response).
 //
-// Formats: in  Photons Q24.8, 3 channels
-//          out Photons Q24.8, 1 channel (mosaic for Bayer)
+// Formats: in  Radiance Q16.16 or Photons Q24.8, 3 channels (a Bayer CFA
+//              runs ahead of exposure and vignetting: pipeline.h)
+//          out the same domain and format, 1 channel (mosaic for Bayer)
 //          mono weights Q1.16 in [0, 65536] summing to exactly 65536 (the G
 //          weight takes the rounding remainder; a weight of 1 is exact);
 //          64-bit sum, one rounding (ties up), saturated.
