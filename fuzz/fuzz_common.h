@@ -111,6 +111,7 @@ inline const std::vector<NumberParam>& Params() {
       CAMSIM_FUZZ_PARAM("dark_current_doubling_c", 1.0, 100.0, false, c.sensor.dark_current_doubling_c),
       CAMSIM_FUZZ_PARAM("dsnu_e", 0.0, 1000.0, false, c.sensor.dsnu_e),
       CAMSIM_FUZZ_PARAM("prnu_percent", 0.0, 50.0, false, c.sensor.prnu_percent),
+      CAMSIM_FUZZ_PARAM("dcnu_percent", 0.0, 100.0, false, c.sensor.dcnu_percent),
       CAMSIM_FUZZ_PARAM("sensor_black_level_dn", 0.0, 65534.0, false, c.sensor.black_level_dn),
       CAMSIM_FUZZ_PARAM("isp_black_level_dn", -1.0, 65534.0, false, c.black_level.black_level_dn),
       CAMSIM_FUZZ_PARAM("wb_r", 0.0, 16.0, false, c.white_balance.gain[0]),
