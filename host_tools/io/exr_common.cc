@@ -1,14 +1,18 @@
 #include "host_tools/io/exr_common.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <mutex>
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -16,6 +20,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
 
 namespace camsim::io::detail {
@@ -32,8 +37,11 @@ class CoreFile {
     init.user_data = &said_;
     init.error_handler_fn = [](exr_const_context_t c, exr_result_t, const char* message) {
       void* said = nullptr;
-      if (exr_get_user_data(c, &said) == EXR_ERR_SUCCESS && said != nullptr)
-        static_cast<std::vector<std::string>*>(said)->push_back(message);
+      if (exr_get_user_data(c, &said) == EXR_ERR_SUCCESS && said != nullptr) {
+        Said& s = *static_cast<Said*>(said);
+        std::lock_guard<std::mutex> lock(s.mutex);  // decoders on several threads share the context
+        s.messages.push_back(message);
+      }
     };
     opened_ = exr_start_read(&ctx_, path.c_str(), &init);
   }
@@ -47,14 +55,24 @@ class CoreFile {
   exr_const_context_t context() const { return ctx_; }
   // Core's text for `r`, with the first message it gave (if any) in brackets.
   std::string Reason(exr_result_t r) const {
+    std::lock_guard<std::mutex> lock(said_.mutex);
     return std::string(exr_get_default_error_message(r)) +
-           (said_.empty() ? "" : " (" + Printable(said_.front()) + ")");
+           (said_.messages.empty() ? "" : " (" + Printable(said_.messages.front()) + ")");
+  }
+  // Forgets what Core said so far (so that the next Reason is about what follows).
+  void Forget() {
+    std::lock_guard<std::mutex> lock(said_.mutex);
+    said_.messages.clear();
   }
 
  private:
+  struct Said {
+    mutable std::mutex mutex;
+    std::vector<std::string> messages;
+  };
   exr_context_t ctx_ = nullptr;
   exr_result_t opened_ = EXR_ERR_UNKNOWN;
-  std::vector<std::string> said_;
+  Said said_;
 };
 
 }  // namespace
@@ -204,6 +222,9 @@ std::string BoxText(const Imath::Box2i& b) {
 // OpenEXR 3.1's C++ reader does not check that: the rows of a ZIP chunk
 // that inflated short were filled from uninitialised memory. Core's decoder
 // checks it; here it only decompresses (the pixels are read by Imf after).
+// The chunks are decompressed on several threads (a decoder each, as Core
+// allows); the error names the first bad chunk in file order, whatever the
+// threads' timing.
 void CheckChunks(const std::string& path, int part, int y0, int y1) {
   CoreFile core(path);
   const exr_const_context_t ctx = core.context();
@@ -222,14 +243,13 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
   if (r == EXR_ERR_SUCCESS) r = exr_get_data_window(ctx, part, &dw);
   if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
 
-  exr_decode_pipeline_t decoder{};  // as EXR_DECODE_PIPELINE_INITIALIZER: all zero
-  struct Destroy {
-    exr_const_context_t ctx;
-    exr_decode_pipeline_t* decoder;
-    ~Destroy() { exr_decoding_destroy(ctx, decoder); }
-  } destroy{ctx, &decoder};
-  bool started = false;
-  auto check = [&](const exr_chunk_info_t& chunk, const std::string& where) {
+  // The chunks to decompress, in file order.
+  struct Item {
+    exr_chunk_info_t chunk;
+    std::string where;
+  };
+  std::vector<Item> items;
+  auto take = [&](const exr_chunk_info_t& chunk, const std::string& where) {
     // Core passes an empty chunk without a word, and does not decode an uncompressed one.
     if ((chunk.packed_size == 0 && chunk.unpacked_size != 0) ||
         (compression == EXR_COMPRESSION_NONE && chunk.packed_size != chunk.unpacked_size)) {
@@ -243,18 +263,7 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
         compression == EXR_COMPRESSION_DWAB || chunk.packed_size >= chunk.unpacked_size) {
       return;
     }
-    exr_result_t d = EXR_ERR_SUCCESS;
-    if (!started) {
-      // No channel has a destination: the decoder decompresses and stops.
-      d = exr_decoding_initialize(ctx, part, &chunk, &decoder);
-      if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
-      decoder.unpack_and_convert_fn = nullptr;
-      started = d == EXR_ERR_SUCCESS;
-    } else {
-      d = exr_decoding_update(ctx, part, &chunk, &decoder);
-    }
-    if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
-    if (d != EXR_ERR_SUCCESS) fail(where, core.Reason(d));
+    items.push_back({chunk, where});
   };
 
   exr_chunk_info_t chunk{};
@@ -265,7 +274,7 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
     for (int64_t y = y0; y <= y1; y = int64_t{chunk.start_y} + std::max(lines, 1)) {
       r = exr_read_scanline_chunk_info(ctx, part, static_cast<int>(y), &chunk);
       if (r != EXR_ERR_SUCCESS) fail("scan line " + std::to_string(y), core.Reason(r));
-      check(chunk, "scan line " + std::to_string(chunk.start_y));
+      take(chunk, "scan line " + std::to_string(chunk.start_y));
     }
   } else if (storage == EXR_STORAGE_TILED) {
     // Level 0 only: the others are not read. Whole rows of tiles, as Imf reads them.
@@ -280,9 +289,54 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
         const std::string where = "tile (" + std::to_string(tx) + ", " + std::to_string(ty) + ")";
         r = exr_read_tile_chunk_info(ctx, part, static_cast<int>(tx), static_cast<int>(ty), 0, 0, &chunk);
         if (r != EXR_ERR_SUCCESS) fail(where, core.Reason(r));
-        check(chunk, where);
+        take(chunk, where);
       }
     }
+  }
+
+  // Decompresses items [first, ...) taken from `next`; a result per item.
+  std::vector<exr_result_t> result(items.size(), EXR_ERR_SUCCESS);
+  std::atomic<size_t> next{0};
+  auto decode = [&](size_t only) {
+    exr_decode_pipeline_t decoder{};  // as EXR_DECODE_PIPELINE_INITIALIZER: all zero
+    bool started = false;
+    for (size_t i; (i = only < items.size() ? only : next.fetch_add(1)) < items.size();) {
+      exr_result_t d = EXR_ERR_SUCCESS;
+      if (!started) {
+        // No channel has a destination: the decoder decompresses and stops.
+        d = exr_decoding_initialize(ctx, part, &items[i].chunk, &decoder);
+        if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
+        decoder.unpack_and_convert_fn = nullptr;
+        started = d == EXR_ERR_SUCCESS;
+      } else {
+        d = exr_decoding_update(ctx, part, &items[i].chunk, &decoder);
+      }
+      if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
+      result[i] = d;
+      if (only < items.size()) break;
+    }
+    exr_decoding_destroy(ctx, &decoder);
+  };
+  // A thread per core up to kMaxCheckThreads, for files of many chunks.
+  constexpr unsigned kMaxCheckThreads = 8, kChunksPerThread = 16;
+  const size_t helpers = std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), kMaxCheckThreads,
+                                           items.size() / kChunksPerThread + 1}) - 1;
+  {
+    std::vector<std::thread> threads;
+    try {
+      for (size_t t = 0; t < helpers; ++t) threads.emplace_back(decode, items.size());
+    } catch (const std::system_error&) {
+      // No more threads now: the ones started and this one do the rest.
+    }
+    decode(items.size());
+    for (std::thread& t : threads) t.join();
+  }
+  for (size_t i = 0; i < items.size(); ++i) {
+    if (result[i] == EXR_ERR_SUCCESS) continue;
+    // What Core says about this chunk alone: decoded again on this thread.
+    core.Forget();
+    decode(i);
+    fail(items[i].where, core.Reason(result[i]));
   }
 }
 
@@ -333,6 +387,14 @@ void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int pa
   if (x0 > x1 || y0 > y1) return;
 
   CheckChunks(path, part, y0, y1);
+  // Imf decompresses the line buffers of one readPixels call on its global
+  // thread pool (none by default): a thread per core, set once, for every reader.
+  static const bool kThreadPoolSet = [] {
+    if (Imf::globalThreadCount() == 0)
+      Imf::setGlobalThreadCount(static_cast<int>(std::min(8u, std::max(1u, std::thread::hardware_concurrency()))));
+    return true;
+  }();
+  (void)kThreadPoolSet;
   Imf::InputPart in(file, part);
   // Read strips of whole data-window rows (about 1M samples per channel: a
   // bounded buffer, few calls into OpenEXR), copy the overlap.

@@ -626,6 +626,30 @@ TEST_F(IoTest, ChunkOfTheWrongSizeIsAnError) {
   }
 }
 
+// A file of many chunks is checked on several threads; the error still names
+// the first bad chunk in file order, however the threads ran.
+TEST_F(IoTest, TheFirstBadChunkIsNamedWhateverTheThreads) {
+  const std::string zip16("\x78\x9c\x63\x60\x40\x05\x00\x00\x10\x00\x01", 11);  // zlib: 16 zero bytes
+  constexpr int kRows = 200;  // ZIPS: one row a chunk, 32 bytes
+  std::vector<float> v(8 * kRows);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = 0.37f * static_cast<float>(i % 29);
+  const std::string path = Path("many.exr");
+  test::WriteExrFixture(path, Box(0, 0, 7, kRows - 1), Box(0, 0, 7, kRows - 1), {{"Y", Imf::FLOAT, v}},
+                        Imf::ZIPS_COMPRESSION, false);
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  EXPECT_EQ(f.r.data.size(), v.size());
+  ReplaceChunkData(path, 170, zip16);
+  ReplaceChunkData(path, 150, zip16);
+  for (int round = 0; round < 20; ++round) {
+    SceneFrame g;
+    ASSERT_FALSE(LoadSceneExr(path, "", &g, &error));
+    ASSERT_EQ(error.rfind("'" + path + "' is not a readable OpenEXR file: corrupt chunk at scan line 150 (", 0), 0u)
+        << error;
+  }
+}
+
 // The chunk check decompresses with OpenEXRCore: valid files of every
 // compression, scanline and tiled, with partial chunks and tiles at the
 // edges, still load (the lossless ones exactly).
