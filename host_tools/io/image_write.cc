@@ -2,6 +2,7 @@
 #include "host_tools/io/png_error.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -31,6 +32,16 @@ constexpr int kMaxWriteDim = 1000000;
 
 std::string Quoted(const std::string& path) { return "'" + path + "'"; }
 
+// What kind of file st describes, for an error: "a directory", "a FIFO", ...
+const char* KindOf(const struct stat& st) {
+  if (S_ISDIR(st.st_mode)) return "a directory";
+  if (S_ISFIFO(st.st_mode)) return "a FIFO (named pipe)";
+  if (S_ISSOCK(st.st_mode)) return "a socket";
+  if (S_ISCHR(st.st_mode)) return "a character device";
+  if (S_ISBLK(st.st_mode)) return "a block device";
+  return "not a regular file";
+}
+
 // A new file beside `path` for WriteAtomically: created with O_EXCL (mode
 // 0666 less the umask, as fopen would), so it was no file before, whatever
 // the directory holds. Empty on failure, with *error set.
@@ -52,12 +63,52 @@ std::string CreateTemporary(const std::string& path, std::string* error) {
   return "";
 }
 
+}  // namespace
+
+std::string FollowSymlinks(const std::string& path, std::string* error) {
+  std::string at = path;
+  for (int hops = 0; hops < 40; ++hops) {
+    struct stat st;
+    if (lstat(at.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return at;
+    std::string link(static_cast<size_t>(st.st_size > 0 ? st.st_size : 255) + 1, '\0');
+    const ssize_t n = readlink(at.c_str(), link.data(), link.size());
+    if (n < 0 || static_cast<size_t>(n) >= link.size()) {
+      *error = "cannot write " + Quoted(path) + ": cannot read the symbolic link " + Quoted(at) +
+               (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": it changed while read"));
+      return "";
+    }
+    link.resize(static_cast<size_t>(n));
+    // A relative target is relative to the link's directory.
+    const size_t slash = at.find_last_of('/');
+    at = link[0] == '/' || slash == std::string::npos ? link : at.substr(0, slash + 1) + link;
+  }
+  *error = "cannot write " + Quoted(path) + ": too many levels of symbolic links";
+  return "";
+}
+
+bool WritableTarget(const std::string& path, std::string* target, std::string* error) {
+  const std::string t = FollowSymlinks(path, error);
+  if (t.empty()) return false;
+  struct stat st;
+  if (lstat(t.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    *error = "cannot write " + Quoted(path) + ": " + (t == path ? "it" : Quoted(t) + " (its link's target)") +
+             " is " + KindOf(st) + "; only a regular file is replaced";
+    return false;
+  }
+  *target = t;
+  return true;
+}
+
+namespace {
+
 // Runs write_tmp(tmp_path, error) and renames the result onto `path`; see the
 // atomicity rule in image_write.h.
 bool WriteAtomically(const std::string& path,
                      const std::function<bool(const std::string&, std::string*)>& write_tmp,
                      std::string* error) {
-  const std::string tmp = CreateTemporary(path, error);
+  std::string target;
+  if (!WritableTarget(path, &target, error)) return false;
+  const std::string tmp = CreateTemporary(target, error);
   if (tmp.empty()) return false;
   std::error_code ec;
   bool ok = false;
@@ -68,7 +119,7 @@ bool WriteAtomically(const std::string& path,
   } catch (...) {
     *error = "cannot write " + Quoted(path) + ": unknown error";
   }
-  if (ok && std::rename(tmp.c_str(), path.c_str()) != 0) {
+  if (ok && std::rename(tmp.c_str(), target.c_str()) != 0) {
     *error = "cannot write " + Quoted(path) + ": renaming " + Quoted(tmp) +
              " onto it failed: " + std::strerror(errno);
     ok = false;

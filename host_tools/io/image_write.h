@@ -8,6 +8,11 @@
 // temporary file and leaves any earlier `path` untouched. No exception
 // escapes.
 //
+// Only a regular file is replaced: a `path` that is a directory, FIFO,
+// socket or device is refused (WritableTarget). A symbolic link is followed
+// (to any depth): the file it points to is what is written, atomically, with
+// the temporary file beside it in the target's directory; the link stays.
+//
 // Images: `data` points at the top-left sample; `stride_samples` is the
 // distance between row starts in samples (>= width * channels); width and
 // height must be 1..1000000.
@@ -20,6 +25,17 @@
 #include <vector>
 
 namespace camsim::io {
+
+// `path` with its symbolic links followed (the last component, repeatedly;
+// a relative link target is taken from the link's directory): the file a
+// writer replaces. A dangling link gives its missing target. Empty, with
+// *error, on a link loop or an unreadable link.
+std::string FollowSymlinks(const std::string& path, std::string* error);
+
+// Whether a writer may write `path`: true, with *target = FollowSymlinks(path),
+// when nothing or a regular file is there; false (*error naming `path`, its
+// link's target and what is there) for a directory, FIFO, socket or device.
+bool WritableTarget(const std::string& path, std::string* target, std::string* error);
 
 // Binary PGM (P5, channels = 1) or PPM (P6, channels = 3, interleaved RGB) with
 // the given maxval (1..65535; use 2^bits - 1). Per the Netpbm spec, samples are

@@ -32,6 +32,7 @@
 #include <OpenEXR/openexr.h>
 #include <png.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "tests/support/exr_fixture.h"
@@ -912,6 +913,69 @@ TEST_F(IoTest, TemporaryNamesNeverTouchExistingFiles) {
   EXPECT_EQ(ReadBytes(path).substr(1, 3), "PNG");
   EXPECT_EQ(DirEntries(), (std::vector<std::string>{"frame.png", "frame.png.tmp",
                                                      "frame.png.tmp." + std::to_string(getpid()) + ".x"}));
+}
+
+// A symbolic link is followed: the file it points to (through relative and
+// chained links, and a dangling link's missing target) is replaced, with the
+// temporary file in the target's directory; the link stays a link.
+TEST_F(IoTest, WritesFollowSymbolicLinks) {
+  fs::create_directory(dir_ / "links");
+  fs::create_directory(dir_ / "data");
+  const std::string target = Path("data/report.json");
+  WriteBytes(target, "old");
+  fs::create_symlink("../data/report.json", dir_ / "links" / "r.json");  // relative to the link's directory
+  fs::create_symlink("r.json", dir_ / "links" / "chain.json");           // a link to a link
+  std::string error;
+  ASSERT_TRUE(WriteTextFile(Path("links/r.json"), "new", &error)) << error;
+  EXPECT_TRUE(fs::is_symlink(dir_ / "links" / "r.json"));
+  EXPECT_EQ(ReadBytes(target), "new");
+  ASSERT_TRUE(WriteTextFile(Path("links/chain.json"), "newer", &error)) << error;
+  EXPECT_TRUE(fs::is_symlink(dir_ / "links" / "chain.json"));
+  EXPECT_EQ(ReadBytes(target), "newer");
+  const uint8_t px[] = {10, 20};
+  fs::create_symlink(dir_ / "data" / "made.png", dir_ / "links" / "dangling.png");  // absolute, target missing
+  ASSERT_TRUE(WritePng(Path("links/dangling.png"), px, 2, 1, 1, 8, 2, &error)) << error;
+  EXPECT_EQ(ReadBytes(Path("data/made.png")).substr(1, 3), "PNG");
+  EXPECT_TRUE(fs::is_symlink(dir_ / "links" / "dangling.png"));
+  // No temporary file is left in either directory.
+  std::vector<std::string> data, links;
+  for (const auto& e : fs::directory_iterator(dir_ / "data")) data.push_back(e.path().filename().string());
+  for (const auto& e : fs::directory_iterator(dir_ / "links")) links.push_back(e.path().filename().string());
+  std::sort(data.begin(), data.end());
+  std::sort(links.begin(), links.end());
+  EXPECT_EQ(data, (std::vector<std::string>{"made.png", "report.json"}));
+  EXPECT_EQ(links, (std::vector<std::string>{"chain.json", "dangling.png", "r.json"}));
+  // A loop is an error, not a hang.
+  fs::create_symlink("loop_b", dir_ / "loop_a");
+  fs::create_symlink("loop_a", dir_ / "loop_b");
+  EXPECT_FALSE(WriteTextFile(Path("loop_a"), "x", &error));
+  EXPECT_NE(error.find("too many levels of symbolic links"), std::string::npos) << error;
+}
+
+// A FIFO, a directory (or a device or socket) at the path is refused with an
+// error naming it, and stays what it was: it used to be replaced by a
+// regular file.
+TEST_F(IoTest, WritesRefuseWhatIsNotARegularFile) {
+  const std::string fifo = Path("pipe.json");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0644), 0) << std::strerror(errno);
+  std::string error;
+  EXPECT_FALSE(WriteTextFile(fifo, "{}", &error));
+  EXPECT_NE(error.find("cannot write '" + fifo + "': it is a FIFO"), std::string::npos) << error;
+  EXPECT_EQ(fs::status(fifo).type(), fs::file_type::fifo);
+  fs::create_symlink("pipe.json", dir_ / "to_pipe.json");  // through a link too
+  EXPECT_FALSE(WriteTextFile(Path("to_pipe.json"), "{}", &error));
+  EXPECT_NE(error.find("'" + Path("pipe.json") + "' (its link's target) is a FIFO"), std::string::npos) << error;
+  EXPECT_TRUE(fs::is_symlink(dir_ / "to_pipe.json"));
+  const uint8_t px[] = {10, 20};
+  fs::create_directory(dir_ / "d.png");
+  EXPECT_FALSE(WritePng(Path("d.png"), px, 2, 1, 1, 8, 2, &error));
+  EXPECT_NE(error.find("is a directory"), std::string::npos) << error;
+  EXPECT_TRUE(fs::is_directory(dir_ / "d.png"));
+  std::string target;
+  EXPECT_FALSE(WritableTarget(fifo, &target, &error));
+  EXPECT_TRUE(WritableTarget(Path("absent.png"), &target, &error)) << error;
+  EXPECT_EQ(target, Path("absent.png"));
+  EXPECT_EQ(DirEntries(), (std::vector<std::string>{"d.png", "pipe.json", "to_pipe.json"}));
 }
 
 TEST_F(IoTest, WriteExrFloatRejectsBadChannels) {
