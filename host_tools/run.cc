@@ -73,7 +73,8 @@ std::vector<std::string> FrameOutputs(const std::string& stem, const Plan& plan,
 
 // A path as the file system resolves it, to compare names: the directory
 // always, the last component only when `follow` (an input is read through a
-// symbolic link; an output replaces the link).
+// symbolic link; an output is written through one too, but its target may not
+// exist yet: OutputKey).
 std::string Resolved(const std::string& path, bool follow) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -84,13 +85,21 @@ std::string Resolved(const std::string& path, bool follow) {
   return ec ? path : r.lexically_normal().string();
 }
 
+// The file an output path writes (its symbolic links followed, as the
+// writers do, to a target that may not exist yet), resolved as by Resolved.
+std::string OutputKey(const std::string& path) {
+  std::string error;
+  const std::string target = io::FollowSymlinks(path, &error);
+  return Resolved(target.empty() ? path : target, false);
+}
+
 // Claims the output paths of `who`; false (*error naming both) when one would
 // overwrite an input or a file another frame (or the report) writes.
 bool ClaimOutputs(const std::vector<std::string>& paths, const std::string& who,
                   const std::map<std::string, std::string>& inputs, std::map<std::string, std::string>* claimed,
                   std::string* error) {
   for (const std::string& p : paths) {
-    const std::string key = Resolved(p, false);
+    const std::string key = OutputKey(p);
     const auto in = inputs.find(key);
     if (in != inputs.end()) {
       *error = who + " would write '" + p + "', overwriting the input " + in->second;
@@ -166,6 +175,19 @@ std::string SanitisedJson(const io::InputSanitizeStats& st) {
                                    : "{\"channel\": " + JsonString(st.first_channel) + ", \"x\": " +
                                          std::to_string(st.first_x) + ", \"y\": " + std::to_string(st.first_y) + "}") +
          "}";
+}
+
+// Writes the report: to `path`, atomically (io::WriteTextFile), or with
+// --report - to standard output.
+bool WriteReport(const std::string& path, const std::string& text, std::string* error) {
+  if (path != "-") return io::WriteTextFile(path, text, error);
+  errno = 0;
+  if (std::fwrite(text.data(), 1, text.size(), stdout) != text.size() || std::fflush(stdout) != 0) {
+    *error = std::string("cannot write the report to standard output: ") +
+             (errno != 0 ? std::strerror(errno) : "write error");
+    return false;
+  }
+  return true;
 }
 
 // The report of a run that failed before it had a pipeline: its error alone.
@@ -616,12 +638,20 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
 // is (which would otherwise pass for this run's). Anything else there (a
 // frame of an earlier run, say) is left alone, with a note on stderr.
 bool ReportReplaceable(const std::string& path) {
+  if (path == "-") return true;  // standard output
+  // A symbolic link is followed (the writer replaces its target); a FIFO,
+  // device, socket or directory is never opened nor replaced.
+  std::string target, why;
+  if (!io::WritableTarget(path, &target, &why)) {
+    std::fprintf(stderr, "camsim: --report: %s: left as it is\n", why.c_str());
+    return false;
+  }
   std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::symlink_status(path, ec);
+  const std::filesystem::file_status st = std::filesystem::status(target, ec);
   bool ours = !std::filesystem::exists(st);
   if (std::filesystem::is_regular_file(st)) {
     const std::string head = std::string("{\n  \"camsim_version\": \"");
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(target, std::ios::binary);
     std::string start(head.size(), '\0');
     ours = in.read(start.data(), static_cast<std::streamsize>(start.size())) && start == head;
   }
@@ -635,8 +665,7 @@ int FailBeforeClaim(const RunOptions& o, const std::string& message) {
   std::fprintf(stderr, "camsim: %s\n", message.c_str());
   if (o.report_path.empty() || !ReportReplaceable(o.report_path)) return 1;
   std::string werr;
-  if (!io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
-    std::fprintf(stderr, "camsim: %s\n", werr.c_str());
+  if (!WriteReport(o.report_path, ErrorReportJson(message), &werr)) std::fprintf(stderr, "camsim: %s\n", werr.c_str());
   return 1;
 }
 
@@ -673,7 +702,8 @@ int RunCommand(const RunOptions& o) {
   const bool expanded = io::ExpandInputs(o.inputs, &files, &error);
   for (const std::string& in : expanded ? files : o.inputs) inputs.emplace(Resolved(in, true), "'" + in + "'");
   std::string claim_error;
-  if (!o.report_path.empty() && !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &claim_error)) {
+  if (!o.report_path.empty() && o.report_path != "-" &&
+      !ClaimOutputs({o.report_path}, "--report", inputs, &claimed, &claim_error)) {
     std::fprintf(stderr, "camsim: %s\n", claim_error.c_str());
     return 1;
   }
@@ -682,7 +712,7 @@ int RunCommand(const RunOptions& o) {
   const auto fail = [&o](int code, const std::string& message) {
     std::fprintf(stderr, "camsim: %s\n", message.c_str());
     std::string werr;
-    if (!o.report_path.empty() && !io::WriteTextFile(o.report_path, ErrorReportJson(message), &werr))
+    if (!o.report_path.empty() && !WriteReport(o.report_path, ErrorReportJson(message), &werr))
       std::fprintf(stderr, "camsim: %s\n", werr.c_str());
     return code;
   };
@@ -703,10 +733,16 @@ int RunCommand(const RunOptions& o) {
     return fail(2, "cannot create output directory '" + o.out_dir + "': " + why);
   }
   // A report that could not be written would fail only after every frame
-  // (checked once --out exists: the report may go inside it).
-  if (!o.report_path.empty()) {
+  // (checked once --out exists: the report may go inside it). Through a
+  // symbolic link, the target's directory is what must exist.
+  if (!o.report_path.empty() && o.report_path != "-") {
     std::error_code ec;
-    const std::filesystem::path report(o.report_path);
+    std::string target, why_not;
+    if (!std::filesystem::is_directory(o.report_path, ec) && !io::WritableTarget(o.report_path, &target, &why_not)) {
+      std::fprintf(stderr, "camsim: --report: %s\n", why_not.c_str());
+      return 2;
+    }
+    const std::filesystem::path report(target.empty() ? o.report_path : target);
     const std::filesystem::path parent = report.has_parent_path() ? report.parent_path() : ".";
     const char* why = std::filesystem::is_directory(report, ec)          ? "is a directory"
                       : !std::filesystem::is_directory(parent, ec) ? "its directory does not exist"
@@ -842,12 +878,23 @@ int RunCommand(const RunOptions& o) {
       return "frame " + std::to_string(o.first_frame + g) + " (" + files[g] + ")";
     };
     bool claims_ok = true;
+    int claim_code = 1;
     const size_t claim_end = f == 0 ? files.size() : f + 1;
-    for (size_t g = f; g < claim_end && claims_ok; ++g)
-      claims_ok = ClaimOutputs(FrameOutputs(o.out_dir + "/" + Stem(files[g]), plan, o.dump_stages), frame_name(g),
-                               inputs, &claimed, &error);
+    for (size_t g = f; g < claim_end && claims_ok; ++g) {
+      const std::vector<std::string> outputs = FrameOutputs(o.out_dir + "/" + Stem(files[g]), plan, o.dump_stages);
+      claims_ok = ClaimOutputs(outputs, frame_name(g), inputs, &claimed, &error);
+      // A FIFO, device, socket or directory in an output's place is refused
+      // now, before any frame is rendered, not when its frame is written.
+      std::string target, why;
+      for (size_t k = 0; k < outputs.size() && claims_ok; ++k)
+        if (!io::WritableTarget(outputs[k], &target, &why)) {
+          error = frame_name(g) + ": " + why;
+          claims_ok = false;
+          claim_code = 2;
+        }
+    }
     if (!claims_ok) {
-      exit_code = 1;
+      exit_code = claim_code;
       break;
     }
 
@@ -1019,7 +1066,7 @@ int RunCommand(const RunOptions& o) {
                                    ? ReportJson(o, rc, renderer.pipeline(), o.threads, acc, error)
                                    : ErrorReportJson(error);
     std::string werr;
-    if (!io::WriteTextFile(o.report_path, report, &werr)) {
+    if (!WriteReport(o.report_path, report, &werr)) {
       std::fprintf(stderr, "camsim: %s\n", werr.c_str());
       if (exit_code == 0) exit_code = 2;
     }

@@ -4,6 +4,7 @@
 
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -25,6 +26,7 @@ namespace {
 struct Result {
   int code = -1;
   std::string err;
+  std::string out;  // standard output
 };
 
 std::string TempDir(const std::string& name) {
@@ -33,18 +35,25 @@ std::string TempDir(const std::string& name) {
   return d;
 }
 
-Result Camsim(const std::string& args) {
+// Runs `camsim ARGS` (in directory `cwd` when given).
+Result CamsimIn(const std::string& cwd, const std::string& args) {
   const std::string err_file = testing::TempDir() + "camsim_cli_stderr_" + std::to_string(getpid());
-  const std::string cmd = std::string(CAMSIM_BINARY) + " " + args + " 2>'" + err_file + "' >/dev/null";
+  const std::string out_file = testing::TempDir() + "camsim_cli_stdout_" + std::to_string(getpid());
+  const std::string cmd = (cwd.empty() ? std::string() : "cd '" + cwd + "' && ") + CAMSIM_BINARY + " " + args +
+                          " 2>'" + err_file + "' >'" + out_file + "'";
   Result r;
   const int status = std::system(cmd.c_str());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(err_file);
-  std::stringstream s;
-  s << in.rdbuf();
-  r.err = s.str();
+  for (const auto& [file, text] : {std::make_pair(err_file, &r.err), std::make_pair(out_file, &r.out)}) {
+    std::ifstream in(file);
+    std::stringstream s;
+    s << in.rdbuf();
+    *text = s.str();
+  }
   return r;
 }
+
+Result Camsim(const std::string& args) { return CamsimIn("", args); }
 
 bool Exists(const std::string& p) {
   struct stat st;
@@ -870,6 +879,77 @@ TEST(Cli, OptionErrorsNameTheOptionAndValue) {
     EXPECT_EQ(r.code, 1) << c.args;
     EXPECT_NE(r.err.find(c.says), std::string::npos) << c.args << ": " << r.err;
   }
+}
+
+bool IsFifo(const std::string& p) {
+  struct stat st;
+  return lstat(p.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+}
+
+bool IsSymlink(const std::string& p) {
+  struct stat st;
+  return lstat(p.c_str(), &st) == 0 && S_ISLNK(st.st_mode);
+}
+
+// Review finding: a report or output path that was a symbolic link became a
+// regular file (its target untouched), and a FIFO was replaced. Now a link
+// is followed (its target replaced), and a FIFO (or device, socket,
+// directory) is refused, naming it, before any frame is rendered, and is
+// left as it is, also by a run that fails on its options.
+TEST(Cli, ReportAndOutputsFollowLinksAndRefuseWhatIsNotAFile) {
+  const std::string dir = TempDir("not_a_file");
+  std::ofstream(dir + "/real.json") << "{\"mine\": 1}\n";
+  ASSERT_EQ(symlink("real.json", (dir + "/link.json").c_str()), 0);
+  const Result linked = Camsim("run --input " + kScene + " --out " + dir + "/out --quiet --report " + dir + "/link.json");
+  ASSERT_EQ(linked.code, 0) << linked.err;
+  EXPECT_TRUE(IsSymlink(dir + "/link.json"));
+  EXPECT_NE(Slurp(dir + "/real.json").find("\"error\": null"), std::string::npos) << Slurp(dir + "/real.json");
+
+  const std::string fifo = dir + "/fifo.json";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0644), 0);
+  const Result to_fifo = Camsim("run --input " + kScene + " --out " + dir + "/out2 --quiet --report " + fifo);
+  EXPECT_EQ(to_fifo.code, 2);
+  EXPECT_NE(to_fifo.err.find("'" + fifo + "': it is a FIFO"), std::string::npos) << to_fifo.err;
+  EXPECT_TRUE(IsFifo(fifo));
+  EXPECT_FALSE(Exists(dir + "/out2/aisle_0001.png")) << "refused before the first frame";
+  const Result bad_option = Camsim("run --input " + kScene + " --out " + dir + "/out2 --threads 0 --report " + fifo);
+  EXPECT_EQ(bad_option.code, 1);
+  EXPECT_NE(bad_option.err.find("it is a FIFO"), std::string::npos) << bad_option.err;
+  EXPECT_TRUE(IsFifo(fifo));
+
+  // A frame's output: a FIFO in its place stops the run before it renders;
+  // a link is written through.
+  std::system(("mkdir -p '" + dir + "/out3' '" + dir + "/out4'").c_str());
+  ASSERT_EQ(mkfifo((dir + "/out3/aisle_0001.png").c_str(), 0644), 0);
+  const Result out_fifo = Camsim("run --input " + kScene + " --out " + dir + "/out3 --quiet");
+  EXPECT_EQ(out_fifo.code, 2);
+  EXPECT_NE(out_fifo.err.find("'" + dir + "/out3/aisle_0001.png': it is a FIFO"), std::string::npos) << out_fifo.err;
+  EXPECT_TRUE(IsFifo(dir + "/out3/aisle_0001.png"));
+  EXPECT_FALSE(Exists(dir + "/out3/aisle_0001.raw"));
+  ASSERT_EQ(symlink("../elsewhere.png", (dir + "/out4/aisle_0001.png").c_str()), 0);
+  ASSERT_EQ(Camsim("run --input " + kScene + " --out " + dir + "/out4 --quiet").code, 0);
+  EXPECT_TRUE(IsSymlink(dir + "/out4/aisle_0001.png"));
+  EXPECT_EQ(Slurp(dir + "/elsewhere.png").substr(1, 3), "PNG");
+  // Through a link, the target is what no other output may claim.
+  ASSERT_EQ(symlink("out4/aisle_0001.raw", (dir + "/raw_link.json").c_str()), 0);
+  const Result clash = Camsim("run --input " + kScene + " --out " + dir + "/out4 --quiet --report " + dir +
+                              "/raw_link.json");
+  EXPECT_EQ(clash.code, 1);
+  EXPECT_NE(clash.err.find("would both write"), std::string::npos) << clash.err;
+}
+
+// --report - writes the report to standard output (a failed run's too).
+TEST(Cli, ReportToStandardOutput) {
+  const std::string dir = TempDir("report_stdout");
+  const Result ok = Camsim("run --input " + kScene + " --out " + dir + " --quiet --report -");
+  ASSERT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(ok.out.rfind("{\n  \"camsim_version\": \"", 0), 0u) << ok.out;
+  EXPECT_NE(ok.out.find("\"error\": null\n}\n"), std::string::npos) << ok.out;
+  EXPECT_FALSE(Exists(dir + "/-"));
+  const Result failed = Camsim("run --input " + kScene + " --out " + dir + " --quiet --threads 0 --report -");
+  EXPECT_EQ(failed.code, 1);
+  EXPECT_NE(failed.out.find("\"error\": \"--threads: '0' is not a whole number in [1, 64]\""), std::string::npos)
+      << failed.out;
 }
 
 TEST(Cli, ConfigDefaultRoundTrips) {
