@@ -27,33 +27,43 @@
 
 namespace {
 
-const char kUsage[] =
-    "usage:\n"
+// Each command's usage (`camsim COMMAND --help`); `camsim --help` prints them all.
+const char kRunUsage[] =
     "  camsim run --input EXR... --out DIR [--preset NAME] [--config FILE] [--depth EXR] [--threads N]\n"
-    "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE]\n"
+    "             [--strip-rows N] [--stages a,b,c] [--set section.key=value]... [--report FILE|-]\n"
     "             [--first-frame N] [--dump-stages] [--quiet] [--calibration YAML] [--measure-savings N]\n"
     "      EXR: a file, a directory of .exr files, or a printf pattern (frame_%04d.exr)\n"
     "      --depth: a separate depth file, for a single input frame\n"
     "      --strip-rows: rows per strip (default: one strip per thread; same bytes)\n"
     "      --stages: run only these stages, in the configured order ([pipeline] stages)\n"
+    "      --report: the run's JSON report (- : to standard output); a failed run writes its error there\n"
     "      --measure-savings: time each frame N (1..1000) more times with the stages' skipping on and off\n"
     "      --dump-stages: each running stage's output as NAME.K_STAGE.exr: R, G, B (or Y) as float in its\n"
-    "        unit, and exactly as uint32 line samples in code.R, code.G, code.B (code.Y)\n"
+    "        unit, and exactly as uint32 line samples in code.R, code.G, code.B (code.Y)\n";
+const char kConfigUsage[] =
     "  camsim config --default          print the annotated default configuration\n"
     "  camsim config --check FILE       parse and validate a configuration\n"
-    "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"
-    "                 [--width W] [--height H] [--cell PX] [--supersample N]\n"
-    "      a calibration target (radiance, R = G = B) to run through camsim\n"
     "  camsim config --preset NAME      print a camera preset (EMVA 1288 data of a real camera)\n"
-    "  camsim config --presets          list the camera presets\n"
+    "  camsim config --presets          list the camera presets\n";
+const char kEmvaUsage[] =
     "  camsim emva [--preset NAME] [--config FILE] [--set section.key=value]... [--size N] [--levels N]\n"
     "  camsim emva --dataset EMVA1288_DESCRIPTOR   (measure a recorded camera's frames)\n"
     "      EMVA 1288 photon-transfer measurement of the emulated sensor, measured vs configured\n"
+    "      --size: frame side 16..4096, --levels: exposure levels 20..1000\n";
+const char kTradeoffUsage[] =
     "  camsim tradeoff --input EXR --out DIR [--config FILE] [--set section.key=value]... [--frames N]\n"
     "      error against run time for every precision knob of the running stages:\n"
-    "      DIR/tradeoff.csv, tradeoff.md and tradeoff.png\n"
+    "      DIR/tradeoff.csv, tradeoff.md and tradeoff.png (--frames: 1..1000)\n";
+const char kPreviewUsage[] =
     "  camsim preview --input EXR --out PNG [--scale S]\n"
-    "      the ideal (perfect-camera) view of a scene: sRGB of radiance * S, clipped\n";
+    "      the ideal (perfect-camera) view of a scene: sRGB of radiance * S (S > 0), clipped\n";
+
+std::string UsageOf(const char* section) { return std::string("usage:\n") + section; }
+
+std::string FullUsage() {
+  return std::string("usage:\n") + kRunUsage + kConfigUsage + camsim::host::kPatternUsage + kEmvaUsage +
+         kTradeoffUsage + kPreviewUsage;
+}
 
 bool ParseInt(const char* s, long lo, long hi, long* out) {
   char* end = nullptr;
@@ -63,21 +73,36 @@ bool ParseInt(const char* s, long lo, long hi, long* out) {
   return true;
 }
 
-// Reads the "--name value" pairs of argv[2..]: take(name, value) stores one
-// and returns false for an unknown name or a bad value. At the first missing
-// or bad value it says which and returns false.
+// Reads the "--name value" pairs of argv[2..]: take(name, value, &why)
+// stores one and returns false for an unknown name or a bad value (why: the
+// values allowed; empty for an unknown name). At the first missing or bad
+// value it says which, with the command's usage, and returns false.
 template <typename Take>
-bool ReadOptionPairs(int argc, char** argv, Take take) {
+bool ReadOptionPairs(int argc, char** argv, const char* usage, Take take) {
   for (int i = 2; i < argc; i += 2) {
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "camsim: %s needs a value\n%s", argv[i], kUsage);
+      std::fprintf(stderr, "camsim: %s needs a value\n%s", argv[i], UsageOf(usage).c_str());
       return false;
     }
-    if (!take(std::string(argv[i]), argv[i + 1])) {
-      std::fprintf(stderr, "camsim: bad option '%s %s'\n%s", argv[i], argv[i + 1], kUsage);
+    std::string why;
+    if (!take(std::string(argv[i]), argv[i + 1], &why)) {
+      if (why.empty()) why = "unknown option '" + std::string(argv[i]) + "'";
+      std::fprintf(stderr, "camsim: bad option '%s %s': %s\n%s", argv[i], argv[i + 1], why.c_str(),
+                   UsageOf(usage).c_str());
       return false;
     }
   }
+  return true;
+}
+
+// Takes a whole number in [lo, hi] for `option`, or says the range in *why.
+bool TakeInt(const char* v, long lo, long hi, int* out, std::string* why) {
+  long n = 0;
+  if (!ParseInt(v, lo, hi, &n)) {
+    *why = "expected a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    return false;
+  }
+  *out = static_cast<int>(n);
   return true;
 }
 
@@ -90,16 +115,16 @@ int Run(int argc, char** argv) {
   const auto bad = [&o](const std::string& message) {
     if (o.option_error.empty()) o.option_error = message;
   };
-  for (int i = 2; i < argc; ++i) {
+  // A missing value (the last option) fails the run like any bad option:
+  // through RunCommand, so that --report (given earlier) records it.
+  bool missing = false;
+  for (int i = 2; i < argc && !missing; ++i) {
     const std::string a = argv[i];
-    if (a == "--help" || a == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
     auto value = [&](const char* what) -> const char* {
       if (i + 1 >= argc) {
-        std::fprintf(stderr, "camsim: %s needs %s\n", a.c_str(), what);
-        std::exit(1);
+        bad(a + " needs " + what);
+        missing = true;
+        return "";
       }
       return argv[++i];
     };
@@ -124,13 +149,17 @@ int Run(int argc, char** argv) {
       o.stages = value("a list");
       o.stages_given = true;
     }
-    else if (a == "--report") o.report_path = value("a file");
+    else if (a == "--report") {
+      const char* path = value("a file (or - for standard output)");
+      if (!missing) o.report_path = path;  // else an earlier --report records the error
+    }
     else if (a == "--dump-stages") o.dump_stages = true;
     else if (a == "--quiet") o.quiet = true;
     else if (a == "--threads" || a == "--strip-rows" || a == "--first-frame" || a == "--measure-savings") {
       const char* v = value("a number");
       const long lo = a == "--first-frame" ? 0 : 1;
       const long hi = a == "--threads" ? 64 : (a == "--measure-savings" ? 1000 : 2147483647L);
+      if (missing) break;
       if (!ParseInt(v, lo, hi, &n)) {
         bad(a + ": '" + v + "' is not a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
         continue;
@@ -144,12 +173,12 @@ int Run(int argc, char** argv) {
       usage = true;
     }
   }
-  if (o.inputs.empty()) {
+  if (o.inputs.empty() && !missing) {
     bad("--input is required");
     usage = true;
   }
   const int code = camsim::host::RunCommand(o);
-  if (usage) std::fputs(kUsage, stderr);
+  if (usage) std::fputs(UsageOf(kRunUsage).c_str(), stderr);
   return code;
 }
 
@@ -158,6 +187,8 @@ int Config(int argc, char** argv) {
     std::fputs(camsim::host::DefaultConfigToml().c_str(), stdout);
     return 0;
   }
+  const bool known = argc >= 3 && (std::strcmp(argv[2], "--default") == 0 || std::strcmp(argv[2], "--check") == 0 ||
+                                   std::strcmp(argv[2], "--preset") == 0 || std::strcmp(argv[2], "--presets") == 0);
   if (argc == 4 && std::strcmp(argv[2], "--check") == 0) {
     camsim::host::RunConfig rc;
     camsim::host::Origins origins;
@@ -192,19 +223,21 @@ int Config(int argc, char** argv) {
     for (const camsim::host::Preset& p : camsim::host::Presets()) std::printf("%-22s %s\n", p.name, p.summary);
     return 0;
   }
-  std::fputs(kUsage, stderr);
+  if (argc < 3) std::fputs("camsim: config needs one of --default, --check FILE, --preset NAME, --presets\n", stderr);
+  else if (!known) std::fprintf(stderr, "camsim: config: unknown option '%s'\n", argv[2]);
+  else std::fprintf(stderr, "camsim: config %s: wrong number of arguments\n", argv[2]);
+  std::fputs(UsageOf(kConfigUsage).c_str(), stderr);
   return 1;
 }
 
 int Tradeoff(int argc, char** argv) {
   camsim::host::TradeoffOptions o;
-  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
-    long n = 0;
+  const bool read = ReadOptionPairs(argc, argv, kTradeoffUsage, [&](const std::string& a, const char* v, std::string* why) {
     if (a == "--input") o.input = v;
     else if (a == "--out") o.out_dir = v;
     else if (a == "--config") o.config_path = v;
     else if (a == "--set") o.overrides.push_back(v);
-    else if (a == "--frames" && ParseInt(v, 1, 1000, &n)) o.frames = static_cast<int>(n);
+    else if (a == "--frames") return TakeInt(v, 1, 1000, &o.frames, why);
     else return false;
     return true;
   });
@@ -220,14 +253,13 @@ int Emva(int argc, char** argv) {
   std::string error, title;
   std::vector<std::string> overrides;
   std::string preset, config_path, dataset;
-  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
-    long n = 0;
+  const bool read = ReadOptionPairs(argc, argv, kEmvaUsage, [&](const std::string& a, const char* v, std::string* why) {
     if (a == "--preset") preset = v;
     else if (a == "--dataset") dataset = v;
     else if (a == "--config") config_path = v;
     else if (a == "--set") overrides.push_back(v);
-    else if (a == "--size" && ParseInt(v, 16, 4096, &n)) options.size = static_cast<int>(n);
-    else if (a == "--levels" && ParseInt(v, 20, 1000, &n)) options.levels = static_cast<int>(n);
+    else if (a == "--size") return TakeInt(v, 16, 4096, &options.size, why);
+    else if (a == "--levels") return TakeInt(v, 20, 1000, &options.levels, why);
     else return false;
     return true;
   });
@@ -273,17 +305,23 @@ int Emva(int argc, char** argv) {
 int Preview(int argc, char** argv) {
   std::string input, output;
   double scale = 1.0;
-  const bool read = ReadOptionPairs(argc, argv, [&](const std::string& a, const char* v) {
+  const bool read = ReadOptionPairs(argc, argv, kPreviewUsage, [&](const std::string& a, const char* v, std::string* why) {
     char* end = nullptr;
     if (a == "--input") input = v;
     else if (a == "--out") output = v;
     else if (a == "--scale") scale = std::strtod(v, &end);
     else return false;
-    return end == nullptr || (end != v && *end == '\0' && scale > 0 && std::isfinite(scale));
+    if (end == nullptr || (end != v && *end == '\0' && scale > 0 && std::isfinite(scale))) return true;
+    *why = "expected a finite number > 0";
+    return false;
   });
   if (!read) return 1;
-  if (input.empty() || output.empty() || !(scale > 0)) {
-    std::fputs(kUsage, stderr);
+  if (input.empty() || output.empty()) {
+    std::fprintf(stderr, "camsim: preview needs %s\n%s",
+                 input.empty() && output.empty() ? "--input EXR and --out PNG"
+                 : input.empty()                 ? "--input EXR"
+                                                 : "--out PNG",
+                 UsageOf(kPreviewUsage).c_str());
     return 1;
   }
   std::error_code same_error;  // equivalent() is false, with an error, when the output does not exist
@@ -313,14 +351,40 @@ int Preview(int argc, char** argv) {
 }
 
 int Main(int argc, char** argv) {
-  if (argc >= 2 && std::strcmp(argv[1], "run") == 0) return Run(argc, argv);
-  if (argc >= 2 && std::strcmp(argv[1], "config") == 0) return Config(argc, argv);
-  if (argc >= 2 && std::strcmp(argv[1], "preview") == 0) return Preview(argc, argv);
-  if (argc >= 2 && std::strcmp(argv[1], "pattern") == 0) return camsim::host::PatternCommand(argc, argv);
-  if (argc >= 2 && std::strcmp(argv[1], "tradeoff") == 0) return Tradeoff(argc, argv);
-  if (argc >= 2 && std::strcmp(argv[1], "emva") == 0) return Emva(argc, argv);
-  std::fputs(kUsage, argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? stdout : stderr);
-  return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 1;
+  struct Command {
+    const char* name;
+    int (*run)(int, char**);
+    const char* usage;
+  };
+  static const Command kCommands[] = {
+      {"run", Run, kRunUsage},
+      {"config", Config, kConfigUsage},
+      {"pattern", camsim::host::PatternCommand, camsim::host::kPatternUsage},
+      {"emva", Emva, kEmvaUsage},
+      {"tradeoff", Tradeoff, kTradeoffUsage},
+      {"preview", Preview, kPreviewUsage},
+  };
+  const auto is_help = [](const char* a) { return std::strcmp(a, "--help") == 0 || std::strcmp(a, "-h") == 0; };
+  if (argc < 2) {
+    std::fprintf(stderr, "camsim: no command given\n%s", FullUsage().c_str());
+    return 1;
+  }
+  if (is_help(argv[1]) || std::strcmp(argv[1], "help") == 0) {
+    std::fputs(FullUsage().c_str(), stdout);
+    return 0;
+  }
+  for (const Command& c : kCommands) {
+    if (std::strcmp(argv[1], c.name) != 0) continue;
+    // -h or --help anywhere: the command's usage, and nothing run.
+    for (int i = 2; i < argc; ++i)
+      if (is_help(argv[i])) {
+        std::fputs(UsageOf(c.usage).c_str(), stdout);
+        return 0;
+      }
+    return c.run(argc, argv);
+  }
+  std::fprintf(stderr, "camsim: unknown command '%s'\n%s", argv[1], FullUsage().c_str());
+  return 1;
 }
 
 }  // namespace

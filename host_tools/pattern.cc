@@ -120,10 +120,15 @@ std::vector<std::pair<double, double>> PatternCorners(const PatternOptions& o, i
   return v;
 }
 
+extern const char kPatternUsage[] =
+    "  camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out EXR\n"
+    "                 [--width W] [--height H] [--cell PX] [--supersample N]\n"
+    "      a calibration target (radiance, R = G = B) to run through camsim\n"
+    "      (width/height 8..16384, cell >= 4, supersample 1..64)\n";
+
 int PatternCommand(int argc, char** argv) {
-  const char* usage =
-      "usage: camsim pattern checkerboard|dot-grid|slanted-edge|siemens-star --out FILE.exr\n"
-      "                      [--width W] [--height H] [--cell PX] [--supersample N]\n";
+  const std::string usage_text = std::string("usage:\n") + kPatternUsage;
+  const char* usage = usage_text.c_str();
   if (argc < 3) {
     std::fputs(usage, stderr);
     return 1;

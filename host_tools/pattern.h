@@ -40,5 +40,7 @@ double PatternDotRadius(const PatternOptions& o);
 
 // `camsim pattern NAME --out FILE.exr [--width W] [--height H] [--cell PX]`.
 int PatternCommand(int argc, char** argv);
+// Its usage lines (part of `camsim --help`).
+extern const char kPatternUsage[];
 
 }  // namespace camsim::host

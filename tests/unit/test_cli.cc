@@ -867,12 +867,20 @@ TEST(Cli, OptionErrorsNameTheOptionAndValue) {
   };
   const Case cases[] = {
       {"tradeoff --input a.exr --frames", "--frames needs a value"},
-      {"tradeoff --input a.exr --frames 0", "bad option '--frames 0'"},
-      {"tradeoff --inptu a.exr", "bad option '--inptu a.exr'"},
-      {"emva --preset x --size 8", "bad option '--size 8'"},
-      {"preview --input a.exr --out b.png --scale abc", "bad option '--scale abc'"},
-      {"preview --input a.exr --out b.png --scale -1", "bad option '--scale -1'"},
+      // Review finding: a value out of range now says the range.
+      {"tradeoff --input a.exr --frames 0", "bad option '--frames 0': expected a whole number in [1, 1000]"},
+      {"tradeoff --inptu a.exr", "bad option '--inptu a.exr': unknown option '--inptu'"},
+      {"emva --preset x --size 8", "bad option '--size 8': expected a whole number in [16, 4096]"},
+      {"emva --size 5", "bad option '--size 5': expected a whole number in [16, 4096]"},
+      {"emva --levels 19", "bad option '--levels 19': expected a whole number in [20, 1000]"},
+      {"preview --input a.exr --out b.png --scale abc", "bad option '--scale abc': expected a finite number > 0"},
+      {"preview --input a.exr --out b.png --scale -1", "bad option '--scale -1': expected a finite number > 0"},
+      {"preview --scale 0", "bad option '--scale 0': expected a finite number > 0"},
       {"preview --input a.exr --out", "--out needs a value"},
+      // ... and a missing --out is named (it printed the usage alone).
+      {"preview --input a.exr", "camsim: preview needs --out PNG\n"},
+      {"preview --out b.png", "camsim: preview needs --input EXR\n"},
+      {"config --chek a.toml", "camsim: config: unknown option '--chek'"},
   };
   for (const Case& c : cases) {
     const Result r = Camsim(c.args);
@@ -950,6 +958,57 @@ TEST(Cli, ReportToStandardOutput) {
   EXPECT_EQ(failed.code, 1);
   EXPECT_NE(failed.out.find("\"error\": \"--threads: '0' is not a whole number in [1, 64]\""), std::string::npos)
       << failed.out;
+  EXPECT_NE(Camsim("run --help").out.find("--report FILE|-"), std::string::npos);
+}
+
+// Review finding: only `camsim --help` and `camsim run --help` worked
+// (`emva --help`: "--help needs a value", `pattern --help`: "unknown pattern",
+// `camsim -h` failed), and an unknown command did not say so.
+TEST(Cli, EveryCommandHasHelp) {
+  for (const std::string command : {"run", "config", "pattern", "emva", "tradeoff", "preview"})
+    for (const std::string flag : {"--help", "-h"}) {
+      const Result r = Camsim(command + " " + flag);
+      EXPECT_EQ(r.code, 0) << command << " " << flag << ": " << r.err;
+      EXPECT_EQ(r.out.rfind("usage:\n  camsim " + command + " ", 0), 0u) << command << " " << flag << ": " << r.out;
+      EXPECT_EQ(r.err, "") << command << " " << flag;
+    }
+  // Anywhere on the line, and nothing runs.
+  const std::string dir = TempDir("help");
+  const Result late = Camsim("pattern checkerboard --out " + dir + "/p.exr --help");
+  EXPECT_EQ(late.code, 0) << late.err;
+  EXPECT_EQ(late.out.rfind("usage:\n  camsim pattern ", 0), 0u) << late.out;
+  EXPECT_FALSE(Exists(dir + "/p.exr"));
+  EXPECT_EQ(Camsim("emva --preset nosuch -h").code, 0);
+  for (const std::string flag : {"--help", "-h", "help"}) {
+    const Result all = Camsim(flag);
+    EXPECT_EQ(all.code, 0) << flag;
+    for (const char* command : {"camsim run ", "camsim config ", "camsim pattern ", "camsim emva ", "camsim tradeoff ",
+                                "camsim preview "})
+      EXPECT_NE(all.out.find(command), std::string::npos) << flag << ": " << command;
+  }
+  const Result bogus = Camsim("bogus");
+  EXPECT_EQ(bogus.code, 1);
+  EXPECT_EQ(bogus.err.rfind("camsim: unknown command 'bogus'\nusage:\n", 0), 0u) << bogus.err;
+  const Result none = Camsim("");
+  EXPECT_EQ(none.code, 1);
+  EXPECT_NE(none.err.find("camsim: no command given"), std::string::npos) << none.err;
+}
+
+// Review finding: an option without its value (`--config` last) exited at
+// once, leaving the report of an earlier, successful run at --report's path.
+TEST(Cli, AMissingOptionValueIsRecordedInTheReport) {
+  const std::string dir = TempDir("missing_value");
+  const std::string report = dir + "/o.json";
+  for (const char* last : {"--config", "--threads", "--set", "--report"}) {
+    ASSERT_EQ(Camsim("run --input " + kScene + " --out " + dir + " --quiet --report " + report).code, 0);
+    ASSERT_NE(Slurp(report).find("\"error\": null"), std::string::npos);
+    const Result r = Camsim("run --input " + kScene + " --out " + dir + " --quiet --report " + report + " " + last);
+    EXPECT_EQ(r.code, 1) << last;
+    EXPECT_NE(r.err.find(std::string("camsim: ") + last + " needs "), std::string::npos) << last << ": " << r.err;
+    // (A last --report without its path: the one given before records the failure.)
+    EXPECT_NE(Slurp(report).find(std::string("\"error\": \"") + last + " needs "), std::string::npos)
+        << last << ": " << Slurp(report);
+  }
 }
 
 TEST(Cli, ConfigDefaultRoundTrips) {
