@@ -895,7 +895,7 @@ bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins
   std::string value = assignment.substr(eq + 1);
   const Field* f = FindField(section, key);
   if (f == nullptr) {
-    *error = "--set: unknown key '" + section + "." + key + "'" + SuggestKey(section, key);
+    *error = "--set " + assignment + ": unknown key '" + section + "." + key + "'" + SuggestKey(section, key);
     return false;
   }
   // A string (a path: /abs, ./rel, C:\x) is taken as written unless quoted;
@@ -913,7 +913,9 @@ bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins
     return false;
   }
   *c = updated;
-  (*origins)[section + "." + key] = "--set";
+  // The whole argument, so that a later error about the key (a range the
+  // core checks) echoes it, as the parse errors above do.
+  (*origins)[section + "." + key] = "--set " + assignment;
   return true;
 }
 

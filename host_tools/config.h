@@ -52,7 +52,8 @@ struct RunConfig {
   bool meter_input = false;       // measure the input (ideal sensor) instead of the raw output
 };
 
-// Where each key was set, for error messages: "file:line" or "--set".
+// Where each key was set, for error messages: "file:line" or "--set KEY=VALUE"
+// (the argument as given).
 using Origins = std::map<std::string, std::string>;
 
 // Parses TOML text into *config (starting from its current values). Unknown

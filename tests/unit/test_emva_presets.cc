@@ -249,7 +249,7 @@ TEST(Emva, DarkSignalClippedAtZeroIsRefused) {
   EXPECT_FALSE(MeasureEmva(rc, origins, o, &r, &error)) << "dark noise " << r.measured.dark_noise_e << " e-";
   EXPECT_NE(error.find("% of the dark pixels read 0, more than the 0.5 % EMVA 1288 allows"), std::string::npos)
       << error;
-  EXPECT_NE(error.find("raise sensor.black_level_dn (0 DN, from --set)"), std::string::npos) << error;
+  EXPECT_NE(error.find("raise sensor.black_level_dn (0 DN, from --set sensor.black_level_dn=0)"), std::string::npos) << error;
   // 5 DN keeps the dark signal (2.6 e- at 0.375 DN/e-: 1 DN) off 0.
   ASSERT_TRUE(ApplyOverride("sensor.black_level_dn=5", &rc, &origins, &error)) << error;
   EXPECT_TRUE(MeasureEmva(rc, origins, o, &r, &error)) << error;

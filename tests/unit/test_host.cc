@@ -30,7 +30,7 @@ TEST(Config, OverridesAcceptBareWordsAndNameTheirOrigin) {
   EXPECT_EQ(c.core.white_balance.gain[2], 1.5);
   ASSERT_TRUE(ApplyOverride("pipeline.stages=[\"exposure\", \"cfa\", \"sensor\"]", &c, &origins, &error));
   EXPECT_EQ(c.core.order_count, 3);
-  EXPECT_EQ(origins["sensor.cfa"], "--set");
+  EXPECT_EQ(origins["sensor.cfa"], "--set sensor.cfa=BayerBG");  // the argument, echoed in later errors
   EXPECT_FALSE(ApplyOverride("sensor.cfa=BayerXY", &c, &origins, &error));
   EXPECT_NE(error.find("must be one of"), std::string::npos) << error;
   EXPECT_FALSE(ApplyOverride("white_balance.gain=[1, 2]", &c, &origins, &error));
@@ -67,7 +67,7 @@ TEST(Config, UnknownKeysSuggestFromTheirSection) {
   EXPECT_FALSE(ParseConfig("[sensr]\nx = 1\n", "f.toml", &c, &o, &error));
   EXPECT_NE(error.find("did you mean 'sensor'"), std::string::npos) << error;
   EXPECT_FALSE(ApplyOverride("sensor.nope=1", &c, &o, &error));
-  EXPECT_EQ(error, "--set: unknown key 'sensor.nope'");
+  EXPECT_EQ(error, "--set sensor.nope=1: unknown key 'sensor.nope'");
 }
 
 // What the parser refuses for every key, whether its stage runs or not: a
@@ -144,7 +144,8 @@ TEST(Config, CropErrorNamesTheDimensionTooLarge) {
   EXPECT_EQ(error, "f.toml:3: sensor.height is 700, larger than the input's 600; use sensor.scene_fit = \"scale\"");
   ASSERT_TRUE(ApplyOverride("sensor.width=900", &c, &o, &error)) << error;
   EXPECT_FALSE(FinishConfig(&c, 800, 600, o, 1, &error));  // both too large: the width first
-  EXPECT_EQ(error, "--set: sensor.width is 900, larger than the input's 800; use sensor.scene_fit = \"scale\"");
+  EXPECT_EQ(error, "--set sensor.width=900: sensor.width is 900, larger than the input's 800; use sensor.scene_fit = "
+                   "\"scale\"");
 }
 
 // Only a regular file is a configuration: a directory reads as nothing on
