@@ -599,8 +599,11 @@ bool SplitStages(const std::string& list, RunConfig* rc, std::string* error) {
   std::vector<std::string> names;
   std::stringstream ss(list);
   std::string name;
-  while (std::getline(ss, name, ','))
-    if (!name.empty()) names.push_back(name);
+  while (std::getline(ss, name, ',')) {
+    // "exposure, sensor": spaces around a name are not part of it.
+    const size_t a = name.find_first_not_of(" \t"), b = name.find_last_not_of(" \t");
+    if (a != std::string::npos) names.push_back(name.substr(a, b - a + 1));
+  }
   // --stages keeps the configured order and runs only the named stages.
   for (size_t i = 0; i < names.size(); ++i) {
     StageId id;

@@ -264,6 +264,22 @@ TEST(Cli, StagesRefuseARepeatedName) {
   EXPECT_NE(overflow.err.find("'sensor' is named more than once"), std::string::npos) << overflow.err;
 }
 
+// Review finding: `--stages 'exposure, sensor'` was refused over the space
+// ("unknown stage ' sensor'"): spaces around a name are not part of it.
+TEST(Cli, StagesTakeSpacesAroundNames) {
+  const std::string out = TempDir("stages_spaces");
+  const Result spaced = Camsim("run --input " + kScene + " --out " + out + " --quiet --stages ' exposure, sensor '" +
+                               " --report " + out + "/r.json");
+  ASSERT_EQ(spaced.code, 0) << spaced.err;
+  const std::string report = Slurp(out + "/r.json");
+  EXPECT_NE(report.find("{\"name\": \"sensor\", \"runs\": true"), std::string::npos) << report;
+  EXPECT_NE(report.find("{\"name\": \"exposure\", \"runs\": true"), std::string::npos) << report;
+  EXPECT_EQ(report.find("\"gamma\""), std::string::npos) << report;
+  const Result inside = Camsim("run --input " + kScene + " --out " + out + " --quiet --stages 'expo sure'");
+  EXPECT_EQ(inside.code, 1);
+  EXPECT_NE(inside.err.find("--stages: unknown stage 'expo sure'"), std::string::npos) << inside.err;
+}
+
 // The raw file holds each sample in the low adc_bits of a little-endian
 // 16-bit word; the sidecar says so, and names the GenICam PFNC format only
 // where one describes that layout (none does for 8 bits in 2 bytes).
