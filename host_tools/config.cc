@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <sstream>
+
+#include <sys/stat.h>
 
 #include <toml++/toml.h>
 
@@ -727,8 +730,16 @@ std::string ValueText(const Field& f, const RunConfig& c) {
   return "";
 }
 
-bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c, Origins* origins,
-                std::string* error) {
+// The keys whose value is a file the configuration reads, and where each is held.
+constexpr std::pair<const char*, std::string RunConfig::*> kPathKeys[] = {
+    {"sensor.defects_file", &RunConfig::defects_file},     {"distortion.calibration", &RunConfig::calibration},
+    {"distortion.mesh", &RunConfig::mesh},                 {"vignetting.mask", &RunConfig::vignetting_mask},
+    {"flare.environment_map", &RunConfig::environment_map}, {"auto_exposure.metering_image", &RunConfig::metering_image}};
+
+// base_dir: the directory relative paths of a configuration file are
+// resolved against (its own; "" for the current directory).
+bool ApplyTable(const toml::table& root, const std::string& source, const std::string& base_dir, RunConfig* c,
+                Origins* origins, std::string* error) {
   for (auto&& [section_key, section_node] : root) {
     const std::string section(section_key.str());
     const toml::table* t = section_node.as_table();
@@ -767,6 +778,12 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
         *error = Where(node, source) + ": " + name + " " + why;
         return false;
       }
+      if (!base_dir.empty())
+        for (const auto& [path_key, member] : kPathKeys) {
+          std::string& path = c->*member;
+          if (name == path_key && !path.empty() && path[0] != '/')
+            path = (base_dir == "/" ? base_dir : base_dir + "/") + path;
+        }
       (*origins)[name] = Where(node, source);
     }
   }
@@ -776,14 +793,15 @@ bool ApplyTable(const toml::table& root, const std::string& source, RunConfig* c
 }  // namespace
 
 std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfig& c) {
-  const std::pair<const char*, const std::string*> keys[] = {
-      {"sensor.defects_file", &c.defects_file},     {"distortion.calibration", &c.calibration},
-      {"distortion.mesh", &c.mesh},                 {"vignetting.mask", &c.vignetting_mask},
-      {"flare.environment_map", &c.environment_map}, {"auto_exposure.metering_image", &c.metering_image}};
   std::vector<std::pair<std::string, std::string>> files;
-  for (const auto& [key, path] : keys)
-    if (!path->empty()) files.emplace_back(key, *path);
+  for (const auto& [key, member] : kPathKeys)
+    if (!(c.*member).empty()) files.emplace_back(key, c.*member);
   return files;
+}
+
+std::string KeyWhere(const Origins& origins, const std::string& key) {
+  const auto it = origins.find(key);
+  return it == origins.end() || it->second.empty() ? key : it->second + ": " + key;
 }
 
 std::vector<std::string> ConfigKeys() {
@@ -858,16 +876,25 @@ bool CheckTomlText(const std::string& text, const std::string& source, std::stri
   return true;
 }
 
-bool ParseConfig(const std::string& text, const std::string& source, RunConfig* c, Origins* origins,
-                 std::string* error) {
+namespace {
+
+bool ParseConfigIn(const std::string& text, const std::string& source, const std::string& base_dir, RunConfig* c,
+                   Origins* origins, std::string* error) {
   if (!CheckTomlText(text, source, error)) return false;
   try {
     toml::table root = toml::parse(text, source);
-    return ApplyTable(root, source, c, origins, error);
+    return ApplyTable(root, source, base_dir, c, origins, error);
   } catch (const toml::parse_error& e) {
     *error = source + ":" + std::to_string(e.source().begin.line) + ": " + std::string(e.description());
     return false;
   }
+}
+
+}  // namespace
+
+bool ParseConfig(const std::string& text, const std::string& source, RunConfig* c, Origins* origins,
+                 std::string* error) {
+  return ParseConfigIn(text, source, "", c, origins, error);
 }
 
 bool LoadConfigFile(const std::string& path, RunConfig* c, Origins* origins, std::string* error) {
@@ -876,7 +903,24 @@ bool LoadConfigFile(const std::string& path, RunConfig* c, Origins* origins, std
     *error = path + ": cannot read configuration file: " + why;
     return false;
   }
-  return ParseConfig(text, path, c, origins, error);
+  // A relative file name in the file is relative to the file's directory,
+  // so that a configuration and the files it names move together: the
+  // directory `path` names, or through a symbolic link (/dev/stdin
+  // redirected from a file, too) the real file's. A stream (a pipe) has no
+  // directory: relative to the current directory.
+  struct stat st, link;
+  std::string base_dir;
+  if (stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
+    std::string file = path;
+    if (lstat(path.c_str(), &link) == 0 && S_ISLNK(link.st_mode)) {
+      char* real = realpath(path.c_str(), nullptr);
+      if (real != nullptr) file = real;
+      std::free(real);
+    }
+    const size_t slash = file.find_last_of('/');
+    if (slash != std::string::npos) base_dir = slash == 0 ? "/" : file.substr(0, slash);
+  }
+  return ParseConfigIn(text, path, base_dir, c, origins, error);
 }
 
 bool ApplyOverride(const std::string& assignment, RunConfig* c, Origins* origins, std::string* error) {
@@ -924,7 +968,10 @@ std::string ConfigToToml(const RunConfig& c, bool annotated) {
   if (annotated)
     out += "# camsim configuration. Every key is optional; these are the defaults.\n"
            "# Stage order is [pipeline] stages; stages that would change nothing are left out\n"
-           "# at run time and the report says why.\n";
+           "# at run time and the report says why.\n"
+           "# A relative file name in a key (defects_file, environment_map, metering_image,\n"
+           "# calibration, mesh, mask) is relative to this file's directory (a symbolic\n"
+           "# link's target's); given with --set, to the current directory.\n";
   std::string section;
   for (const Field& f : Fields()) {
     if (section != f.section) {
@@ -983,7 +1030,7 @@ bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, st
   if (!c->mesh.empty()) {
     auto data = std::make_shared<std::vector<float>>();
     if (!LoadDisplacementMesh(c->mesh, data.get(), &d.mesh.cols, &d.mesh.rows, &d.mesh.step, error)) {
-      *error = "distortion.mesh: " + *error;
+      *error = KeyWhere(origins, "distortion.mesh") + ": " + *error;
       return false;
     }
     c->mesh_data = data;
@@ -1008,7 +1055,7 @@ bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, st
     const bool fisheye_hint = d.lens.model == DistortionModel::kFisheye;
     if (!LoadCalibration(c->calibration, fisheye_hint, &cal, error) ||
         !FitCalibration(cal, g.width, g.height, &d.lens, error)) {
-      *error = "distortion.calibration: " + *error;
+      *error = KeyWhere(origins, "distortion.calibration") + ": " + *error;
       return false;
     }
     if (model_set && cal.names_model) {
@@ -1028,7 +1075,7 @@ bool ResolveDistortion(RunConfig* c, double pitch_mm, const Origins& origins, st
 
 // The flare environment map: loaded only when flare is on (and again only
 // when its path changes), seen through the lens's pinhole fx, fy, cx, cy.
-bool ResolveEnvironment(RunConfig* c, std::string* error) {
+bool ResolveEnvironment(RunConfig* c, const Origins& origins, std::string* error) {
   FlareEnvironment& env = c->core.flare.environment;
   env.texels = nullptr;
   env.width = env.height = 0;
@@ -1036,7 +1083,7 @@ bool ResolveEnvironment(RunConfig* c, std::string* error) {
   if (!c->environment_data || c->environment_data->path != c->environment_map) {
     auto map = std::make_shared<io::EnvironmentMap>();
     if (!io::LoadEnvironmentMap(c->environment_map, map.get(), error)) {
-      *error = "flare.environment_map: " + *error;
+      *error = KeyWhere(origins, "flare.environment_map") + ": " + *error;
       return false;
     }
     c->environment_data = map;
@@ -1107,14 +1154,14 @@ bool FinishConfig(RunConfig* c, int input_width, int input_height, const Origins
     p.motion_blur.cy_px = lens.cy;
     p.vignetting.focal_length_px = std::sqrt(lens.fx * lens.fy);
   }
-  if (!ResolveEnvironment(c, error)) return false;
+  if (!ResolveEnvironment(c, origins, error)) return false;
   p.sensor.defects = nullptr;
   p.sensor.defect_count = 0;
   if (!c->defects_file.empty()) {
     auto list = std::make_shared<std::vector<DefectPixel>>();
     if (!LoadDefectsFile(c->defects_file, p.geometry.width, p.geometry.height, p.geometry.adc_bits, list.get(),
                          error)) {
-      *error = "sensor.defects_file: " + *error;
+      *error = KeyWhere(origins, "sensor.defects_file") + ": " + *error;
       return false;
     }
     c->defects_data = list;

@@ -61,6 +61,13 @@ using Origins = std::map<std::string, std::string>;
 // key and line. Range checks happen in the core (ValidateConfig).
 bool ParseConfig(const std::string& text, const std::string& source_name, RunConfig* config, Origins* origins,
                  std::string* error);
+// Reads a configuration file. A relative path in a file-valued key
+// (sensor.defects_file, distortion.calibration, distortion.mesh,
+// vignetting.mask, flare.environment_map, auto_exposure.metering_image) is
+// taken relative to the file's directory (the one `path` names; through a
+// symbolic link, the real file's; a pipe has none: the current directory).
+// ParseConfig and ApplyOverride leave paths as given (relative to the
+// current directory).
 bool LoadConfigFile(const std::string& path, RunConfig* config, Origins* origins, std::string* error);
 // Applies one `section.key=value` override (value in TOML syntax; bare words are taken as strings).
 bool ApplyOverride(const std::string& assignment, RunConfig* config, Origins* origins, std::string* error);
@@ -74,7 +81,10 @@ std::string ConfigToToml(const RunConfig& config, bool annotated);
 std::vector<std::string> ConfigKeys();
 
 // The files a configuration reads besides its scene, as (key, path) for each
-// path key that is set: what no output of a run may overwrite.
+// path key that is set: what no output of a run may overwrite. A relative
+// path read from a configuration file (LoadConfigFile) has that file's
+// directory in front already; one from --set is relative to the current
+// directory.
 std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfig& config);
 
 // Fills in derived values (focal length in pixels, sizes) once the input size
@@ -87,6 +97,10 @@ std::vector<std::pair<std::string, std::string>> ConfigInputFiles(const RunConfi
 bool FinishConfig(RunConfig* config, int input_width, int input_height, const Origins& origins, int workers,
                   std::string* error, const Pipeline* previous = nullptr,
                   std::unique_ptr<Pipeline>* configured = nullptr);
+
+// "ORIGIN: key" (where the key was set, then its name), or the key alone when
+// its origin is not known: how an error about a key's file starts.
+std::string KeyWhere(const Origins& origins, const std::string& key);
 
 // Text of a core Status, with the origin of its field when known.
 std::string DescribeStatus(const Status& status, const Origins& origins);

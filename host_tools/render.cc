@@ -45,7 +45,7 @@ bool FrameRenderer::Install(PlannedPipeline planned, const Origins& origins, std
     return false;
   }
   if (!rc.vignetting_mask.empty()) {
-    if (mask_.data.empty() && !ReadWeightImage("vignetting.mask", rc.vignetting_mask, kMaxMaskGain, &mask_, error))
+    if (mask_.data.empty() && !ReadWeightImage(KeyWhere(origins, "vignetting.mask"), rc.vignetting_mask, kMaxMaskGain, &mask_, error))
       return false;
     PrepareMask(mask_, p->width(), p->height(), &input_);
   } else {

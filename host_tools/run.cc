@@ -803,7 +803,7 @@ int RunCommand(const RunOptions& o) {
         if (rc.metering == Metering::kImage) {
           io::FloatPlane wmap;
           // Weights above 1 count as 1 (MeteringWeights); NaN and negatives are refused.
-          if (!ReadWeightImage("auto_exposure.metering_image", rc.metering_image, HUGE_VAL, &wmap, &error)) {
+          if (!ReadWeightImage(KeyWhere(origins, "auto_exposure.metering_image"), rc.metering_image, HUGE_VAL, &wmap, &error)) {
             exit_code = 1;
             break;
           }

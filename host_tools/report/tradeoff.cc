@@ -381,7 +381,7 @@ int TradeoffCommand(const TradeoffOptions& o) {
   }
   io::FloatPlane mask;
   const bool has_mask = !rc.vignetting_mask.empty();
-  if (has_mask && !ReadWeightImage("vignetting.mask", rc.vignetting_mask, kMaxMaskGain, &mask, &error)) {
+  if (has_mask && !ReadWeightImage(KeyWhere(origins, "vignetting.mask"), rc.vignetting_mask, kMaxMaskGain, &mask, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;
   }

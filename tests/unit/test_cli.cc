@@ -1035,6 +1035,68 @@ TEST(Cli, AMissingOptionValueIsRecordedInTheReport) {
   }
 }
 
+// Review finding: a relative path in a configuration file (a defect list,
+// mask, map, calibration) was taken from the current directory, so a
+// configuration worked only when run from one place. It is now relative to
+// the file's directory (through a link: the real file's; a pipe: the
+// current directory); --set keeps the current directory; an error about the
+// file names the configuration file and line that set it.
+TEST(Cli, PathsInAConfigFileAreRelativeToIt) {
+  const std::string dir = TempDir("relpaths");
+  std::system(("mkdir -p '" + dir + "/cfg' '" + dir + "/elsewhere'").c_str());
+  std::ofstream(dir + "/cfg/d.txt") << "1,1,stuck\n";
+  std::ofstream(dir + "/cfg/cam.toml") << "[sensor]\nwidth = 64\nheight = 48\ndefects_file = \"d.txt\"\n";
+  const Result from_elsewhere = CamsimIn(dir + "/elsewhere", "config --check ../cfg/cam.toml");
+  EXPECT_EQ(from_elsewhere.code, 0) << from_elsewhere.err;
+  const Result run = CamsimIn(dir + "/elsewhere", "run --config ../cfg/cam.toml --input " + kScene +
+                                                      " --out out --quiet --report out/r.json");
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(Slurp(dir + "/elsewhere/out/r.json").find("\"error\": null"), std::string::npos);
+  ASSERT_EQ(symlink("../cfg/cam.toml", (dir + "/elsewhere/link.toml").c_str()), 0);
+  const Result linked = CamsimIn(dir + "/elsewhere", "config --check link.toml");
+  EXPECT_EQ(linked.code, 0) << linked.err;
+  const Result redirected = CamsimIn(dir + "/elsewhere", "config --check /dev/stdin < ../cfg/cam.toml");
+  EXPECT_EQ(redirected.code, 0) << redirected.err;
+  // A pipe has no directory: the current one.
+  const std::string piped = "cd '" + dir + "/cfg' && cat cam.toml | " + CAMSIM_BINARY +
+                            " config --check /dev/stdin >/dev/null 2>&1";
+  EXPECT_EQ(std::system(piped.c_str()), 0);
+
+  // The file and line that set the key, and the path as resolved.
+  std::ofstream(dir + "/cfg/bad.toml") << "[sensor]\nwidth = 64\nheight = 48\n\ndefects_file = \"none.txt\"\n";
+  const Result missing = CamsimIn(dir + "/elsewhere", "config --check ../cfg/bad.toml");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.err.find("camsim: ../cfg/bad.toml:5: sensor.defects_file: "), std::string::npos) << missing.err;
+  EXPECT_NE(missing.err.find("../cfg/none.txt"), std::string::npos) << missing.err;
+  std::ofstream(dir + "/cfg/map.toml") << "[flare]\nenabled = true\nenvironment_map = \"no_map.exr\"\n";
+  const Result map = CamsimIn(dir + "/elsewhere", "run --config ../cfg/map.toml --input " + kScene + " --out out");
+  EXPECT_EQ(map.code, 1);
+  EXPECT_NE(map.err.find("camsim: ../cfg/map.toml:3: flare.environment_map: "), std::string::npos) << map.err;
+  EXPECT_NE(map.err.find("../cfg/no_map.exr"), std::string::npos) << map.err;
+
+  // --set: the current directory.
+  const Result set_here = CamsimIn(dir + "/cfg", "run --input " + kScene +
+                                                    " --out ../out --quiet --set sensor.defects_file=d.txt");
+  EXPECT_EQ(set_here.code, 0) << set_here.err;
+  const Result set_elsewhere = CamsimIn(dir + "/elsewhere", "run --config ../cfg/cam.toml --input " + kScene +
+                                                                " --out out --quiet --set sensor.defects_file=d.txt");
+  EXPECT_EQ(set_elsewhere.code, 1);
+  EXPECT_NE(set_elsewhere.err.find("camsim: --set sensor.defects_file=d.txt: sensor.defects_file: "),
+            std::string::npos)
+      << set_elsewhere.err;
+
+  // The bundled demo camera's commented-out map works from anywhere once uncommented.
+  std::string demo = Slurp(kConfig);
+  const std::string commented = "# [flare]\n# enabled = true\n# environment_map = ";
+  ASSERT_NE(demo.find(commented), std::string::npos);
+  demo.replace(demo.find(commented), commented.size(), "[flare]\nenabled = true\nenvironment_map = ");
+  std::system(("mkdir -p '" + dir + "/configs'").c_str());
+  std::ofstream(dir + "/configs/camera.toml") << demo;
+  std::system(("ln -s '" + std::string(CAMSIM_SOURCE_DIR) + "/scenes' '" + dir + "/scenes'").c_str());
+  const Result demo_run = CamsimIn(dir + "/elsewhere", "config --check ../configs/camera.toml");
+  EXPECT_EQ(demo_run.code, 0) << demo_run.err;
+}
+
 TEST(Cli, ConfigDefaultRoundTrips) {
   const std::string dir = TempDir("default");
   const std::string cmd = std::string(CAMSIM_BINARY) + " config --default > '" + dir + "/d.toml'";
