@@ -10,6 +10,7 @@
 #include <new>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 #include <algorithm>
 #include <cmath>
@@ -199,9 +200,22 @@ int Config(int argc, char** argv) {
       return 1;
     }
     const bool stand_in = rc.width == 0 || rc.height == 0;
+    const camsim::host::RunConfig given = rc;
     if (!camsim::host::FinishConfig(&rc, rc.width ? rc.width : 640, rc.height ? rc.height : 480, origins, 1, &error)) {
       std::fprintf(stderr, "camsim: %s\n", error.c_str());
-      if (stand_in)
+      // The stand-in is worth a word only when the error can depend on the
+      // size: when the check at other sizes passes or says something else
+      // (not for f_number = 200 or adc_bits = 17).
+      bool size_matters = false;
+      for (const auto& [w, h] : {std::pair<int, int>{320, 240}, std::pair<int, int>{1920, 1080}}) {
+        camsim::host::RunConfig other = given;
+        std::string other_error;
+        size_matters = size_matters ||
+                       !(!camsim::host::FinishConfig(&other, given.width ? given.width : w,
+                                                     given.height ? given.height : h, origins, 1, &other_error) &&
+                         other_error == error);
+      }
+      if (stand_in && size_matters)
         std::fprintf(stderr,
                      "camsim: (the file sets no sensor.width and sensor.height, so this check used a 640x480 "
                      "stand-in; `camsim run` takes the size of its input)\n");

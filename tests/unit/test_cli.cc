@@ -603,11 +603,21 @@ TEST(Cli, ConfigCheckOfAdcBitsWithADefectsFile) {
   const Result r = Camsim("config --check " + dir + "/cam.toml");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("cam.toml:4: sensor.adc_bits must be 8 to 16"), std::string::npos) << r.err;
-  // Without a sensor size the check runs at a stand-in size, and says so.
-  std::ofstream(dir + "/nosize.toml") << "[sensor]\nadc_bits = 100\n";
+  // Without a sensor size the check runs at a stand-in size, and says so
+  // when the error can depend on the size (a defect outside 640x480)...
+  std::ofstream(dir + "/far.txt") << "700,10,stuck\n";
+  std::ofstream(dir + "/nosize.toml") << "[sensor]\ndefects_file = \"far.txt\"\n";
   const Result stand_in = Camsim("config --check " + dir + "/nosize.toml");
   EXPECT_EQ(stand_in.code, 1);
   EXPECT_NE(stand_in.err.find("used a 640x480 stand-in"), std::string::npos) << stand_in.err;
+  // ... and (review finding) not after an error no size can change.
+  for (const char* text : {"[sensor]\nadc_bits = 17\n", "[exposure]\nf_number = 200\n"}) {
+    std::ofstream(dir + "/nosize.toml") << text;
+    const Result r = Camsim("config --check " + dir + "/nosize.toml");
+    EXPECT_EQ(r.code, 1) << text;
+    EXPECT_NE(r.err.find("nosize.toml:2: "), std::string::npos) << text << r.err;
+    EXPECT_EQ(r.err.find("stand-in"), std::string::npos) << text << r.err;
+  }
 }
 
 // `camsim emva` and `camsim tradeoff` name the file and line of an
