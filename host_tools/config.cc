@@ -1012,8 +1012,9 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
   } else if (!origin("distortion.calibration").empty() &&
              (field == "distortion.model" ||
               std::find(std::begin(kCalibrationKeys), std::end(kCalibrationKeys), field) != std::end(kCalibrationKeys))) {
-    // The calibration file sets the camera (keys set beside it are refused).
-    where = origin("distortion.calibration") + ": distortion.calibration gives ";
+    // The calibration file sets the camera (keys set beside it are refused):
+    // "--calibration 'c.yaml': distortion.k1 (set by the calibration file): the radial model folds ...".
+    return origin("distortion.calibration") + ": " + field + " (set by the calibration file): " + s.message();
   } else {
     where = "(not set: the default, or derived from the input's size): ";
   }
