@@ -1,5 +1,6 @@
 #include "host_tools/calibration.h"
 
+#include <cstdio>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -62,7 +63,8 @@ bool TopLevel(const std::string& line) {
 }
 
 // The first top-level key that appears twice (a YAML mapping's keys are
-// unique; reading only the first would silently drop the second).
+// unique; reading only the first would silently drop the second), or the
+// first line that starts with ':' (*key empty: no key, so no YAML mapping).
 bool FindRepeatedKey(const std::string& text, std::string* key, int* line_no) {
   std::istringstream in(text);
   std::string line;
@@ -74,7 +76,7 @@ bool FindRepeatedKey(const std::string& text, std::string* key, int* line_no) {
     const size_t colon = line.find(':');
     if (colon == std::string::npos) continue;
     const std::string k = line.substr(0, colon);
-    if (!seen.emplace(k, n).second) {
+    if (k.empty() || !seen.emplace(k, n).second) {
       *key = k;
       *line_no = n;
       return true;
@@ -222,10 +224,26 @@ bool ParseCalibration(const std::string& file_text, const std::string& source, b
     *error = where;
     return false;
   };
+  // YAML is text without control characters (but tab, line feed and carriage
+  // return): anything else (an EXR or PNG given by mistake) is not a
+  // calibration file, said as such rather than as a parse error within it.
+  int text_line = 1;
+  for (const char ch : file_text) {
+    const unsigned char u = static_cast<unsigned char>(ch);
+    if (u == '\n') ++text_line;
+    if ((u < 0x20 && u != '\t' && u != '\n' && u != '\r') || u == 0x7f) {
+      char byte[8];
+      std::snprintf(byte, sizeof byte, "0x%02x", u);
+      return fail(text_line, std::string("not a calibration file: binary data (byte ") + byte +
+                                 "), not OpenCV or ROS calibration YAML text");
+    }
+  }
   const std::string text = StripComments(file_text);
   std::string block, why, repeated;
   int line = 0;
-  if (FindRepeatedKey(text, &repeated, &line)) return fail(line, repeated + " is given twice");
+  if (FindRepeatedKey(text, &repeated, &line))
+    return fail(line, repeated.empty() ? "not a calibration file: a line starts with ':' (no key), not YAML"
+                                       : repeated + " is given twice");
   if (!FindBlock(text, "camera_matrix", &block, &line)) {
     std::string what = "no camera_matrix (expected an OpenCV FileStorage YAML or a ROS camera_info YAML)";
     std::string unused;

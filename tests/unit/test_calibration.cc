@@ -505,6 +505,16 @@ TEST(Calibration, ParserChecksRowsColsRepeatsAndReadsComments) {
   const std::string twice = std::string(kRos) + "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n";
   EXPECT_FALSE(ParseCalibration(twice, "t.yaml", false, &c, &error));
   EXPECT_NE(error.find("t.yaml:17: camera_matrix is given twice"), std::string::npos) << error;
+  // Review finding: an EXR given as the calibration read as "c_bin.yaml:54:  is given twice" (an empty key).
+  std::string binary = kRos;
+  binary.insert(binary.find("camera_matrix"), std::string("v\x01\x00\x00:\n", 6));
+  EXPECT_FALSE(ParseCalibration(binary, "b.yaml", false, &c, &error));
+  EXPECT_NE(error.find("b.yaml:4: not a calibration file: binary data (byte 0x01)"), std::string::npos) << error;
+  EXPECT_FALSE(ParseCalibration(std::string(kRos) + ":x\n:y\n", "e.yaml", false, &c, &error));
+  EXPECT_NE(error.find("e.yaml:17: not a calibration file: a line starts with ':'"), std::string::npos) << error;
+  const std::string exr = CAMSIM_SOURCE_DIR "/scenes/aisle_0001.exr";
+  EXPECT_FALSE(LoadCalibration(exr, false, &c, &error));
+  EXPECT_NE(error.find(exr + ":1: not a calibration file: binary data"), std::string::npos) << error;
   std::string data_twice = kRos;
   data_twice.insert(data_twice.find("distortion_model"), "  data: [1, 0, 1, 0, 1, 1, 0, 0, 1]\n");
   EXPECT_FALSE(ParseCalibration(data_twice, "d.yaml", false, &c, &error));
