@@ -344,7 +344,11 @@ int Preview(int argc, char** argv) {
     return 1;
   }
   camsim::io::SceneFrame scene;
-  std::string error;
+  std::string error, target;
+  if (!camsim::io::WritableTarget(output, &target, &error)) {  // a FIFO or device: refused before the work
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 2;
+  }
   if (!camsim::io::LoadSceneExr(input, "", &scene, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 1;

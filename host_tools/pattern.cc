@@ -175,9 +175,13 @@ int PatternCommand(int argc, char** argv) {
     std::fprintf(stderr, "camsim: --out FILE.exr is required\n%s", usage);
     return 1;
   }
+  std::string error, target;
+  if (!io::WritableTarget(out, &target, &error)) {  // a FIFO or device: refused before rendering
+    std::fprintf(stderr, "camsim: %s\n", error.c_str());
+    return 2;
+  }
   const std::vector<float> img = RenderPattern(o);
   std::vector<io::ExrChannel> ch = {{"R", img.data(), o.width}, {"G", img.data(), o.width}, {"B", img.data(), o.width}};
-  std::string error;
   if (!io::WriteExrFloat(out, o.width, o.height, ch, &error)) {
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 2;

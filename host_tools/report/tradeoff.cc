@@ -394,6 +394,17 @@ int TradeoffCommand(const TradeoffOptions& o) {
     std::fprintf(stderr, "camsim: cannot create output directory '%s': %s\n", o.out_dir.c_str(), why);
     return 2;
   }
+  // The files to write, checked before the sweep: a FIFO, device or
+  // directory in the way is refused now; a symbolic link is written through
+  // (its target replaced, as the io writers do).
+  const std::string out = o.out_dir + "/tradeoff";
+  const std::string names[3] = {out + ".csv", out + ".md", out + ".png"};
+  std::string targets[3];
+  for (int i = 0; i < 3; ++i)
+    if (!io::WritableTarget(names[i], &targets[i], &error)) {
+      std::fprintf(stderr, "camsim: %s\n", error.c_str());
+      return 2;
+    }
 
   // The configuration as given; it stays in the results only when no knob is
   // swept (otherwise the knob's configured value is the same run).
@@ -556,27 +567,29 @@ int TradeoffCommand(const TradeoffOptions& o) {
   spec.x_label = "ms per frame (1 thread)";
   spec.y_label = "RMS error, " + settings[0].output_unit;
   spec.log_y = true;
-  // The three files belong together: each is written as NAME.new, and only
-  // when all are written (and no directory takes a final name, which rename
-  // cannot replace) are they renamed over the old ones.
-  const std::string out = o.out_dir + "/tradeoff";
-  const std::string names[3] = {out + ".csv", out + ".md", out + ".png"};
-  bool ok = io::WriteTextFile(names[0] + ".new", csv.str(), &error) &&
-            io::WriteTextFile(names[1] + ".new", md.str(), &error) &&
-            WriteScatterPng(names[2] + ".new", spec, points, &error);
-  for (int i = 0; i < 3 && ok; ++i)
-    if (lstat(names[i].c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
-      error = "cannot write '" + names[i] + "': a directory of that name is in the way";
+  // The three files belong together: each is written as TARGET.new (beside
+  // the file a link points to), and only when all are written (and nothing
+  // but a regular file has since taken a final name: rename would replace a
+  // FIFO and cannot replace a directory) are they renamed over the old ones.
+  bool ok = io::WriteTextFile(targets[0] + ".new", csv.str(), &error) &&
+            io::WriteTextFile(targets[1] + ".new", md.str(), &error) &&
+            WriteScatterPng(targets[2] + ".new", spec, points, &error);
+  for (int i = 0; i < 3 && ok; ++i) {
+    std::string now;
+    ok = io::WritableTarget(names[i], &now, &error);
+    if (ok && now != targets[i]) {
+      error = "cannot write '" + names[i] + "': it became a link to '" + now + "' during the run";
       ok = false;
     }
+  }
   for (int i = 0; i < 3 && ok; ++i)
-    if (std::rename((names[i] + ".new").c_str(), names[i].c_str()) != 0) {
-      error = "cannot write '" + names[i] + "': renaming '" + names[i] + ".new' onto it failed: " +
+    if (std::rename((targets[i] + ".new").c_str(), targets[i].c_str()) != 0) {
+      error = "cannot write '" + names[i] + "': renaming '" + targets[i] + ".new' onto it failed: " +
               std::strerror(errno);
       ok = false;
     }
   if (!ok) {
-    for (const std::string& n : names) std::remove((n + ".new").c_str());
+    for (const std::string& n : targets) std::remove((n + ".new").c_str());
     std::fprintf(stderr, "camsim: %s\n", error.c_str());
     return 2;
   }

@@ -678,6 +678,42 @@ TEST(Cli, TradeoffWritesAllThreeOrNone) {
   EXPECT_EQ(Slurp(out + "/tradeoff.png").substr(1, 3), "PNG");
 }
 
+// The review's finding on `camsim run`'s outputs held for tradeoff's three
+// files, preview's and pattern's too: a FIFO in the way was replaced by a
+// regular file (after the work), a symbolic link by the file. Now a FIFO is
+// refused before the work, and a link written through.
+TEST(Cli, TradeoffPreviewAndPatternRefuseAFifoAndFollowALink) {
+  const std::string dir = TempDir("tool_outputs");
+  const std::string out = dir + "/out";
+  std::system(("mkdir -p '" + out + "'").c_str());
+  ASSERT_EQ(mkfifo((out + "/tradeoff.md").c_str(), 0644), 0);
+  const std::string args = "tradeoff --input " + kScene + " --frames 1 --set sensor.width=64 --set sensor.height=48" +
+                           " --set 'pipeline.stages=[\"exposure\", \"cfa\", \"sensor\"]' --out " + out;
+  const Result fifo = Camsim(args);
+  EXPECT_EQ(fifo.code, 2);
+  EXPECT_NE(fifo.err.find("cannot write '" + out + "/tradeoff.md': it is a FIFO"), std::string::npos) << fifo.err;
+  EXPECT_EQ(fifo.err.find("wrote"), std::string::npos) << fifo.err;
+  struct stat st;
+  EXPECT_TRUE(lstat((out + "/tradeoff.md").c_str(), &st) == 0 && S_ISFIFO(st.st_mode));
+  std::remove((out + "/tradeoff.md").c_str());
+  ASSERT_EQ(symlink("../kept.csv", (out + "/tradeoff.csv").c_str()), 0);
+  const Result linked = Camsim(args);
+  ASSERT_EQ(linked.code, 0) << linked.err;
+  EXPECT_TRUE(lstat((out + "/tradeoff.csv").c_str(), &st) == 0 && S_ISLNK(st.st_mode));
+  EXPECT_EQ(Slurp(dir + "/kept.csv").rfind("knob,value,", 0), 0u);
+  EXPECT_FALSE(Exists(dir + "/kept.csv.new"));
+
+  ASSERT_EQ(mkfifo((dir + "/p.exr").c_str(), 0644), 0);
+  const Result pattern = Camsim("pattern checkerboard --width 64 --height 48 --out " + dir + "/p.exr");
+  EXPECT_EQ(pattern.code, 2);
+  EXPECT_NE(pattern.err.find("'" + dir + "/p.exr': it is a FIFO"), std::string::npos) << pattern.err;
+  ASSERT_EQ(mkfifo((dir + "/v.png").c_str(), 0644), 0);
+  const Result preview = Camsim("preview --input " + kScene + " --out " + dir + "/v.png");
+  EXPECT_EQ(preview.code, 2);
+  EXPECT_NE(preview.err.find("'" + dir + "/v.png': it is a FIFO"), std::string::npos) << preview.err;
+  EXPECT_TRUE(lstat((dir + "/v.png").c_str(), &st) == 0 && S_ISFIFO(st.st_mode));
+}
+
 TEST(Cli, BadInputsFailClearlyAndKeepEarlierOutputs) {
   const std::string dir = TempDir("badin");
   // A sequence: a good frame, then a truncated one.
