@@ -96,7 +96,7 @@ bool ReadOptionPairs(int argc, char** argv, const char* usage, Take take) {
   return true;
 }
 
-// Takes a whole number in [lo, hi] for `option`, or says the range in *why.
+// Takes a whole number in [lo, hi] into *out, or says the range in *why.
 bool TakeInt(const char* v, long lo, long hi, int* out, std::string* why) {
   long n = 0;
   if (!ParseInt(v, lo, hi, &n)) {
@@ -208,6 +208,7 @@ int Config(int argc, char** argv) {
       // (not for f_number = 200 or adc_bits = 17).
       bool size_matters = false;
       for (const auto& [w, h] : {std::pair<int, int>{320, 240}, std::pair<int, int>{1920, 1080}}) {
+        if (!stand_in) break;
         camsim::host::RunConfig other = given;
         std::string other_error;
         size_matters = size_matters ||
