@@ -613,10 +613,10 @@ TEST(Cli, ConfigCheckOfAdcBitsWithADefectsFile) {
   // ... and (review finding) not after an error no size can change.
   for (const char* text : {"[sensor]\nadc_bits = 17\n", "[exposure]\nf_number = 200\n"}) {
     std::ofstream(dir + "/nosize.toml") << text;
-    const Result r = Camsim("config --check " + dir + "/nosize.toml");
-    EXPECT_EQ(r.code, 1) << text;
-    EXPECT_NE(r.err.find("nosize.toml:2: "), std::string::npos) << text << r.err;
-    EXPECT_EQ(r.err.find("stand-in"), std::string::npos) << text << r.err;
+    const Result fixed = Camsim("config --check " + dir + "/nosize.toml");
+    EXPECT_EQ(fixed.code, 1) << text;
+    EXPECT_NE(fixed.err.find("nosize.toml:2: "), std::string::npos) << text << fixed.err;
+    EXPECT_EQ(fixed.err.find("stand-in"), std::string::npos) << text << fixed.err;
   }
 }
 
