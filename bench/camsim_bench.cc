@@ -113,6 +113,24 @@ const bool kPipelineRows = [] {
   return true;
 }();
 
+// LoadExr/W: reading the bundled scene of width W (Blender multi-layer, ZIP:
+// colour half, depth and vectors float) as `camsim run` reads its inputs,
+// the chunk check included (wall time; the check and Imf's pool use every core).
+void BM_LoadExr(benchmark::State& state) {
+  const std::string path = std::string(CAMSIM_SOURCE_DIR "/scenes/") +
+                           (state.range(0) == 1920 ? "aisle1080_0001.exr" : "aisle_0001.exr");
+  for (auto _ : state) {
+    io::SceneFrame frame;
+    std::string error;
+    if (!io::LoadSceneExr(path, "", &frame, &error)) {
+      state.SkipWithError(error.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(frame.r.data.data());
+  }
+}
+BENCHMARK(BM_LoadExr)->Arg(640)->Arg(1920)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The demo camera with diffusion depth of field in front (issue 7's "whole
 // default pipeline including diffusion DoF"): the strong blur of dof_bench.cc
 // (28 mm, f/1.4, focus 1 m, 18.75 um pixels: CoC ~10..31 px), column window 32.
