@@ -334,7 +334,7 @@ std::vector<io::ExrAttribute> CodeAttributes(const std::string& code_channel, Do
 // Writes one tapped image as an EXR: FLOAT channels R, G, B (Y for one
 // channel) in the domain's physical unit, code * 2^-DomainFracBits rounded
 // to float (exact up to 2^24 codes). With `stage` (the --dump-stages
-// images), also the exact line samples as UINT channels code.R, code.G,
+// images and a run's own NAME.exr), also the exact line samples as UINT channels code.R, code.G,
 // code.B (code.Y), and in the header "camsim/stage" (its name) and per code
 // channel "camsim/code.C/format" (DomainName: "photons Q24.8", ...),
 // "camsim/code.C/unit" and "camsim/code.C/scale" (double: C = code.C * scale).
@@ -1017,7 +1017,11 @@ int RunCommand(const RunOptions& o) {
     } else {
       std::vector<uint32_t> data(reinterpret_cast<const uint32_t*>(buffers[0].data()),
                                  reinterpret_cast<const uint32_t*>(buffers[0].data()) + buffers[0].size() / 4);
-      ok = WriteStageImage(stem, out_fmt, data, w, h, nullptr, &rec.outputs, &error);
+      // The last running stage's output, described as a --dump-stages image.
+      const char* last = nullptr;
+      for (int i = 0; i < plan.count; ++i)
+        if (plan.entries[i].runs) last = StageName(plan.entries[i].id);
+      ok = WriteStageImage(stem, out_fmt, data, w, h, last, &rec.outputs, &error);
     }
     if (ok && raw_tap) write_raw(buffers[1], formats[static_cast<size_t>(sensor_index)].channels);
     if (ok && o.dump_stages) {

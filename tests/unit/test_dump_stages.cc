@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -147,10 +148,15 @@ TEST_P(DumpStages, CodeChannelsAreTheStageOutputExactly) {
   }
   renderer.Render(0, taps.data(), static_cast<int>(taps.size()), nullptr);
 
-  for (size_t r = 0; r < dc.dumps.size(); ++r) {
+  // Each dump, and a run's own NAME.exr (a run that ends before the sensor:
+  // its last stage's output, described as the dumps are).
+  std::vector<std::pair<std::string, size_t>> images;  // path, dump index
+  for (size_t r = 0; r < dc.dumps.size(); ++r)
+    images.push_back({o.out_dir + "/scene." + std::to_string(r) + "_" + dc.dumps[r].stage + ".exr", r});
+  if (std::strcmp(dc.dumps.back().stage, "sensor") != 0) images.push_back({o.out_dir + "/scene.exr", dc.dumps.size() - 1});
+  for (const auto& [path, r] : images) {
     const Expected& e = dc.dumps[r];
     size_t above_float = 0;  // codes above 2^24 that float32 does not hold
-    const std::string path = o.out_dir + "/scene." + std::to_string(r) + "_" + e.stage + ".exr";
     SCOPED_TRACE(path);
     Imf::InputFile in(path.c_str());
     const Imf::Header& header = in.header();
