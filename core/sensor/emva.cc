@@ -85,6 +85,26 @@ DcnuMoments DcnuFactorMoments(double s) {
 
 }  // namespace
 
+namespace {
+
+// Fills t with one entry per pixel of each of `channels` planes, rows in
+// order, as ProcessRow draws them: pixel x of row y, channel ch, is
+// entry(b, x & 1) of b = DrawBits(seed, stream, 0, x >> 1, y, ch), one call
+// serving a pixel pair (emva.h, "Random words").
+template <typename T, typename Entry>
+void FillPixelTable(T* t, uint64_t seed, uint32_t stream, const SensorGeometry& g, int channels, Entry entry) {
+  for (int ch = 0; ch < channels; ++ch)
+    for (int y = 0; y < g.height; ++y)
+      for (int x = 0; x < g.width; x += 2) {
+        const RandomBits b =
+            DrawBits(seed, stream, 0, static_cast<uint32_t>(x) >> 1, static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
+        *t++ = entry(b, 0);
+        if (x + 1 < g.width) *t++ = entry(b, 1);
+      }
+}
+
+}  // namespace
+
 double ReferenceDarkChargeMean(const SensorConfig& c, double exposure_time_us) {
   const double dark = DarkElectrons(c, exposure_time_us);
   return c.dcnu_percent > 0 ? dark * DcnuFactorMoments(c.dcnu_percent / 100.0).mean : dark;
@@ -293,14 +313,10 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
       std::memcpy(t, previous->pattern_, PatternEntries() * sizeof(PatternEntry));
       ++*copied;
     } else {
-      for (int ch = 0; ch < input_channels_; ++ch)
-        for (int y = 0; y < geometry_.height; ++y)
-          for (int x = 0; x < geometry_.width; x += 2) {
-            const RandomBits b = DrawBits(seed_, kStreamSensorFixedPattern, 0, static_cast<uint32_t>(x) >> 1,
-                                          static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
-            *t++ = Pattern(gauss_.Sample(b.v[0]), gauss_.Sample(b.v[1]));
-            if (x + 1 < geometry_.width) *t++ = Pattern(gauss_.Sample(b.v[2]), gauss_.Sample(b.v[3]));
-          }
+      FillPixelTable(t, seed_, kStreamSensorFixedPattern, geometry_, input_channels_,
+                     [&](const RandomBits& b, int odd) {
+                       return Pattern(gauss_.Sample(b.v[2 * odd]), gauss_.Sample(b.v[2 * odd + 1]));
+                     });
     }
   }
   dark_gain_ = nullptr;
@@ -315,14 +331,8 @@ Status SensorStage::Build(Arena& tables, const SensorStage* previous, int* copie
       std::memcpy(t, previous->dark_gain_, PatternEntries() * sizeof(uint32_t));
       ++*copied;
     } else {
-      for (int ch = 0; ch < input_channels_; ++ch)
-        for (int y = 0; y < geometry_.height; ++y)
-          for (int x = 0; x < geometry_.width; x += 2) {
-            const RandomBits b = DrawBits(seed_, kStreamSensorDarkCurrent, 0, static_cast<uint32_t>(x) >> 1,
-                                          static_cast<uint32_t>(y), static_cast<uint32_t>(ch));
-            *t++ = DarkGain(gauss_.Sample(b.v[0]));
-            if (x + 1 < geometry_.width) *t++ = DarkGain(gauss_.Sample(b.v[2]));
-          }
+      FillPixelTable(t, seed_, kStreamSensorDarkCurrent, geometry_, input_channels_,
+                     [&](const RandomBits& b, int odd) { return DarkGain(gauss_.Sample(b.v[2 * odd])); });
     }
   }
   column_offset_ = nullptr;
