@@ -466,7 +466,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   const bool hooked = trial != nullptr && FakeCameraHooksInForce(trial);
   if (trial != nullptr) g_object_unref(trial);
   if (!hooked) {
-    *error = "libaravis's accesses to the fake camera's memory, or its GLib socket calls, do not go through "
+    *error = "libaravis's accesses to the fake camera's memory, its GLib socket calls or its trigger "
+             "acknowledgement do not go through "
              "camsim's hooks (genicam/fake_camera_hooks.cc: camsim_genicam linked into a shared library, or a "
              "libaravis linked with -Bsymbolic): without them one GVCP packet outside the memory map would crash "
              "the camera, refused writes would not be refused as they arrive, and clients would see them "
@@ -832,10 +833,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       ++d->writes_refused_;
       return {false, GevStatus::kWriteProtect};
     }
+    // (The fake camera's own write that acknowledges a trigger is not a
+    // client's: fake_camera_hooks.cc. A client's 0 there would withdraw a
+    // frame the device asked for, and each queued trigger would answer one late.)
     if (!IsDeviceRange(r)) continue;
-    // The fake camera acknowledges a trigger by writing 0 through the same
-    // path as a client (arv_fake_camera_check_and_acknowledge_software_trigger).
-    if (r == reg::kFakeTriggerSoftware && size == 4 && value(r) == 0) continue;
     bool described = false;
     for (const Feature& f : d->registers_) described = described || (r >= f.address && r < f.address + f.length);
     if (!described) {

@@ -1,7 +1,9 @@
 // The hooks in front of Aravis's fake camera (Aravis 0.8.26, Debian 12), by
 // ELF symbol interposition: libaravis calls arv_fake_camera_read_memory and
 // _write_memory through its PLT (from its GVCP thread, and from
-// read_register / write_register), and GLib's g_socket_receive_message,
+// read_register / write_register), and
+// arv_fake_camera_check_and_acknowledge_software_trigger (from its GVCP
+// thread), and GLib's g_socket_receive_message,
 // g_socket_send_to and g_poll too (its GVCP thread's), so these
 // definitions in the executable take their place, and pass what they let
 // through to the next definition (dlsym RTLD_NEXT: libaravis's, GLib's).
@@ -35,7 +37,12 @@
 // Write filter: the device decides on a client's write when it arrives, in
 // the order the writes came (GigeDevice::FilterClientWrite), instead of at
 // its next register sync. From a camera's creation until its filter is
-// set, UnfilteredWritesRefused refuses its clients' writes.
+// set, UnfilteredWritesRefused refuses its clients' writes. The fake
+// camera's own write of 0 that acknowledges a software trigger is made
+// inside arv_fake_camera_check_and_acknowledge_software_trigger, which the
+// hooks run as a device write (DeviceWrites): so the filter can refuse every
+// client write to that register, and a client's 0 can no longer pass for
+// the acknowledgement and withdraw a frame the device asked for.
 //
 // Status: the fake camera acknowledges every access it answers as a
 // success. The control packet its thread received (g_socket_receive_message)
@@ -316,6 +323,16 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   return f != nullptr ? Refuse(verdict.status) : RefuseClientWrite(verdict.status);
 }
 
+// The fake camera's acknowledgement of a software trigger (its GVCP thread,
+// before it fills a frame): its write of 0 to the trigger register is the
+// camera's own, not a client's, so it passes the filter unseen.
+extern "C" gboolean arv_fake_camera_check_and_acknowledge_software_trigger(ArvFakeCamera* camera) {
+  static const auto next = Next<gboolean (*)(ArvFakeCamera*)>("arv_fake_camera_check_and_acknowledge_software_trigger");
+  if (next == nullptr) return FALSE;
+  const camsim::genicam::DeviceWrites own;
+  return next(camera);
+}
+
 // The fake camera's thread receives each control packet into one buffer.
 // A malformed one is answered here and hidden from it.
 extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** address, GInputVector* vectors,
@@ -473,15 +490,19 @@ bool FakeCameraHooksInForce(ArvFakeCamera* camera) {
   DeviceWrites own;
   const uint64_t reads = t_reads, writes = t_writes;
   arv_fake_camera_set_control_channel_privilege(camera, arv_fake_camera_get_control_channel_privilege(camera));
-  // libaravis calls GLib through its PLT, so a call resolves to the first
-  // definition in the process, the hooks' when they are exported.
-  const bool sockets =
+  // libaravis calls GLib, and its own trigger acknowledgement, through its
+  // PLT, so a call resolves to the first definition in the process, the
+  // hooks' when they are exported.
+  const bool calls =
+      dlsym(RTLD_DEFAULT, "arv_fake_camera_check_and_acknowledge_software_trigger") ==
+          reinterpret_cast<void*>(&arv_fake_camera_check_and_acknowledge_software_trigger) &&
+      Next<void*>("arv_fake_camera_check_and_acknowledge_software_trigger") != nullptr &&
       dlsym(RTLD_DEFAULT, "g_socket_receive_message") == reinterpret_cast<void*>(&g_socket_receive_message) &&
       dlsym(RTLD_DEFAULT, "g_socket_send_to") == reinterpret_cast<void*>(&g_socket_send_to) &&
       dlsym(RTLD_DEFAULT, "g_poll") == reinterpret_cast<void*>(&g_poll) &&
       Next<void*>("g_socket_receive_message") != nullptr && Next<void*>("g_socket_send_to") != nullptr &&
       Next<void*>("g_poll") != nullptr;
-  return t_reads > reads && t_writes > writes && sockets && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
+  return t_reads > reads && t_writes > writes && calls && Next<ReadFn>("arv_fake_camera_read_memory") != nullptr &&
          Next<WriteFn>("arv_fake_camera_write_memory") != nullptr;
 }
 

@@ -1,7 +1,9 @@
 // What camsim puts in front of Aravis's fake camera: range checks on its
 // memory (arv_fake_camera_read_memory / _write_memory, which its GVCP thread
 // and every register access go through), a filter a device sets on the
-// writes its clients make, and the GVCP status of each refused access in the
+// writes its clients make (the fake camera's own write that acknowledges a
+// software trigger is told apart: arv_fake_camera_check_and_acknowledge_
+// software_trigger), and the GVCP status of each refused access in the
 // acknowledgement (g_socket_receive_message / g_socket_send_to of its control
 // socket, and g_poll for the packets it leaves unanswered).
 // fake_camera_hooks.cc says how.
@@ -17,7 +19,8 @@ inline constexpr uint16_t kGvcpPort = 3956;  // GigE Vision's control port
 
 // True when libaravis's own accesses to `camera`'s memory go through the
 // hooks (tried with a read and a write of its control privilege register),
-// and its socket calls too (they resolve to the hooks). Without them one GVCP
+// and its socket calls and trigger acknowledgement too (they resolve to the
+// hooks). Without them one GVCP
 // packet outside the memory map would crash the camera, no filter runs, and
 // refused writes are acknowledged: GigeDevice::Init refuses to start then.
 bool FakeCameraHooksInForce(ArvFakeCamera* camera);

@@ -1033,6 +1033,7 @@ TEST(GigeRegisters, RegistersNoFeatureDescribesRefuseClientWrites) {
   WriteRegRefused(*d, reg::kFakeTriggerMode, Be32(1 - mode));
   WriteRegRefused(*d, reg::kFakeFramePeriodUs, Be32(period + 1000));
   WriteRegRefused(*d, reg::kFakeTriggerSoftware, Be32(1));
+  WriteRegRefused(*d, reg::kFakeTriggerSoftware, Be32(0));  // the fake camera's acknowledgement is not a client's
   WriteRegRefused(*d, 0x9000, Be32(1));
   // A block with one undescribed register is refused whole: BlackLevel (a
   // Float at 0x8050) and the unused word after it.
@@ -1045,7 +1046,7 @@ TEST(GigeRegisters, RegistersNoFeatureDescribesRefuseClientWrites) {
   EXPECT_EQ(ReadReg32(*d, reg::kFakeFramePeriodUs), period);
   EXPECT_EQ(ReadReg32(*d, reg::kFakeTriggerSoftware), 0u);
   EXPECT_EQ(ReadReg32(*d, 0x9000), 0u);
-  EXPECT_EQ(d->writes_refused(), 5u);
+  EXPECT_EQ(d->writes_refused(), 6u);
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
 }
@@ -2258,17 +2259,7 @@ class RawController {
   static void Put32(std::vector<uint8_t>* b, uint32_t v) {
     for (int i = 0; i < 4; ++i) b->push_back(static_cast<uint8_t>(v >> (24 - 8 * i)));
   }
-  static uint32_t Get32(const std::vector<uint8_t>& b, size_t at) {
-    return uint32_t{b[at]} << 24 | uint32_t{b[at + 1]} << 16 | uint32_t{b[at + 2]} << 8 | b[at + 3];
-  }
-
- public:
-  // Sends a GVCP command (header: key 0x42, flag "acknowledge", command,
-  // length of body, request id) and waits for its acknowledgement (command
-  // + 1, same request id). length < 0: the body's length.
-  bool Command(uint16_t command, const std::vector<uint8_t>& body, std::vector<uint8_t>* ack, int length = -1) {
-    status_ = kNoAck;
-    const uint16_t id = ++id_;
+  bool Send(uint16_t command, const std::vector<uint8_t>& body, uint16_t id, int length) {
     const uint16_t n = static_cast<uint16_t>(length < 0 ? body.size() : length);
     std::vector<uint8_t> cmd = {0x42, 0x01, uint8_t(command >> 8), uint8_t(command), uint8_t(n >> 8), uint8_t(n),
                                 uint8_t(id >> 8), uint8_t(id)};
@@ -2277,16 +2268,45 @@ class RawController {
     to.sin_family = AF_INET;
     to.sin_port = htons(3956);
     to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (sendto(fd_, cmd.data(), cmd.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof to) !=
-        static_cast<ssize_t>(cmd.size()))
-      return false;
-    // The fake camera answers between frames: one packet per frame when they come back to back.
+    return sendto(fd_, cmd.data(), cmd.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof to) ==
+           static_cast<ssize_t>(cmd.size());
+  }
+  static uint32_t Get32(const std::vector<uint8_t>& b, size_t at) {
+    return uint32_t{b[at]} << 24 | uint32_t{b[at + 1]} << 16 | uint32_t{b[at + 2]} << 8 | b[at + 3];
+  }
+
+ public:
+  // WRITEREG_CMD of one register, sent without waiting for its
+  // acknowledgement (the next Command skips it).
+  void PostWrite(uint32_t address, uint32_t value) {
+    std::vector<uint8_t> body;
+    Put32(&body, address);
+    Put32(&body, value);
+    Send(0x82, body, ++id_, -1);
+    posted_ = id_;
+  }
+  // Sends a GVCP command (header: key 0x42, flag "acknowledge", command,
+  // length of body, request id) and waits for its acknowledgement (command
+  // + 1, same request id). length < 0: the body's length.
+  bool Command(uint16_t command, const std::vector<uint8_t>& body, std::vector<uint8_t>* ack, int length = -1) {
+    status_ = kNoAck;
+    const uint16_t id = ++id_;
+    if (!Send(command, body, id, length)) return false;
+    // The fake camera answers between frames: one packet per frame when they
+    // come back to back. Acknowledgements of commands Post sent are skipped.
     std::vector<uint8_t> reply(2048);
-    pollfd p{fd_, POLLIN, 0};
-    if (poll(&p, 1, 10000) <= 0) return false;
-    const ssize_t got = recv(fd_, reply.data(), reply.size(), 0);
-    if (got < 8 || (uint16_t(reply[2] << 8 | reply[3])) != command + 1 || (uint16_t(reply[6] << 8 | reply[7])) != id)
-      return false;
+    ssize_t got = 0;
+    for (;;) {
+      pollfd p{fd_, POLLIN, 0};
+      if (poll(&p, 1, 10000) <= 0) return false;
+      got = recv(fd_, reply.data(), reply.size(), 0);
+      if (got < 8 || (uint16_t(reply[6] << 8 | reply[7])) != id) {
+        if (got >= 8 && (uint16_t(reply[6] << 8 | reply[7])) <= posted_) continue;
+        return false;
+      }
+      break;
+    }
+    if ((uint16_t(reply[2] << 8 | reply[3])) != command + 1) return false;
     reply.resize(static_cast<size_t>(got));
     status_ = static_cast<uint16_t>(reply[0] << 8 | reply[1]);
     if (ack != nullptr) *ack = reply;
@@ -2295,7 +2315,7 @@ class RawController {
 
  private:
   int fd_ = -1, sink_ = -1;
-  uint16_t sink_port_ = 0, id_ = 0, status_ = 0;
+  uint16_t sink_port_ = 0, id_ = 0, status_ = 0, posted_ = 0;  // posted_: the last PostWrite's id
 };
 
 constexpr int kTestHeartbeatMs = 1500;
@@ -2569,6 +2589,52 @@ TEST_F(GigeE2E, UnansweredCommandsGetACamerasAnswer) {
   ASSERT_TRUE(other.Write(kControlChannelPrivilege, 0));
   EXPECT_EQ(other.status(), 0);
   EXPECT_EQ(device_->writes_refused(), 0u);
+}
+
+// The fake camera's trigger register (0x30c) is the device's: the device
+// writes 1 to ask the fake camera for a frame, and the fake camera writes 0
+// as it takes the request. A client's 0 there passed the filter as that
+// acknowledgement would, withdrew the frame asked for, and each queued
+// trigger then answered one late. Now every client write to it is refused
+// (invalid address, as the other registers only the device writes), even
+// one that comes between a trigger and its frame, and each trigger gets its
+// own frame.
+TEST_F(GigeE2E, AClientCannotWithdrawTheFrameATriggerAskedFor) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr uint16_t kInvalidAddress = 0x8003;
+  RawController raw;
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
+  ASSERT_TRUE(raw.Write(kHeartbeatTimeout, 30000));  // no heartbeats from this client
+  ASSERT_TRUE(raw.Write(reg::kTriggerMode, 1));
+  ASSERT_TRUE(raw.Write(reg::kTriggerSource, genicam::kSourceSoftware));
+  ASSERT_TRUE(raw.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_TRUE(raw.Write(kStreamPort, raw.sink_port()));
+  uint32_t syncs = 0, now = 0;  // trigger mode in use before the acquisition starts
+  ASSERT_TRUE(raw.Read(reg::kSimSyncCount, &syncs));
+  for (int i = 0; i < 1000 && raw.Read(reg::kSimSyncCount, &now) && now < syncs + 2; ++i) Sleep(1);
+  ASSERT_GE(now, syncs + 2);
+  ASSERT_TRUE(raw.Write(reg::kAcquisitionStart, 1));
+  EXPECT_FALSE(raw.FrameArrives(300)) << "a frame without a trigger";
+  uint32_t value = 1;
+  ASSERT_TRUE(raw.Write(reg::kFakeTriggerSoftware, 0));
+  EXPECT_EQ(raw.status(), kInvalidAddress);
+  constexpr int kTriggers = 8;
+  for (int i = 0; i < kTriggers; ++i) {
+    // The 0 goes out right behind the trigger, before the fake camera takes
+    // the device's request (it looks every millisecond) or after.
+    raw.PostWrite(reg::kTriggerSoftware, 1);
+    ASSERT_TRUE(raw.Write(reg::kFakeTriggerSoftware, 0));
+    EXPECT_EQ(raw.status(), kInvalidAddress) << "trigger " << i;
+    EXPECT_TRUE(raw.FrameArrives(3000)) << "no frame for trigger " << i;
+  }
+  EXPECT_FALSE(raw.FrameArrives(300)) << "more frames than triggers";
+  EXPECT_EQ(device_->frames_sent(), static_cast<uint64_t>(kTriggers));
+  EXPECT_EQ(device_->writes_refused(), static_cast<uint64_t>(kTriggers + 1));
+  ASSERT_TRUE(raw.Read(reg::kFakeTriggerSoftware, &value));
+  EXPECT_EQ(value, 0u) << "a request left in the trigger register";
+  ASSERT_TRUE(raw.Write(reg::kAcquisitionStop, 1));
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
