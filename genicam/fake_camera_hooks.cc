@@ -188,17 +188,18 @@ void CountRefusedWrite(GSocket* socket) {
   g_refused.push_back({local.s_addr, 1});
 }
 
-// Sends an error acknowledgement (the header, 4 bytes of zeros) of a
-// command the client asked to acknowledge, as a camera would: not to a
-// command that came by broadcast (a FORCEIP or ACTION_CMD meant for another
-// camera, say), and never to PACKETRESEND (GVCP answers it with the resent
-// packets).
+// Sends an error acknowledgement (the header, then 4 bytes of `data`, or
+// zeros: a WRITEREG's index 0) of a command the client asked to
+// acknowledge, as a camera would: not to a command that came by broadcast
+// (a FORCEIP or ACTION_CMD meant for another camera, say), and never to
+// PACKETRESEND (GVCP answers it with the resent packets).
 void SendErrorAck(GSocket* socket, GSocketAddress* to, bool wants_ack, GevStatus status, uint16_t command,
-                  uint16_t id) {
+                  uint16_t id, const uint8_t* data = nullptr) {
   static const SendToFn send = Next<SendToFn>("g_socket_send_to");
   if (send == nullptr || to == nullptr || !wants_ack || command == kPacketResend || BroadcastSocket(socket)) return;
   gchar ack[kGvcpErrorAck] = {};
   ErrorAckHeader(ack, status, command, id);
+  if (data != nullptr) std::memcpy(ack + kGvcpHeader, data, kGvcpErrorAck - kGvcpHeader);
   send(socket, to, ack, sizeof ack, nullptr, nullptr);
 }
 
@@ -334,7 +335,8 @@ extern "C" gboolean arv_fake_camera_check_and_acknowledge_software_trigger(ArvFa
 }
 
 // The fake camera's thread receives each control packet into one buffer.
-// A malformed one is answered here and hidden from it.
+// A malformed one, or a READMEM longer than GVCP allows, is answered here
+// and hidden from it.
 extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** address, GInputVector* vectors,
                                            gint num_vectors, GSocketControlMessage*** messages, gint* num_messages,
                                            gint* flags, GCancellable* cancellable, GError** error) {
@@ -360,6 +362,15 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   if (length < FixedFields(command) || static_cast<size_t>(got) < kGvcpHeader + length) {
     if (command == kWriteReg || command == kWriteMem) CountRefusedWrite(socket);
     SendErrorAck(socket, from, wants_ack, GevStatus::kInvalidParameter, command, id);
+    p[0] = 0;
+    return got;
+  }
+  // READMEM: address (4), reserved (2), count (2). GigE Vision limits its
+  // data to 536 bytes (a 576-byte GVCP packet; READMEM_CMD's count field),
+  // and a device answers a longer one with GEV_STATUS_INVALID_PARAMETER; the
+  // fake camera served up to 65535 bytes, in a datagram past UDP's limit.
+  if (command == kReadMem && Get16(p + kGvcpHeader + 6) > camsim::genicam::kMaxMemoryAccess) {
+    SendErrorAck(socket, from, wants_ack, GevStatus::kInvalidParameter, command, id, p + kGvcpHeader);
     p[0] = 0;
     return got;
   }
@@ -469,6 +480,12 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
   gchar refused[kGvcpErrorAck];
   std::memcpy(refused, buffer, sizeof refused);
   ErrorAckHeader(refused, packet.status, packet.command, packet.id);
+  // WRITEREG_ACK's data is 2 reserved bytes and an index: the number of
+  // registers written on success, the index (from 0) of the write that
+  // failed on an error (GigE Vision, WRITEREG_ACK). The fake camera writes
+  // one register per WRITEREG and acknowledges index 1; refused, it failed
+  // at the first: 0.
+  if (packet.command == kWriteReg) std::memset(refused + kGvcpHeader, 0, kGvcpErrorAck - kGvcpHeader);
   const gssize sent = next(socket, address, refused, sizeof refused, cancellable, error);
   return sent == static_cast<gssize>(sizeof refused) ? static_cast<gssize>(size) : sent;
 }

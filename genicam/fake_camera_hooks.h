@@ -25,16 +25,21 @@ inline constexpr uint16_t kGvcpPort = 3956;  // GigE Vision's control port
 // refused writes are acknowledged: GigeDevice::Init refuses to start then.
 bool FakeCameraHooksInForce(ArvFakeCamera* camera);
 
+// GVCP's largest memory access: READMEM and WRITEMEM carry at most 536
+// bytes of data (a 576-byte GVCP packet). A longer READMEM is answered with
+// INVALID_PARAMETER and not served.
+inline constexpr uint32_t kMaxMemoryAccess = 536;
+
 // Client writes reach a filter as GVCP's WRITEMEM allows them: a 4-aligned
 // address and length, at most this many bytes, from a packet that holds
 // them all; other client writes are refused before.
-inline constexpr uint32_t kMaxClientWrite = 536;
+inline constexpr uint32_t kMaxClientWrite = kMaxMemoryAccess;
 
 // GigE Vision status codes (GVCP acknowledgement header) of refused accesses.
 enum class GevStatus : uint16_t {
   kSuccess = 0x0000,
   kNotImplemented = 0x8001,    // a command the fake camera does not know
-  kInvalidParameter = 0x8002,  // a malformed packet, 0 or over 536 bytes, a value the register never takes
+  kInvalidParameter = 0x8002,  // a malformed packet, an access of 0 or over 536 bytes, a value the register never takes
   kInvalidAddress = 0x8003,    // outside the memory map
   kWriteProtect = 0x8004,      // the GenICam XML
   kBadAlignment = 0x8005,      // not whole registers

@@ -2637,6 +2637,81 @@ TEST_F(GigeE2E, AClientCannotWithdrawTheFrameATriggerAskedFor) {
   ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
 }
 
+// A WRITEREG_ACK's data is 2 reserved bytes and an index: the number of
+// registers written on success, the index (from 0) of the write that failed
+// on an error (GigE Vision, WRITEREG_ACK). The fake camera writes the one
+// register of a WRITEREG and answers index 1; a refused write kept that 1,
+// saying the register was written. Each refusal now answers index 0: by the
+// device's filter, by the hooks (outside the memory map), and for a client
+// not in control.
+TEST_F(GigeE2E, ARefusedWriteRegSaysNoRegisterWasWritten) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr uint16_t kInvalidParameter = 0x8002, kInvalidAddress = 0x8003, kAccessDenied = 0x8006;
+  RawController raw, other;
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
+  ASSERT_TRUE(raw.Write(kHeartbeatTimeout, 30000));
+  uint32_t width = 0;
+  ASSERT_TRUE(raw.Read(reg::kWidth, &width));
+  // The acknowledgement of WRITEREG `address` = `value` from `c`: its status
+  // and index (kNoAck: none, or not 12 bytes with a data length of 4).
+  const auto write_reg = [](RawController& c, uint32_t address, uint32_t value, uint16_t* status) -> uint32_t {
+    std::vector<uint8_t> body, ack;
+    for (uint32_t v : {address, value})
+      for (int i = 0; i < 4; ++i) body.push_back(static_cast<uint8_t>(v >> (24 - 8 * i)));
+    *status = RawController::kNoAck;
+    if (!c.Command(0x82, body, &ack) || ack.size() != 12 || ack[4] != 0 || ack[5] != 4) return RawController::kNoAck;
+    *status = c.status();
+    return uint32_t{ack[8]} << 24 | uint32_t{ack[9]} << 16 | uint32_t{ack[10]} << 8 | ack[11];
+  };
+  uint16_t status = 0;
+  EXPECT_EQ(write_reg(raw, reg::kWidth, 32, &status), 1u) << "one register written";
+  EXPECT_EQ(status, 0);
+  EXPECT_EQ(write_reg(raw, reg::kWidth, 99999, &status), 0u) << "refused by the filter";
+  EXPECT_EQ(status, kInvalidParameter);
+  EXPECT_EQ(write_reg(raw, reg::kFakeTriggerSoftware, 1, &status), 0u) << "a register only the device writes";
+  EXPECT_EQ(status, kInvalidAddress);
+  EXPECT_EQ(write_reg(raw, 0xFFFFFFFCu, 1, &status), 0u) << "refused by the hooks";
+  EXPECT_EQ(status, kInvalidAddress);
+  EXPECT_EQ(write_reg(other, reg::kWidth, 48, &status), 0u) << "a client not in control";
+  EXPECT_EQ(status, kAccessDenied);
+  uint32_t value = 0;
+  ASSERT_TRUE(raw.Read(reg::kWidth, &value));
+  EXPECT_EQ(value, 32u);
+  EXPECT_EQ(write_reg(raw, reg::kWidth, width, &status), 1u);
+  EXPECT_EQ(status, 0);
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
+}
+
+// GigE Vision limits a READMEM to 536 bytes of data (a 576-byte GVCP
+// packet) and a device answers a longer one with INVALID_PARAMETER; the fake
+// camera served any length up to 65535 (the XML in one read, in a datagram
+// past UDP's limit at the top). 536 bytes are still served.
+TEST_F(GigeE2E, AReadMemOverGvcpsLimitIsRefused) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr uint16_t kInvalidParameter = 0x8002;
+  const uint32_t xml_start = ARV_FAKE_CAMERA_MEMORY_SIZE;
+  RawController raw;  // reads need no control
+  std::vector<uint8_t> block;
+  ASSERT_TRUE(raw.ReadMemory(xml_start, 536, &block));
+  EXPECT_EQ(raw.status(), 0);
+  EXPECT_EQ(block.size(), 536u);
+  for (const uint16_t size : {540, 1024, 65532, 65535}) {
+    std::vector<uint8_t> body, ack;
+    for (uint32_t v : {xml_start, uint32_t{size}})
+      for (int i = 0; i < 4; ++i) body.push_back(static_cast<uint8_t>(v >> (24 - 8 * i)));
+    ASSERT_TRUE(raw.Command(0x84, body, &ack)) << size << " bytes: no acknowledgement";
+    EXPECT_EQ(raw.status(), kInvalidParameter) << size << " bytes";
+    // The error form: the header and the address read, no data.
+    ASSERT_EQ(ack.size(), 12u) << size << " bytes";
+    EXPECT_EQ(std::vector<uint8_t>(ack.begin() + 8, ack.end()), std::vector<uint8_t>(body.begin(), body.begin() + 4));
+  }
+  EXPECT_TRUE(raw.ReadMemory(xml_start, 512, &block)) << "the camera stopped serving";
+  EXPECT_EQ(raw.status(), 0);
+  EXPECT_EQ(device_->writes_refused(), 0u) << "reads are not writes";
+}
+
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
