@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <latch>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -543,6 +544,71 @@ TEST(GigeTriggerBus, AnInputSkipsNamesInUseAndReplacesStaleOnes) {
   in.reset();
   EXPECT_TRUE(std::filesystem::exists(stem + "0.sock")) << "closing the input removed the other camera's socket";
   close(other);
+  std::filesystem::remove_all(dir);
+}
+
+// The inputs of one process share their names' stem (line-<pid>-N.sock), so
+// inputs opened at the same moment claim the same names, and where killed
+// cameras left their socket files they judge them stale together. The bus
+// directory's lock (DirectoryLock) makes each claim one step: in every round
+// each name goes to exactly one input, the others take the next free names
+// (no error: an input fails only when all kMaxInputNames are taken), and an
+// edge reaches every input. Without the lock two inputs could both judge a
+// name stale, and the second one's unlink took the first one's fresh socket
+// off the bus: it then missed every edge.
+TEST(GigeTriggerBus, InputsClaimingOneNameAtOnceGetOneEach) {
+  const std::string dir = testing::TempDir() + "camsim-claims-" + std::to_string(getpid());
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(mkdir(dir.c_str(), 0755), 0);
+  const std::string stem = dir + "/line-" + std::to_string(getpid()) + "-";
+  const auto stale_socket_at = [](const std::string& path) {  // bound, then closed: its file stays
+    const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::snprintf(a.sun_path, sizeof a.sun_path, "%s", path.c_str());
+    const bool bound = bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
+    close(fd);
+    return bound;
+  };
+  std::string error;
+  auto out = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(out, nullptr) << error;
+  constexpr int kInputs = 6, kRounds = 300;
+  std::vector<std::string> expected;
+  for (int n = 0; n < kInputs; ++n) expected.push_back("line-" + std::to_string(getpid()) + "-" + std::to_string(n) + ".sock");
+  std::sort(expected.begin(), expected.end());
+  for (int round = 0; round < kRounds; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    // Killed cameras' sockets at every name: all inputs claim the first at
+    // once, the losers the next, and so on.
+    for (int n = 0; n < kInputs; ++n) ASSERT_TRUE(stale_socket_at(stem + std::to_string(n) + ".sock"));
+    std::vector<std::unique_ptr<hal::InputLine>> inputs(kInputs);
+    std::vector<std::string> errors(kInputs);
+    std::latch start(kInputs);
+    std::vector<std::thread> claims;
+    for (int i = 0; i < kInputs; ++i)
+      claims.emplace_back([&, i] {
+        start.arrive_and_wait();
+        inputs[i] = hal::OpenInputLine("unix:" + dir, "test", &errors[i]);
+      });
+    for (std::thread& t : claims) t.join();
+    for (int i = 0; i < kInputs; ++i) ASSERT_NE(inputs[i], nullptr) << errors[i];
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    EXPECT_EQ(names, expected) << "one input per name";
+    out->SetEdgeIndex(static_cast<uint32_t>(round));
+    ASSERT_TRUE(out->Set(round % 2 == 0, &error)) << error;  // a new level each round: an edge
+    EXPECT_EQ(out->last_receivers(), kInputs) << "a name nobody holds (a stale socket left)";
+    int reached = 0;
+    for (const auto& in : inputs) {
+      hal::Edge edge;
+      reached += in->WaitEdge(200, &edge, &error) == 1;
+    }
+    ASSERT_EQ(reached, kInputs) << "an input lost its name to another that claimed it at the same moment";
+    inputs.clear();
+    ASSERT_TRUE(std::filesystem::is_empty(dir)) << "an input left its socket file";
+  }
   std::filesystem::remove_all(dir);
 }
 
