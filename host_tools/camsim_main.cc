@@ -411,6 +411,8 @@ int Main(int argc, char** argv) {
 // Host tools may allocate; running out of memory (a huge --set sensor.width,
 // say) is reported, not an abort. Outputs already written stay.
 int main(int argc, char** argv) {
+  // Ctrl-C or a kill mid-write leaves no temporary file beside an output.
+  camsim::io::RemoveTemporariesOnSignal();
   try {
     return Main(argc, argv);
   } catch (const std::bad_alloc&) {

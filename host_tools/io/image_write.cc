@@ -2,7 +2,10 @@
 #include "host_tools/io/png_error.h"
 
 #include <fcntl.h>
+#include <limits.h>
+#include <signal.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -10,6 +13,7 @@
 #include <cerrno>
 #include <csetjmp>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -63,7 +67,83 @@ std::string CreateTemporary(const std::string& path, std::string* error) {
   return "";
 }
 
+// The files RemoveTemporariesOnSignal's handler removes. A slot goes
+// kFree -> kFilling (one thread owns it and copies the path) -> kSet, and
+// back to kFree when unregistered; the handler takes kSet -> kTaken before
+// it reads the path, so a slot being refilled is never read half-written.
+// Only lock-free atomics, memcpy and unlink: all safe in a signal handler.
+enum SlotState : int { kFree, kFilling, kSet, kTaken };
+struct CleanupSlot {
+  std::atomic<int> state{kFree};
+  char path[PATH_MAX];
+};
+static_assert(std::atomic<int>::is_always_lock_free);
+constexpr int kCleanupSlots = 64;
+CleanupSlot g_cleanup[kCleanupSlots];
+
+void RemoveTemporariesAndDie(int sig) {
+  const int saved_errno = errno;
+  for (CleanupSlot& slot : g_cleanup) {
+    int expected = kSet;
+    if (slot.state.compare_exchange_strong(expected, kTaken)) unlink(slot.path);
+  }
+  // The signal is blocked while its handler runs: raised again, it kills the
+  // process (default action) as soon as the handler returns.
+  struct sigaction dfl = {};
+  dfl.sa_handler = SIG_DFL;
+  sigemptyset(&dfl.sa_mask);
+  sigaction(sig, &dfl, nullptr);
+  raise(sig);
+  errno = saved_errno;
+}
+
+// Test hook: CAMSIM_TEST_HOOK_WRITE_PAUSE_MS=N makes every writer say so on
+// standard error and wait N ms once its temporary file exists and is
+// registered, so a test can kill the process there.
+void TestHookPauseWrite(const std::string& tmp) {
+  const char* ms = std::getenv("CAMSIM_TEST_HOOK_WRITE_PAUSE_MS");
+  if (ms == nullptr) return;
+  const long n = std::strtol(ms, nullptr, 10);
+  if (n <= 0) return;
+  std::fprintf(stderr, "camsim: test hook: pausing %ld ms in writing '%s'\n", n, tmp.c_str());
+  struct timespec t = {static_cast<time_t>(n / 1000), (n % 1000) * 1000000L};
+  while (nanosleep(&t, &t) != 0 && errno == EINTR) {
+  }
+}
+
 }  // namespace
+
+void RemoveTemporariesOnSignal() {
+  // SIGXFSZ: a write past the file size limit.
+  for (const int sig : {SIGHUP, SIGINT, SIGQUIT, SIGTERM, SIGXFSZ}) {
+    struct sigaction old = {};
+    if (sigaction(sig, nullptr, &old) != 0 || (old.sa_flags & SA_SIGINFO) != 0 || old.sa_handler != SIG_DFL)
+      continue;
+    struct sigaction sa = {};
+    sa.sa_handler = RemoveTemporariesAndDie;
+    sigfillset(&sa.sa_mask);  // no other signal interrupts the removal
+    sigaction(sig, &sa, nullptr);
+  }
+}
+
+RemovedOnSignal::RemovedOnSignal(const std::string& path) : slot_(-1) {
+  if (path.size() >= sizeof(CleanupSlot::path)) return;
+  for (int i = 0; i < kCleanupSlots; ++i) {
+    int expected = kFree;
+    if (!g_cleanup[i].state.compare_exchange_strong(expected, kFilling)) continue;
+    std::memcpy(g_cleanup[i].path, path.c_str(), path.size() + 1);
+    g_cleanup[i].state.store(kSet);
+    slot_ = i;
+    return;
+  }
+}
+
+RemovedOnSignal::~RemovedOnSignal() {
+  if (slot_ < 0) return;
+  // kTaken: the handler is removing it, and the process is about to die.
+  int expected = kSet;
+  g_cleanup[slot_].state.compare_exchange_strong(expected, kFree);
+}
 
 std::string FollowSymlinks(const std::string& path, std::string* error) {
   std::string at = path;
@@ -110,6 +190,9 @@ bool WriteAtomically(const std::string& path,
   if (!WritableTarget(path, &target, error)) return false;
   const std::string tmp = CreateTemporary(target, error);
   if (tmp.empty()) return false;
+  // (A signal in the few instructions since its creation leaves it.)
+  const RemovedOnSignal on_signal(tmp);
+  TestHookPauseWrite(tmp);
   std::error_code ec;
   bool ok = false;
   try {

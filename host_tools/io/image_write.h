@@ -8,6 +8,9 @@
 // temporary file and leaves any earlier `path` untouched. No exception
 // escapes.
 //
+// A run killed while a temporary file exists (RemoveTemporariesOnSignal)
+// removes it before it dies.
+//
 // Only a regular file is replaced: a `path` that is a directory, FIFO,
 // socket or device is refused (WritableTarget). A symbolic link is followed
 // (to any depth): the file it points to is what is written, atomically, with
@@ -25,6 +28,28 @@
 #include <vector>
 
 namespace camsim::io {
+
+// For SIGHUP, SIGINT, SIGQUIT, SIGTERM and SIGXFSZ (each unless ignored, as
+// under nohup, or already handled): a handler that removes every file
+// registered with RemovedOnSignal (the writers' temporary files among them),
+// then lets the signal kill the process as it would have. Call it early in
+// main.
+void RemoveTemporariesOnSignal();
+
+// While alive, `path` is removed by the handler of RemoveTemporariesOnSignal.
+// The path is registered in a fixed table (64 entries, shared by all
+// threads, each of at most PATH_MAX bytes); beyond that it is not, and a
+// signal leaves it. Destruction unregisters and does not remove the file.
+class RemovedOnSignal {
+ public:
+  explicit RemovedOnSignal(const std::string& path);
+  ~RemovedOnSignal();
+  RemovedOnSignal(const RemovedOnSignal&) = delete;
+  RemovedOnSignal& operator=(const RemovedOnSignal&) = delete;
+
+ private:
+  int slot_;  // -1: not registered
+};
 
 // `path` with its symbolic links followed (the last component, repeatedly;
 // a relative link target is taken from the link's directory): the file a

@@ -571,6 +571,10 @@ int TradeoffCommand(const TradeoffOptions& o) {
   // the file a link points to), and only when all are written (and nothing
   // but a regular file has since taken a final name: rename would replace a
   // FIFO and cannot replace a directory) are they renamed over the old ones.
+  // A signal before then removes them (as a failure does, below).
+  const io::RemovedOnSignal pending[3] = {io::RemovedOnSignal(targets[0] + ".new"),
+                                          io::RemovedOnSignal(targets[1] + ".new"),
+                                          io::RemovedOnSignal(targets[2] + ".new")};
   bool ok = io::WriteTextFile(targets[0] + ".new", csv.str(), &error) &&
             io::WriteTextFile(targets[1] + ".new", md.str(), &error) &&
             WriteScatterPng(targets[2] + ".new", spec, points, &error);

@@ -2,6 +2,9 @@
 // input (clear message, exit code, nothing already written lost).
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -10,6 +13,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -1141,6 +1146,69 @@ TEST(Cli, PathsInAConfigFileAreRelativeToIt) {
   std::system(("ln -s '" + std::string(CAMSIM_SOURCE_DIR) + "/scenes' '" + dir + "/scenes'").c_str());
   const Result demo_run = CamsimIn(dir + "/elsewhere", "config --check ../configs/camera.toml");
   EXPECT_EQ(demo_run.code, 0) << demo_run.err;
+}
+
+// The names in `dir` that look like a writer's temporary file (NAME.tmp.PID.N).
+std::vector<std::string> Temporaries(const std::string& dir) {
+  std::vector<std::string> found;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) found.push_back(e.path().string());
+  return found;
+}
+
+// A run killed while it writes an output (held there by the writers' test
+// hook, CAMSIM_TEST_HOOK_WRITE_PAUSE_MS, once the temporary file exists)
+// removes the temporary file and still dies by the signal; the file the
+// write would have replaced keeps its content.
+TEST(Cli, KilledMidWriteLeavesNoTemporaryFile) {
+  for (const int sig : {SIGTERM, SIGINT, SIGHUP}) {
+    SCOPED_TRACE(strsignal(sig));
+    const std::string dir = TempDir("killed_" + std::to_string(sig));
+    const std::string out = dir + "/p.exr", err = dir + "/stderr";
+    std::ofstream(out) << "previous";
+    std::vector<std::string> args = {CAMSIM_BINARY, "pattern", "checkerboard", "--out", out,
+                                     "--width",     "64",      "--height",     "48"};
+    std::vector<std::string> env = {"CAMSIM_TEST_HOOK_WRITE_PAUSE_MS=60000"};
+    for (char** e = environ; *e != nullptr; ++e) env.emplace_back(*e);
+    std::vector<char*> argv, envp;
+    for (std::string& a : args) argv.push_back(a.data());
+    for (std::string& e : env) envp.push_back(e.data());
+    argv.push_back(nullptr);
+    envp.push_back(nullptr);
+    // The signal's default action in the child, whatever this process inherited.
+    posix_spawnattr_t attr;
+    posix_spawnattr_init(&attr);
+    sigset_t defaults, none;
+    sigemptyset(&defaults);
+    sigaddset(&defaults, sig);
+    sigemptyset(&none);
+    posix_spawnattr_setsigdefault(&attr, &defaults);
+    posix_spawnattr_setsigmask(&attr, &none);
+    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETSIGMASK);
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    posix_spawn_file_actions_addopen(&files, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    pid_t pid = 0;
+    const int spawned = posix_spawn(&pid, CAMSIM_BINARY, &files, &attr, argv.data(), envp.data());
+    posix_spawn_file_actions_destroy(&files);
+    posix_spawnattr_destroy(&attr);
+    ASSERT_EQ(spawned, 0) << std::strerror(spawned);
+    // The hook says when the temporary file exists and is registered.
+    bool paused = false;
+    for (int i = 0; i < 3000 && !paused; ++i) {
+      paused = Slurp(err).find("test hook: pausing") != std::string::npos;
+      if (!paused) usleep(10000);
+    }
+    const std::vector<std::string> during = Temporaries(dir);
+    kill(pid, sig);
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(paused) << Slurp(err);
+    EXPECT_EQ(during.size(), 1u);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << "status " << status << "\n" << Slurp(err);
+    EXPECT_EQ(Temporaries(dir), std::vector<std::string>{});
+    EXPECT_EQ(Slurp(out), "previous");
+  }
 }
 
 TEST(Cli, ConfigDefaultRoundTrips) {

@@ -33,6 +33,7 @@
 #include <png.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "tests/support/exr_fixture.h"
@@ -913,6 +914,32 @@ TEST_F(IoTest, TemporaryNamesNeverTouchExistingFiles) {
   EXPECT_EQ(ReadBytes(path).substr(1, 3), "PNG");
   EXPECT_EQ(DirEntries(), (std::vector<std::string>{"frame.png", "frame.png.tmp",
                                                      "frame.png.tmp." + std::to_string(getpid()) + ".x"}));
+}
+
+// RemoveTemporariesOnSignal: a fatal signal removes the files registered at
+// that moment (not one registered earlier and since unregistered), and the
+// process still dies by it; a signal ignored before (nohup's SIGHUP) stays
+// ignored. (Cli.KilledMidWriteLeavesNoTemporaryFile kills `camsim` itself.)
+TEST_F(IoTest, FatalSignalRemovesRegisteredFiles) {
+  const std::string registered = Path("a.tmp.1.0"), released = Path("b.tmp.1.1"), other = Path("c");
+  for (const std::string& p : {registered, released, other}) WriteBytes(p, "x");
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    // Only what is safe after fork: no allocation.
+    std::signal(SIGTERM, SIG_DFL);
+    std::signal(SIGHUP, SIG_IGN);
+    RemoveTemporariesOnSignal();
+    { const RemovedOnSignal done(released); }
+    const RemovedOnSignal in_flight(registered);
+    raise(SIGHUP);  // ignored: nothing happens
+    raise(SIGTERM);
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << "status " << status;
+  EXPECT_EQ(DirEntries(), (std::vector<std::string>{"b.tmp.1.1", "c"}));
 }
 
 // A symbolic link is followed: the file it points to (through relative and
