@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <sstream>
 
@@ -994,6 +995,19 @@ constexpr const char* kCalibrationKeys[] = {
     "distortion.k3", "distortion.k4", "distortion.k5", "distortion.k6", "distortion.p1", "distortion.p2",
     "motion.fx_px",  "motion.fy_px",  "motion.cx_px",  "motion.cy_px",  "vignetting.focal_length_px"};
 
+namespace {
+
+// A core message either goes on from its field's name, starting with a verb
+// ("must be in [0, 1]", "needs linear input"), or is a clause of its own
+// ("the radial model folds over"), set off by a colon.
+std::string FieldSays(const std::string& subject, const char* message) {
+  for (const char* verb : {"must ", "needs ", "is ", "holds "})
+    if (std::strncmp(message, verb, std::strlen(verb)) == 0) return subject + " " + message;
+  return subject + ": " + message;
+}
+
+}  // namespace
+
 std::string DescribeStatus(const Status& s, const Origins& origins) {
   const std::string field = s.field();
   const auto origin = [&origins](const std::string& key) {
@@ -1014,11 +1028,11 @@ std::string DescribeStatus(const Status& s, const Origins& origins) {
               std::find(std::begin(kCalibrationKeys), std::end(kCalibrationKeys), field) != std::end(kCalibrationKeys))) {
     // The calibration file sets the camera (keys set beside it are refused):
     // "--calibration 'c.yaml': distortion.k1 (set by the calibration file): the radial model folds ...".
-    return origin("distortion.calibration") + ": " + field + " (set by the calibration file): " + s.message();
+    return origin("distortion.calibration") + ": " + FieldSays(field + " (set by the calibration file)", s.message());
   } else {
     where = "(not set: the default, or derived from the input's size): ";
   }
-  return where + (field.empty() ? "" : field + " ") + s.message();
+  return where + (field.empty() ? std::string(s.message()) : FieldSays(field, s.message()));
 }
 
 // The lens of [distortion]: from a calibration file, or from the keys with

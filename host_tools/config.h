@@ -102,7 +102,11 @@ bool FinishConfig(RunConfig* config, int input_width, int input_height, const Or
 // its origin is not known: how an error about a key's file starts.
 std::string KeyWhere(const Origins& origins, const std::string& key);
 
-// Text of a core Status, with the origin of its field when known.
+// Text of a core Status, with the origin of its field when known:
+// "ORIGIN: field message" when the message goes on from the field's name,
+// starting with "must", "needs", "is" or "holds" ("f.toml:3: sensor.adc_bits
+// must be 8 to 16"), else "ORIGIN: field: message" ("--set distortion.k1=-5:
+// distortion.k1: the radial model folds over ...").
 std::string DescribeStatus(const Status& status, const Origins& origins);
 
 }  // namespace camsim::host

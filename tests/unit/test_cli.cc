@@ -498,9 +498,21 @@ TEST(Cli, OutOfRangeValueNamesKeyAndLine) {
   // A mask mode without its image names the mode's --set.
   const Result mask = Camsim("run --set vignetting.mode=mask --input " + kScene + " --out " + dir);
   EXPECT_EQ(mask.code, 1);
-  EXPECT_NE(mask.err.find("--set vignetting.mode=mask: vignetting.mode 'mask' needs a mask image (vignetting.mask)"),
+  EXPECT_NE(mask.err.find("--set vignetting.mode=mask: vignetting.mode: 'mask' needs a mask image (vignetting.mask)"),
             std::string::npos)
       << mask.err;
+  // A core message that is a clause of its own follows the key after a
+  // colon, from a --set or a file (it read "distortion.k1 the radial model ...").
+  const Result fold = Camsim("run --set distortion.model=brown --set distortion.k1=-5 --input " + kScene + " --out " + dir);
+  EXPECT_EQ(fold.code, 1);
+  EXPECT_NE(fold.err.find("camsim: --set distortion.k1=-5: distortion.k1: the radial model folds over"),
+            std::string::npos)
+      << fold.err;
+  std::ofstream(dir + "/fold.toml") << "[distortion]\nmodel = \"brown\"\nk1 = -5\n";
+  const Result fold_file = Camsim("run --config " + dir + "/fold.toml --input " + kScene + " --out " + dir);
+  EXPECT_EQ(fold_file.code, 1);
+  EXPECT_NE(fold_file.err.find("fold.toml:3: distortion.k1: the radial model folds over"), std::string::npos)
+      << fold_file.err;
 }
 
 // Every file a run reads is an input no output may replace: the --config

@@ -126,11 +126,44 @@ TEST(Config, AutoExposureRangeTheStagesRefuseIsAConfigError) {
   EXPECT_FALSE(FinishConfig(&c, 64, 48, o, 1, &error));
   EXPECT_NE(error.find("(auto_exposure.exposure_time_max_us = 1e+06, auto_exposure.gain_min_db = 0.0)"), std::string::npos)
       << error;
-  EXPECT_NE(error.find("f.toml:3: motion.vector_fps exposure longer than 16 frame intervals"), std::string::npos)
+  EXPECT_NE(error.find("f.toml:3: motion.vector_fps: exposure longer than 16 frame intervals"), std::string::npos)
       << error;
   // 0.5 s is within 16 intervals of 1/24 s: accepted.
   ASSERT_TRUE(ApplyOverride("auto_exposure.exposure_time_max_us=5e5", &c, &o, &error)) << error;
   EXPECT_TRUE(FinishConfig(&c, 64, 48, o, 1, &error)) << error;
+}
+
+// A core message that is a clause of its own follows the key after a colon,
+// from a file or a --set ("--set distortion.k1=-5: distortion.k1 the radial
+// model folds over" read as if k1 were the subject); one that goes on from
+// the key's name ("must be ...") follows it directly.
+TEST(Config, CoreMessagesReadAfterEveryOrigin) {
+  RunConfig c;
+  Origins o;
+  std::string error;
+  ASSERT_TRUE(ParseConfig("[distortion]\nmodel = \"brown\"\n\nk1 = -5\n", "f.toml", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 640, 480, o, 1, &error));
+  EXPECT_EQ(error.rfind("f.toml:4: distortion.k1: the radial model folds over (stops increasing)", 0), 0u) << error;
+  ASSERT_TRUE(ApplyOverride("distortion.k1=-5", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 640, 480, o, 1, &error));
+  EXPECT_EQ(error.rfind("--set distortion.k1=-5: distortion.k1: the radial model folds over (stops increasing)", 0),
+            0u)
+      << error;
+  // Stage order: the key, then the stage list's own clause.
+  ASSERT_TRUE(ApplyOverride("pipeline.stages=[\"dof_columns\",\"exposure\",\"sensor\"]", &c, &o, &error)) << error;
+  ASSERT_TRUE(ApplyOverride("distortion.model=off", &c, &o, &error)) << error;
+  ASSERT_TRUE(ApplyOverride("dof.method=diffusion", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 640, 480, o, 1, &error));
+  EXPECT_EQ(error.rfind("--set pipeline.stages=[\"dof_columns\",\"exposure\",\"sensor\"]: pipeline.stages: dof_columns "
+                       "needs dof_rows running before it",
+                       0),
+            0u)
+      << error;
+  // A predicate goes on from the key.
+  ASSERT_TRUE(ApplyOverride("sensor.full_well_e=-5", &c, &o, &error)) << error;
+  ASSERT_TRUE(ApplyOverride("pipeline.stages=[\"exposure\",\"sensor\"]", &c, &o, &error)) << error;
+  EXPECT_FALSE(FinishConfig(&c, 640, 480, o, 1, &error));
+  EXPECT_EQ(error, "--set sensor.full_well_e=-5: sensor.full_well_e must be in [1, 1e6] electrons");
 }
 
 // The crop check names the dimension that is too large, with its origin (it
