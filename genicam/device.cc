@@ -147,9 +147,21 @@ bool CheckGvcpAddress(const std::string& address, std::string* error) {
     *error = "--address '" + address + "': not an IPv4 address";
     return false;
   }
-  const std::string no_interface = "cannot serve on " + address +
-                                   ": no network interface has that address (on Linux: ip addr add " + address +
-                                   "/8 dev lo, or a private namespace, see scripts/netns-run.sh)";
+  // A camera answers on one interface's address: not the wildcard, nor a
+  // broadcast or multicast group. A loopback address can be added to lo.
+  const uint32_t host = ntohl(a.sin_addr.s_addr);
+  if (host == INADDR_ANY || host == INADDR_BROADCAST || (host >> 28) == 0xE) {
+    *error = "--address " + address + ": a camera serves on one interface's address, not " +
+             (host == INADDR_ANY ? "the wildcard" : host == INADDR_BROADCAST ? "the broadcast address" : "a multicast group") +
+             " (ip -4 addr lists this host's addresses)";
+    return false;
+  }
+  const bool loopback = (host >> 24) == 127;
+  const std::string no_interface =
+      "cannot serve on " + address + ": no network interface has that address (" +
+      (loopback ? "on Linux: ip addr add " + address + "/8 dev lo, or a private namespace, see scripts/netns-run.sh"
+                : "ip -4 addr lists this host's addresses") +
+      ")";
   if (!InterfaceHasAddress(a.sin_addr)) {
     *error = no_interface;
     return false;

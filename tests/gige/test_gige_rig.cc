@@ -232,6 +232,17 @@ TEST(GigeRigAddresses, OneCameraPerAddressAndOnlyLocalAddresses) {
   o.address = "camera.local";
   EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
   EXPECT_NE(error.find("not an IPv4 address"), std::string::npos) << error;
+  // Addresses no interface can add to lo get no "ip addr add" advice.
+  o.address = "192.0.2.7";  // TEST-NET-1: no host here has it
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_NE(error.find("no network interface"), std::string::npos) << error;
+  EXPECT_EQ(error.find("ip addr add"), std::string::npos) << error;
+  for (const char* a : {"0.0.0.0", "255.255.255.255", "239.1.2.3"}) {
+    o.address = a;
+    EXPECT_EQ(GigeDevice::Start(o, &error), nullptr) << a;
+    EXPECT_NE(error.find("a camera serves on one interface's address"), std::string::npos) << error;
+    EXPECT_EQ(error.find("ip addr add"), std::string::npos) << error;
+  }
 }
 
 }  // namespace
