@@ -105,6 +105,10 @@ double BitsDouble(uint64_t b) {
 // Gain (dB) and GainRaw (0.1 dB steps): one setting in two units.
 uint64_t GainRawOf(double db) { return static_cast<uint64_t>(std::lround(db * 10)); }
 double GainDbOf(uint64_t raw) { return static_cast<double>(raw) / 10.0; }
+// A camera applies Gain in its raw steps: the nearest one is the Gain in use
+// and the one read back (GainDbOf(GainRawOf(x)) is its own quantisation).
+double QuantiseGain(double db) { return GainDbOf(GainRawOf(db)); }
+constexpr double kMaxGainDb = 48.0;  // Gain's Max in the XML
 std::string Fmt(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%.6g", v);
@@ -396,6 +400,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   address_ = o.address;
   prime_first_frame_ = o.prime_first_frame;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
+  // The configured gain on GainRaw's 0.1 dB steps, as every later Gain (QuantiseGain).
+  double& gain_db = base_config_.core.sensor.gain_db;
+  if (std::isfinite(gain_db) && gain_db >= 0 && gain_db <= kMaxGainDb) gain_db = QuantiseGain(gain_db);
   host::RunConfig finished;
   if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
     return false;
@@ -654,8 +661,8 @@ std::string GigeDevice::CheckInvariants() const {
   if (applied_.at(kWidth) + applied_.at(kOffsetX) > static_cast<uint64_t>(sensor_.width) ||
       applied_.at(kHeight) + applied_.at(kOffsetY) > static_cast<uint64_t>(sensor_.height))
     return "the window is off the sensor";
-  if (applied_.at(kGainRaw) != GainRawOf(AppliedDouble(kGain)))
-    return "Gain and GainRaw disagree";
+  if (applied_.at(kGain) != DoubleBits(GainDbOf(applied_.at(kGainRaw))))
+    return "Gain is not GainRaw's step";
   for (const AutoLimits& l : kAutoLimits)
     if (AppliedDouble(l.lower) > AppliedDouble(l.upper))
       return std::string(l.name) + "LowerLimit is above " + l.name + "UpperLimit";
@@ -926,6 +933,12 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     set_back(reg::kPacketSize);
     refuse(GevStatus::kAccessDenied);
   }
+  // Gain is applied in GainRaw's steps: a valid Gain written is stored (and
+  // planned) as its nearest step, so it reads back as the gain in use.
+  if (covers(reg::kGain) && covers(reg::kGain + 4)) {
+    const uint64_t q = DoubleBits(QuantiseGain(BitsDouble(uint64_t{value(reg::kGain)} << 32 | value(reg::kGain + 4))));
+    for (uint32_t b = 0; b < 8; ++b) data[reg::kGain - address + b] = static_cast<uint8_t>(q >> (56 - 8 * b));
+  }
   // The pipeline must run what the registers then ask for (raw formats need
   // the sensor and the cfa, RGB8 the ISP, the focus lies beyond the focal
   // length, ...): planned as the sync will plan it, without tables. The
@@ -1115,9 +1128,11 @@ void GigeDevice::Sync() {
       if (BitsDouble(next[l.lower]) > BitsDouble(next[l.upper])) refuse(l.upper);
     }
     // Gain and GainRaw are one setting in two units.
-    if (was_changed(kGain)) {
+    if (was_changed(kGain)) {  // (a device write past the filter may be off the steps)
       next[kGainRaw] = GainRawOf(BitsDouble(next[kGain]));
+      next[kGain] = DoubleBits(GainDbOf(next[kGainRaw]));
       Write(kGainRaw, static_cast<uint32_t>(next[kGainRaw]));
+      WriteDouble(kGain, BitsDouble(next[kGain]));
     } else if (was_changed(kGainRaw)) {
       next[kGain] = DoubleBits(GainDbOf(next[kGainRaw]));
       WriteDouble(kGain, BitsDouble(next[kGain]));
@@ -1323,13 +1338,15 @@ GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const
   // applied value, which need not be on GainRaw's 0.1 dB steps).
   if (Applied(kExposureAuto) != kAutoOff) next[kExposureTime] = DoubleBits(s.exposure_time_us);
   if (Applied(kGainAuto) != kAutoOff) {
-    // GainRaw's 0.1 dB steps, kept inside the AutoGain limits (which need
-    // not lie on a step).
+    // GainRaw's 0.1 dB steps, the nearest inside the AutoGain limits (which
+    // need not lie on a step; with no step between them, the lower's nearest).
     const double lower = AppliedDouble(kAutoGainLowerLimit), upper = AppliedDouble(kAutoGainUpperLimit);
-    const double stepped = std::round(s.gain_db * 10) / 10;
-    const double g = stepped < lower ? lower : (stepped > upper ? upper : stepped);
-    next[kGain] = DoubleBits(g);
-    next[kGainRaw] = GainRawOf(g);
+    const int64_t lo = static_cast<int64_t>(std::ceil(lower * 10 - 1e-9)),
+                  hi = static_cast<int64_t>(std::floor(upper * 10 + 1e-9));
+    int64_t raw = std::lround(s.gain_db * 10);
+    raw = lo > hi ? std::lround(lower * 10) : std::clamp(raw, lo, hi);
+    next[kGainRaw] = static_cast<uint64_t>(raw);
+    next[kGain] = DoubleBits(GainDbOf(next[kGainRaw]));
   }
   return next;
 }

@@ -286,7 +286,11 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1, "One frame, when TriggerSource is Software."));
 
   const char* an = "AnalogControl";
-  t.push_back(Flt("Gain", an, kGain, 0.0, 48.0, "Analog gain (amplifies signal and noise).", "dB"));
+  t.push_back(Flt("Gain", an, kGain, 0.0, 48.0,
+                  "Analog gain (amplifies signal and noise), in GainRaw's 0.1 dB steps: a value between "
+                  "steps is applied and reads back as the nearest one.",
+                  "dB"));
+  t.back().inc = 0.1;
   t.push_back(Int("GainRaw", an, kGainRaw, true, 0, 480, 1, "Analog gain in 0.1 dB steps (Aravis fake camera name)."));
   t.push_back(Enum("GainAuto", an, kGainAuto, true, {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
                    "Automatic gain, used when ExposureAuto alone cannot reach SimAutoTarget."));
@@ -537,6 +541,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         else x << "    <pMin>" << f.min_feature << "Reg</pMin>\n";
         if (f.max_feature.empty()) x << "    <Max>" << Num(f.max) << "</Max>\n";
         else x << "    <pMax>" << f.max_feature << "Reg</pMax>\n";
+        if (f.inc > 0) x << "    <Inc>" << Num(f.inc) << "</Inc>\n";  // the step values are applied in
         if (!f.unit.empty()) x << "    <Unit>" << f.unit << "</Unit>\n";
         x << "  </Float>\n";
         break;

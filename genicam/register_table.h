@@ -38,7 +38,7 @@ struct Feature {
   uint32_t address = 0;
   uint32_t length = 4;
   bool writable = false;
-  double min = 0, max = 0, inc = 1;  // Integer and Float ranges (inclusive); Integer increment
+  double min = 0, max = 0, inc = 1;  // Integer and Float ranges (inclusive); increment (a Float's: 0 none)
   std::string unit;
   std::vector<EnumEntry> entries;    // Enumeration entries
   int64_t command_value = 1;         // Command

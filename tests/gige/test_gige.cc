@@ -243,6 +243,9 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
       if (f.max_feature.empty()) {
         EXPECT_EQ(arv_gc_float_get_max(ARV_GC_FLOAT(node), nullptr), f.max) << f.name;
       }
+      if (f.inc > 0) {  // Gain: GainRaw's step
+        EXPECT_EQ(arv_gc_float_get_inc(ARV_GC_FLOAT(node), nullptr), f.inc) << f.name;
+      }
     }
     if (f.kind == genicam::Kind::kEnum) {
       // Aravis keeps the entries in reverse order: compare as name -> value maps.
@@ -1088,6 +1091,37 @@ TEST(GigeRegisters, TheLastOfGainAndGainRawWins) {
   EXPECT_EQ(d->CheckInvariants(), "");
 }
 
+// Gain is applied in GainRaw's 0.1 dB steps, as a camera applies its raw
+// gain: 12.34 reads back (and renders, and goes in ChunkGain) as 12.3, the
+// GainRaw 123 it sets. The XML says so (Inc 0.1).
+TEST(GigeRegisters, GainIsAppliedInGainRawsSteps) {
+  DeviceOptions o = OfflineDevice();
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(genicam::FindFeature(d->table(), "Gain")->inc, 0.1);
+  WriteReg(*d, reg::kGain, Be64(12.34));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 12.3) << "read back as it arrives";
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 123u);
+  d->SyncNow();
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 12.3);
+  EXPECT_EQ(d->CheckInvariants(), "");
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, {"sensor.gain_db=12.3"}));
+  WriteReg(*d, reg::kGain, Be64(47.96));  // rounds to the maximum
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 48.0);
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 480u);
+  // A configured gain between steps starts on its nearest step.
+  DeviceOptions c = OfflineDevice();
+  c.overrides.push_back("sensor.gain_db=6.06");
+  auto e = StartDevice(c);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(ReadRegDouble(*e, reg::kGain), 6.1);
+  EXPECT_EQ(e->CheckInvariants(), "");
+  ASSERT_TRUE(e->RenderNow(&frame));
+  EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, {"sensor.gain_db=6.1"}));
+}
+
 // Registers only the device writes (the fake camera's trigger block, its
 // frame period) and addresses of camsim's range the XML does not describe
 // are no client's to write: refused, not stored (a write to the fake
@@ -1479,11 +1513,12 @@ TEST(GigeRegisters, SimAutoTargetAboveTheControllersMaximumIsRefused) {
 }
 
 // A feature that is Off keeps its value to the bit: ExposureAuto alone does
-// not round Gain to GainRaw's 0.1 dB steps (the controller holds it).
+// not move Gain (the controller holds it; 3.14 is applied as its step, 3.1).
 TEST(GigeRegisters, AutoExposureLeavesAGainThatIsOffAsWritten) {
   auto d = StartDevice(OfflineDevice());
   ASSERT_NE(d, nullptr);
   WriteReg(*d, reg::kGain, Be64(3.14));
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.1);
   WriteReg(*d, reg::kSimAutoTarget, Be64(0.05));
   WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
   d->SyncNow();
@@ -1491,7 +1526,7 @@ TEST(GigeRegisters, AutoExposureLeavesAGainThatIsOffAsWritten) {
   std::vector<uint8_t> frame;
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(d->RenderNow(&frame));
   EXPECT_NE(ReadRegDouble(*d, reg::kExposureTime), t0) << "ExposureAuto did not act";
-  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.14);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.1);
   EXPECT_EQ(d->CheckInvariants(), "");
 }
 
@@ -1581,7 +1616,7 @@ TEST(GigeRegisters, AutoStopsAtTheAutoLimits) {
   d->SyncNow();
   ASSERT_NO_FATAL_FAILURE(run(4, 3.04, 6.06));
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 40000.0);
-  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.06) << "not rounded to 6.1, past the limit";
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 6.0) << "the last step inside the limit, not 6.1 past it";
   // The lens open again (f/2.8) and a target below what the scene gives at the lower limits.
   WriteReg(*d, reg::kAutoExposureTimeLowerLimit, Be64(2000.0));
   WriteReg(*d, reg::kSimFNumber, Be64(2.8));
@@ -1589,7 +1624,7 @@ TEST(GigeRegisters, AutoStopsAtTheAutoLimits) {
   d->SyncNow();
   ASSERT_NO_FATAL_FAILURE(run(8, 3.04, 6.06));
   EXPECT_EQ(ReadRegDouble(*d, reg::kExposureTime), 2000.0);
-  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.04);
+  EXPECT_EQ(ReadRegDouble(*d, reg::kGain), 3.1) << "the first step inside the limit";
   EXPECT_GT(MeanLevel12(frame), 0.01 * 2) << "the target is out of reach below";
 }
 
