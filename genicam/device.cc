@@ -445,11 +445,6 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
              std::to_string(kMaxFakeCameraPayloadBits / 8) + " bytes, and 65534 packets of at most 9000 bytes)";
     return false;
   }
-  table_ = RegisterTable(sensor_);
-  registers_ = FeatureRegisters(table_);
-  raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
-  rgb_.assign(static_cast<size_t>(sensor_.width) * sensor_.height * 3, 0);
-
   // Lines: a requested line that cannot be opened is an error; none is fine.
   trigger_ = o.trigger;
   strobe_ = o.strobe;
@@ -463,6 +458,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     if (!own_strobe_) return false;
     strobe_ = own_strobe_.get();
   }
+  sensor_.has_trigger_line = trigger_ != nullptr;  // without one, TriggerSource Line0 is refused
+
+  table_ = RegisterTable(sensor_);
+  registers_ = FeatureRegisters(table_);
+  raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
+  rgb_.assign(static_cast<size_t>(sensor_.width) * sensor_.height * 3, 0);
 
   DeviceStrings strings;
   strings.serial = o.serial;

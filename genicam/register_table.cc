@@ -280,7 +280,9 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
                    "On: one frame per trigger; off: free run."));
   t.push_back(Enum("TriggerSource", ac, kTriggerSource, true, {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
-                   "Software (TriggerSoftware) or Line0 (the GPIO line given by --trigger-line)."));
+                   "Software (TriggerSoftware) or Line0 (the GPIO line given by --trigger-line; "
+                   "not available without one)."));
+  t.back().entries[1].available = s.has_trigger_line;
   t.push_back(Enum("TriggerActivation", ac, kTriggerActivation, true, {{"RisingEdge", 0}, {"FallingEdge", 1}},
                    "Edge of Line0 that triggers."));
   t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1, "One frame, when TriggerSource is Software."));
@@ -432,6 +434,7 @@ std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
     if (f.chunk_id != 0) continue;  // in each frame, not in device memory
     if (f.selected_by.empty()) {
       out.push_back(f);
+      std::erase_if(out.back().entries, [](const EnumEntry& e) { return !e.available; });
       continue;
     }
     for (int i = 0; i < f.selections; ++i) {
@@ -440,7 +443,9 @@ std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
       r.address = f.address + 4 * static_cast<uint32_t>(i);
       r.selected_by.clear();
       r.selections = 1;
-      std::erase_if(r.entries, [i](const EnumEntry& e) { return e.only_at_selection >= 0 && e.only_at_selection != i; });
+      std::erase_if(r.entries, [i](const EnumEntry& e) {
+        return !e.available || (e.only_at_selection >= 0 && e.only_at_selection != i);
+      });
       out.push_back(r);
     }
   }
@@ -552,7 +557,11 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
           x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\""
             << (IsStandard(f.name) && IsStandard(e.name) ? "Standard" : "Custom")
             << "\">\n";
-          if (e.only_at_selection >= 0) x << "      <pIsAvailable>" << f.name << e.name << "Available</pIsAvailable>\n";
+          if (e.only_at_selection >= 0 || !e.available)
+            x << "      <pIsAvailable>" << f.name << e.name << "Available</pIsAvailable>\n";
+          if (!e.available)
+            swiss_knives << "  <Integer Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
+                         << "    <Value>0</Value>\n  </Integer>\n";
           x << "      <Value>" << e.value << "</Value>\n    </EnumEntry>\n";
           if (e.only_at_selection >= 0)
             swiss_knives << "  <IntSwissKnife Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"

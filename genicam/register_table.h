@@ -28,6 +28,9 @@ struct EnumEntry {
   // >= 0: the entry is available only while the feature's selector has this
   // value (GenICam pIsAvailable; the device refuses it otherwise).
   int64_t only_at_selection = -1;
+  // false: never available on this device (GenICam pIsAvailable 0; the
+  // device refuses it), e.g. Line0 as TriggerSource without a trigger line.
+  bool available = true;
 };
 
 struct Feature {
@@ -172,6 +175,7 @@ struct SensorInfo {
   double max_black_level_dn = 0;  // 2^adc_bits - 1 quarter: leaves headroom for signal
   int scene_count = 1;
   bool has_isp_rgb = false;  // the configured pipeline ends in an 8-bit RGB image
+  bool has_trigger_line = true;  // a trigger input (--trigger-line): TriggerSource Line0 is available
   std::vector<std::string> stage_names;  // configured stages (SimStageSelector entries)
   // SimFocusDistance's Min: a value the device accepts (with depth of field,
   // the next whole millimetre beyond the focal length).

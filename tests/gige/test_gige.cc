@@ -1122,6 +1122,42 @@ TEST(GigeRegisters, GainIsAppliedInGainRawsSteps) {
   EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, {"sensor.gain_db=6.1"}));
 }
 
+// Without a trigger line (no --trigger-line), TriggerSource Line0 would arm
+// a trigger that never comes: the XML marks the entry unavailable
+// (pIsAvailable 0) and the device refuses it, as a camera without that line
+// would. With a line, it is taken.
+TEST(GigeRegisters, TriggerSourceLine0NeedsATriggerLine) {
+  const auto available = [](const GigeDevice& d) {
+    const std::string xml = genicam::GenerateXml(d.table(), genicam::DeviceStrings());
+    ArvGc* gc = arv_gc_new(nullptr, xml.data(), xml.size());
+    guint n = 0;
+    const char** v = arv_gc_enumeration_dup_available_string_values(
+        ARV_GC_ENUMERATION(arv_gc_get_node(gc, "TriggerSource")), &n, nullptr);
+    std::vector<std::string> names(v, v + n);
+    g_free(v);
+    g_object_unref(gc);
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(available(*d), std::vector<std::string>{"Software"});
+  WriteRegRefused(*d, reg::kTriggerSource, Be32(genicam::kSourceLine0));
+  EXPECT_EQ(ReadReg32(*d, reg::kTriggerSource), uint32_t(genicam::kSourceSoftware));
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  d.reset();
+  hal::MemoryLine line("trigger");
+  DeviceOptions o = OfflineDevice();
+  o.trigger = &line;
+  auto t = StartDevice(o);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(available(*t), (std::vector<std::string>{"Line0", "Software"}));
+  WriteReg(*t, reg::kTriggerSource, Be32(genicam::kSourceLine0));
+  t->SyncNow();
+  EXPECT_EQ(ReadReg32(*t, reg::kTriggerSource), uint32_t(genicam::kSourceLine0));
+}
+
 // Registers only the device writes (the fake camera's trigger block, its
 // frame period) and addresses of camsim's range the XML does not describe
 // are no client's to write: refused, not stored (a write to the fake
