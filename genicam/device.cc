@@ -109,6 +109,12 @@ double GainDbOf(uint64_t raw) { return static_cast<double>(raw) / 10.0; }
 // and the one read back (GainDbOf(GainRawOf(x)) is its own quantisation).
 double QuantiseGain(double db) { return GainDbOf(GainRawOf(db)); }
 constexpr double kMaxGainDb = 48.0;  // Gain's Max in the XML
+// A register's feature in the table (a selected one's, before its "[i]"),
+// with every entry: what a refusal message names.
+const Feature& TableFeature(const std::vector<Feature>& table, const Feature& r) {
+  const Feature* f = FindFeature(table, r.name.substr(0, r.name.find('[')));
+  return f != nullptr ? *f : r;
+}
 std::string Fmt(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%.6g", v);
@@ -803,6 +809,11 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   // serve): not yet.
   if (!d->ready_) {
     ++d->writes_refused_;
+    d->LogRefusal("a write at 0x" + [address] {
+      char b[16];
+      std::snprintf(b, sizeof b, "%x", address);
+      return std::string(b);
+    }(), "the device is still starting");
     return {false, GevStatus::kAccessDenied};
   }
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
@@ -818,6 +829,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   if (covers(reg::kTriggerSoftware)) {
     if (size != 4 || value(reg::kTriggerSoftware) != 1) {
       ++d->writes_refused_;
+      d->LogRefusal("TriggerSoftware = " + std::to_string(value(reg::kTriggerSoftware)),
+                    size != 4 ? "a command is written alone" : "its CommandValue is 1");
       return {false, GevStatus::kInvalidParameter};
     }
     if ((d->Read(reg::kAcquisition) != 0 || d->restarting_) && d->Read(reg::kTriggerMode) == 1 &&
@@ -831,6 +844,11 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (!covers(command)) continue;
     if (size != 4 || value(command) != 1) {
       ++d->writes_refused_;
+      d->LogRefusal(std::string(command == reg::kAcquisitionStart  ? "AcquisitionStart"
+                                : command == reg::kAcquisitionStop ? "AcquisitionStop"
+                                                                   : "AcquisitionAbort") +
+                        " = " + std::to_string(value(command)),
+                    size != 4 ? "a command is written alone" : "its CommandValue is 1");
       return {false, GevStatus::kInvalidParameter};
     }
     if (command != reg::kAcquisitionStart) d->WithdrawFreeRun(true);
@@ -842,8 +860,15 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       if (covers(r)) set_back(r);
   };
   WriteVerdict verdict;  // its status: the first refusal's, in the order of the checks below
-  const auto refuse = [&verdict](GevStatus s) {
+  // Each refusal: its status and a line on stderr (what was written, why).
+  const auto refuse = [&verdict, d](GevStatus s, const std::string& what, const std::string& why) {
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
+    if (!what.empty()) d->LogRefusal(what, why);
+  };
+  const auto hex = [](uint32_t a) {
+    char b[16];
+    std::snprintf(b, sizeof b, "0x%x", a);
+    return std::string(b);
   };
   // A write to a register only the device writes, or to an address of
   // camsim's range the XML does not describe, is refused whole, not stored
@@ -851,6 +876,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   for (uint32_t r = address; r < address + size; r += 4) {
     if (r == reg::kDeviceMode || r == reg::kGvcpCapability) {
       ++d->writes_refused_;
+      d->LogRefusal("register " + hex(r), "a read-only bootstrap register");
       return {false, GevStatus::kWriteProtect};
     }
     // (The fake camera's own write that acknowledges a trigger is not a
@@ -861,14 +887,50 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     for (const Feature& f : d->registers_) described = described || (r >= f.address && r < f.address + f.length);
     if (!described) {
       ++d->writes_refused_;
+      d->LogRefusal("register " + hex(r), "no feature there (or one only the device writes)");
       return {false, GevStatus::kInvalidAddress};
     }
+  }
+  // The payload's registers are locked while acquiring or while
+  // TLParamsLocked is 1: checked before their values, so a locked write
+  // says access denied whatever its value (OffsetX = 2 with the window at
+  // full width was invalid parameter: the window check came first).
+  if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) d->WithdrawFreeRun(true);  // the fake camera's own register
+  if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
+    d->Write(reg::kTLParamsLocked, 0);
+  bool geometry = false;
+  for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
+  // (TLParamsLocked, at 0x80a0, is never in one block with the window.)
+  const bool acquiring = (d->Read(reg::kAcquisition) != 0 || d->restarting_) &&
+                         (!covers(reg::kAcquisition) || value(reg::kAcquisition) != 0);
+  const char* lock_reason = acquiring ? "acquisition running (the payload's registers are locked)"
+                                      : "TLParamsLocked is 1 (the payload's registers are locked)";
+  const auto register_name = [d](uint32_t r) {
+    for (const Feature& f : d->registers_)
+      if (f.address == r) return d->RegisterName(f);
+    return std::string("?");
+  };
+  if (geometry && (acquiring || d->Read(reg::kTLParamsLocked) == 1)) {
+    for (uint32_t g : kGeometryRegisters) {
+      if (!covers(g) || value(g) == d->Read(g)) continue;
+      const std::string what = register_name(g) + " = " + std::to_string(value(g));
+      set_back(g);
+      refuse(GevStatus::kAccessDenied, what, lock_reason);
+    }
+  }
+  // The packet size (SCPS0's low 16 bits; the flag bits stay free) likewise:
+  // a receiver places each packet by the size its stream started with.
+  if (covers(reg::kPacketSize) && (acquiring || d->Read(reg::kTLParamsLocked) == 1) &&
+      (value(reg::kPacketSize) & 0xffff) != (d->Read(reg::kPacketSize) & 0xffff)) {
+    const std::string what = "GevSCPSPacketSize = " + std::to_string(value(reg::kPacketSize) & 0xffff);
+    set_back(reg::kPacketSize);
+    refuse(GevStatus::kAccessDenied, what, lock_reason);
   }
   for (const Feature& f : d->registers_) {
     if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
       set_back_feature(f);
-      refuse(GevStatus::kWriteProtect);
+      refuse(GevStatus::kWriteProtect, d->RegisterName(f), "read-only");
       continue;
     }
     if (!Checked(f)) continue;
@@ -879,7 +941,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (whole && d->Valid(f, v)) continue;
     set_back_feature(f);
     // Half of a Float's register would make a value of two writes.
-    refuse(whole ? GevStatus::kInvalidParameter : GevStatus::kBadAlignment);
+    if (whole) refuse(GevStatus::kInvalidParameter, d->RegisterName(f) + " = " + d->ValueText(f, v), d->WhyInvalid(f, v));
+    else refuse(GevStatus::kBadAlignment, d->RegisterName(f), "half of its 8-byte register (write both halves in one block)");
   }
   // The window must stay on the sensor (SFNC's pMax: WidthMax - OffsetX,
   // ...): a write that would move it off is set back, the offset first.
@@ -890,9 +953,18 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     const auto after = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
     if (!covers(extent) && !covers(offset)) continue;
     if (after(extent) + after(offset) <= static_cast<uint64_t>(limits[a])) continue;
+    const char* names[2][2] = {{"Width", "OffsetX"}, {"Height", "OffsetY"}};
+    const std::string why = std::string("window off the sensor: ") + names[a][0] + " " +
+                            std::to_string(after(extent)) + " + " + names[a][1] + " " + std::to_string(after(offset)) +
+                            " > " + std::to_string(limits[a]);
+    std::string what;
+    for (int i = 1; i >= 0; --i) {
+      const uint32_t r = i == 0 ? extent : offset;
+      if (covers(r)) what += (what.empty() ? "" : ", ") + std::string(names[a][i]) + " = " + std::to_string(value(r));
+    }
     if (covers(offset)) set_back(offset);
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
-    refuse(GevStatus::kInvalidParameter);
+    refuse(GevStatus::kInvalidParameter, what, why);
   }
   // An Auto lower limit stays at or below its upper limit (each one's pMax
   // or pMin): a write that would cross them is set back, the lower first.
@@ -908,31 +980,13 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     };
     if (!touched(l.lower) && !touched(l.upper)) continue;
     if (after(l.lower) <= after(l.upper)) continue;
+    const std::string why = std::string(l.name) + "LowerLimit " + Fmt(after(l.lower)) + " above " + l.name +
+                            "UpperLimit " + Fmt(after(l.upper));
+    const std::string what = std::string(l.name) + (touched(l.lower) ? "LowerLimit" : "UpperLimit") + " = " +
+                             Fmt(after(touched(l.lower) ? l.lower : l.upper));
     set_back_float(l.lower);
     if (after(l.lower) > after(l.upper)) set_back_float(l.upper);
-    refuse(GevStatus::kInvalidParameter);
-  }
-  if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) d->WithdrawFreeRun(true);  // the fake camera's own register
-  if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
-    d->Write(reg::kTLParamsLocked, 0);
-  bool geometry = false;
-  for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
-  // (TLParamsLocked, at 0x80a0, is never in one block with the window.)
-  const bool acquiring = (d->Read(reg::kAcquisition) != 0 || d->restarting_) &&
-                         (!covers(reg::kAcquisition) || value(reg::kAcquisition) != 0);
-  if (geometry && (acquiring || d->Read(reg::kTLParamsLocked) == 1)) {
-    for (uint32_t g : kGeometryRegisters) {
-      if (!covers(g) || value(g) == d->Read(g)) continue;
-      set_back(g);
-      refuse(GevStatus::kAccessDenied);
-    }
-  }
-  // The packet size (SCPS0's low 16 bits; the flag bits stay free) likewise:
-  // a receiver places each packet by the size its stream started with.
-  if (covers(reg::kPacketSize) && (acquiring || d->Read(reg::kTLParamsLocked) == 1) &&
-      (value(reg::kPacketSize) & 0xffff) != (d->Read(reg::kPacketSize) & 0xffff)) {
-    set_back(reg::kPacketSize);
-    refuse(GevStatus::kAccessDenied);
+    refuse(GevStatus::kInvalidParameter, what, why);
   }
   // Gain is applied in GainRaw's steps: a valid Gain written is stored (and
   // planned) as its nearest step, so it reads back as the gain in use.
@@ -947,7 +1001,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   if (!d->PipelineTakes(address, size, data)) {
     for (const Feature& f : d->registers_)
       if (Checked(f) && d->IsPipelineRegister(f.address)) set_back_feature(f);
-    refuse(GevStatus::kInvalidParameter);
+    refuse(GevStatus::kInvalidParameter, "", "");  // PipelineTakes logged it
   }
   // Gain and GainRaw are one setting in two units: the one written (not set
   // back) sets the other now, so the last write wins whatever the sync sees.
@@ -1039,7 +1093,7 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
     kept_plan_ = std::make_unique<KeptPlan>(KeptPlan{PlanKey(after), std::move(planned)});
     return true;
   }
-  std::fprintf(stderr, "camsim-gige: refused %s: %s\n", names.c_str(), why.c_str());
+  LogRefusal(names, why);
   return false;
 }
 
@@ -1094,6 +1148,7 @@ void GigeDevice::Sync() {
       next[f.address] = v;
       changed.push_back(&f);
     } else {
+      LogRefusal(RegisterName(f) + " = " + ValueText(f, v), WhyInvalid(f, v) + " (found by the register sync)");
       WriteFeature(f, applied_.at(f.address));
       ++writes_refused_;
     }
@@ -1402,6 +1457,58 @@ void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
       (accepted(t, mid / 10.0) ? ok : bad) = mid;
     }
     (raw1 < raw0 ? auto_config_.gain_min_db : auto_config_.gain_max_db) = ok / 10.0;
+  }
+}
+
+void GigeDevice::LogRefusal(const std::string& what, const std::string& why) const {
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard<std::mutex> lock(refusal_log_mutex_);
+  if (now - refusal_window_ >= std::chrono::seconds(1)) {
+    refusal_window_ = now;
+    refusal_lines_ = 0;
+  }
+  if (refusal_lines_ >= kRefusalLinesPerSecond) {
+    ++refusals_unlogged_;
+    return;
+  }
+  ++refusal_lines_;
+  std::string more;
+  if (refusals_unlogged_ > 0)
+    more = " (" + std::to_string(refusals_unlogged_) + " earlier refused writes not logged: over " +
+           std::to_string(kRefusalLinesPerSecond) + " a second)";
+  refusals_unlogged_ = 0;
+  std::fprintf(stderr, "camsim-gige: refused %s: %s%s\n", what.c_str(), why.c_str(), more.c_str());
+}
+
+std::string GigeDevice::ValueText(const Feature& f, uint64_t v) const {
+  switch (f.kind) {
+    case Kind::kFloat: return Fmt(BitsDouble(v));
+    case Kind::kEnum:
+      for (const EnumEntry& e : TableFeature(table_, f).entries)
+        if (static_cast<uint64_t>(e.value) == v) return e.name + " (" + std::to_string(v) + ")";
+      return std::to_string(v);
+    default: return std::to_string(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
+  }
+}
+
+std::string GigeDevice::WhyInvalid(const Feature& f, uint64_t v) const {
+  if (Valid(f, v)) return "";
+  switch (f.kind) {
+    case Kind::kInteger: {
+      const double x = static_cast<double>(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
+      if (x < f.min || x > f.max) return "out of range " + Fmt(f.min) + ".." + Fmt(f.max);
+      return "off its increment " + Fmt(f.inc) + " (from " + Fmt(f.min) + ")";
+    }
+    case Kind::kFloat:
+      if (!std::isfinite(BitsDouble(v))) return "not a finite number";
+      return "out of range " + Fmt(f.min) + ".." + Fmt(f.max);
+    case Kind::kEnum:
+      for (const EnumEntry& e : TableFeature(table_, f).entries)
+        if (static_cast<uint64_t>(e.value) == v)
+          return "entry " + e.name + " is not available (at this selector value, or on this device)";
+      return "no such entry";
+    case Kind::kBoolean: return "a Boolean is 0 or 1";
+    default: return "not writable";
   }
 }
 

@@ -215,6 +215,13 @@ class GigeDevice {
   // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
   void LimitAutoRange(const ExposureSettings& want);
   void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
+  // One line on stderr per refused write: "refused NAME = VALUE: WHY", at
+  // most kRefusalLinesPerSecond a second (a client could flood it); the
+  // next line logged says how many were left out. Thread-safe.
+  void LogRefusal(const std::string& what, const std::string& why) const;
+  // Why a feature never takes v (empty when it does): its range, increment, entries.
+  std::string WhyInvalid(const Feature& f, uint64_t v) const;
+  std::string ValueText(const Feature& f, uint64_t v) const;  // v as a client wrote it
   // A trigger taken (under trigger_mutex_): queued for the fake camera, with
   // the frame index a bus pulse carries (kNextIndex: the next SimFrameIndex).
   void TakeTrigger(int64_t index);
@@ -317,6 +324,12 @@ class GigeDevice {
   uint32_t frame_index_ = 0;
   uint32_t frame_line_status_ = 0;  // ChunkLineStatusAll: bit i = line i as the frame started
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
+  // LogRefusal's rate limit: lines in the current second, and those left out.
+  static constexpr int kRefusalLinesPerSecond = 20;
+  mutable std::mutex refusal_log_mutex_;
+  mutable std::chrono::steady_clock::time_point refusal_window_{};
+  mutable int refusal_lines_ = 0;
+  mutable uint64_t refusals_unlogged_ = 0;
 };
 
 }  // namespace camsim::genicam

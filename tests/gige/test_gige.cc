@@ -1122,6 +1122,50 @@ TEST(GigeRegisters, GainIsAppliedInGainRawsSteps) {
   EXPECT_EQ(frame, ReferenceFrame(o, 0, genicam::BayerCode(Cfa::kBayerRG, 12), 0, 0, 64, 48, {"sensor.gain_db=6.1"}));
 }
 
+// Every refused write leaves one line on stderr: the feature, the value
+// written and why. A client could flood it: at most 20 lines a second, and
+// the next line logged counts the ones left out.
+TEST(GigeRegisters, EachRefusedWriteIsLoggedWithItsReason) {
+  auto d = StartDevice(OfflineDevice());  // 64 x 48 BayerRG12
+  ASSERT_NE(d, nullptr);
+  const std::vector<std::pair<std::pair<uint32_t, std::vector<uint8_t>>, std::string>> cases = {
+      {{reg::kOffsetY, Be32(32)}, "refused OffsetY = 32: window off the sensor: Height 48 + OffsetY 32 > 48"},
+      {{reg::kWidth, Be32(15)}, "refused Width = 15: off its increment 2"},
+      {{reg::kWidth, Be32(66)}, "refused Width = 66: out of range 2..64"},
+      {{reg::kExposureTime, Be64(0.5)}, "refused ExposureTime = 0.5: out of range 1..1e+08"},
+      {{reg::kTriggerSource, Be32(5)}, "refused TriggerSource = 5: no such entry"},
+      {{reg::kTriggerSource, Be32(genicam::kSourceLine0)}, "refused TriggerSource = Line0 (1): entry Line0 is not available"},
+      {{reg::kGain, Be64(std::nan(""))}, "refused Gain = nan: not a finite number"},
+      {{reg::kAutoGainLowerLimit, Be64(30.0)}, "refused AutoGainLowerLimit = 30: AutoGainLowerLimit 30 above AutoGainUpperLimit 24"},
+      {{0x8ff0, Be32(1)}, "refused register 0x8ff0: no feature there"},
+  };
+  for (const auto& [write, line] : cases) {
+    testing::internal::CaptureStderr();
+    WriteRegRefused(*d, write.first, write.second);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find("camsim-gige: " + line), std::string::npos) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  }
+  // While TLParamsLocked is 1 (or acquiring): the lock, before the value.
+  WriteReg(*d, reg::kTLParamsLocked, Be32(1));
+  testing::internal::CaptureStderr();
+  WriteRegRefused(*d, reg::kOffsetX, Be32(64));
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("refused OffsetX = 64: TLParamsLocked is 1"), std::string::npos) << err;
+  EXPECT_EQ(err.find("window off the sensor"), std::string::npos) << err;
+  // A flood: 20 lines in its second, then one that counts the rest.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  testing::internal::CaptureStderr();
+  for (int i = 0; i < 500; ++i) WriteRegRefused(*d, reg::kWidth, Be32(15));
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 20) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  testing::internal::CaptureStderr();
+  WriteRegRefused(*d, reg::kWidth, Be32(15));
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("(480 earlier refused writes not logged"), std::string::npos) << err;
+}
+
 // Without a trigger line (no --trigger-line), TriggerSource Line0 would arm
 // a trigger that never comes: the XML marks the entry unavailable
 // (pIsAvailable 0) and the device refuses it, as a camera without that line
@@ -3101,6 +3145,28 @@ TEST_F(GigeE2E, TheWindowChangesBetweenAcquisitionsAndNotDuringOne) {
   }
   EXPECT_TRUE(arrived);
   EXPECT_EQ(device_->CheckInvariants(), "");
+}
+
+// A write of the window during acquisition is refused for the lock, whatever
+// its value: OffsetX = 2 at full width would also leave the sensor, and used
+// to say invalid parameter (the window check ran first). The device's stderr
+// says which and why.
+TEST_F(GigeE2E, AWindowWriteWhileAcquiringIsDeniedForTheLock) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  EXPECT_FALSE(c.Grab(3000).empty());
+  testing::internal::CaptureStderr();
+  GError* e = nullptr;
+  arv_camera_set_integer(c.camera(), "OffsetX", 2, &e);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error");
+  g_clear_error(&e);
+  EXPECT_NE(err.find("camsim-gige: refused OffsetX = 2: acquisition running"), std::string::npos) << err;
+  EXPECT_EQ(err.find("window off the sensor"), std::string::npos) << err;
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
 }
 
 TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
