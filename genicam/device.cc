@@ -836,7 +836,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if ((d->Read(reg::kAcquisition) != 0 || d->restarting_) && d->Read(reg::kTriggerMode) == 1 &&
         d->Read(reg::kTriggerSource) == kSourceSoftware) {
       std::lock_guard<std::mutex> t(d->trigger_mutex_);
-      d->TakeTrigger(kNextIndex);
+      d->TakeTrigger(kNextIndex, d->trigger_level_.load());
     }
     return {false, GevStatus::kSuccess};
   }
@@ -1228,7 +1228,7 @@ void GigeDevice::Sync() {
   WriteLineStatus();  // the trigger thread changes the input's level without mutex_
 }
 
-void GigeDevice::TakeTrigger(int64_t index) {
+void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
   if (pending_triggers_.size() >= kMaxPendingTriggers) {
     ++triggers_dropped_;
     if (!overrun_logged_.exchange(true))
@@ -1236,7 +1236,7 @@ void GigeDevice::TakeTrigger(int64_t index) {
                    kMaxPendingTriggers);
     return;
   }
-  pending_triggers_.push_back(index);
+  pending_triggers_.push_back({index, line0_high});
   Write(reg::kFakeTriggerSoftware, 1);
 }
 
@@ -1309,7 +1309,8 @@ void GigeDevice::TriggerLoop() {
         // A trigger bus pulse names the frame to take: every camera of the rig
         // renders the same frame index, also after a missed pulse.
         uint32_t index = 0;
-        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex);
+        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex,
+                    edge == hal::Edge::kRising);
       }
     }
     ++trigger_edges_;
@@ -1684,11 +1685,16 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     frames_in_acquisition_ = 0;
   }
   int64_t pulse_index = kNextIndex;
+  // Line0's level as this frame's exposure starts: a triggered frame's is
+  // the level its trigger left (a short pulse may have ended before the
+  // rendering starts), a free-run frame's the level now.
+  bool line0_high = trigger_level_.load();
   if (Applied(kTriggerMode) == 1) {
     // This frame answers the oldest trigger; the fake camera is asked for the next one.
     std::lock_guard<std::mutex> t(trigger_mutex_);
     if (!pending_triggers_.empty()) {
-      pulse_index = pending_triggers_.front();
+      pulse_index = pending_triggers_.front().index;
+      line0_high = pending_triggers_.front().line0_high;
       pending_triggers_.pop_front();
       if (!pending_triggers_.empty()) Write(kFakeTriggerSoftware, 1);
     }
@@ -1702,7 +1708,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   frame_gain_db_ = AppliedDouble(kGain);
   frame_black_level_dn_ = AppliedDouble(kBlackLevel);
   frame_index_ = Applied(kSimFrameIndex);
-  frame_line_status_ = (trigger_level_.load() ? 1u : 0u) | (strobe_level_ ? 2u : 0u);
+  frame_line_status_ = (line0_high ? 1u : 0u) | (strobe_level_ ? 2u : 0u);
   size_t size = 0;
   uint8_t* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));
   const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
@@ -1741,7 +1747,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   // (A falling edge that failed was sent again by the Sync above.)
   if (strobe) strobe_->SetEdgeIndex(index);  // a trigger bus driven by this strobe names the frame
   if (strobe) DriveStrobe(true);
-  frame_line_status_ = (trigger_level_.load() ? 1u : 0u) | (strobe_level_ ? 2u : 0u);  // as the frame starts
+  frame_line_status_ = (line0_high ? 1u : 0u) | (strobe_level_ ? 2u : 0u);  // as the frame starts
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
   if (strobe) DriveStrobe(false);

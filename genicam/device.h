@@ -224,7 +224,9 @@ class GigeDevice {
   std::string ValueText(const Feature& f, uint64_t v) const;  // v as a client wrote it
   // A trigger taken (under trigger_mutex_): queued for the fake camera, with
   // the frame index a bus pulse carries (kNextIndex: the next SimFrameIndex).
-  void TakeTrigger(int64_t index);
+  // line0_high: the trigger input's level just after the trigger (after a
+  // Line0 edge, the level that edge left): the frame's LineStatus bit 0.
+  void TakeTrigger(int64_t index, bool line0_high);
   static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
   void SyncLoop();
@@ -294,7 +296,11 @@ class GigeDevice {
   // (frame index or kNextIndex). The fake camera has one trigger flag and,
   // before a stream's first frame, reads it only every 100 ms: the queue
   // gives each trigger its own frame.
-  std::deque<int64_t> pending_triggers_;
+  struct PendingTrigger {
+    int64_t index;    // frame index or kNextIndex
+    bool line0_high;  // Line0's level at the trigger (ChunkLineStatusAll of its frame)
+  };
+  std::deque<PendingTrigger> pending_triggers_;
   // Under trigger_mutex_, as of the last sync: TriggerMode On with source
   // Line0, and the edge that triggers (TriggerActivation).
   bool line0_armed_ = false;

@@ -2261,6 +2261,38 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   g_object_unref(parser);
 }
 
+// A 1 ms trigger pulse ends before its frame's rendering starts: the frame's
+// ChunkLineStatusAll still has Line0 high, the level its rising edge left
+// at the exposure start (it was read when the rendering started: 0).
+TEST_F(GigeE2E, AShortPulsesFrameHasLine0HighInItsLineStatus) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  std::string err;
+  for (int i = 0; i < 5; ++i) {
+    trigger_.Set(true, &err);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    trigger_.Set(false, &err);
+    ChunkedFrame f = GrabChunked(c, parser);
+    ASSERT_TRUE(f.ok) << i;
+    EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1) << "pulse " << i << ": Line0 high at its exposure start";
+  }
+  Settle();
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineStatus", nullptr)) << "LineStatus (Line0 selected): the level now";
+  g_object_unref(parser);
+}
+
 // Pulses that come before the fake camera has looked for a trigger (at a
 // stream's start it looks only every 100 ms) each give their own frame, with
 // the index the pulse carries, in order. Beyond the queue, pulses are dropped
