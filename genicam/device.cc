@@ -898,6 +898,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   if (covers(reg::kAcquisition) && value(reg::kAcquisition) == 0) d->WithdrawFreeRun(true);  // the fake camera's own register
   if (covers(reg::kControlChannelPrivilege) && value(reg::kControlChannelPrivilege) == 0)
     d->Write(reg::kTLParamsLocked, 0);
+  if (covers(reg::kStreamPort) || covers(reg::kStreamDestAddress)) ++d->stream_opens_;  // block IDs start again
   bool geometry = false;
   for (uint32_t g : kGeometryRegisters) geometry = geometry || covers(g);
   // (TLParamsLocked, at 0x80a0, is never in one block with the window.)
@@ -1577,6 +1578,15 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
                             static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
     arv_buffer_set_timestamp(buffer, slot_ns);
     arv_buffer_set_system_timestamp(buffer, slot_ns);
+    // The GVSP block ID (and ChunkFrameID): a stream opened since the last
+    // frame starts at 1, as a camera's does; the fake camera sends the
+    // buffer's ID, which it set from its own never-reset counter.
+    if (stream_opens_.load() != stream_opens_seen_) {
+      stream_opens_seen_ = stream_opens_.load();
+      block_id_ = 0;
+    }
+    block_id_ = block_id_ % 0xffff + 1;
+    arv_buffer_set_frame_id(buffer, block_id_);
     const bool first = !was_acquiring_;
     FillLocked(buffer, pixel_format);
     chunks = Applied(reg::kChunkModeActive) != 0;

@@ -330,6 +330,12 @@ class GigeDevice {
   uint32_t frame_index_ = 0;
   uint32_t frame_line_status_ = 0;  // ChunkLineStatusAll: bit i = line i as the frame started
   uint64_t primed_dest_ = 0;  // stream destination the last primed frame went to
+  // GVSP block IDs: 1 for the first frame after a client writes the stream
+  // channel's port or destination (opens a stream), then on, 65535 -> 1 (0
+  // is not a block ID). Aravis's fake camera counts from 65400 and never resets.
+  std::atomic<uint64_t> stream_opens_{0};  // FilterClientWrite: writes of GevSCPHostPort / GevSCDA
+  uint64_t stream_opens_seen_ = 0;         // under mutex_
+  uint32_t block_id_ = 0;                  // the last frame's (under mutex_)
   // LogRefusal's rate limit: lines in the current second, and those left out.
   static constexpr int kRefusalLinesPerSecond = 20;
   mutable std::mutex refusal_log_mutex_;

@@ -3201,6 +3201,38 @@ TEST_F(GigeE2E, AWindowWriteWhileAcquiringIsDeniedForTheLock) {
   EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
 }
 
+// GVSP block IDs (and ChunkFrameID) start at 1 on each stream a client
+// opens and count on across its acquisitions; they used to be the fake
+// camera's counter, from 65400 on, across acquisitions and clients.
+TEST_F(GigeE2E, BlockIdsStartAtOneOnEachStream) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  for (int round = 0; round < 2; ++round) {
+    if (round == 1) {  // a new client, after the first let go
+      client_.reset();
+      client_ = std::make_unique<Client>("127.0.0.1");
+      ASSERT_TRUE(client_->ok()) << client_->last_error;
+      g_client = client_.get();
+    }
+    Client& c = *client_;
+    GError* e = nullptr;
+    arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+    ASSERT_EQ(e, nullptr);
+    ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+    ASSERT_TRUE(c.OpenStream());
+    Start(c);
+    for (uint64_t id = 1; id <= 3; ++id) {
+      ChunkedFrame f = GrabChunked(c, parser);
+      ASSERT_TRUE(f.ok) << round << " " << id;
+      EXPECT_EQ(f.frame_id, id) << "round " << round;
+      EXPECT_EQ(f.values.at("ChunkFrameID"), static_cast<double>(id)) << "round " << round;
+    }
+    arv_camera_stop_acquisition(c.camera(), &e);
+    ASSERT_EQ(e, nullptr);
+    g_object_unref(parser);
+    c.CloseStream();
+  }
+}
+
 TEST_F(GigeE2E, OutOfRangeWritesAreRefusedAndTheDeviceKeepsServing) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
