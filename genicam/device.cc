@@ -1026,6 +1026,8 @@ void GigeDevice::WithdrawFreeRun(bool stop) {
   if (stop) {
     ++acquisition_stops_;
     pending_triggers_.clear();  // triggers belong to the acquisition they came in
+    exposure_busy_until_ = {};
+    trigger_requested_ = false;
   }
   if (pending_triggers_.empty()) Write(reg::kFakeTriggerSoftware, 0);
   ++free_run_withdrawn_;
@@ -1133,6 +1135,8 @@ void GigeDevice::Sync() {
     // free run the fake camera's flag is PaceFreeRun's request.
     std::lock_guard<std::mutex> t(trigger_mutex_);
     pending_triggers_.clear();
+    exposure_busy_until_ = {};
+    trigger_requested_ = false;
     if (!acquiring) free_run_requested_ = false;
     if (!free_run_requested_) Write(kFakeTriggerSoftware, 0);
   }
@@ -1227,6 +1231,11 @@ void GigeDevice::Sync() {
     line0_rising_ = Applied(kTriggerActivation) == 0;
   }
   WriteLineStatus();  // the trigger thread changes the input's level without mutex_
+  {
+    std::lock_guard<std::mutex> t(trigger_mutex_);
+    trigger_exposure_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::micro>(AppliedDouble(kExposureTime)));
+  }
 }
 
 void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
@@ -1237,8 +1246,21 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
                    kMaxPendingTriggers);
     return;
   }
-  pending_triggers_.push_back({index, line0_high});
+  const auto now = std::chrono::steady_clock::now();
+  const auto start = std::max(now, exposure_busy_until_);
+  exposure_busy_until_ = start + trigger_exposure_;
+  pending_triggers_.push_back({index, line0_high, start, exposure_busy_until_});
+  FireDueTrigger(now);
+}
+
+std::chrono::steady_clock::time_point GigeDevice::FireDueTrigger(std::chrono::steady_clock::time_point now) {
+  if (pending_triggers_.empty() || trigger_requested_) return std::chrono::steady_clock::time_point::max();
+  if (pending_triggers_.front().exposure_end > now) return pending_triggers_.front().exposure_end;
+  // Once: the fake camera clears its flag as it takes the request, and a
+  // second 1 before the frame begins (FillLocked) would ask for another frame.
   Write(reg::kFakeTriggerSoftware, 1);
+  trigger_requested_ = true;
+  return std::chrono::steady_clock::time_point::max();
 }
 
 void GigeDevice::RestartStream() {
@@ -1282,6 +1304,10 @@ void GigeDevice::SyncLoop() {
       std::lock_guard<std::mutex> lock(mutex_);
       Sync();
       wake = std::min(wake, PaceFreeRun());  // a free-run slot before the next sync: wake for it
+      {
+        std::lock_guard<std::mutex> t(trigger_mutex_);
+        wake = std::min(wake, FireDueTrigger(std::chrono::steady_clock::now()));  // a trigger's exposure ending
+      }
       restart = restart_stream_;
       restart_stream_ = false;
     }
@@ -1572,8 +1598,13 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
     // The frame's time is its slot on the fake camera's clock (it stamps the
     // buffer itself before this callback): free-run frames keep their cadence,
     // as a camera's sensor timing does, however late this thread runs.
-    const auto late = std::max(std::chrono::steady_clock::duration::zero(),
-                               std::chrono::steady_clock::now() - frame_slot_);
+    // A triggered frame's time is its exposure's start (TakeTrigger).
+    auto start = frame_slot_;
+    if (Applied(reg::kTriggerMode) == 1) {
+      std::lock_guard<std::mutex> t(trigger_mutex_);
+      if (!pending_triggers_.empty()) start = pending_triggers_.front().exposure_start;
+    }
+    const auto late = std::max(std::chrono::steady_clock::duration::zero(), std::chrono::steady_clock::now() - start);
     const guint64 slot_ns = static_cast<guint64>(g_get_real_time()) * 1000 -
                             static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
     arv_buffer_set_timestamp(buffer, slot_ns);
@@ -1706,7 +1737,8 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
       pulse_index = pending_triggers_.front().index;
       line0_high = pending_triggers_.front().line0_high;
       pending_triggers_.pop_front();
-      if (!pending_triggers_.empty()) Write(kFakeTriggerSoftware, 1);
+      trigger_requested_ = false;
+      FireDueTrigger(std::chrono::steady_clock::now());  // the next, if its exposure has ended
     }
   }
   if (pulse_index != kNextIndex) {

@@ -222,11 +222,17 @@ class GigeDevice {
   // Why a feature never takes v (empty when it does): its range, increment, entries.
   std::string WhyInvalid(const Feature& f, uint64_t v) const;
   std::string ValueText(const Feature& f, uint64_t v) const;  // v as a client wrote it
-  // A trigger taken (under trigger_mutex_): queued for the fake camera, with
-  // the frame index a bus pulse carries (kNextIndex: the next SimFrameIndex).
-  // line0_high: the trigger input's level just after the trigger (after a
-  // Line0 edge, the level that edge left): the frame's LineStatus bit 0.
+  // A trigger taken (under trigger_mutex_): queued, with the frame index a
+  // bus pulse carries (kNextIndex: the next SimFrameIndex). line0_high: the
+  // trigger input's level just after the trigger (after a Line0 edge, the
+  // level that edge left): the frame's LineStatus bit 0. Its exposure starts
+  // now, or when the previous trigger's exposure ends, and lasts
+  // ExposureTime; the fake camera is asked for its frame when it has ended
+  // (FireDueTrigger), as a camera reads a frame out after its exposure.
   void TakeTrigger(int64_t index, bool line0_high);
+  // Under trigger_mutex_: asks the fake camera for the oldest trigger's frame
+  // once its exposure has ended; returns when to call again (max: no trigger waits).
+  std::chrono::steady_clock::time_point FireDueTrigger(std::chrono::steady_clock::time_point now);
   static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
   void SyncLoop();
@@ -299,8 +305,15 @@ class GigeDevice {
   struct PendingTrigger {
     int64_t index;    // frame index or kNextIndex
     bool line0_high;  // Line0's level at the trigger (ChunkLineStatusAll of its frame)
+    std::chrono::steady_clock::time_point exposure_start, exposure_end;
   };
   std::deque<PendingTrigger> pending_triggers_;
+  // Under trigger_mutex_: when the last trigger's exposure ends (the next
+  // one's starts no earlier), and ExposureTime as of the last sync (the
+  // triggers' exposure; written under mutex_ and trigger_mutex_).
+  std::chrono::steady_clock::time_point exposure_busy_until_{};
+  std::chrono::steady_clock::duration trigger_exposure_{};
+  bool trigger_requested_ = false;  // under trigger_mutex_: the oldest trigger's frame asked of the fake camera
   // Under trigger_mutex_, as of the last sync: TriggerMode On with source
   // Line0, and the edge that triggers (TriggerActivation).
   bool line0_armed_ = false;

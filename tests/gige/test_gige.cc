@@ -2159,6 +2159,52 @@ TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
   EXPECT_EQ(device_->frames_sent(), 7u);
 }
 
+// A triggered frame is read out after its exposure: it arrives no sooner
+// than ExposureTime after its trigger, is stamped with its exposure's start
+// (the trigger), and triggers closer than an exposure wait for the one
+// before (a 1 s exposure used to give a frame 12 ms after its trigger).
+TEST_F(GigeE2E, ATriggeredFrameComesAfterItsExposure) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  constexpr double kExposureMs = 200.0;
+  const auto now_ns = [] { return static_cast<uint64_t>(g_get_real_time()) * 1000; };
+  constexpr uint64_t kMs = 1000000;
+  Set(c, "TriggerSelector", "FrameStart");
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Software");
+  SetFloat(c, "ExposureTime", kExposureMs * 1000.0);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  GError* e = nullptr;
+  // One trigger.
+  uint64_t sent = now_ns();
+  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+  ASSERT_EQ(e, nullptr);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  uint64_t arrived = now_ns();
+  EXPECT_GE(arrived, sent + static_cast<uint64_t>(kExposureMs) * kMs) << "before its exposure ended";
+  EXPECT_GE(c.last_timestamp_ns() + 5 * kMs, sent) << "stamped before its trigger";
+  EXPECT_LE(c.last_timestamp_ns(), sent + 100 * kMs) << "stamped long after its trigger (not the exposure's start)";
+  // Three back to back: exposures one after another.
+  sent = now_ns();
+  for (int i = 0; i < 3; ++i) {
+    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+    ASSERT_EQ(e, nullptr);
+  }
+  std::vector<uint64_t> stamp;
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
+    arrived = now_ns();
+    EXPECT_GE(arrived, sent + static_cast<uint64_t>((i + 1) * kExposureMs) * kMs) << "frame " << i << " came early";
+    stamp.push_back(c.last_timestamp_ns());
+  }
+  for (int i = 1; i < 3; ++i)
+    EXPECT_GE(stamp[i] - stamp[i - 1], static_cast<uint64_t>(kExposureMs - 2) * kMs) << "exposures overlap at " << i;
+  EXPECT_TRUE(c.Grab(400).empty()) << "more frames than triggers";
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
 // A free-running frame is stamped when its slot comes, not when the fake
 // camera asked for it (before the wait): at 5 Hz each stamp lies after the
 // previous frame arrived, and stamps are a period apart.
