@@ -2,7 +2,7 @@
 // Aravis client over loopback, and how many frames were lost on the way.
 //   camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]
 //                   [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]
-//                   [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous]
+//                   [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous] [--link-mbps M]
 // --prime 0 turns off the device's first-frame leader (GigeDevice::PrimeReceiver)
 // to show the first frame lost to the default socket buffer.
 // --reconfigures N first times N ExposureTime writes, each synced at once
@@ -11,6 +11,7 @@
 // answer (the write filter's checks, the pipeline planned without tables).
 // --rate FPS sets AcquisitionFrameRate (default: AcquisitionFrameRateEnable
 // off, frames as fast as they are made).
+// --link-mbps M: the stream's pacing (camsim-gige's option; 0 = unpaced).
 // --exposure-auto Continuous: the device's auto exposure sets ExposureTime
 // and Gain after every frame (each step rebuilds the pipeline).
 // The device runs in this process (its render threads + Aravis's GVCP/GVSP
@@ -37,7 +38,7 @@ int main(int argc, char** argv) {
   const auto usage = [](FILE* f) {
     std::fputs("usage: camsim_gige_fps [--width W] [--height H] [--format BayerRG8|BayerRG12|RGB8|...]\n"
                "                       [--frames N] [--threads T] [--packet-size B] [--config FILE] [--prime 0|1]\n"
-               "                       [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous]\n",
+               "                       [--reconfigures N] [--rate FPS] [--exposure-auto Off|Continuous] [--link-mbps M]\n",
                f);
   };
   // A whole number in [lo, hi], or a clear error naming the option.
@@ -72,6 +73,7 @@ int main(int argc, char** argv) {
     else if (a == "--packet-size") packet = integer(a, v, 576, 16384);
     else if (a == "--config") o.config_path = v;
     else if (a == "--prime") o.prime_first_frame = integer(a, v, 0, 1) != 0;
+    else if (a == "--link-mbps") o.link_mbps = integer(a, v, 0, camsim::genicam::kMaxLinkMbps);
     else if (a == "--reconfigures") reconfigures = integer(a, v, 0, 1000000);
     else if (a == "--rate") {
       char* end = nullptr;

@@ -18,13 +18,16 @@ const char kUsage[] =
     "usage: camsim-gige (--input EXR... | --pattern NAME) [--config FILE] [--set section.key=value]...\n"
     "                   [--address 127.0.0.1] [--serial CS0001] [--trigger-line CHIP:OFFSET|unix:DIR]\n"
     "                   [--strobe-line CHIP:OFFSET|unix:DIR] [--threads N] [--xml-out FILE] [--frames N]\n"
+    "                   [--link-mbps 1000]\n"
     "  Serves the pipeline's frames as an Aravis fake GigE Vision camera on ADDRESS\n"
     "  (connect by that address). NAME: gradient, checker, flat (size from [sensor]\n"
     "  width/height, else 640x480; depth: a plane from 0.5 m at the left edge to\n"
     "  8 m at the right). --frames N: exit after N frames (0 = run until\n"
     "  SIGINT/SIGTERM). Lines: a GPIO line (libgpiod) or unix:DIR, a loopback trigger\n"
     "  bus shared by a rig of cameras (fire it with camsim-trigger). Receivers at\n"
-    "  1080p need a 4 MiB socket buffer: see docs/gige.md.\n";
+    "  1080p need a 4 MiB socket buffer: see docs/gige.md. --link-mbps M: the stream's\n"
+    "  packets leave no faster than an M Mb/s Ethernet link carries them (default\n"
+    "  1000, GigE; 0 = as fast as the host sends), plus GevSCPD after each.\n";
 
 // The whole of s as a decimal integer in [min, max] (no spaces, no '+').
 bool ParseInt(const std::string& s, long min, long max, long* out) {
@@ -65,15 +68,17 @@ int main(int argc, char** argv) {
     else if (a == "--trigger-line") o.trigger_line = value();
     else if (a == "--strobe-line") o.strobe_line = value();
     else if (a == "--xml-out") o.xml_path = value();
-    else if (a == "--threads" || a == "--frames") {
+    else if (a == "--threads" || a == "--frames" || a == "--link-mbps") {
       const std::string v = value();
-      const long min = a == "--threads" ? 1 : 0, max = a == "--threads" ? 64 : 0x7fffffffL;
+      const long min = a == "--threads" ? 1 : 0,
+                 max = a == "--threads" ? 64 : a == "--link-mbps" ? camsim::genicam::kMaxLinkMbps : 0x7fffffffL;
       long n = 0;
       if (!ParseInt(v, min, max, &n)) {
         std::fprintf(stderr, "camsim-gige: %s needs an integer %ld..%ld, not '%s'\n", a.c_str(), min, max, v.c_str());
         return 1;
       }
       if (a == "--threads") o.threads = static_cast<int>(n);
+      else if (a == "--link-mbps") o.link_mbps = static_cast<int>(n);
       else frames = n;
     } else if (a == "--help" || a == "-h") {
       std::fputs(kUsage, stdout);

@@ -405,6 +405,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   register_origins_["pipeline.stages"] = "SimStageEnable";
   address_ = o.address;
   prime_first_frame_ = o.prime_first_frame;
+  if (o.link_mbps < 0 || o.link_mbps > kMaxLinkMbps) {
+    *error = "--link-mbps: must be 0 (no limit) .. " + std::to_string(kMaxLinkMbps) + ", not " +
+             std::to_string(o.link_mbps);
+    return false;
+  }
+  link_bits_per_s_ = static_cast<uint64_t>(o.link_mbps) * 1'000'000;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
   // The configured gain on GainRaw's 0.1 dB steps, as every later Gain (QuantiseGain).
   double& gain_db = base_config_.core.sensor.gain_db;
@@ -577,6 +583,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {SelectedAddress(kLineSource, 1), kLineSourceOff},
       // The fake camera's default (fits a 1500-byte MTU), or what the largest frame needs.
       {kPacketSize, std::max<uint32_t>(1400, MinPacketSize(sensor_))},
+      {kPacketDelay, 0},
       {kTLParamsLocked, 0},
       {kSimSceneCount, static_cast<uint64_t>(sensor_.scene_count)},
       {kSimSceneFrame, 0},
@@ -697,17 +704,23 @@ void GigeDevice::WriteDerived() {
 }
 
 // The free-run period: FramePeriod with AcquisitionFrameRate on (the device
-// waits for it), and at least the last frame's rendering and conversion
-// (without it, frames come as fast as that; before the first frame, the
-// XML's maximum). An upper bound: sending the frame is left out.
+// waits for it), and at least the last frame's rendering and conversion and
+// its paced sending (without it, frames come as fast as that; before the
+// first frame, the XML's maximum). An upper bound: the thread's other work is left out.
 void GigeDevice::WriteResultingFrameRate() {
   using namespace reg;
-  double period_s = last_render_s_;
+  double period_s = last_render_s_ + last_send_s_;
   if (Applied(kAcquisitionFrameRateEnable) != 0)
     period_s = std::max(period_s, std::chrono::duration<double>(FramePeriod(AppliedDouble(kAcquisitionFrameRate),
                                                                             AppliedDouble(kExposureTime)))
                                       .count());
   WriteDouble(kAcquisitionResultingFrameRate, period_s > 1e-6 ? 1.0 / period_s : 1e6);
+}
+
+uint64_t GigeDevice::PacketDelayNs() const {
+  using namespace reg;
+  const uint64_t hz = uint64_t{Read(kTickFrequencyHigh)} << 32 | Read(kTickFrequencyLow);
+  return hz == 0 ? 0 : static_cast<uint64_t>(static_cast<double>(Read(kPacketDelay)) * 1e9 / static_cast<double>(hz));
 }
 
 void GigeDevice::DriveStrobe(bool high) {
@@ -1623,6 +1636,8 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
     chunks = Applied(reg::kChunkModeActive) != 0;
     if (chunks) QueueChunks(buffer, pixel_format);
     PaceFreeRun();  // the next frame at once when its slot has passed, or frames come as fast as they are made
+    // The link and GevSCPD pace the packets this thread sends next (fake_camera_hooks.h).
+    PaceNextFrame(static_cast<uint16_t>(arv_buffer_get_frame_id(buffer)), link_bits_per_s_, PacketDelayNs());
     dest = (static_cast<uint64_t>(Read(kStreamDestAddress)) << 16) | (Read(kStreamPort) & 0xffff);
     if (!gv_ || !prime_first_frame_ || dest == 0 || (!first && dest == primed_dest_)) return;
     primed_dest_ = dest;
@@ -1795,6 +1810,9 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   if (strobe) DriveStrobe(false);
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
+  // (The chunks, at most kMaxChunkTail bytes, are left out.)
+  last_send_s_ = FrameSendSeconds(static_cast<size_t>(w) * h * PixelBits(pixel_format) / 8,
+                                  Read(kPacketSize) & 0xffff, link_bits_per_s_, PacketDelayNs());
 
   // Mean raw level in the window, for the Auto features.
   if (Applied(kExposureAuto) != kAutoOff || Applied(kGainAuto) != kAutoOff) {

@@ -77,6 +77,7 @@ inline FrameSlot NextFrameSlot(std::chrono::steady_clock::time_point previous,
 }
 
 inline constexpr int kSyncPeriodMs = 2;
+inline constexpr int kMaxLinkMbps = 100000;  // DeviceOptions::link_mbps (100 GbE)
 // Triggers taken but not yet made into frames (TakeTrigger); more are dropped.
 inline constexpr size_t kMaxPendingTriggers = 16;
 
@@ -96,6 +97,9 @@ struct DeviceOptions {
   // Send the first frame's GVSP leader ahead of the frame so an Aravis
   // receiver has grown its socket buffer before the burst (GigeDevice::PrimeReceiver).
   bool prime_first_frame = true;
+  // The link the stream is paced by (Mb/s; 0: no limit, packets go out as
+  // the fake camera sends them). GevSCPD's delay is added either way.
+  int link_mbps = 1000;  // 0 .. kMaxLinkMbps
   // false: no network and no threads (register logic only: fuzzing, unit
   // tests); drive it with WriteMemory / SyncNow / RenderNow.
   bool serve = true;
@@ -186,6 +190,7 @@ class GigeDevice {
   bool Install(host::PlannedPipeline planned, std::string* error);  // puts a plan in use; under mutex_
   void WriteDerived();  // registers that follow from the applied values
   void WriteResultingFrameRate();  // AcquisitionResultingFrameRate
+  uint64_t PacketDelayNs() const;   // GevSCPD in ns (its ticks at the timestamp tick frequency)
   void WriteLineStatus();  // each line's level
   void DriveStrobe(bool high);  // sets the strobe line; a failure goes to line_error_
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
@@ -338,6 +343,8 @@ class GigeDevice {
   uint64_t hooks_refused_before_ = 0;  // WritesRefusedAt(address_) before the camera served
   bool prime_first_frame_ = true;
   double last_render_s_ = 0;  // the last frame's rendering time (0: none yet)
+  double last_send_s_ = 0;    // the last frame's paced sending time (FrameSendSeconds)
+  uint64_t link_bits_per_s_ = 0;  // DeviceOptions::link_mbps
   // What the last frame was rendered with (its chunks).
   double frame_exposure_us_ = 0, frame_gain_db_ = 0, frame_black_level_dn_ = 0;
   uint32_t frame_index_ = 0;

@@ -53,6 +53,11 @@
 // write from a client not in control and a command it does not know get no
 // acknowledgement from it: the hooks answer those when the thread receives
 // again or polls (AnswerUnanswered).
+//
+// Pacing: the device names the frame this thread sends next, with the link
+// rate and GevSCPD (PaceNextFrame), and the send hook lets each of that
+// frame's GVSP packets go out only when a link of that rate would have
+// carried the ones before it (PacedSend). Control packets pass at once.
 
 #include <arpa/inet.h>
 #include <arv.h>
@@ -61,8 +66,10 @@
 #include <net/if.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <time.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <condition_variable>
 #include <cstdint>
 #include <cstring>
@@ -386,6 +393,56 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
 
 namespace {
 
+using camsim::genicam::kGvspHeaderBytes, camsim::genicam::kPaceAheadNs, camsim::genicam::kPaceBehindNs,
+    camsim::genicam::WirePacketBytes;
+
+// The pacing of the frame this thread sends next (PaceNextFrame).
+struct PacedFrame {
+  bool active = false;
+  uint16_t block_id = 0;
+  uint64_t link_bits_per_s = 0, packet_delay_ns = 0;
+  GSocket* socket = nullptr;  // its stream socket, once its first packet went out
+  int64_t next_ns = 0;        // the earliest its next packet may leave (CLOCK_MONOTONIC)
+};
+thread_local PacedFrame t_pace;
+
+int64_t MonotonicNs() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return int64_t{t.tv_sec} * 1'000'000'000 + t.tv_nsec;
+}
+
+// Sends one GVSP packet of the paced frame when its place on the link
+// comes: one packet's wire time (and GevSCPD) after the one before.
+gssize PacedSend(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size, GCancellable* cancellable,
+                 GError** error) {
+  static const SendToFn next = Next<SendToFn>("g_socket_send_to");
+  PacedFrame& p = t_pace;
+  const int64_t now = MonotonicNs();
+  if (p.socket == nullptr || now - p.next_ns > kPaceBehindNs) p.next_ns = now;  // the frame's first packet, or late
+  p.socket = socket;
+  if (p.next_ns - now > kPaceAheadNs) {
+    const timespec at{static_cast<time_t>(p.next_ns / 1'000'000'000), static_cast<long>(p.next_ns % 1'000'000'000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, nullptr) == EINTR) {
+    }
+  }
+  const uint64_t wire_ns =
+      p.link_bits_per_s == 0 ? 0 : WirePacketBytes(size) * 8 * uint64_t{1'000'000'000} / p.link_bits_per_s;
+  p.next_ns += static_cast<int64_t>(wire_ns + p.packet_delay_ns);
+  if (size >= kGvspHeaderBytes && (static_cast<uint8_t>(buffer[4]) & 0x0f) == 2) p.active = false;  // the trailer
+  return next(socket, address, buffer, size, cancellable, error);
+}
+
+// True when `bytes` is a GVSP packet (standard IDs) of the paced frame on its
+// stream socket: never a control packet.
+bool PacedPacket(GSocket* socket, const uint8_t* bytes, gsize size) {
+  const PacedFrame& p = t_pace;
+  if (!p.active || size < kGvspHeaderBytes || Get16(bytes + 2) != p.block_id || (bytes[4] & 0x80) != 0 ||
+      (bytes[4] & 0x0f) < 1 || (bytes[4] & 0x0f) > 3)
+    return false;
+  return p.socket != nullptr ? socket == p.socket : (socket != t_packet.socket && !GvcpSocketAddress(socket));
+}
+
 // The chunks of the frame this thread sends next (SendChunksWithNextFrame).
 struct ChunkedFrame {
   bool active = false;
@@ -399,7 +456,6 @@ thread_local ChunkedFrame t_chunks;
 
 // GVSP (standard IDs): status (2), block ID (2), packet format (1: bit 7
 // extended IDs, low 4 bits 1 leader / 2 trailer / 3 payload), packet ID (3).
-using camsim::genicam::kGvspHeaderBytes;
 constexpr uint8_t kGvspLeader = 1, kGvspTrailer = 2, kGvspPayload = 3;
 void Put16(uint8_t* p, uint32_t v) {
   p[0] = static_cast<uint8_t>(v >> 8);
@@ -467,9 +523,12 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
     return -1;
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(buffer);
+  // A paced frame's packets (and its chunks' extra ones) go out through PacedSend.
+  const SendToFn stream_send = PacedPacket(socket, bytes, size) ? PacedSend : next;
   if (t_chunks.active && socket != t_packet.socket && size >= kGvspHeaderBytes && Get16(bytes + 2) == t_chunks.block_id &&
       (bytes[4] & 0x80) == 0 && (bytes[4] & 0x0f) >= kGvspLeader && (bytes[4] & 0x0f) <= kGvspPayload)
-    return SendChunkedFramePacket(next, socket, address, bytes, size, cancellable, error);
+    return SendChunkedFramePacket(stream_send, socket, address, bytes, size, cancellable, error);
+  if (stream_send != next) return stream_send(socket, address, buffer, size, cancellable, error);
   if (t_packet.socket == nullptr || socket != t_packet.socket) return next(socket, address, buffer, size, cancellable, error);
   const ControlPacket packet = t_packet;
   t_packet = ControlPacket{};
@@ -534,6 +593,29 @@ void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packe
   c.packet_data_bytes = packet_data_bytes;
   std::memcpy(c.tail, tail, tail_bytes);
   c.tail_bytes = tail_bytes;
+}
+
+void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
+  t_pace = PacedFrame{};
+  t_pace.active = link_bits_per_s != 0 || packet_delay_ns != 0;
+  t_pace.block_id = block_id;
+  t_pace.link_bits_per_s = link_bits_per_s;
+  t_pace.packet_delay_ns = packet_delay_ns;
+}
+
+double FrameSendSeconds(size_t payload_bytes, size_t packet_size, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
+  constexpr size_t kLeader = 44, kTrailer = 16;  // UDP payload bytes
+  const size_t data = packet_size > kGvspOverheadBytes ? packet_size - kGvspOverheadBytes : 1;
+  const size_t full = payload_bytes / data, rest = payload_bytes % data;
+  double bytes = static_cast<double>(WirePacketBytes(kLeader) + WirePacketBytes(kTrailer)) +
+                 static_cast<double>(full) * static_cast<double>(WirePacketBytes(data + kGvspHeaderBytes));
+  size_t packets = 2 + full;
+  if (rest != 0) {
+    bytes += static_cast<double>(WirePacketBytes(rest + kGvspHeaderBytes));
+    ++packets;
+  }
+  const double wire = link_bits_per_s == 0 ? 0.0 : bytes * 8 / static_cast<double>(link_bits_per_s);
+  return wire + static_cast<double>(packets) * static_cast<double>(packet_delay_ns) * 1e-9;
 }
 
 void SetWriteFilter(ArvFakeCamera* camera, WriteFilter filter, void* owner) {

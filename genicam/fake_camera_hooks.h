@@ -143,4 +143,28 @@ inline constexpr size_t kGvspOverheadBytes = 20 + 8 + kGvspHeaderBytes;  // IPv4
 void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packet_data_bytes, const uint8_t* tail,
                              size_t tail_bytes);
 
+// Pacing of the frame this thread sends next (block `block_id`): its GVSP
+// packets leave no faster than a link of `link_bits_per_s` carries them (0:
+// no link limit), with `packet_delay_ns` (GevSCPD) after each one. A packet
+// of n UDP payload bytes takes WirePacketBytes(n) bytes of the link. The
+// send hook sleeps to absolute deadlines on CLOCK_MONOTONIC, only when more
+// than kPaceAheadNs ahead, and restarts its schedule when more than
+// kPaceBehindNs behind (a thread descheduled does not make up in a burst).
+// Control (GVCP) packets are never delayed. Both 0: sent as it comes.
+void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_delay_ns);
+inline constexpr int64_t kPaceAheadNs = 50'000, kPaceBehindNs = 500'000;
+// Ethernet's share of a UDP datagram of `udp_payload` bytes: UDP (8) and
+// IPv4 (20) headers, the Ethernet header (14) and FCS (4), padded to
+// Ethernet's 64-byte minimum frame, then the preamble with its start
+// delimiter (8) and the inter-frame gap (12).
+inline constexpr size_t WirePacketBytes(size_t udp_payload) {
+  const size_t frame = udp_payload + 8 + 20 + 14 + 4;
+  return (frame < 64 ? 64 : frame) + 8 + 12;
+}
+// The time a frame of `payload_bytes` takes to send paced so: a leader, its
+// data packets of GevSCPSPacketSize `packet_size` (IP packet bytes), a
+// trailer. The leader's and trailer's sizes are Aravis 0.8.26's fake
+// camera's (44 and 16 bytes with the GVSP header).
+double FrameSendSeconds(size_t payload_bytes, size_t packet_size, uint64_t link_bits_per_s, uint64_t packet_delay_ns);
+
 }  // namespace camsim::genicam

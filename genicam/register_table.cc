@@ -342,6 +342,11 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   packet.low_bits = 16;
   packet.locked_while_acquiring = true;
   t.push_back(packet);
+  // At most 100 us a packet (a 1080p frame of 1400-byte packets: 0.15 s
+  // more): the fake camera's one thread also answers control packets.
+  t.push_back(Int("GevSCPD", tl, kPacketDelay, true, 0, kMaxPacketDelayTicks, 1,
+                  "Delay after each stream packet, in timestamp ticks (GevTimestampTickFrequency: 1e9 Hz, so ns).",
+                  "ticks"));
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
 
   // GigE Vision chunk mode (register_table.h, ChunkSelectorValue): per-frame

@@ -78,6 +78,11 @@ namespace reg {
 inline constexpr uint32_t kVendorName = 0x48, kModelName = 0x68, kDeviceVersion = 0x88, kManufacturerInfo = 0xa8,
                           kSerialNumber = 0xd8, kUserId = 0xe8;  // GigE Vision bootstrap strings
 inline constexpr uint32_t kPacketSize = 0xd04;                    // bootstrap SCPS0
+// Bootstrap SCPD0: the delay after each stream packet (GevSCPD), in ticks
+// of the timestamp clock, whose frequency (Hz) is the 64-bit value at
+// 0x093c (high word) and 0x0940 (low word): 1e9 in Aravis's fake camera, so
+// one tick is 1 ns.
+inline constexpr uint32_t kPacketDelay = 0xd08, kTickFrequencyHigh = 0x093c, kTickFrequencyLow = 0x0940;
 // GigE Vision bootstrap, read-only to clients: device mode (bit 31:
 // big-endian registers; low 16 bits: the strings' character set) and the
 // GVCP capabilities the device has.
@@ -189,6 +194,7 @@ struct SensorInfo {
 uint64_t MaxPayloadBytes(const SensorInfo& sensor);
 inline constexpr uint64_t kMaxFakeCameraPayloadBits = 0xFFFFFFFFu;
 inline constexpr uint32_t kMaxGvspDataPackets = 65534, kMinPacketSize = 576, kMaxPacketSize = 9000;
+inline constexpr uint32_t kMaxPacketDelayTicks = 100000;  // GevSCPD's maximum (100 us at 1 GHz)
 uint32_t MinPacketSize(const SensorInfo& sensor);
 
 // Pixel formats offered for a sensor, first = default (the raw format at the ADC depth).

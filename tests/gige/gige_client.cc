@@ -65,7 +65,7 @@ Client::~Client() {
   g_clear_object(&camera_);
 }
 
-bool Client::OpenStream(int buffers) {
+bool Client::OpenStream(int buffers, int socket_buffer_bytes) {
   GError* error = nullptr;
   const guint payload = arv_camera_get_payload(camera_, &error);
   if (!error) stream_ = arv_camera_create_stream(camera_, nullptr, nullptr, &error);
@@ -74,8 +74,9 @@ bool Client::OpenStream(int buffers) {
     g_clear_error(&error);
     return false;
   }
-  // 4 MiB: a 1080p frame in flight fits (see README: net.core.rmem_max).
-  g_object_set(stream_, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size", 4 << 20, nullptr);
+  // 4 MiB by default: a 1080p frame in flight fits (see docs/gige.md: net.core.rmem_max).
+  g_object_set(stream_, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size", socket_buffer_bytes,
+               nullptr);
   for (int i = 0; i < buffers; ++i) arv_stream_push_buffer(stream_, arv_buffer_new(payload, nullptr));
   return true;
 }
@@ -83,6 +84,7 @@ bool Client::OpenStream(int buffers) {
 std::vector<uint8_t> Client::Grab(int timeout_ms, uint64_t* frame_id, int* width, uint32_t* format) {
   ArvBuffer* b = arv_stream_timeout_pop_buffer(stream_, static_cast<guint64>(timeout_ms) * 1000);
   if (!b) return {};
+  const uint64_t popped_ns = static_cast<uint64_t>(g_get_real_time()) * 1000;
   std::vector<uint8_t> out;
   if (arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS) {
     size_t size = 0;
@@ -92,6 +94,8 @@ std::vector<uint8_t> Client::Grab(int timeout_ms, uint64_t* frame_id, int* width
     if (width) *width = arv_buffer_get_image_width(b);
     if (format) *format = arv_buffer_get_image_pixel_format(b);
     last_timestamp_ns_ = arv_buffer_get_timestamp(b);
+    last_first_packet_ns_ = arv_buffer_get_system_timestamp(b);
+    last_popped_ns_ = popped_ns;
   } else {
     ++failed_;
   }

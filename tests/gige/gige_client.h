@@ -36,8 +36,9 @@ class Client {
   ArvCamera* camera() { return camera_; }
   ArvDevice* device() { return arv_camera_get_device(camera_); }
   ArvStream* stream() { return stream_; }
-  // Creates the stream with n buffers of the current payload and a 4 MiB socket buffer.
-  bool OpenStream(int buffers = 4);
+  // Creates the stream with n buffers of the current payload and a socket
+  // buffer of socket_buffer_bytes (Aravis's FIXED policy; the kernel caps it at net.core.rmem_max).
+  bool OpenStream(int buffers = 4, int socket_buffer_bytes = 4 << 20);
   // The next complete frame's bytes (empty on timeout or a failed buffer);
   // *frame_id receives the GVSP block id.
   std::vector<uint8_t> Grab(int timeout_ms, uint64_t* frame_id = nullptr, int* width = nullptr,
@@ -47,11 +48,16 @@ class Client {
   // The last grabbed frame's timestamp (ns, the camera's clock: the fake
   // camera's real time).
   uint64_t last_timestamp_ns() const { return last_timestamp_ns_; }
+  // The last grabbed frame's first packet's arrival (Aravis's system
+  // timestamp) and its pop from the stream (just after its last packet when
+  // Grab was waiting), both g_get_real_time in ns.
+  uint64_t last_first_packet_ns() const { return last_first_packet_ns_; }
+  uint64_t last_popped_ns() const { return last_popped_ns_; }
   std::string last_error;
 
  private:
   ArvCamera* camera_ = nullptr;
-  uint64_t last_timestamp_ns_ = 0;
+  uint64_t last_timestamp_ns_ = 0, last_first_packet_ns_ = 0, last_popped_ns_ = 0;
   ArvStream* stream_ = nullptr;
   uint64_t failed_ = 0;
 };

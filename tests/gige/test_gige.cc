@@ -2129,6 +2129,76 @@ TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
   EXPECT_EQ(arv_stream_get_info_uint64_by_name(c.stream(), "n_duplicated_packets"), 1u);
 }
 
+// The stream's packets leave as a link of --link-mbps carries them, with
+// GevSCPD (timestamp ticks: GevTimestampTickFrequency) after each: a frame's
+// first packet to its last take at least that long, and not much longer.
+TEST_F(GigeE2E, TheStreamIsPacedByTheLinkAndGevSCPD) {
+  DeviceOptions o = SmallDevice(640, 480);
+  o.link_mbps = 100;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  const uint64_t tick_hz = arv_gv_device_get_timestamp_tick_frequency(ARV_GV_DEVICE(c.device()), nullptr);
+  ASSERT_EQ(tick_hz, 1000000000u);  // Aravis's fake camera: 1 ns ticks
+  SetInt(c, "GevSCPD", 20000);      // 20 us after each packet
+  SetFloat(c, "AcquisitionFrameRate", 5.0);
+  Settle();
+  const int64_t payload = ReadInt(c, "PayloadSize"), packet_size = ReadInt(c, "GevSCPSPacketSize");
+  ASSERT_EQ(payload, 640 * 480 * 2);  // BayerRG12: 451 packets of 1400 B
+  const double expected_s = genicam::FrameSendSeconds(static_cast<size_t>(payload), static_cast<size_t>(packet_size),
+                                                      100'000'000, 20000);
+  // 1438 wire bytes at 100 Mb/s (115 us) + 20 us, for 453 packets: 61 ms.
+  EXPECT_NEAR(expected_s, 0.061, 0.001);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(5000).empty());  // the first frame's leader was sent 10 ms ahead (PrimeReceiver)
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_FALSE(c.Grab(5000).empty()) << "frame " << i;
+    const double took_s = static_cast<double>(c.last_popped_ns() - c.last_first_packet_ns()) * 1e-9;
+    // From the leader to the trailer: every packet but the trailer's slot (and
+    // up to kPaceAheadNs early); a loaded machine may add tens of ms.
+    EXPECT_GE(took_s, expected_s * 0.97 - 1e-3) << "frame " << i;
+    EXPECT_LE(took_s, expected_s * 2 + 0.05) << "frame " << i;
+  }
+  c.CloseStream();
+  EXPECT_EQ(c.failed_buffers(), 0u);
+  // Free run without AcquisitionFrameRate: no faster than rendering and sending.
+  arv_camera_set_boolean(c.camera(), "AcquisitionFrameRateEnable", FALSE, nullptr);
+  Settle();
+  EXPECT_LT(ReadFloat(c, "AcquisitionResultingFrameRate"), 1.0 / expected_s);
+}
+
+// A client with a small socket buffer (256 KiB, a 640x480 12-bit frame is
+// 600 KiB) gets every frame whole when the stream is paced at 1 Gb/s. Unpaced
+// (--link-mbps 0) the fake camera's burst overflows it (8 of 10 frames
+// failed here) and the lost packets are never sent again.
+TEST_F(GigeE2E, ASmallReceiveBufferGetsEveryPacedFrame) {
+  constexpr int kFrames = 10;
+  for (const int mbps : {1000, 0}) {
+    DeviceOptions o = SmallDevice(640, 480);
+    o.link_mbps = mbps;
+    ASSERT_NO_FATAL_FAILURE(StartWith(o));
+    Client& c = *client_;
+    SetFloat(c, "AcquisitionFrameRate", 10.0);
+    Settle();
+    ASSERT_TRUE(c.OpenStream(8, 256 << 10));
+    Start(c);
+    int whole = 0;
+    for (int i = 0; i < kFrames; ++i) whole += c.Grab(3000).empty() ? 0 : 1;
+    const uint64_t missing = arv_stream_get_info_uint64_by_name(c.stream(), "n_missing_packets");
+    c.CloseStream();
+    std::printf("link %d Mb/s: %d of %d frames whole, %llu failed buffers, %llu packets missing\n", mbps, whole,
+                kFrames, static_cast<unsigned long long>(c.failed_buffers()), static_cast<unsigned long long>(missing));
+    if (mbps != 0) {
+      EXPECT_EQ(whole, kFrames);
+      EXPECT_EQ(c.failed_buffers(), 0u);
+      EXPECT_EQ(missing, 0u);
+    } else {
+      EXPECT_GT(missing, 0u) << "unpaced, no packet was lost: the buffer held every burst";
+    }
+    TearDown();
+  }
+}
+
 TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
