@@ -542,10 +542,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   put_string(reg::kManufacturerInfo, "camsim camera emulator", 48);
   put_string(reg::kUserId, "", 16);
   // What the device is and can do. WRITEMEM is the only way to write an
-  // 8-byte Float register; the fake camera has no concatenation, packet
-  // resend or events, so they are not claimed.
+  // 8-byte Float register; PACKETRESEND is the hooks' (fake_camera_hooks.h,
+  // kResendFrames); the fake camera has no concatenation or events, so they
+  // are not claimed.
   Write(reg::kDeviceMode, reg::kDeviceModeBigEndianUtf8);
-  Write(reg::kGvcpCapability, reg::kCapabilityUserName | reg::kCapabilitySerialNumber | reg::kCapabilityWriteMem);
+  Write(reg::kGvcpCapability, reg::kCapabilityUserName | reg::kCapabilitySerialNumber | reg::kCapabilityWriteMem |
+                                  reg::kCapabilityPacketResend);
 
   using namespace reg;
   const auto& c = finished.core;

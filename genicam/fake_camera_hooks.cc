@@ -57,7 +57,11 @@
 // Pacing: the device names the frame this thread sends next, with the link
 // rate and GevSCPD (PaceNextFrame), and the send hook lets each of that
 // frame's GVSP packets go out only when a link of that rate would have
-// carried the ones before it (PacedSend). Control packets pass at once.
+// carried the ones before it (StreamSend). Control packets pass at once.
+//
+// Packet resend: StreamSend also keeps the packets of the thread's last
+// kResendFrames frames, and the receive hook answers a PACKETRESEND with
+// the kept packets it asks for (ResendPackets), hidden from the fake camera.
 
 #include <arpa/inet.h>
 #include <arv.h>
@@ -69,6 +73,7 @@
 #include <time.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <condition_variable>
 #include <cstdint>
@@ -101,7 +106,8 @@ using camsim::genicam::GevStatus;
 // GVCP header: key or status (2 bytes), command (2), length (2), request id
 // (2). An error acknowledgement: the header and 4 bytes of data.
 constexpr size_t kGvcpHeader = 8, kGvcpErrorAck = kGvcpHeader + 4;
-constexpr uint8_t kGvcpCommandKey = 0x42, kGvcpAckRequired = 0x01;  // byte 0; a flag of byte 1
+constexpr uint8_t kGvcpCommandKey = 0x42, kGvcpAckRequired = 0x01,  // byte 0; flags of byte 1
+    kGvcpExtendedIds = 0x10;
 constexpr uint16_t kReadReg = 0x0080, kWriteReg = 0x0082, kReadMem = 0x0084, kWriteMem = 0x0086,
                    kPacketResend = 0x0040;  // GVCP command codes
 uint16_t Get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] << 8 | p[1]); }
@@ -115,6 +121,7 @@ size_t FixedFields(uint16_t command) {
     case kWriteReg: return 8;
     case kReadMem: return 8;
     case kWriteMem: return 4;
+    case kPacketResend: return 12;
     default: return 0;
   }
 }
@@ -140,6 +147,7 @@ struct ControlPacket {
   gsize from_size = 0;
 };
 thread_local ControlPacket t_packet;
+std::atomic<uint64_t> g_resent_packets{0};  // PacketsResent
 
 // Whether a socket is bound to GVCP's port (a fake camera's control or
 // discovery socket), and its local IPv4 address (address may be nullptr).
@@ -341,6 +349,10 @@ extern "C" gboolean arv_fake_camera_check_and_acknowledge_software_trigger(ArvFa
   return next(camera);
 }
 
+namespace {
+void ResendPackets(const uint8_t* data, uint16_t length, bool extended);  // below
+}  // namespace
+
 // The fake camera's thread receives each control packet into one buffer.
 // A malformed one, or a READMEM longer than GVCP allows, is answered here
 // and hidden from it.
@@ -381,6 +393,12 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
     p[0] = 0;
     return got;
   }
+  // PACKETRESEND is answered with the packets (ResendPackets), not an acknowledgement.
+  if (command == kPacketResend) {
+    ResendPackets(p + kGvcpHeader, length, (p[1] & kGvcpExtendedIds) != 0);
+    p[0] = 0;
+    return got;
+  }
   t_packet.socket = socket;
   t_packet.command = command;
   t_packet.id = id;
@@ -396,15 +414,33 @@ namespace {
 using camsim::genicam::kGvspHeaderBytes, camsim::genicam::kPaceAheadNs, camsim::genicam::kPaceBehindNs,
     camsim::genicam::WirePacketBytes;
 
-// The pacing of the frame this thread sends next (PaceNextFrame).
-struct PacedFrame {
-  bool active = false;
+// The frame this thread sends next (PaceNextFrame): its pacing, and where
+// its packets go.
+struct StreamFrame {
+  bool active = false;  // from PaceNextFrame to its trailer
   uint16_t block_id = 0;
   uint64_t link_bits_per_s = 0, packet_delay_ns = 0;
   GSocket* socket = nullptr;  // its stream socket, once its first packet went out
   int64_t next_ns = 0;        // the earliest its next packet may leave (CLOCK_MONOTONIC)
 };
-thread_local PacedFrame t_pace;
+thread_local StreamFrame t_stream;
+
+// The last kResendFrames frames this thread sent, packet by packet, for
+// PACKETRESEND; the oldest is reused for the next frame.
+struct SentFrame {
+  bool used = false;
+  uint16_t block_id = 0;
+  std::vector<uint8_t> bytes;               // the packets, one after another
+  std::vector<std::pair<size_t, size_t>> at;  // by packet ID: offset and size in bytes (size 0: not sent)
+};
+struct SentFrames {
+  SentFrame frames[camsim::genicam::kResendFrames];
+  size_t newest = 0;
+  GSocket* socket = nullptr;  // the stream socket and destination of the newest frame
+  sockaddr_storage to{};
+  gsize to_size = 0;
+};
+thread_local SentFrames t_sent;
 
 int64_t MonotonicNs() {
   timespec t{};
@@ -412,35 +448,100 @@ int64_t MonotonicNs() {
   return int64_t{t.tv_sec} * 1'000'000'000 + t.tv_nsec;
 }
 
-// Sends one GVSP packet of the paced frame when its place on the link
-// comes: one packet's wire time (and GevSCPD) after the one before.
-gssize PacedSend(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size, GCancellable* cancellable,
-                 GError** error) {
-  static const SendToFn next = Next<SendToFn>("g_socket_send_to");
-  PacedFrame& p = t_pace;
+// Waits for the slot of a packet of `size` UDP payload bytes on a link
+// whose schedule is `next_ns` (0: starts now), and books the slot.
+void WaitForSlot(int64_t* next_ns, gsize size, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
+  if (link_bits_per_s == 0 && packet_delay_ns == 0) return;
   const int64_t now = MonotonicNs();
-  if (p.socket == nullptr || now - p.next_ns > kPaceBehindNs) p.next_ns = now;  // the frame's first packet, or late
-  p.socket = socket;
-  if (p.next_ns - now > kPaceAheadNs) {
-    const timespec at{static_cast<time_t>(p.next_ns / 1'000'000'000), static_cast<long>(p.next_ns % 1'000'000'000)};
+  if (*next_ns == 0 || now - *next_ns > kPaceBehindNs) *next_ns = now;  // the first packet, or late
+  if (*next_ns - now > kPaceAheadNs) {
+    const timespec at{static_cast<time_t>(*next_ns / 1'000'000'000), static_cast<long>(*next_ns % 1'000'000'000)};
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, nullptr) == EINTR) {
     }
   }
   const uint64_t wire_ns =
-      p.link_bits_per_s == 0 ? 0 : WirePacketBytes(size) * 8 * uint64_t{1'000'000'000} / p.link_bits_per_s;
-  p.next_ns += static_cast<int64_t>(wire_ns + p.packet_delay_ns);
-  if (size >= kGvspHeaderBytes && (static_cast<uint8_t>(buffer[4]) & 0x0f) == 2) p.active = false;  // the trailer
+      link_bits_per_s == 0 ? 0 : WirePacketBytes(size) * 8 * uint64_t{1'000'000'000} / link_bits_per_s;
+  *next_ns += static_cast<int64_t>(wire_ns + packet_delay_ns);
+}
+
+// Keeps a packet of the frame being sent (t_stream) for PACKETRESEND.
+void KeepSent(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size) {
+  SentFrames& k = t_sent;
+  SentFrame& f = k.frames[k.newest];
+  if (!f.used || f.block_id != t_stream.block_id) {
+    k.newest = (k.newest + 1) % camsim::genicam::kResendFrames;
+    SentFrame& n = k.frames[k.newest];
+    n.used = true;
+    n.block_id = t_stream.block_id;
+    n.bytes.clear();
+    n.at.clear();
+    k.socket = socket;
+    k.to_size = 0;
+    if (address != nullptr && g_socket_address_get_native_size(address) <= static_cast<gssize>(sizeof k.to) &&
+        g_socket_address_to_native(address, &k.to, sizeof k.to, nullptr))
+      k.to_size = static_cast<gsize>(g_socket_address_get_native_size(address));
+  }
+  SentFrame& n = k.frames[k.newest];
+  const auto* b = reinterpret_cast<const uint8_t*>(buffer);
+  const uint32_t id = uint32_t{b[5]} << 16 | Get16(b + 6);
+  if (id >= n.at.size()) n.at.resize(id + 1, {0, 0});
+  n.at[id] = {n.bytes.size(), size};
+  n.bytes.insert(n.bytes.end(), b, b + size);
+}
+
+// Sends one GVSP packet of the frame t_stream names: kept for PACKETRESEND,
+// and paced (one packet's wire time and GevSCPD after the one before).
+gssize StreamSend(GSocket* socket, GSocketAddress* address, const gchar* buffer, gsize size, GCancellable* cancellable,
+                  GError** error) {
+  static const SendToFn next = Next<SendToFn>("g_socket_send_to");
+  StreamFrame& p = t_stream;
+  if (p.socket == nullptr) p.next_ns = 0;  // the frame's first packet
+  p.socket = socket;
+  KeepSent(socket, address, buffer, size);
+  WaitForSlot(&p.next_ns, size, p.link_bits_per_s, p.packet_delay_ns);
+  if ((static_cast<uint8_t>(buffer[4]) & 0x0f) == 2) p.active = false;  // the trailer
   return next(socket, address, buffer, size, cancellable, error);
 }
 
-// True when `bytes` is a GVSP packet (standard IDs) of the paced frame on its
-// stream socket: never a control packet.
-bool PacedPacket(GSocket* socket, const uint8_t* bytes, gsize size) {
-  const PacedFrame& p = t_pace;
+// True when `bytes` is a GVSP packet (standard IDs) of the frame t_stream
+// names, on its stream socket: never a control packet.
+bool StreamPacket(GSocket* socket, const uint8_t* bytes, gsize size) {
+  const StreamFrame& p = t_stream;
   if (!p.active || size < kGvspHeaderBytes || Get16(bytes + 2) != p.block_id || (bytes[4] & 0x80) != 0 ||
       (bytes[4] & 0x0f) < 1 || (bytes[4] & 0x0f) > 3)
     return false;
   return p.socket != nullptr ? socket == p.socket : (socket != t_packet.socket && !GvcpSocketAddress(socket));
+}
+
+// PACKETRESEND (standard IDs): stream channel (2), block ID (2), first and
+// last packet ID (4 each, low 24 bits). With the extended-ID flag: 4
+// reserved bytes, the packet IDs (4 each, 32 bits), and a 64-bit block ID,
+// whose low 16 bits name the frame (the fake camera sends standard IDs).
+// The kept packets asked for go out again to the frame's destination,
+// paced as the frame was; packets no longer kept are not answered.
+void ResendPackets(const uint8_t* data, uint16_t length, bool extended) {
+  SentFrames& k = t_sent;
+  if (k.socket == nullptr || k.to_size == 0 || length < (extended ? 20 : 12)) return;
+  const auto get32 = [](const uint8_t* p) { return uint32_t{Get16(p)} << 16 | Get16(p + 2); };
+  const uint16_t block = extended ? Get16(data + 18) : Get16(data + 2);
+  const uint32_t mask = extended ? 0xffffffffu : 0x00ffffffu;
+  const uint32_t first = get32(data + 4) & mask, last = get32(data + 8) & mask;
+  static const SendToFn send = Next<SendToFn>("g_socket_send_to");
+  for (const SentFrame& f : k.frames) {
+    if (!f.used || f.block_id != block) continue;
+    GSocketAddress* to = g_socket_address_new_from_native(&k.to, k.to_size);
+    if (to == nullptr) return;
+    int64_t next_ns = 0;
+    for (uint32_t id = first; id <= last && id < f.at.size(); ++id) {
+      const auto [offset, size] = f.at[id];
+      if (size == 0) continue;
+      WaitForSlot(&next_ns, size, t_stream.link_bits_per_s, t_stream.packet_delay_ns);
+      send(k.socket, to, reinterpret_cast<const gchar*>(f.bytes.data() + offset), size, nullptr, nullptr);
+      ++g_resent_packets;
+    }
+    g_object_unref(to);
+    return;
+  }
 }
 
 // The chunks of the frame this thread sends next (SendChunksWithNextFrame).
@@ -523,8 +624,8 @@ extern "C" gssize g_socket_send_to(GSocket* socket, GSocketAddress* address, con
     return -1;
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(buffer);
-  // A paced frame's packets (and its chunks' extra ones) go out through PacedSend.
-  const SendToFn stream_send = PacedPacket(socket, bytes, size) ? PacedSend : next;
+  // The packets of the frame PaceNextFrame named (and its chunks' extra ones) go out through StreamSend.
+  const SendToFn stream_send = StreamPacket(socket, bytes, size) ? StreamSend : next;
   if (t_chunks.active && socket != t_packet.socket && size >= kGvspHeaderBytes && Get16(bytes + 2) == t_chunks.block_id &&
       (bytes[4] & 0x80) == 0 && (bytes[4] & 0x0f) >= kGvspLeader && (bytes[4] & 0x0f) <= kGvspPayload)
     return SendChunkedFramePacket(stream_send, socket, address, bytes, size, cancellable, error);
@@ -596,12 +697,14 @@ void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packe
 }
 
 void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
-  t_pace = PacedFrame{};
-  t_pace.active = link_bits_per_s != 0 || packet_delay_ns != 0;
-  t_pace.block_id = block_id;
-  t_pace.link_bits_per_s = link_bits_per_s;
-  t_pace.packet_delay_ns = packet_delay_ns;
+  t_stream = StreamFrame{};
+  t_stream.active = true;
+  t_stream.block_id = block_id;
+  t_stream.link_bits_per_s = link_bits_per_s;
+  t_stream.packet_delay_ns = packet_delay_ns;
 }
+
+uint64_t PacketsResent() { return g_resent_packets.load(); }
 
 double FrameSendSeconds(size_t payload_bytes, size_t packet_size, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
   constexpr size_t kLeader = 44, kTrailer = 16;  // UDP payload bytes

@@ -5,7 +5,8 @@
 // software trigger is told apart: arv_fake_camera_check_and_acknowledge_
 // software_trigger), and the GVCP status of each refused access in the
 // acknowledgement (g_socket_receive_message / g_socket_send_to of its control
-// socket, and g_poll for the packets it leaves unanswered).
+// socket, and g_poll for the packets it leaves unanswered), the pacing of
+// its stream packets and PACKETRESEND (g_socket_send_to of its stream socket).
 // fake_camera_hooks.cc says how.
 #pragma once
 
@@ -152,6 +153,13 @@ void SendChunksWithNextFrame(uint16_t block_id, size_t image_bytes, size_t packe
 // kPaceBehindNs behind (a thread descheduled does not make up in a burst).
 // Control (GVCP) packets are never delayed. Both 0: sent as it comes.
 void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_delay_ns);
+// The hook also keeps the packets of this thread's last kResendFrames
+// frames, as sent, and answers a PACKETRESEND (GVCP 0x0040) that reaches
+// the thread's control socket by sending the packets it asks for again, to
+// the frame's stream destination, paced the same way. PacketsResent counts
+// them (all cameras of the process).
+inline constexpr size_t kResendFrames = 4;
+uint64_t PacketsResent();
 inline constexpr int64_t kPaceAheadNs = 50'000, kPaceBehindNs = 500'000;
 // Ethernet's share of a UDP datagram of `udp_payload` bytes: UDP (8) and
 // IPv4 (20) headers, the Ethernet header (14) and FCS (4), padded to

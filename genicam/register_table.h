@@ -89,7 +89,7 @@ inline constexpr uint32_t kPacketDelay = 0xd08, kTickFrequencyHigh = 0x093c, kTi
 inline constexpr uint32_t kDeviceMode = 0x0004, kGvcpCapability = 0x0934;
 inline constexpr uint32_t kDeviceModeBigEndianUtf8 = 0x80000001u;
 inline constexpr uint32_t kCapabilityUserName = 1u << 31, kCapabilitySerialNumber = 1u << 30,
-                          kCapabilityWriteMem = 1u << 1;
+                          kCapabilityWriteMem = 1u << 1, kCapabilityPacketResend = 1u << 2;
 // GigE Vision bootstrap: heartbeat timeout (ms), control channel privilege
 // (0 = no controlling client), stream channel 0 port (low 16 bits) and destination address.
 inline constexpr uint32_t kHeartbeatTimeout = 0x0938, kControlChannelPrivilege = 0x0a00, kStreamPort = 0x0d00,

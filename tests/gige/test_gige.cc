@@ -309,14 +309,14 @@ TEST(GigeRegisterTable, VersionGuidFollowsTheContent) {
 }
 
 // The bootstrap says what the device is: big-endian registers, UTF-8
-// strings, WRITEMEM (a Float can only be written whole), the serial number
-// and user name registers. Clients cannot change either.
+// strings, WRITEMEM (a Float can only be written whole), PACKETRESEND, the
+// serial number and user name registers. Clients cannot change either.
 TEST(GigeRegisters, BootstrapDescribesTheDeviceAndIsReadOnly) {
   auto d = StartDevice(OfflineDevice());
   ASSERT_NE(d, nullptr);
   EXPECT_EQ(ReadReg32(*d, reg::kDeviceMode), 0x80000001u);
   const uint32_t caps = ReadReg32(*d, reg::kGvcpCapability);
-  EXPECT_EQ(caps, (1u << 31) | (1u << 30) | (1u << 1)) << std::hex << caps;
+  EXPECT_EQ(caps, (1u << 31) | (1u << 30) | (1u << 2) | (1u << 1)) << std::hex << caps;
   WriteRegRefused(*d, reg::kDeviceMode, Be32(0));
   WriteRegRefused(*d, reg::kGvcpCapability, Be32(0xffffffff));
   EXPECT_EQ(ReadReg32(*d, reg::kDeviceMode), 0x80000001u);
@@ -2197,6 +2197,39 @@ TEST_F(GigeE2E, ASmallReceiveBufferGetsEveryPacedFrame) {
     }
     TearDown();
   }
+}
+
+// The device answers PACKETRESEND (and says so in its GVCP capabilities,
+// so an Aravis client asks): unpaced into a 256 KiB socket buffer, packets
+// are lost (ASmallReceiveBufferGetsEveryPacedFrame), and the client gets
+// every frame whole, byte for byte, with the packets sent again.
+TEST_F(GigeE2E, LostPacketsAreSentAgainOnRequest) {
+  constexpr int kFrames = 10;
+  DeviceOptions o = SmallDevice(640, 480);
+  o.link_mbps = 0;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  SetFloat(c, "AcquisitionFrameRate", 10.0);
+  Settle();
+  const uint64_t resent_before = genicam::PacketsResent();
+  ASSERT_TRUE(c.OpenStream(8, 256 << 10));
+  // Aravis asks again for at most 25% of a frame's packets by default, and
+  // a burst into this buffer loses up to half of them.
+  g_object_set(c.stream(), "packet-request-ratio", 1.0, nullptr);
+  Start(c);
+  std::vector<std::vector<uint8_t>> frames;
+  for (int i = 0; i < kFrames; ++i) frames.push_back(c.Grab(3000));
+  const uint64_t resent = arv_stream_get_info_uint64_by_name(c.stream(), "n_resent_packets");
+  const uint64_t missing = arv_stream_get_info_uint64_by_name(c.stream(), "n_missing_packets");
+  c.CloseStream();
+  std::printf("%llu packets resent, %llu missing\n", static_cast<unsigned long long>(resent),
+              static_cast<unsigned long long>(missing));
+  EXPECT_GT(resent, 0u) << "no packet was lost, or none was asked for again";
+  EXPECT_GE(genicam::PacketsResent() - resent_before, resent);
+  EXPECT_EQ(missing, 0u);
+  EXPECT_EQ(c.failed_buffers(), 0u);
+  const uint32_t format = genicam::BayerCode(Cfa::kBayerRG, 12);
+  for (int i = 0; i < kFrames; ++i) EXPECT_TRUE(frames[i] == Reference(i, format, 0, 0, 640, 480)) << "frame " << i;
 }
 
 TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
