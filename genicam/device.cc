@@ -51,6 +51,19 @@ constexpr AutoLimits kAutoLimits[] = {
     {reg::kAutoExposureTimeLowerLimit, reg::kAutoExposureTimeUpperLimit, "AutoExposureTime"},
     {reg::kAutoGainLowerLimit, reg::kAutoGainUpperLimit, "AutoGain"}};
 
+// A stable MAC address for a serial number: locally administered unicast
+// (first byte 0x02) and 40 bits of the serial's FNV-1a hash, so the
+// cameras of a rig (one serial each) differ.
+uint64_t MacOfSerial(const std::string& serial) {
+  uint64_t hash = 14695981039346656037ull;
+  for (const char c : serial) hash = (hash ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+  return uint64_t{0x02} << 40 | (hash & 0xffffffffffull);
+}
+int64_t RealTimeNs() { return g_get_real_time() * 1000; }
+// A masked feature's value (Feature::low_bits, shift) in its register's bits v.
+uint64_t MaskedValue(const Feature& f, uint64_t v) {
+  return f.low_bits > 0 ? (v >> f.shift) & ((uint64_t{1} << f.low_bits) - 1) : v;
+}
 // A feature whose value the device checks: writable, its register's own
 // (not an alias), and a value (not a string, command or formula).
 bool Checked(const Feature& f) {
@@ -376,7 +389,7 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
     case Kind::kInteger: {
       // A masked register (SCPS0): the other bits are the client's flags
       // (bit 31 fires a test packet during packet-size negotiation).
-      const double x = static_cast<double>(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
+      const double x = static_cast<double>(MaskedValue(f, v));
       return x >= f.min && x <= f.max && std::fmod(x - f.min, f.inc) == 0.0;
     }
     case Kind::kFloat: {
@@ -548,6 +561,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   Write(reg::kDeviceMode, reg::kDeviceModeBigEndianUtf8);
   Write(reg::kGvcpCapability, reg::kCapabilityUserName | reg::kCapabilitySerialNumber | reg::kCapabilityWriteMem |
                                   reg::kCapabilityPacketResend);
+  Write(reg::kVersion, reg::kGigeVisionVersion);
+  const uint64_t mac = MacOfSerial(o.serial);
+  Write(reg::kMacHigh, static_cast<uint32_t>(mac >> 32));
+  Write(reg::kMacLow, static_cast<uint32_t>(mac));
 
   using namespace reg;
   const auto& c = finished.core;
@@ -587,6 +604,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kPacketSize, std::max<uint32_t>(1400, MinPacketSize(sensor_))},
       {kPacketDelay, 0},
       {kTLParamsLocked, 0},
+      {kHeartbeatTimeout, 3000},  // the fake camera's default (GigE Vision's too)
       {kSimSceneCount, static_cast<uint64_t>(sensor_.scene_count)},
       {kSimSceneFrame, 0},
       {kSimFrameIndex, 0},
@@ -630,6 +648,8 @@ GigeDevice::~GigeDevice() {
   else if (fake_) g_object_unref(fake_);
   if (own_xml_) unlink(xml_path_.c_str());
 }
+
+uint64_t GigeDevice::TimestampNow() const { return static_cast<uint64_t>(RealTimeNs() - timestamp_origin_ns_.load()); }
 
 // Ranges, the read-only XML and the client-write rules: fake_camera_hooks.cc.
 uint64_t GigeDevice::writes_refused() const {
@@ -853,6 +873,24 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       std::lock_guard<std::mutex> t(d->trigger_mutex_);
       d->TakeTrigger(kNextIndex, d->trigger_level_.load());
     }
+    return {false, GevStatus::kSuccess};
+  }
+  // GevTimestampControl: latch (the timestamp now into GevTimestampValue),
+  // then reset (the clock restarts from 0), as they arrive. Not stored.
+  if (covers(reg::kTimestampControl)) {
+    const uint32_t bits = value(reg::kTimestampControl);
+    if (size != 4 || (bits & ~(reg::kTimestampLatch | reg::kTimestampReset)) != 0) {
+      ++d->writes_refused_;
+      d->LogRefusal("GevTimestampControl = " + std::to_string(bits),
+                    size != 4 ? "a command is written alone" : "only its latch (2) and reset (1) bits exist");
+      return {false, GevStatus::kInvalidParameter};
+    }
+    if (bits & reg::kTimestampLatch) {
+      const uint64_t now = d->TimestampNow();
+      d->Write(reg::kTimestampValue, static_cast<uint32_t>(now >> 32));
+      d->Write(reg::kTimestampValue + 4, static_cast<uint32_t>(now));
+    }
+    if (bits & reg::kTimestampReset) d->timestamp_origin_ns_ = RealTimeNs();
     return {false, GevStatus::kSuccess};
   }
   for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop, reg::kAcquisitionAbort}) {
@@ -1530,7 +1568,7 @@ std::string GigeDevice::ValueText(const Feature& f, uint64_t v) const {
       for (const EnumEntry& e : TableFeature(table_, f).entries)
         if (static_cast<uint64_t>(e.value) == v) return e.name + " (" + std::to_string(v) + ")";
       return std::to_string(v);
-    default: return std::to_string(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
+    default: return std::to_string(MaskedValue(f, v));
   }
 }
 
@@ -1538,7 +1576,7 @@ std::string GigeDevice::WhyInvalid(const Feature& f, uint64_t v) const {
   if (Valid(f, v)) return "";
   switch (f.kind) {
     case Kind::kInteger: {
-      const double x = static_cast<double>(f.low_bits > 0 ? v & ((uint64_t{1} << f.low_bits) - 1) : v);
+      const double x = static_cast<double>(MaskedValue(f, v));
       if (x < f.min || x > f.max) return "out of range " + Fmt(f.min) + ".." + Fmt(f.max);
       return "off its increment " + Fmt(f.inc) + " (from " + Fmt(f.min) + ")";
     }
@@ -1620,10 +1658,10 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
       if (!pending_triggers_.empty()) start = pending_triggers_.front().exposure_start;
     }
     const auto late = std::max(std::chrono::steady_clock::duration::zero(), std::chrono::steady_clock::now() - start);
-    const guint64 slot_ns = static_cast<guint64>(g_get_real_time()) * 1000 -
-                            static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
-    arv_buffer_set_timestamp(buffer, slot_ns);
-    arv_buffer_set_system_timestamp(buffer, slot_ns);
+    // The device's clock (TimestampNow), as GevTimestampControlLatch reads it.
+    const auto late_ns = static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
+    arv_buffer_set_timestamp(buffer, TimestampNow() - late_ns);
+    arv_buffer_set_system_timestamp(buffer, static_cast<guint64>(RealTimeNs()) - late_ns);
     // The GVSP block ID (and ChunkFrameID): a stream opened since the last
     // frame starts at 1, as a camera's does; the fake camera sends the
     // buffer's ID, which it set from its own never-reset counter.

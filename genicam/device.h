@@ -356,6 +356,11 @@ class GigeDevice {
   std::atomic<uint64_t> stream_opens_{0};  // FilterClientWrite: writes of GevSCPHostPort / GevSCDA
   uint64_t stream_opens_seen_ = 0;         // under mutex_
   uint32_t block_id_ = 0;                  // the last frame's (under mutex_)
+  // The device's timestamp (frame timestamps, GevTimestampValue): ns of the
+  // host's real time since this origin (0: since the epoch; a
+  // GevTimestampControlReset moves it to the time of the reset).
+  std::atomic<int64_t> timestamp_origin_ns_{0};
+  uint64_t TimestampNow() const;
   // LogRefusal's rate limit: lines in the current second, and those left out.
   static constexpr int kRefusalLinesPerSecond = 20;
   mutable std::mutex refusal_log_mutex_;

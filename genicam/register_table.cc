@@ -348,6 +348,42 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                   "Delay after each stream packet, in timestamp ticks (GevTimestampTickFrequency: 1e9 Hz, so ns).",
                   "ticks"));
   t.push_back(Int("TLParamsLocked", tl, kTLParamsLocked, true, 0, 1, 1, "Set by the client during acquisition."));
+  // The GigE Vision bootstrap registers a transport layer reads (SFNC's Gev* names).
+  const auto masked = [](Feature f, int bits, int shift) {
+    f.low_bits = bits;
+    f.shift = shift;
+    return f;
+  };
+  t.push_back(masked(Int("GevVersionMajor", tl, kVersion, false, 2, 2, 1, "GigE Vision major version."), 16, 16));
+  t.push_back(masked(Int("GevVersionMinor", tl, kVersion, false, 0, 0, 1, "GigE Vision minor version."), 16, 0));
+  t.push_back(masked(Bool("GevDeviceModeIsBigEndian", tl, kDeviceMode, false, "Registers are big-endian."), 1, 31));
+  Feature mac = Int("GevMACAddress", tl, kMacHigh, false, 0, 281474976710655.0, 1,
+                    "MAC address (48 bits): locally administered, derived from DeviceSerialNumber.");
+  mac.length = 8;
+  t.push_back(mac);
+  t.push_back(Int("GevCurrentIPAddress", tl, kCurrentIp, false, 0, 4294967295.0, 1, "IPv4 address served on."));
+  t.push_back(Int("GevStreamChannelCount", tl, kStreamChannelCount, false, 1, 1, 1, "Stream channels."));
+  // At least GigE Vision's 500 ms; the fake camera's default is 3000.
+  t.push_back(Int("GevHeartbeatTimeout", tl, kHeartbeatTimeout, true, 500, 3600000, 1,
+                  "Control is released (and the acquisition stopped) when the controlling client has not read "
+                  "the control channel privilege register for this long.",
+                  "ms"));
+  const double tick = static_cast<double>(kTimestampTicksPerSecond);
+  Feature frequency = Int("GevTimestampTickFrequency", tl, kTimestampTickFrequency, false, tick, tick, 1,
+                          "Timestamp ticks per second (1e9: timestamps are in ns).", "Hz");
+  frequency.length = 8;
+  t.push_back(frequency);
+  t.push_back(Cmd("GevTimestampControlLatch", tl, kTimestampControl, kTimestampLatch,
+                  "Copies the device's timestamp now into GevTimestampValue."));
+  Feature reset = Alias(t.back(), "GevTimestampControlReset",
+                        "Restarts the device's timestamp (frame timestamps and latches) from 0.");
+  reset.command_value = kTimestampReset;
+  t.push_back(reset);
+  // The largest a double converts exactly (2^62): 146 years of ns.
+  Feature value = Int("GevTimestampValue", tl, kTimestampValue, false, 0, 4611686018427387904.0, 1,
+                      "The timestamp GevTimestampControlLatch copied (ticks of GevTimestampTickFrequency).");
+  value.length = 8;
+  t.push_back(value);
 
   // GigE Vision chunk mode (register_table.h, ChunkSelectorValue): per-frame
   // metadata after the image, read by clients with a chunk parser.
@@ -603,7 +639,9 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
       << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>" << port << "</pPort>\n"
       << "    <Cachable>NoCache</Cachable>\n";
     // Big-endian bit numbers count from the most significant bit (0).
-    if (masked) x << "    <LSB>" << f.length * 8 - 1 << "</LSB>\n    <MSB>" << f.length * 8 - f.low_bits << "</MSB>\n";
+    if (masked)
+      x << "    <LSB>" << f.length * 8 - 1 - f.shift << "</LSB>\n    <MSB>" << f.length * 8 - f.shift - f.low_bits
+        << "</MSB>\n";
     if (!is_float) x << "    <Sign>Unsigned</Sign>\n";
     x << "    <Endianess>BigEndian</Endianess>\n  </" << reg_kind << ">\n";
     if (f.chunk_id != 0) {

@@ -60,9 +60,11 @@ struct Feature {
   // selector the device last saw, so Selector-then-value writes cannot race.
   std::string selected_by;
   int selections = 1;
-  // kInteger: the value is the register's low `low_bits` bits (a GenICam
-  // MaskedIntReg; writes keep the other bits); 0: the whole register.
+  // kInteger, kBoolean: the value is `low_bits` bits of the register from
+  // bit `shift` up (a GenICam MaskedIntReg; writes keep the other bits); 0:
+  // the whole register.
   int low_bits = 0;
+  int shift = 0;
   // Nonzero: the value is not in device memory but in the chunk of this ID
   // in each frame (GenICam Port with ChunkID), at `address` in it; read-only.
   uint32_t chunk_id = 0;
@@ -94,6 +96,18 @@ inline constexpr uint32_t kCapabilityUserName = 1u << 31, kCapabilitySerialNumbe
 // (0 = no controlling client), stream channel 0 port (low 16 bits) and destination address.
 inline constexpr uint32_t kHeartbeatTimeout = 0x0938, kControlChannelPrivilege = 0x0a00, kStreamPort = 0x0d00,
                           kStreamDestAddress = 0x0d18;
+// GigE Vision bootstrap, the transport layer's identity and clock: version
+// (major in the high 16 bits, minor in the low), MAC address (high register:
+// its first 2 bytes in the low 16 bits; low register: the other 4), the IPv4
+// address, stream channels, timestamp tick frequency (Hz, 64 bits: high
+// then low register), timestamp control (write-only bits: latch, reset)
+// and the latched timestamp (64 bits).
+inline constexpr uint32_t kVersion = 0x0000, kMacHigh = 0x0008, kMacLow = 0x000c, kCurrentIp = 0x0024,
+                          kStreamChannelCount = 0x0904, kTimestampTickFrequency = 0x093c,
+                          kTimestampControl = 0x0944, kTimestampValue = 0x0948;
+inline constexpr uint32_t kGigeVisionVersion = 0x00020000u;  // 2.0
+inline constexpr uint32_t kTimestampReset = 1u << 0, kTimestampLatch = 1u << 1;
+inline constexpr uint64_t kTimestampTicksPerSecond = 1000000000u;  // ns
 // Registers Aravis's fake camera reads (arvfakecamera.h).
 inline constexpr uint32_t kWidth = 0x100, kHeight = 0x104, kGainRaw = 0x110, kGainAuto = 0x114,
                           kSensorHeight = 0x118, kSensorWidth = 0x11c, kFakeExposureUs = 0x120,
