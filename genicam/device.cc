@@ -104,6 +104,9 @@ constexpr int kGvspLeaderBytes = kGvspHeaderBytes + 36;  // GVSP header + image 
 // answer a read (it answers between frames; a debug build renders slowly).
 constexpr int kRestartRounds = 4;
 constexpr int kRestartAnswerMs = 2000;
+// ProbeHeartbeat's period: a silent controller's acquisition stops within
+// its heartbeat timeout, this, and the fake camera's answer (between frames).
+constexpr int kHeartbeatProbeMs = 100;
 
 uint64_t DoubleBits(double v) {
   uint64_t b;
@@ -424,6 +427,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     return false;
   }
   link_bits_per_s_ = static_cast<uint64_t>(o.link_mbps) * 1'000'000;
+  probe_heartbeat_ = o.probe_heartbeat;
   renderer_ = std::make_unique<host::FrameRenderer>(o.threads, o.strip_rows);
   // The configured gain on GainRaw's 0.1 dB steps, as every later Gain (QuantiseGain).
   double& gain_db = base_config_.core.sensor.gain_db;
@@ -644,6 +648,7 @@ GigeDevice::~GigeDevice() {
   stop_ = true;
   if (sync_thread_.joinable()) sync_thread_.join();
   if (trigger_thread_.joinable()) trigger_thread_.join();
+  if (probe_fd_ >= 0) close(probe_fd_);
   if (gv_) g_object_unref(gv_);  // stops the fake camera's thread
   else if (fake_) g_object_unref(fake_);
   if (own_xml_) unlink(xml_path_.c_str());
@@ -1349,9 +1354,28 @@ void GigeDevice::RestartStream() {
   LogOnce("restart-stream", "camsim-gige: could not make the fake camera drop a killed client's stream");
 }
 
+void GigeDevice::ProbeHeartbeat() {
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_probe_ < std::chrono::milliseconds(kHeartbeatProbeMs)) return;
+  last_probe_ = now;
+  if (probe_fd_ < 0) probe_fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+  if (probe_fd_ < 0) return;
+  uint8_t answer[64];
+  while (recv(probe_fd_, answer, sizeof answer, 0) > 0) continue;  // the earlier probes' answers
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(kGvcpPort);
+  inet_pton(AF_INET, address_.c_str(), &to.sin_addr);
+  // READREG_CMD of the version register (not the privilege register: a
+  // read of that renews the controller's heartbeat, whoever sends it).
+  const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xbe, 0xa7, 0, 0, 0, 0};
+  static_assert(reg::kVersion == 0 && reg::kVersion != reg::kControlChannelPrivilege);
+  sendto(probe_fd_, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+}
+
 void GigeDevice::SyncLoop() {
   while (!stop_) {
-    bool restart = false;
+    bool restart = false, probe = false;
     auto wake = std::chrono::steady_clock::now() + std::chrono::milliseconds(kSyncPeriodMs);
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -1363,8 +1387,11 @@ void GigeDevice::SyncLoop() {
       }
       restart = restart_stream_;
       restart_stream_ = false;
+      probe = gv_ != nullptr && probe_heartbeat_ && Read(reg::kAcquisition) != 0 &&
+              Read(kControlChannelPrivilege) != 0;
     }
     if (restart) RestartStream();
+    if (probe) ProbeHeartbeat();
     std::this_thread::sleep_until(wake);
   }
 }

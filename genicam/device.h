@@ -100,6 +100,10 @@ struct DeviceOptions {
   // The link the stream is paced by (Mb/s; 0: no limit, packets go out as
   // the fake camera sends them). GevSCPD's delay is added either way.
   int link_mbps = 1000;  // 0 .. kMaxLinkMbps
+  // Probe the controller's heartbeat (GigeDevice::ProbeHeartbeat); false:
+  // only a client's packet ends a silent controller's control (a test of
+  // that case).
+  bool probe_heartbeat = true;
   // false: no network and no threads (register logic only: fuzzing, unit
   // tests); drive it with WriteMemory / SyncNow / RenderNow.
   bool serve = true;
@@ -240,6 +244,16 @@ class GigeDevice {
   std::chrono::steady_clock::time_point FireDueTrigger(std::chrono::steady_clock::time_point now);
   static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
+  // While a client controls an acquisition: a GVCP read of the version
+  // register sent to the camera every kHeartbeatProbeMs, from the device's
+  // own socket (not under mutex_). The fake camera checks its controller's
+  // heartbeat only when a packet comes; this makes one come, so a silent
+  // controller loses control (and the sync stops the acquisition) within
+  // the heartbeat timeout and a probe period, not at the next client's packet.
+  void ProbeHeartbeat();
+  bool probe_heartbeat_ = true;
+  int probe_fd_ = -1;
+  std::chrono::steady_clock::time_point last_probe_{};
   void SyncLoop();
   void TriggerLoop();
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);

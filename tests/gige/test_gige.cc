@@ -2788,10 +2788,14 @@ TEST_F(GigeE2E, AClientKilledMidStreamDoesNotKeepTheStream) {
 // used to wait for its packet to be handled (200 ms).
 TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
 #ifdef NDEBUG
-  const DeviceOptions o = SmallDevice(4096, 3072);  // about 0.4 s a frame on one thread
+  DeviceOptions o = SmallDevice(4096, 3072);  // about 0.4 s a frame on one thread
 #else
-  const DeviceOptions o = SmallDevice(640, 480);  // unoptimised, with sanitizers: as slow
+  DeviceOptions o = SmallDevice(640, 480);  // unoptimised, with sanitizers: as slow
 #endif
+  // The device's own probe would end the dead client's control before the
+  // next client's request comes (ASilentControllersAcquisitionStops); this
+  // is the case of a request that comes first.
+  o.probe_heartbeat = false;
   device_ = StartDevice(o);
   ASSERT_NE(device_, nullptr);
   ASSERT_NO_FATAL_FAILURE(StartAndDie(*device_, 20000));
@@ -2804,6 +2808,53 @@ TEST_F(GigeE2E, ATakeoverInOnePacketMovesTheStream) {
   ASSERT_TRUE(next.Write(reg::kAcquisition, 1));
   EXPECT_TRUE(next.FrameArrives(20000)) << "the stream still goes to the dead client";
   ASSERT_TRUE(next.Write(reg::kAcquisition, 0));
+}
+
+// The fake camera checks its controller's heartbeat only when a packet
+// comes: a killed client's free run went on rendering and sending (287
+// frames in 11 s in a review) until some other packet came. The device now
+// sends its camera a packet itself (ProbeHeartbeat): a controller that
+// keeps reading the privilege register keeps its stream, a silent one
+// loses it, and the rendering stops, within the timeout and a margin.
+TEST_F(GigeE2E, ASilentControllersAcquisitionStops) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr int kTimeoutMs = 1000;
+  RawController ctl;
+  ASSERT_TRUE(ctl.Write(kControlChannelPrivilege, 2));
+  ASSERT_TRUE(ctl.Write(kHeartbeatTimeout, kTimeoutMs));
+  ASSERT_TRUE(ctl.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_TRUE(ctl.Write(kStreamPort, ctl.sink_port()));
+  ASSERT_TRUE(ctl.Write(reg::kAcquisition, 1));  // free run at 25 Hz
+  ASSERT_TRUE(ctl.FrameArrives(5000));
+  // Alive for three timeouts: a privilege read every quarter of one.
+  for (int i = 0; i < 12; ++i) {
+    const uint64_t before = device_->frames_sent();
+    uint32_t privilege = 0;
+    ASSERT_TRUE(ctl.Read(kControlChannelPrivilege, &privilege));
+    EXPECT_EQ(privilege, 2u) << "a live controller lost control, read " << i;
+    Sleep(kTimeoutMs / 4);
+    EXPECT_GT(device_->frames_sent(), before) << "a live controller's stream stopped, read " << i;
+  }
+  // Silent from here: the frames stop within the timeout and a margin.
+  const auto silent = std::chrono::steady_clock::now();
+  uint64_t last = device_->frames_sent();
+  auto last_change = silent;
+  while (std::chrono::steady_clock::now() - last_change < std::chrono::milliseconds(500) &&
+         std::chrono::steady_clock::now() - silent < std::chrono::seconds(10)) {
+    Sleep(20);
+    const uint64_t now = device_->frames_sent();
+    if (now != last) {
+      last = now;
+      last_change = std::chrono::steady_clock::now();
+    }
+  }
+  const double stopped_ms = std::chrono::duration<double, std::milli>(last_change - silent).count();
+  EXPECT_LT(stopped_ms, kTimeoutMs + 500) << "frames went on " << stopped_ms << " ms after the controller fell silent";
+  Sleep(1000);
+  EXPECT_EQ(device_->frames_sent(), last) << "the rendering started again";
+  EXPECT_EQ(ReadReg32(*device_, reg::kAcquisition), 0u) << "the device did not stop the acquisition";
+  EXPECT_EQ(ReadReg32(*device_, kControlChannelPrivilege), 0u) << "the silent controller still has control";
 }
 
 // The GigE Vision transport-layer features a GenTL producer or vendor SDK
