@@ -25,10 +25,10 @@ struct ExrChannel {
 
 inline Imath::Box2i Box(int x0, int y0, int x1, int y1) { return Imath::Box2i({x0, y0}, {x1, y1}); }
 
-// One single-part scanline (or 4x4-tiled) file with the given windows.
+// One single-part scanline (or tile x tile tiled) file with the given windows.
 inline void WriteExrFixture(const std::string& path, const Imath::Box2i& display, const Imath::Box2i& data,
                             const std::vector<ExrChannel>& channels,
-                            Imf::Compression compression = Imf::ZIP_COMPRESSION, bool tiled = false) {
+                            Imf::Compression compression = Imf::ZIP_COMPRESSION, bool tiled = false, int tile = 4) {
   Imf::Header header(display, data);
   header.compression() = compression;
   const int w = data.max.x - data.min.x + 1;
@@ -55,7 +55,7 @@ inline void WriteExrFixture(const std::string& path, const Imath::Box2i& display
     fb.insert(c.name, Imf::Slice::Make(c.type, base, data, size, size * static_cast<size_t>(w)));
   }
   if (tiled) {
-    header.setTileDescription(Imf::TileDescription(4, 4, Imf::ONE_LEVEL));
+    header.setTileDescription(Imf::TileDescription(tile, tile, Imf::ONE_LEVEL));
     Imf::TiledOutputFile file(path.c_str(), header);
     file.setFrameBuffer(fb);
     file.writeTiles(0, file.numXTiles() - 1, 0, file.numYTiles() - 1);

@@ -536,10 +536,9 @@ TEST_F(IoTest, LoadErrors) {
   EXPECT_EQ(f.width, 0);  // never touched by a failed load
 }
 
-// Gives chunk `index` (in file order) of a single-part scanline or one-level
-// tiled file `data` in place of its own. The rest stays valid: the chunk's
-// size field and the offsets of the chunks after it are changed to match.
-void ReplaceChunkData(const std::string& path, int index, const std::string& data) {
+// The chunks of a single-part scanline or one-level tiled file, in file
+// order; *tiled says which.
+void ChunkInfos(const std::string& path, std::vector<exr_chunk_info_t>* out, bool* tiled_out) {
   exr_context_t ctx = nullptr;
   exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
   ASSERT_EQ(exr_start_read(&ctx, path.c_str(), &init), EXR_ERR_SUCCESS);
@@ -564,6 +563,17 @@ void ReplaceChunkData(const std::string& path, int index, const std::string& dat
               EXR_ERR_SUCCESS);
   }
   exr_finish(&ctx);
+  *out = chunks;
+  *tiled_out = tiled;
+}
+
+// Gives chunk `index` (in file order) of a single-part scanline or one-level
+// tiled file `data` in place of its own. The rest stays valid: the chunk's
+// size field and the offsets of the chunks after it are changed to match.
+void ReplaceChunkData(const std::string& path, int index, const std::string& data) {
+  std::vector<exr_chunk_info_t> chunks;
+  bool tiled = false;
+  ASSERT_NO_FATAL_FAILURE(ChunkInfos(path, &chunks, &tiled));
 
   // The offset table: where each chunk starts (its header before the data).
   const uint64_t chunk_header = tiled ? 20 : 8;
