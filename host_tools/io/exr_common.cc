@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <mutex>
@@ -22,6 +24,7 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
+#include <zlib.h>
 
 namespace camsim::io::detail {
 
@@ -217,11 +220,162 @@ std::string BoxText(const Imath::Box2i& b) {
          std::to_string(b.max.x) + "," + std::to_string(b.max.y) + ")";
 }
 
+// ---- DWAA/DWAB chunks ----------------------------------------------------
+// Core 3.1 cannot decode DWA, and Imf 3.1's DWA decoder fills a chunk's rows
+// from sections whose sizes it does not check against the rows: a zlib
+// section (the channels DWA stores losslessly, e.g. float depth) that
+// inflates short, or a DC count smaller than the blocks, gave rows of
+// uninitialised memory (valgrind; or the rows of the chunk decoded before)
+// and the load succeeded. Imf does catch the other corruptions tried (sizes
+// beyond the chunk, bytes flipped in the zlib and DC sections, bad rules)
+// but not all bytes flipped in the Huffman-coded AC values: those can decode
+// to wrong pixels, which nothing in the file can tell. So each DWA chunk's header is
+// checked here against what its rows need, and its zlib section inflated.
+// Layout, as Imf 3.1 writes and reads it: eleven little-endian uint64 sizes,
+// then (version 2) the channel rules, then the zlib, AC, DC and RLE sections.
+
+enum DwaField { kDwaVersion, kDwaZlibRaw, kDwaZlibSize, kDwaAcSize, kDwaDcSize, kDwaRleSize, kDwaRleRuns,
+                kDwaRleRaw, kDwaAcCount, kDwaDcCount, kDwaAcCompression, kDwaFields };
+enum DwaScheme { kDwaZlib, kDwaLossy, kDwaRle };  // Imf's UNKNOWN, LOSSY_DCT, RLE
+
+struct DwaChannel {
+  std::string suffix;  // the name after its last dot, as DWA's rules see it
+  int type;            // 0 uint, 1 half, 2 float (Imf's and Core's numbering)
+  int x_sampling, y_sampling;
+};
+
+struct DwaRule {
+  std::string suffix;
+  int scheme;
+  int type;
+  bool any_case;  // the channel's suffix is compared lower-cased
+};
+
+// The rules of DWA data before version 2 (Imf's initializeLegacyChannelRules;
+// Imf 3.1 writes version 2, so no test file has these).
+std::vector<DwaRule> LegacyDwaRules() {
+  std::vector<DwaRule> rules;
+  for (const char* s : {"r", "red", "g", "grn", "green", "b", "blu", "blue", "y", "by", "ry"})
+    for (const int type : {1, 2}) rules.push_back({s, kDwaLossy, type, true});
+  for (const int type : {0, 1, 2}) rules.push_back({"a", kDwaRle, type, true});
+  return rules;
+}
+
+// Samples of a channel sampled every `s` in a..b (Imf's numSamples).
+int64_t DwaSamples(int s, int64_t a, int64_t b) {
+  auto floor_div = [](int64_t v, int64_t d) { return v / d - (v % d != 0 && v < 0 ? 1 : 0); };
+  return std::max<int64_t>(0, floor_div(b, s) - floor_div(a - 1, s));
+}
+
+// Why the DWA chunk `data` (`size` bytes) holding pixels x0..x1, y0..y1
+// cannot fill them all; "" if it can. Only what Imf 3.1 does not check
+// itself (the sections against the rows) needs to be exact here.
+std::string DwaChunkProblem(const std::vector<DwaChannel>& channels, const uint8_t* data, size_t size, int64_t x0,
+                            int64_t y0, int64_t x1, int64_t y1) {
+  constexpr size_t kHeader = kDwaFields * 8;
+  if (size < kHeader) return "DWA data of " + std::to_string(size) + " bytes, shorter than its header";
+  uint64_t f[kDwaFields];
+  for (size_t i = 0; i < kDwaFields; ++i) {
+    f[i] = 0;
+    for (int b = 7; b >= 0; --b) f[i] = (f[i] << 8) | data[8 * i + static_cast<size_t>(b)];
+  }
+  if (f[kDwaVersion] > 2) return "DWA version " + std::to_string(f[kDwaVersion]) + ", not 0, 1 or 2";
+
+  // Version 2 stores its rules: a uint16 size (itself included), then per rule
+  // a NUL-terminated suffix, a byte of flags and a byte of pixel type.
+  size_t pos = kHeader;
+  std::vector<DwaRule> rules;
+  if (f[kDwaVersion] < 2) {
+    rules = LegacyDwaRules();
+  } else {
+    const size_t rules_size = size >= pos + 2 ? data[pos] | (size_t{data[pos + 1]} << 8) : 0;
+    if (rules_size < 2 || rules_size > size - pos) return "DWA channel rules cut short";
+    const size_t end = pos + rules_size;
+    for (pos += 2; pos < end;) {
+      const void* nul = std::memchr(data + pos, 0, end - pos);
+      const size_t len = nul == nullptr ? end - pos : static_cast<size_t>(static_cast<const uint8_t*>(nul) - (data + pos));
+      if (nul == nullptr || len > 254 || end - pos < len + 3) return "DWA channel rules corrupt";
+      const signed char flags = static_cast<signed char>(data[pos + len + 1]);
+      const signed char type = static_cast<signed char>(data[pos + len + 2]);
+      const int csc = (flags >> 4) - 1, scheme = (flags >> 2) & 3;
+      if (csc < -1 || csc > 2 || scheme > kDwaRle || type < 0 || type > 2) return "DWA channel rules corrupt";
+      rules.push_back({std::string(reinterpret_cast<const char*>(data + pos), len), scheme, type, (flags & 1) != 0});
+      pos += len + 3;
+    }
+  }
+
+  // What the rows need of each section: the last rule matching a channel
+  // decides its scheme, zlib if none does.
+  uint64_t zlib_bytes = 0, rle_bytes = 0, dc_count = 0;
+  for (const DwaChannel& c : channels) {
+    int scheme = kDwaZlib;
+    std::string lower = c.suffix;
+    for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    for (const DwaRule& r : rules) {
+      if (r.type == c.type && (r.any_case ? lower : c.suffix) == r.suffix) scheme = r.scheme;
+    }
+    const uint64_t w = static_cast<uint64_t>(DwaSamples(c.x_sampling, x0, x1));
+    const uint64_t h = static_cast<uint64_t>(DwaSamples(c.y_sampling, y0, y1));
+    const uint64_t bytes = w * h * (c.type == 1 ? 2 : 4);
+    if (scheme == kDwaLossy) {
+      // Imf decodes a lossy uint channel to 2 of its 4 bytes a sample.
+      if (c.type == 0) return "DWA rules make uint channel '" + Printable(c.suffix) + "' lossy";
+      dc_count += ((w + 7) / 8) * ((h + 7) / 8);
+    } else {
+      (scheme == kDwaRle ? rle_bytes : zlib_bytes) += bytes;
+    }
+  }
+  auto differs = [](const char* what, uint64_t says, uint64_t needs) {
+    return "DWA header says " + std::to_string(says) + " " + what + " where its rows need " + std::to_string(needs);
+  };
+  if (f[kDwaZlibRaw] != zlib_bytes) return differs("bytes of zlib-compressed channels", f[kDwaZlibRaw], zlib_bytes);
+  if (f[kDwaDcCount] != dc_count) return differs("DC values", f[kDwaDcCount], dc_count);
+  if (f[kDwaRleRaw] != rle_bytes) return differs("bytes of RLE channels", f[kDwaRleRaw], rle_bytes);
+  const size_t rest = size - pos;
+  uint64_t sections = 0;
+  for (const DwaField s : {kDwaZlibSize, kDwaAcSize, kDwaDcSize, kDwaRleSize}) {
+    if (f[s] > rest - sections) {
+      return "DWA sections of " + std::to_string(f[kDwaZlibSize]) + ", " + std::to_string(f[kDwaAcSize]) + ", " +
+             std::to_string(f[kDwaDcSize]) + " and " + std::to_string(f[kDwaRleSize]) + " bytes do not fit in its " +
+             std::to_string(rest);
+    }
+    sections += f[s];
+  }
+  if (zlib_bytes == 0) return "";
+
+  // Imf inflates the zlib section without checking how much came out.
+  z_stream z{};
+  if (inflateInit(&z) != Z_OK) throw std::bad_alloc();
+  z.next_in = const_cast<Bytef*>(data + pos);
+  z.avail_in = static_cast<uInt>(f[kDwaZlibSize]);
+  uint64_t out = 0;
+  int r = Z_OK;
+  Bytef scratch[16384];
+  while (r == Z_OK && out <= zlib_bytes) {
+    z.next_out = scratch;
+    z.avail_out = sizeof scratch;
+    r = inflate(&z, Z_NO_FLUSH);
+    out += sizeof scratch - z.avail_out;
+  }
+  const std::string zlib_said = z.msg != nullptr ? z.msg : "";
+  inflateEnd(&z);
+  if (r == Z_STREAM_END && out == zlib_bytes) return "";
+  if (out > zlib_bytes) {
+    return "DWA zlib section inflates to more than the " + std::to_string(zlib_bytes) + " bytes its rows need";
+  }
+  if (r == Z_STREAM_END) {
+    return "DWA zlib section inflates to " + std::to_string(out) + " bytes where its rows need " +
+           std::to_string(zlib_bytes);
+  }
+  return "DWA zlib section does not inflate (" + (r == Z_BUF_ERROR ? "cut short" : Printable(zlib_said)) + ")";
+}
+
 // Throws (naming the chunk) unless every chunk of flat part `part` holding
 // rows y0..y1 of its data window decompresses to the size its rows need.
 // OpenEXR 3.1's C++ reader does not check that: the rows of a ZIP chunk
 // that inflated short were filled from uninitialised memory. Core's decoder
 // checks it; here it only decompresses (the pixels are read by Imf after).
+// DWAA/DWAB chunks, which Core 3.1 cannot decode, get DwaChunkProblem.
 // The chunks are decompressed on several threads (a decoder each, as Core
 // allows); the error names the first bad chunk in file order, whatever the
 // threads' timing.
@@ -242,14 +396,30 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
   if (r == EXR_ERR_SUCCESS) r = exr_get_compression(ctx, part, &compression);
   if (r == EXR_ERR_SUCCESS) r = exr_get_data_window(ctx, part, &dw);
   if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
+  const bool dwa = compression == EXR_COMPRESSION_DWAA || compression == EXR_COMPRESSION_DWAB;
+  std::vector<DwaChannel> dwa_channels;
+  if (dwa) {
+    const exr_attr_chlist_t* channels = nullptr;
+    r = exr_get_channels(ctx, part, &channels);
+    if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
+    for (int i = 0; i < channels->num_channels; ++i) {
+      const exr_attr_chlist_entry_t& c = channels->entries[i];
+      const std::string name(c.name.str, static_cast<size_t>(c.name.length));
+      const size_t dot = name.rfind('.');
+      dwa_channels.push_back({dot == std::string::npos ? name : name.substr(dot + 1), static_cast<int>(c.pixel_type),
+                              std::max(c.x_sampling, 1), std::max(c.y_sampling, 1)});
+    }
+  }
 
-  // The chunks to decompress, in file order.
+  // The chunks to decompress, in file order, with the pixels each holds.
   struct Item {
     exr_chunk_info_t chunk;
     std::string where;
+    int64_t x0, y0, x1, y1;
   };
   std::vector<Item> items;
-  auto take = [&](const exr_chunk_info_t& chunk, const std::string& where) {
+  auto take = [&](const exr_chunk_info_t& chunk, const std::string& where, int64_t x0, int64_t cy0, int64_t x1,
+                  int64_t cy1) {
     // Core passes an empty chunk without a word, and does not decode an uncompressed one.
     if ((chunk.packed_size == 0 && chunk.unpacked_size != 0) ||
         (compression == EXR_COMPRESSION_NONE && chunk.packed_size != chunk.unpacked_size)) {
@@ -257,13 +427,9 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
                       std::to_string(chunk.unpacked_size));
     }
     // A chunk no smaller than its rows is stored as it is, and Imf reads it so
-    // (Core 3.1 fails on such a B44 tile at the edge). Core 3.1 cannot decode
-    // DWAA/DWAB: those chunks are left to Imf.
-    if (compression == EXR_COMPRESSION_NONE || compression == EXR_COMPRESSION_DWAA ||
-        compression == EXR_COMPRESSION_DWAB || chunk.packed_size >= chunk.unpacked_size) {
-      return;
-    }
-    items.push_back({chunk, where});
+    // (Core 3.1 fails on such a B44 tile at the edge).
+    if (compression == EXR_COMPRESSION_NONE || chunk.packed_size >= chunk.unpacked_size) return;
+    items.push_back({chunk, where, x0, cy0, x1, cy1});
   };
 
   exr_chunk_info_t chunk{};
@@ -274,7 +440,8 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
     for (int64_t y = y0; y <= y1; y = int64_t{chunk.start_y} + std::max(lines, 1)) {
       r = exr_read_scanline_chunk_info(ctx, part, static_cast<int>(y), &chunk);
       if (r != EXR_ERR_SUCCESS) fail("scan line " + std::to_string(y), core.Reason(r));
-      take(chunk, "scan line " + std::to_string(chunk.start_y));
+      take(chunk, "scan line " + std::to_string(chunk.start_y), dw.min.x, chunk.start_y, dw.max.x,
+           int64_t{chunk.start_y} + chunk.height - 1);
     }
   } else if (storage == EXR_STORAGE_TILED) {
     // Level 0 only: the others are not read. Whole rows of tiles, as Imf reads them.
@@ -289,29 +456,46 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
         const std::string where = "tile (" + std::to_string(tx) + ", " + std::to_string(ty) + ")";
         r = exr_read_tile_chunk_info(ctx, part, static_cast<int>(tx), static_cast<int>(ty), 0, 0, &chunk);
         if (r != EXR_ERR_SUCCESS) fail(where, core.Reason(r));
-        take(chunk, where);
+        const int64_t x = dw.min.x + tx * tile_w, y = dw.min.y + ty * tile_h;
+        take(chunk, where, x, y, std::min<int64_t>(x + tile_w - 1, dw.max.x), std::min<int64_t>(y + tile_h - 1, dw.max.y));
       }
     }
   }
 
-  // Decompresses items [first, ...) taken from `next`; a result per item.
+  // Decompresses item `only`, or else items taken from `next`; a result per
+  // item (and for DWA, why it is corrupt).
   std::vector<exr_result_t> result(items.size(), EXR_ERR_SUCCESS);
+  std::vector<std::string> dwa_problem(items.size());
   std::atomic<size_t> next{0};
   auto decode = [&](size_t only) {
     exr_decode_pipeline_t decoder{};  // as EXR_DECODE_PIPELINE_INITIALIZER: all zero
     bool started = false;
+    std::vector<uint8_t> packed;  // a DWA chunk's bytes
     for (size_t i; (i = only < items.size() ? only : next.fetch_add(1)) < items.size();) {
       exr_result_t d = EXR_ERR_SUCCESS;
-      if (!started) {
-        // No channel has a destination: the decoder decompresses and stops.
-        d = exr_decoding_initialize(ctx, part, &items[i].chunk, &decoder);
-        if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
-        decoder.unpack_and_convert_fn = nullptr;
-        started = d == EXR_ERR_SUCCESS;
+      if (dwa) {
+        const Item& it = items[i];
+        try {
+          packed.resize(it.chunk.packed_size);
+          d = exr_read_chunk(ctx, part, &it.chunk, packed.data());
+          if (d == EXR_ERR_SUCCESS)
+            dwa_problem[i] = DwaChunkProblem(dwa_channels, packed.data(), packed.size(), it.x0, it.y0, it.x1, it.y1);
+          if (!dwa_problem[i].empty()) d = EXR_ERR_CORRUPT_CHUNK;
+        } catch (const std::bad_alloc&) {
+          d = EXR_ERR_OUT_OF_MEMORY;  // checked again below, on the caller's thread
+        }
       } else {
-        d = exr_decoding_update(ctx, part, &items[i].chunk, &decoder);
+        if (!started) {
+          // No channel has a destination: the decoder decompresses and stops.
+          d = exr_decoding_initialize(ctx, part, &items[i].chunk, &decoder);
+          if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
+          decoder.unpack_and_convert_fn = nullptr;
+          started = d == EXR_ERR_SUCCESS;
+        } else {
+          d = exr_decoding_update(ctx, part, &items[i].chunk, &decoder);
+        }
+        if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
       }
-      if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
       result[i] = d;
       if (only < items.size()) break;
     }
@@ -333,6 +517,8 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
   }
   for (size_t i = 0; i < items.size(); ++i) {
     if (result[i] == EXR_ERR_SUCCESS) continue;
+    if (!dwa_problem[i].empty()) fail(items[i].where, dwa_problem[i]);
+    if (dwa && result[i] == EXR_ERR_OUT_OF_MEMORY) throw std::bad_alloc();
     // What Core says about this chunk alone: decoded again on this thread.
     core.Forget();
     decode(i);

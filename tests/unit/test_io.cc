@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -31,6 +32,7 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/openexr.h>
 #include <png.h>
+#include <zlib.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -658,6 +660,249 @@ TEST_F(IoTest, TheFirstBadChunkIsNamedWhateverTheThreads) {
     SceneFrame g;
     ASSERT_FALSE(LoadSceneExr(path, "", &g, &error));
     ASSERT_EQ(error.rfind("'" + path + "' is not a readable OpenEXR file: corrupt chunk at scan line 150 (", 0), 0u)
+        << error;
+  }
+}
+
+// ---- DWAA/DWAB chunks -----------------------------------------------------
+// OpenEXRCore 3.1 cannot decode DWA; Imf 3.1's DWA decoder does not check its
+// sections against the rows: a zlib section (the float depth) that inflated
+// short, or a DC count smaller than the blocks, gave rows of uninitialised
+// memory (valgrind) and the load succeeded. A DWA chunk: eleven little-endian
+// uint64 sizes (version, zlib raw and packed, AC packed, DC packed, RLE
+// packed, RLE'd and raw, AC count, DC count, AC compression), the channel
+// rules (a uint16 size, itself included), then the zlib, AC, DC and RLE
+// sections.
+struct DwaChunk {
+  enum Field { kVersion, kZlibRaw, kZlibSize, kAcSize, kDcSize, kRleSize, kRleRle, kRleRaw, kAcCount, kDcCount };
+  std::string head;  // the sizes and the rules
+  std::string zlib, ac, dc, rle;
+
+  uint64_t Get(Field f) const {
+    uint64_t v = 0;
+    for (int b = 7; b >= 0; --b) v = (v << 8) | static_cast<unsigned char>(head[8 * f + b]);
+    return v;
+  }
+  void Set(Field f, uint64_t v) {
+    for (int b = 0; b < 8; ++b) head[8 * f + b] = static_cast<char>(v >> (8 * b));
+  }
+  std::string Raw() const { return head + zlib + ac + dc + rle; }
+  // The sections given, with their sizes in the header.
+  std::string Bytes() {
+    Set(kZlibSize, zlib.size());
+    Set(kAcSize, ac.size());
+    Set(kDcSize, dc.size());
+    Set(kRleSize, rle.size());
+    return Raw();
+  }
+};
+
+// Chunk `index` (file order) of a single-part scanline or one-level tiled DWA file.
+DwaChunk ReadDwaChunk(const std::string& path, int index) {
+  std::vector<exr_chunk_info_t> chunks;
+  bool tiled = false;
+  ChunkInfos(path, &chunks, &tiled);
+  const exr_chunk_info_t& c = chunks.at(static_cast<size_t>(index));
+  const std::string bytes = ReadBytes(path).substr(c.data_offset, c.packed_size);
+  DwaChunk d;
+  d.head = bytes.substr(0, 88);
+  EXPECT_EQ(d.Get(DwaChunk::kVersion), 2u);
+  const size_t rules = static_cast<unsigned char>(bytes[88]) | (size_t{static_cast<unsigned char>(bytes[89])} << 8);
+  d.head = bytes.substr(0, 88 + rules);
+  size_t at = d.head.size();
+  for (auto [part, field] : {std::pair{&d.zlib, DwaChunk::kZlibSize}, {&d.ac, DwaChunk::kAcSize},
+                             {&d.dc, DwaChunk::kDcSize}, {&d.rle, DwaChunk::kRleSize}}) {
+    *part = bytes.substr(at, d.Get(field));
+    at += part->size();
+  }
+  EXPECT_EQ(at, bytes.size());
+  return d;
+}
+
+std::string Deflate(const std::string& raw) {
+  uLongf n = compressBound(static_cast<uLong>(raw.size()));
+  std::string z(n, '\0');
+  EXPECT_EQ(compress(reinterpret_cast<Bytef*>(z.data()), &n, reinterpret_cast<const Bytef*>(raw.data()),
+                     static_cast<uLong>(raw.size())),
+            Z_OK);
+  z.resize(n);
+  return z;
+}
+
+std::string Inflate(const std::string& z, size_t max) {
+  std::string raw(max, '\0');
+  uLongf n = max;
+  EXPECT_EQ(uncompress(reinterpret_cast<Bytef*>(raw.data()), &n, reinterpret_cast<const Bytef*>(z.data()),
+                       static_cast<uLong>(z.size())),
+            Z_OK);
+  raw.resize(n);
+  return raw;
+}
+
+// Colour half and depth float, as the bundled scenes; smooth, so that DWA
+// keeps AC values. Depth is DWA's zlib section (only R, G, B, Y, RY, BY are
+// lossy, A is RLE).
+std::vector<TestChannel> DwaChannels(int w, int h) {
+  std::vector<float> r(static_cast<size_t>(w * h)), g(r.size()), b(r.size()), z(r.size());
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y * w + x);
+      r[i] = 0.5f + 0.4f * std::sin(0.3f * static_cast<float>(x)) * std::cos(0.1f * static_cast<float>(y));
+      g[i] = 0.3f + 0.25f * std::cos(0.17f * static_cast<float>(x) + 0.05f * static_cast<float>(y));
+      b[i] = 2.0f + std::sin(0.2f * static_cast<float>(x + y));
+      z[i] = 1.0f + 0.01f * static_cast<float>(y) + 0.001f * static_cast<float>(x);
+    }
+  }
+  return {{"R", Imf::HALF, r}, {"G", Imf::HALF, g}, {"B", Imf::HALF, b}, {"Z", Imf::FLOAT, z}};
+}
+
+TEST_F(IoTest, DwaChunkThatCannotFillItsRowsIsAnError) {
+  const int w = 16, h = 40;  // DWAA: 32 rows a chunk (the second has 8); DWAB: 256
+  struct File {
+    const char* name;
+    Imf::Compression compression;
+    bool tiled;
+    int chunk, rows;  // the chunk corrupted, and its rows
+    std::string where;
+  };
+  const File files[] = {{"dwaa.exr", Imf::DWAA_COMPRESSION, false, 1, 8, "scan line 32"},
+                        {"dwab.exr", Imf::DWAB_COMPRESSION, false, 0, 40, "scan line 0"},
+                        {"dwaa_tiled.exr", Imf::DWAA_COMPRESSION, true, 1, 16, "tile (0, 1)"}};  // 16 x 16 tiles
+  for (const File& file : files) {
+    const std::string path = Path(file.name);
+    test::WriteExrFixture(path, Box(0, 0, w - 1, h - 1), Box(0, 0, w - 1, h - 1), DwaChannels(w, h),
+                          file.compression, file.tiled, 16);
+    SceneFrame f;
+    std::string error;
+    ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+    const std::string valid = ReadBytes(path);
+    const DwaChunk chunk = ReadDwaChunk(path, file.chunk);
+    const uint64_t cols = w, depth_bytes = cols * static_cast<uint64_t>(file.rows) * 4;
+    const uint64_t dc_count = 3 * ((cols + 7) / 8) * ((static_cast<uint64_t>(file.rows) + 7) / 8);
+    ASSERT_EQ(chunk.Get(DwaChunk::kZlibRaw), depth_bytes) << file.name;  // depth is the zlib section
+    ASSERT_EQ(chunk.Get(DwaChunk::kDcCount), dc_count) << file.name;
+    ASSERT_GT(chunk.ac.size(), 0u) << file.name;
+
+    struct Case {
+      const char* what;
+      std::function<std::string(DwaChunk)> bytes;
+      std::string want;
+    };
+    const std::string dc_values = Inflate(chunk.dc, 2 * dc_count);
+    const Case cases[] = {
+        // Imf 3.1 loaded these: rows from uninitialised memory.
+        {"zlib section inflates short",
+         [](DwaChunk d) {
+           d.zlib = Deflate(std::string(16, '\0'));
+           return d.Bytes();
+         },
+         "DWA zlib section inflates to 16 bytes where its rows need " + std::to_string(depth_bytes)},
+        {"zlib section empty",
+         [](DwaChunk d) {
+           d.zlib.clear();
+           return d.Bytes();
+         },
+         "DWA zlib section does not inflate (cut short)"},
+        {"zlib section short, the header says so",
+         [](DwaChunk d) {
+           d.zlib = Deflate(std::string(16, '\0'));
+           d.Set(DwaChunk::kZlibRaw, 16);
+           return d.Bytes();
+         },
+         "DWA header says 16 bytes of zlib-compressed channels where its rows need " + std::to_string(depth_bytes)},
+        {"fewer DC values, the header says so",
+         [&](DwaChunk d) {
+           d.dc = Deflate(dc_values.substr(0, 2));
+           d.Set(DwaChunk::kDcCount, 1);
+           return d.Bytes();
+         },
+         "DWA header says 1 DC values where its rows need " + std::to_string(dc_count)},
+        // Imf 3.1 refused these too.
+        {"AC size beyond the chunk",
+         [](DwaChunk d) {
+           d.Set(DwaChunk::kAcSize, d.ac.size() + 10);
+           return d.Raw();
+         },
+         "DWA sections of "},
+        {"zlib section inflates long",
+         [&](DwaChunk d) {
+           d.zlib = Deflate(std::string(2 * depth_bytes, '\0'));
+           return d.Bytes();
+         },
+         "DWA zlib section inflates to more than the " + std::to_string(depth_bytes) + " bytes its rows need"},
+    };
+    for (const Case& c : cases) {
+      WriteBytes(path, valid);
+      const std::string bytes = c.bytes(chunk);
+      ReplaceChunkData(path, file.chunk, bytes);
+      SceneFrame untouched;
+      EXPECT_FALSE(LoadSceneExr(path, "", &untouched, &error)) << file.name << ": " << c.what;
+      EXPECT_EQ(error.rfind("'" + path + "' is not a readable OpenEXR file: corrupt chunk at " + file.where +
+                                " (" + c.want,
+                            0),
+                0u)
+          << c.what << ": " << error;
+      EXPECT_EQ(untouched.width, 0);
+      FloatPlane mask;  // every reader checks the chunks
+      EXPECT_FALSE(ReadMaskImage(path, &mask, &error)) << file.name << ": " << c.what;
+      EXPECT_NE(error.find("corrupt chunk at " + file.where + " (DWA "), std::string::npos) << error;
+    }
+  }
+}
+
+// Subsampled channels and an alpha (DWA's RLE section) are counted as Imf
+// decodes them: such valid files load.
+TEST_F(IoTest, DwaChunksWithSubsampledAndAlphaChannelsLoad) {
+  const int w = 16, h = 42;
+  for (const Imf::Compression compression : {Imf::DWAA_COMPRESSION, Imf::DWAB_COMPRESSION}) {
+    const std::string path = Path(compression == Imf::DWAA_COMPRESSION ? "dwaa.exr" : "dwab.exr");
+    Imf::Header header(w, h);
+    header.compression() = compression;
+    std::vector<half> full(static_cast<size_t>(w * h)), sub(static_cast<size_t>((w / 2) * (h / 2)));
+    for (size_t i = 0; i < full.size(); ++i) full[i] = 0.5f + 0.01f * static_cast<float>(i % 37);
+    for (size_t i = 0; i < sub.size(); ++i) sub[i] = 0.25f * static_cast<float>(i % 5);
+    Imf::FrameBuffer fb;
+    for (const char* name : {"R", "G", "B", "A"}) {
+      header.channels().insert(name, Imf::Channel(Imf::HALF));
+      fb.insert(name, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(full.data()), 2, 2 * w));
+    }
+    header.channels().insert("C", Imf::Channel(Imf::HALF, 2, 2));  // half width and height: zlib section
+    fb.insert("C", Imf::Slice(Imf::HALF, reinterpret_cast<char*>(sub.data()), 2, w, 2, 2));
+    {
+      Imf::OutputFile out(path.c_str(), header);
+      out.setFrameBuffer(fb);
+      out.writePixels(h);
+    }
+    const DwaChunk first = ReadDwaChunk(path, 0);
+    const uint64_t rows = compression == Imf::DWAA_COMPRESSION ? 32 : h;
+    EXPECT_EQ(first.Get(DwaChunk::kZlibRaw), (w / 2) * (rows / 2) * 2);
+    EXPECT_EQ(first.Get(DwaChunk::kRleRaw), w * rows * 2);
+    SceneFrame f;
+    std::string error;
+    ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+    EXPECT_EQ(f.layout, "rgba");
+  }
+}
+
+// The same for DWA chunks, which are checked by DwaChunkProblem on the same threads.
+TEST_F(IoTest, TheFirstBadDwaChunkIsNamedWhateverTheThreads) {
+  constexpr int kRows = 32 * 50;  // DWAA: 32 rows a chunk
+  const std::string path = Path("many_dwaa.exr");
+  test::WriteExrFixture(path, Box(0, 0, 7, kRows - 1), Box(0, 0, 7, kRows - 1), DwaChannels(8, kRows),
+                        Imf::DWAA_COMPRESSION, false);
+  SceneFrame f;
+  std::string error;
+  ASSERT_TRUE(LoadSceneExr(path, "", &f, &error)) << error;
+  for (const int chunk : {40, 30}) {
+    DwaChunk d = ReadDwaChunk(path, chunk);
+    d.zlib = Deflate(std::string(16, '\0'));
+    ReplaceChunkData(path, chunk, d.Bytes());
+  }
+  for (int round = 0; round < 20; ++round) {
+    SceneFrame g;
+    ASSERT_FALSE(LoadSceneExr(path, "", &g, &error));
+    ASSERT_EQ(error.rfind("'" + path + "' is not a readable OpenEXR file: corrupt chunk at scan line 960 (DWA ", 0),
+              0u)
         << error;
   }
 }
