@@ -20,6 +20,7 @@
 #include <iterator>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fuzz/fuzz_common.h"
@@ -60,6 +61,16 @@ void ExrSeeds(const fs::path& dir) {
     WriteExr((dir / (std::string("rgb_half_") + comp.name + ".exr")).string(), Box(0, 0, 3, 2), Box(0, 0, 3, 2),
              {{"R", Imf::HALF, Ramp(12, 0.25f)}, {"G", Imf::HALF, Ramp(12, 0.5f)}, {"B", Imf::HALF, Ramp(12, 1.0f)}},
              comp.c);
+  }
+  // The 4 x 3 seeds above are stored raw under DWA (no smaller): these are
+  // real DWA chunks, with depth as their zlib section (camsim checks it).
+  for (const auto& [name, c] : {std::pair{"dwaa", Imf::DWAA_COMPRESSION}, {"dwab", Imf::DWAB_COMPRESSION}}) {
+    WriteExr((dir / (std::string("rgbz_half_") + name + ".exr")).string(), Box(0, 0, 15, 15), Box(0, 0, 15, 15),
+             {{"R", Imf::HALF, Ramp(256, 0.01f)},
+              {"G", Imf::HALF, Ramp(256, 0.02f)},
+              {"B", Imf::HALF, Ramp(256, 0.03f)},
+              {"Z", Imf::FLOAT, Ramp(256, 0.01f, 1.0f)}},
+             c);
   }
   // RGBA + Z, float, with NaN / inf / negative samples.
   WriteExr((dir / "rgbaz_float_special.exr").string(), Box(0, 0, 2, 1), Box(0, 0, 2, 1),
