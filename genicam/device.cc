@@ -419,6 +419,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   register_origins_["sensor.black_level_dn"] = "BlackLevel";
   register_origins_["pipeline.seed"] = "SimSeed";
   register_origins_["pipeline.stages"] = "SimStageEnable";
+  register_origins_["white_balance.gain"] = "BalanceRatio";
   address_ = o.address;
   prime_first_frame_ = o.prime_first_frame;
   if (o.link_mbps < 0 || o.link_mbps > kMaxLinkMbps) {
@@ -458,6 +459,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     sensor_.min_focus_distance_m =
         std::max(reg::kMinFocusDistanceM, (std::floor(finished.core.dof.focal_length_mm) + 1) / 1000.0);
   for (StageId id : configured_stages_) sensor_.stage_names.push_back(StageName(id));
+  sensor_.has_white_balance =
+      sensor_.has_isp_rgb && sensor_.cfa != Cfa::kMono &&
+      std::find(configured_stages_.begin(), configured_stages_.end(), StageId::kWhiteBalance) != configured_stages_.end();
   if (sensor_.width % 2 || sensor_.height % 2) {
     if (sensor_.cfa != Cfa::kMono) {
       *error = "sensor size " + std::to_string(sensor_.width) + "x" + std::to_string(sensor_.height) +
@@ -629,6 +633,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   for (size_t i = 0; i < configured_stages_.size(); ++i) SetApplied(SelectedAddress(kSimStageEnable, i), 1);
   // Every chunk on: ChunkModeActive alone sends them all.
   for (int i = 0; i < kChunkCount; ++i) SetApplied(SelectedAddress(kChunkEnable, static_cast<size_t>(i)), 1);
+  if (sensor_.has_white_balance) {  // the configured gains (the core checked them: 0 .. 16)
+    SetApplied(kBalanceRatioSelector, kBalanceRed);
+    SetApplied(kBalanceWhiteAuto, kAutoOff);
+    for (int i = 0; i < kBalanceCount; ++i)
+      SetApplied(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8), DoubleBits(c.white_balance.gain[i]));
+  }
   seed_register_at_start_ = applied_[kSimSeed];
   Write(SelectedAddress(kLineMode, 0), 0);  // Line0: Input (the trigger)
   Write(SelectedAddress(kLineMode, 1), 1);  // Line1: Output (the strobe)
@@ -780,6 +790,9 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
   rc.core.order_count = 0;
   for (size_t i = 0; i < configured_stages_.size(); ++i)
     if (r.at(SelectedAddress(kSimStageEnable, i)) != 0) rc.core.order[rc.core.order_count++] = configured_stages_[i];
+  if (sensor_.has_white_balance)
+    for (int i = 0; i < kBalanceCount; ++i)
+      rc.core.white_balance.gain[i] = BitsDouble(r.at(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8)));
   // Plan only (no tables): the running renderer stays as it is on failure,
   // and Reconfigure installs this plan.
   if (!renderer_->PlanPipeline(rc, register_origins_, scenes_[0].width, scenes_[0].height, planned, error))
@@ -804,6 +817,8 @@ std::vector<uint64_t> GigeDevice::PlanKey(const Registers& r) const {
   std::vector<uint64_t> key = {r.at(kExposureTime), r.at(kSimFNumber), r.at(kSimFocusDistance), r.at(kGain),
                                r.at(kBlackLevel),   r.at(kSimSeed),    r.at(kPixelFormat)};
   for (size_t i = 0; i < configured_stages_.size(); ++i) key.push_back(r.at(SelectedAddress(kSimStageEnable, i)));
+  if (sensor_.has_white_balance)
+    for (int i = 0; i < kBalanceCount; ++i) key.push_back(r.at(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8)));
   return key;
 }
 
@@ -1105,9 +1120,9 @@ void GigeDevice::TakeClientStops() {
 
 std::string GigeDevice::RegisterName(const Feature& r) const {
   for (const Feature& f : table_) {
-    if (f.selected_by.empty() || r.address < f.address || r.address >= f.address + 4 * f.selections) continue;
+    if (f.selected_by.empty() || r.address < f.address || r.address >= f.address + f.length * f.selections) continue;
     const Feature* selector = FindFeature(table_, f.selected_by);
-    const int64_t value = (r.address - f.address) / 4;
+    const int64_t value = (r.address - f.address) / f.length;
     for (size_t e = 0; selector != nullptr && e < selector->entries.size(); ++e)
       if (selector->entries[e].value == value) return f.name + "[" + selector->entries[e].name + "]";
   }
@@ -1119,6 +1134,8 @@ bool GigeDevice::IsPipelineRegister(uint32_t address) const {
   if (address == kPixelFormat || address == kGainRaw) return true;
   for (uint32_t p : kPipelineRegisters)
     if (address == p) return true;
+  if (sensor_.has_white_balance && address >= kBalanceRatio && address < SelectedAddress(kBalanceRatio, kBalanceCount, 8))
+    return true;
   return address >= kSimStageEnable && address < SelectedAddress(kSimStageEnable, configured_stages_.size());
 }
 
@@ -1493,6 +1510,43 @@ void GigeDevice::AutoAdjust(double frac) {
   for (const auto& kv : next)
     if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
   auto_key_ = AutoKey();
+}
+
+void GigeDevice::BalanceWhite(int x, int y, int w, int h) {
+  using namespace reg;
+  // Gray world: each CFA colour's mean raw level above black in the window
+  // (what the white balance stage multiplies, up to a common scale).
+  double sum[3] = {};
+  uint64_t count[3] = {};
+  const double black = AppliedDouble(kBlackLevel);
+  for (int r = y; r < y + h; ++r)
+    for (int i = x; i < x + w; ++i) {
+      const Colour colour = CfaColour(sensor_.cfa, i, r);
+      sum[colour] += raw_[static_cast<size_t>(r) * sensor_.width + i] - black;
+      ++count[colour];
+    }
+  const ClientWritesHeld hold(fake_);  // the filter plans on applied_ and the pipeline in use
+  Registers next = applied_;
+  const auto ratio = [](int colour) { return SelectedAddress(kBalanceRatio, static_cast<size_t>(colour), 8); };
+  double mean[3];
+  for (int c = 0; c < 3; ++c) mean[c] = count[c] > 0 ? sum[c] / static_cast<double>(count[c]) : 0.0;
+  // Green keeps its ratio; Red and Blue bring their means to Green's. A
+  // colour without signal (a black frame) keeps its ratio.
+  const double green = AppliedDouble(ratio(kGreen)) * mean[kGreen];
+  for (const int c : {kRed, kBlue})
+    if (mean[c] > 0.0 && green > 0.0) next[ratio(c)] = DoubleBits(std::clamp(green / mean[c], 0.0, kMaxBalanceRatio));
+  if (Applied(kBalanceWhiteAuto) == kAutoOnce) next[kBalanceWhiteAuto] = kAutoOff;  // SFNC: Once returns to Off
+  std::string error;
+  if (next[ratio(kRed)] != applied_.at(ratio(kRed)) || next[ratio(kBlue)] != applied_.at(ratio(kBlue))) {
+    if (!Reconfigure(next, &error)) {  // not expected: the stage takes every gain in range
+      LogOnce("balance: " + error, "camsim-gige: BalanceWhiteAuto: the pipeline refuses the gains (" + error + ")");
+      next[ratio(kRed)] = applied_.at(ratio(kRed));
+      next[ratio(kBlue)] = applied_.at(ratio(kBlue));
+      next[kBalanceWhiteAuto] = kAutoOff;
+    }
+  }
+  for (const auto& kv : next)
+    if (kv.second != applied_[kv.first]) SetApplied(kv.first, kv.second);
 }
 
 GigeDevice::Registers GigeDevice::AutoRegisters(const ExposureSettings& s) const {
@@ -1889,6 +1943,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     const double black = AppliedDouble(kBlackLevel), full = (1 << sensor_.adc_bits) - 1;
     AutoAdjust((static_cast<double>(sum) / (static_cast<double>(w) * h) - black) / (full - black));
   }
+  if (sensor_.has_white_balance && Applied(kBalanceWhiteAuto) != kAutoOff) BalanceWhite(x, y, w, h);
   SetApplied(kSimFrameIndex, (index + 1) & 0x7fffffff);
   WriteDerived();
   ++frames_in_acquisition_;

@@ -218,6 +218,9 @@ class GigeDevice {
   // In chunk mode: the frame's chunks, for the hooks to send after its image (under mutex_).
   void QueueChunks(ArvBuffer* buffer, uint32_t pixel_format);
   void AutoAdjust(double mean_fraction);  // under mutex_: ExposureAuto / GainAuto
+  // Under mutex_: BalanceWhiteAuto on the frame just rendered (raw_, the
+  // window x, y, w, h): gray world, the gains applied from the next frame.
+  void BalanceWhite(int x, int y, int w, int h);
   Registers AutoRegisters(const ExposureSettings& s) const;  // applied_ with the controller's settings
   bool RestartAuto();                       // the controller afresh on auto_config_ from the applied values
   void StopAuto(const std::string& error);  // both Auto features Off, the error logged

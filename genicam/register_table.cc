@@ -298,6 +298,22 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Automatic gain, used when ExposureAuto alone cannot reach SimAutoTarget."));
   PushAutoLimits(&t, *FindFeature(t, "Gain"), "AutoGain", "GainAuto", kAutoGainLowerLimit, kAutoGainUpperLimit);
   t.push_back(Flt("BlackLevel", an, kBlackLevel, 0.0, s.max_black_level_dn, "Offset added by the sensor.", "DN"));
+  if (s.has_white_balance) {
+    t.push_back(Enum("BalanceRatioSelector", an, kBalanceRatioSelector, true,
+                     {{"Red", kBalanceRed}, {"Green", kBalanceGreen}, {"Blue", kBalanceBlue}},
+                     "Colour channel BalanceRatio acts on."));
+    t.back().selects = {"BalanceRatio"};
+    t.push_back(Selected(Flt("BalanceRatio", an, kBalanceRatio, 0.0, kMaxBalanceRatio,
+                             "White balance gain of the selected channel (the ISP's white_balance stage: RGB8 "
+                             "frames made after the write; the raw formats are the sensor's and do not change).",
+                             ""),
+                         "BalanceRatioSelector", kBalanceCount));
+    t.push_back(Enum("BalanceWhiteAuto", an, kBalanceWhiteAuto, true,
+                     {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
+                     "Automatic white balance (gray world on the window): sets the Red and Blue BalanceRatio "
+                     "from each frame so its channel means equal Green's (Green stays); Once does it from the "
+                     "next frame and returns to Off."));
+  }
 
   const char* io = "DigitalIOControl";
   t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
@@ -481,7 +497,7 @@ std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
     for (int i = 0; i < f.selections; ++i) {
       Feature r = f;
       r.name = f.name + "[" + std::to_string(i) + "]";
-      r.address = f.address + 4 * static_cast<uint32_t>(i);
+      r.address = reg::SelectedAddress(f.address, static_cast<size_t>(i), f.length);
       r.selected_by.clear();
       r.selections = 1;
       std::erase_if(r.entries, [i](const EnumEntry& e) {
@@ -633,7 +649,8 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     const char* reg_kind = is_float ? "FloatReg" : (masked ? "MaskedIntReg" : "IntReg");
     x << "  <" << reg_kind << " Name=\"" << regname << "\" NameSpace=\"Custom\">\n"
       << "    <Address>" << Hex(f.address) << "</Address>\n";
-    if (!f.selected_by.empty()) x << "    <pIndex Offset=\"4\">" << f.selected_by << "Reg</pIndex>\n";
+    if (!f.selected_by.empty())
+      x << "    <pIndex Offset=\"" << f.length << "\">" << f.selected_by << "Reg</pIndex>\n";
     const std::string port = f.chunk_id != 0 ? f.name + "Port" : "Device";
     x << "    <Length>" << f.length << "</Length>\n"
       << "    <AccessMode>" << access << "</AccessMode>\n    <pPort>" << port << "</pPort>\n"

@@ -56,7 +56,7 @@ struct Feature {
   // it can be.
   std::string min_feature, max_feature;
   // A selected feature has one register per value of its selector, at
-  // address + 4 * value (GenICam pIndex): a write never depends on the
+  // address + length * value (GenICam pIndex): a write never depends on the
   // selector the device last saw, so Selector-then-value writes cannot race.
   std::string selected_by;
   int selections = 1;
@@ -141,8 +141,13 @@ inline constexpr uint32_t kAcquisitionStart = 0x80b4, kAcquisitionStop = 0x80b8,
 inline constexpr uint32_t kLineMode = 0x8064, kLineSource = 0x806c, kLineStatus = 0x8074, kSimStageEnable = 0x8100;
 // ChunkEnable: one per chunk (ChunkSelector: kChunkCount), after SimStageEnable's kStageCount.
 inline constexpr uint32_t kChunkEnable = 0x8180;
-inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value) {
-  return base + 4 * static_cast<uint32_t>(value);
+// White balance (SFNC AnalogControl). BalanceRatio: one 8-byte Float per
+// BalanceRatioSelector value (Red, Green, Blue), at kBalanceRatio + 8 * value.
+inline constexpr uint32_t kBalanceRatioSelector = 0x8400, kBalanceWhiteAuto = 0x8404, kBalanceRatio = 0x8410;
+// A selected feature's register of selector value `value`: one register of
+// `length` bytes (4, a Float's 8) per value.
+inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
+  return base + length * static_cast<uint32_t>(value);
 }
 }  // namespace reg
 
@@ -171,6 +176,11 @@ enum ChunkSelectorValue : int64_t {
 inline constexpr uint32_t kChunkIdImage = 0xC5A00000u, kChunkIdBase = 0xC5A00001u;
 inline constexpr uint32_t kChunkDataBytes = 8, kChunkTagBytes = 8;
 
+// BalanceRatioSelector values: the white balance stage's gains (core/isp/white_balance.h).
+enum BalanceRatioSelectorValue : int64_t { kBalanceRed = 0, kBalanceGreen = 1, kBalanceBlue = 2, kBalanceCount = 3 };
+// BalanceRatio's range: the white balance stage's gains.
+inline constexpr double kMaxBalanceRatio = 16.0;
+
 // Enumeration values of camsim's own enum registers.
 enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiFrame = 2 };
 enum AutoValue : int64_t { kAutoOff = 0, kAutoOnce = 1, kAutoContinuous = 2 };
@@ -194,7 +204,10 @@ struct SensorInfo {
   double max_black_level_dn = 0;  // 2^adc_bits - 1 quarter: leaves headroom for signal
   int scene_count = 1;
   bool has_isp_rgb = false;  // the configured pipeline ends in an 8-bit RGB image
-  bool has_trigger_line = true;  // a trigger input (--trigger-line): TriggerSource Line0 is available
+  bool has_trigger_line = true;
+  // The configured pipeline has the white balance stage on a Bayer sensor
+  // and ends in RGB8: BalanceRatio, BalanceRatioSelector, BalanceWhiteAuto.
+  bool has_white_balance = false;  // a trigger input (--trigger-line): TriggerSource Line0 is available
   std::vector<std::string> stage_names;  // configured stages (SimStageSelector entries)
   // SimFocusDistance's Min: a value the device accepts (with depth of field,
   // the next whole millimetre beyond the focal length).
@@ -216,7 +229,7 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);
 // The table with each selected feature spread into one entry per register
-// (named Feature[i], at address + 4 * i, with the entries available at
+// (named Feature[i], at SelectedAddress(address, i, length), with the entries available at
 // selection i), and without the chunk features: what the device reads and checks.
 std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table);
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);

@@ -379,6 +379,7 @@ TEST(GigeRegisterTable, AddressesDoNotOverlap) {
   genicam::SensorInfo s;
   s.width = 64;
   s.height = 48;
+  s.has_white_balance = true;  // BalanceRatio's registers too
   // As many stages as a pipeline can have: every SimStageEnable register.
   for (int i = 0; i < kStageCount; ++i) s.stage_names.push_back("stage" + std::to_string(i));
   const auto t = genicam::FeatureRegisters(genicam::RegisterTable(s));
@@ -3954,11 +3955,11 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
     for (const genicam::EnumEntry& e : selector->entries) {
       Set(c, f.selected_by.c_str(), e.name.c_str());
       EXPECT_EQ(arv_gc_register_get_address(ARV_GC_REGISTER(reg_node), nullptr),
-                genicam::reg::SelectedAddress(f.address, static_cast<size_t>(e.value)))
+                genicam::reg::SelectedAddress(f.address, static_cast<size_t>(e.value), f.length))
           << f.name << " at " << e.name;
     }
   }
-  EXPECT_EQ(selected, 5) << "LineMode, LineSource, LineStatus, SimStageEnable, ChunkEnable";
+  EXPECT_EQ(selected, 6) << "LineMode, LineSource, LineStatus, SimStageEnable, ChunkEnable, BalanceRatio";
   // LineMode at once; LineSource on the input refused, the output's kept.
   Set(c, "LineSelector", "Line1");
   Set(c, "LineSource", "ExposureActive");
@@ -4000,6 +4001,117 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
     Set(c, "SimStageSelector", "Stage_vignetting");
     EXPECT_EQ(arv_camera_get_boolean(c.camera(), "SimStageEnable", nullptr), on) << round;
   }
+}
+
+// ---------------------------------------------------------------- SFNC white balance, readout
+
+// One frame of index `index` as the camera sends it now.
+std::vector<uint8_t> GrabIndex(Client& c, uint32_t index, uint32_t* format = nullptr) {
+  SetInt(c, "SimFrameIndex", index);
+  Settle();
+  if (!c.OpenStream()) {
+    ADD_FAILURE() << c.last_error;
+    return {};
+  }
+  Start(c);
+  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, format);
+  c.CloseStream();
+  return f;
+}
+
+// Each channel's mean of an RGB8 frame, and its largest sample.
+struct ChannelStats {
+  double mean[3] = {};
+  int max = 0;
+};
+ChannelStats RgbStats(const std::vector<uint8_t>& f) {
+  ChannelStats s;
+  const size_t n = f.size() / 3;
+  for (size_t i = 0; i < n; ++i)
+    for (int ch = 0; ch < 3; ++ch) {
+      s.mean[ch] += f[3 * i + ch];
+      s.max = std::max<int>(s.max, f[3 * i + ch]);
+    }
+  for (double& m : s.mean) m /= std::max<size_t>(n, 1);
+  return s;
+}
+
+// BalanceRatio is the white balance stage's gain of the selected channel:
+// doubling Red doubles the red mean of RGB8 frames made after the write
+// (linear output: the gamma stage off; a flat grey scene well below
+// saturation), and leaves the raw formats' bytes alone. Out-of-range
+// ratios are refused as they arrive.
+TEST_F(GigeE2E, BalanceRatioScalesItsChannel) {
+  DeviceOptions o = SmallDevice();
+  o.pattern = "flat";
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  Set(c, "SimStageSelector", "Stage_gamma");
+  arv_camera_set_boolean(c.camera(), "SimStageEnable", false, nullptr);
+  SetFloat(c, "ExposureTime", 30000.0);
+  Set(c, "BalanceRatioSelector", "Red");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), 1.3);  // configs/camera.toml
+  Set(c, "BalanceRatioSelector", "Blue");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), 1.1818);
+  Set(c, "PixelFormat", "BayerRG12");
+  const std::vector<uint8_t> raw_before = GrabIndex(c, 7);
+  Set(c, "PixelFormat", "RGB8");
+  const ChannelStats before = RgbStats(GrabIndex(c, 7));
+  Set(c, "BalanceRatioSelector", "Red");
+  SetFloat(c, "BalanceRatio", 2.6);
+  Set(c, "BalanceRatioSelector", "Green");  // the Red register keeps its value
+  Settle();
+  Set(c, "BalanceRatioSelector", "Red");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), 2.6);
+  const ChannelStats after = RgbStats(GrabIndex(c, 7));
+  EXPECT_LT(after.max, 250) << "away from saturation";
+  EXPECT_GT(before.mean[0], 20.0);
+  EXPECT_NEAR(after.mean[0] / before.mean[0], 2.0, 0.03) << before.mean[0] << " -> " << after.mean[0];
+  EXPECT_NEAR(after.mean[1] / before.mean[1], 1.0, 0.03) << "green";
+  EXPECT_NEAR(after.mean[2] / before.mean[2], 1.0, 0.03) << "blue";
+  Set(c, "PixelFormat", "BayerRG12");
+  EXPECT_TRUE(GrabIndex(c, 7) == raw_before) << "the raw frame is the sensor's, before the white balance";
+  for (const double bad : {16.5, -0.25, std::nan("")}) {
+    GError* e = nullptr;
+    arv_camera_set_float(c.camera(), "BalanceRatio", bad, &e);
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+        << bad << ": " << (e != nullptr ? e->message : "no error");
+    g_clear_error(&e);
+    EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), 2.6) << bad;
+  }
+}
+
+// BalanceWhiteAuto Once: gray world on the next frame, then Off (SFNC).
+// On the bundled scene, from deliberately wrong ratios, the RGB8 channel
+// means end up about equal.
+TEST_F(GigeE2E, BalanceWhiteAutoOnceMakesTheMeanGrey) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(RunSceneDevice({})));
+  Client& c = *client_;
+  Set(c, "PixelFormat", "RGB8");
+  Set(c, "BalanceRatioSelector", "Red");
+  SetFloat(c, "BalanceRatio", 0.5);
+  Set(c, "BalanceRatioSelector", "Blue");
+  SetFloat(c, "BalanceRatio", 3.0);
+  const ChannelStats before = RgbStats(GrabIndex(c, kRunFrame));
+  EXPECT_GT(before.mean[2] / before.mean[0], 1.5) << "a blue cast to start from";
+  Set(c, "BalanceWhiteAuto", "Once");
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "BalanceWhiteAuto", nullptr), "Once");
+  (void)GrabIndex(c, kRunFrame);  // the frame Once measures
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "BalanceWhiteAuto", nullptr), "Off") << "Once turns itself off";
+  Set(c, "BalanceRatioSelector", "Green");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), 1.0) << "Green keeps its ratio";
+  Set(c, "BalanceRatioSelector", "Red");
+  const double red = ReadFloat(c, "BalanceRatio");
+  const ChannelStats after = RgbStats(GrabIndex(c, kRunFrame));
+  for (int ch = 0; ch < 3; ++ch)
+    EXPECT_NEAR(after.mean[ch] / after.mean[1], 1.0, 0.04)
+        << "channel " << ch << ": " << after.mean[0] << " " << after.mean[1] << " " << after.mean[2];
+  // Off: the ratios stay where Once left them.
+  (void)GrabIndex(c, kRunFrame + 1);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), red);
 }
 
 }  // namespace
