@@ -30,8 +30,9 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
 // The payload's registers: frozen while acquiring (the stream's buffers are
 // sized) and while TLParamsLocked is 1: the window, the format and chunk mode
 // with every ChunkEnable.
-constexpr uint32_t kWindowRegisters[] = {reg::kWidth,   reg::kHeight,      reg::kOffsetX,
-                                         reg::kOffsetY, reg::kPixelFormat, reg::kChunkModeActive};
+// (ReverseX and ReverseY change a Bayer format's phase.)
+constexpr uint32_t kWindowRegisters[] = {reg::kWidth,       reg::kHeight,          reg::kOffsetX,  reg::kOffsetY,
+                                         reg::kPixelFormat, reg::kChunkModeActive, reg::kReverseX, reg::kReverseY};
 constexpr auto kGeometryRegisters = [] {
   std::array<uint32_t, std::size(kWindowRegisters) + kChunkCount> r{};
   size_t n = 0;
@@ -312,6 +313,18 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* rc, host::Origins
   return true;
 }
 
+void MirrorWindow(uint8_t* out, int w, int h, int bytes_per_pixel, bool reverse_x, bool reverse_y) {
+  const size_t n = static_cast<size_t>(bytes_per_pixel), row = static_cast<size_t>(w) * n;
+  if (reverse_x)
+    for (int r = 0; r < h; ++r) {
+      uint8_t* p = out + static_cast<size_t>(r) * row;
+      for (size_t a = 0, b = static_cast<size_t>(w) - 1; a < b; ++a, --b) std::swap_ranges(p + a * n, p + a * n + n, p + b * n);
+    }
+  if (reverse_y)
+    for (size_t a = 0, b = static_cast<size_t>(h) - 1; h > 0 && a < b; ++a, --b)
+      std::swap_ranges(out + a * row, out + a * row + row, out + b * row);
+}
+
 void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
                    int y, int w, int h, uint8_t* out) {
   if (format == kRGB8) {
@@ -387,7 +400,9 @@ void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
     }
 }
 
-bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
+int GigeDevice::Readout() const { return static_cast<int>((Read(reg::kReverseX) & 1) | (Read(reg::kReverseY) & 1) << 1); }
+
+bool GigeDevice::Valid(const Feature& f, uint64_t v, int readout) const {
   switch (f.kind) {
     case Kind::kInteger: {
       // A masked register (SCPS0): the other bits are the client's flags
@@ -401,7 +416,8 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v) const {
     }
     case Kind::kEnum:
       for (const EnumEntry& e : f.entries)
-        if (static_cast<uint64_t>(e.value) == v) return true;
+        if (static_cast<uint64_t>(e.value) == v && (e.readout < 0 || e.readout == (readout < 0 ? Readout() : readout)))
+          return true;
       return false;
     case Kind::kBoolean: return v <= 1;
     default: return false;
@@ -627,6 +643,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kSimAutoTarget, DoubleBits(0.4)},  // 40% of full scale: mid-grey with highlight headroom
       {kChunkModeActive, 0},
       {kChunkSelector, 0},
+      {kReverseX, 0},
+      {kReverseY, 0},
   };
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
@@ -705,7 +723,8 @@ std::string GigeDevice::CheckInvariants() const {
   for (const Feature& f : registers_) {
     if (!Checked(f)) continue;
     const uint64_t in_use = applied_.at(f.address);
-    if (!Valid(f, in_use)) return f.name + ": the value in use is invalid";
+    const int readout = static_cast<int>(applied_.at(reg::kReverseX) | applied_.at(reg::kReverseY) << 1);
+    if (!Valid(f, in_use, readout)) return f.name + ": the value in use is invalid";
     if (ReadFeature(f) != in_use) return f.name + ": the register differs from the value in use";
   }
   using namespace reg;
@@ -1012,7 +1031,11 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     for (uint32_t r = f.address; r < f.address + f.length; r += 4) whole = whole && covers(r);
     uint64_t v = 0;  // the value written (a Float: its 8 bytes)
     for (uint32_t r = f.address; whole && r < f.address + f.length; r += 4) v = v << 32 | value(r);
-    if (whole && d->Valid(f, v)) continue;
+    // A Bayer PixelFormat names the phase of the readout as the block leaves
+    // it (ReverseX and ReverseY come first in registers_: set back already if refused).
+    const auto bit = [&](uint32_t r) { return (covers(r) ? value(r) : d->Read(r)) & 1; };
+    const int readout = static_cast<int>(bit(reg::kReverseX) | bit(reg::kReverseY) << 1);
+    if (whole && d->Valid(f, v, readout)) continue;
     set_back_feature(f);
     // Half of a Float's register would make a value of two writes.
     if (whole) refuse(GevStatus::kInvalidParameter, d->RegisterName(f) + " = " + d->ValueText(f, v), d->WhyInvalid(f, v));
@@ -1067,6 +1090,14 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   if (covers(reg::kGain) && covers(reg::kGain + 4)) {
     const uint64_t q = DoubleBits(QuantiseGain(BitsDouble(uint64_t{value(reg::kGain)} << 32 | value(reg::kGain + 4))));
     for (uint32_t b = 0; b < 8; ++b) data[reg::kGain - address + b] = static_cast<uint8_t>(q >> (56 - 8 * b));
+  }
+  // ReverseX and ReverseY: a Bayer PixelFormat follows the phase read out
+  // (BayerRG12 -> BayerGR12 with ReverseX), unless the block writes one
+  // (checked above against the new readout).
+  if ((covers(reg::kReverseX) || covers(reg::kReverseY)) && !covers(reg::kPixelFormat)) {
+    const auto bit = [&](uint32_t r) { return (covers(r) ? value(r) : d->Read(r)) & 1; };
+    const int readout = static_cast<int>(bit(reg::kReverseX) | bit(reg::kReverseY) << 1);
+    d->Write(reg::kPixelFormat, ReadoutFormat(d->Read(reg::kPixelFormat), d->sensor_.cfa, readout));
   }
   // The pipeline must run what the registers then ask for (raw formats need
   // the sensor and the cfa, RGB8 the ISP, the focus lies beyond the focal
@@ -1666,7 +1697,10 @@ std::string GigeDevice::WhyInvalid(const Feature& f, uint64_t v) const {
       return "out of range " + Fmt(f.min) + ".." + Fmt(f.max);
     case Kind::kEnum:
       for (const EnumEntry& e : TableFeature(table_, f).entries)
-        if (static_cast<uint64_t>(e.value) == v)
+        if (static_cast<uint64_t>(e.value) == v && e.readout >= 0)
+          return "entry " + e.name + " is not the phase this readout gives (ReverseX " + std::to_string(Readout() & 1) +
+                 ", ReverseY " + std::to_string(Readout() >> 1) + ")";
+        else if (static_cast<uint64_t>(e.value) == v)
           return "entry " + e.name + " is not available (at this selector value, or on this device)";
       return "no such entry";
     case Kind::kBoolean: return "a Boolean is 0 or 1";
@@ -1930,6 +1964,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   renderer_->Render(index, taps, n, nullptr);
   if (strobe) DriveStrobe(false);
   ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
+  MirrorWindow(data, w, h, PixelBits(pixel_format) / 8, Applied(kReverseX) != 0, Applied(kReverseY) != 0);
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   // (The chunks, at most kMaxChunkTail bytes, are left out.)
   last_send_s_ = FrameSendSeconds(static_cast<size_t>(w) * h * PixelBits(pixel_format) / 8,

@@ -124,6 +124,10 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* config, host::Ori
 void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
                    int y, int w, int h, uint8_t* out);
 
+// ReverseX / ReverseY: mirrors a converted window in place (w x h pixels of
+// bytes_per_pixel bytes), as the sensor reads it out mirrored.
+void MirrorWindow(uint8_t* out, int w, int h, int bytes_per_pixel, bool reverse_x, bool reverse_y);
+
 class GigeDevice {
  public:
   static std::unique_ptr<GigeDevice> Start(const DeviceOptions& options, std::string* error);
@@ -168,7 +172,9 @@ class GigeDevice {
   void WriteDouble(uint32_t address, double value);
   uint64_t ReadFeature(const Feature& f) const;
   void WriteFeature(const Feature& f, uint64_t value);
-  bool Valid(const Feature& f, uint64_t value) const;
+  // readout: ReverseX + 2 * ReverseY a Bayer PixelFormat must match; -1: the registers'.
+  bool Valid(const Feature& f, uint64_t value, int readout = -1) const;
+  int Readout() const;  // ReverseX + 2 * ReverseY in the registers
   double AppliedDouble(uint32_t address) const;
   uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
   void SetApplied(uint32_t address, uint64_t value);  // register and applied value

@@ -164,6 +164,37 @@ uint32_t BayerCode(Cfa cfa, int bits) {
   return 0x0110002eu + phase;
 }
 
+Cfa ReadoutCfa(Cfa sensor, bool reverse_x, bool reverse_y) {
+  Cfa c = sensor;
+  if (reverse_x) {
+    switch (c) {
+      case Cfa::kBayerRG: c = Cfa::kBayerGR; break;
+      case Cfa::kBayerGR: c = Cfa::kBayerRG; break;
+      case Cfa::kBayerGB: c = Cfa::kBayerBG; break;
+      case Cfa::kBayerBG: c = Cfa::kBayerGB; break;
+      case Cfa::kMono: break;
+    }
+  }
+  if (reverse_y) {
+    switch (c) {
+      case Cfa::kBayerRG: c = Cfa::kBayerGB; break;
+      case Cfa::kBayerGB: c = Cfa::kBayerRG; break;
+      case Cfa::kBayerGR: c = Cfa::kBayerBG; break;
+      case Cfa::kBayerBG: c = Cfa::kBayerGR; break;
+      case Cfa::kMono: break;
+    }
+  }
+  return c;
+}
+
+uint32_t ReadoutFormat(uint32_t code, Cfa sensor, int readout) {
+  if (sensor == Cfa::kMono) return code;
+  for (const int bits : {8, 12, 16})
+    for (const Cfa phase : {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG})
+      if (BayerCode(phase, bits) == code) return BayerCode(ReadoutCfa(sensor, readout & 1, readout & 2), bits);
+  return code;
+}
+
 int SampleBits(uint32_t code) {
   if (code == kMono12 || (code >= 0x01100010u && code <= 0x01100013u)) return 12;
   return code == kRGB8 ? 8 : PixelBits(code);
@@ -172,18 +203,23 @@ int SampleBits(uint32_t code) {
 std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
   std::vector<EnumEntry> out;
   const bool mono = s.cfa == Cfa::kMono;
-  const std::string base = mono ? "Mono" : CfaName(s.cfa);
-  auto code = [&](int bits) -> int64_t {
-    if (!mono) return BayerCode(s.cfa, bits);
-    return bits == 8 ? kMono8 : (bits == 12 ? kMono12 : kMono16);
-  };
-  // The raw format at the ADC's depth first (the default), then the others.
+  // The raw format at the ADC's depth first (the default), then the others;
+  // a Bayer sensor's in the phase of each readout (the sensor's own first).
   const int native = s.adc_bits <= 8 ? 8 : (s.adc_bits == 12 ? 12 : 16);
-  out.push_back({base + std::to_string(native), code(native)});
-  for (int bits : {8, 12, 16}) {
-    if (bits == native) continue;
-    if (bits == 12 && s.adc_bits > 12) continue;  // 12-bit would drop ADC bits
-    out.push_back({base + std::to_string(bits), code(bits)});
+  for (int readout = 0; readout < (mono ? 1 : 4); ++readout) {
+    const Cfa phase = ReadoutCfa(s.cfa, readout & 1, readout & 2);
+    const std::string base = mono ? "Mono" : CfaName(phase);
+    auto code = [&](int bits) -> int64_t {
+      if (!mono) return BayerCode(phase, bits);
+      return bits == 8 ? kMono8 : (bits == 12 ? kMono12 : kMono16);
+    };
+    const int only_at_readout = mono ? -1 : readout;
+    out.push_back({base + std::to_string(native), code(native), -1, true, only_at_readout});
+    for (int bits : {8, 12, 16}) {
+      if (bits == native) continue;
+      if (bits == 12 && s.adc_bits > 12) continue;  // 12-bit would drop ADC bits
+      out.push_back({base + std::to_string(bits), code(bits), -1, true, only_at_readout});
+    }
   }
   if (s.has_isp_rgb) out.push_back({"RGB8", kRGB8});
   return out;
@@ -238,6 +274,14 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
          "WidthMax", "Width");
   window(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"),
          "HeightMax", "Height");
+  // Before PixelFormat: the device checks a block's readout before its format.
+  t.push_back(Bool("ReverseX", ifc, kReverseX, true,
+                   "Mirrors the readout horizontally (the window stays on the sensor; its content is mirrored). "
+                   "A Bayer PixelFormat then names the phase read out (BayerRG -> BayerGR)."));
+  t.back().locked_while_acquiring = true;
+  t.push_back(Bool("ReverseY", ifc, kReverseY, true,
+                   "Mirrors the readout vertically (BayerRG -> BayerGB)."));
+  t.back().locked_while_acquiring = true;
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
@@ -450,6 +494,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                          kChunkHeight));
   t.push_back(ChunkValue(Enum("ChunkPixelFormat", cd, 0, false, PixelFormats(s), "Pixel format of the frame."),
                          kChunkPixelFormat));
+  for (EnumEntry& e : t.back().entries) e.readout = -1;  // a frame's format, whichever readout made it
   t.push_back(ChunkValue(Flt("ChunkBlackLevel", cd, 0, 0.0, s.max_black_level_dn,
                              "Black level the frame was rendered with.", "DN"),
                          kChunkBlackLevel));
@@ -614,7 +659,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
           x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\""
             << (IsStandard(f.name) && IsStandard(e.name) ? "Standard" : "Custom")
             << "\">\n";
-          if (e.only_at_selection >= 0 || !e.available)
+          if (e.only_at_selection >= 0 || !e.available || e.readout >= 0)
             x << "      <pIsAvailable>" << f.name << e.name << "Available</pIsAvailable>\n";
           if (!e.available)
             swiss_knives << "  <Integer Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
@@ -624,6 +669,11 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
             swiss_knives << "  <IntSwissKnife Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
                          << "    <pVariable Name=\"S\">" << f.selected_by << "Reg</pVariable>\n"
                          << "    <Formula>S=" << e.only_at_selection << "</Formula>\n  </IntSwissKnife>\n";
+          if (e.readout >= 0)
+            swiss_knives << "  <IntSwissKnife Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
+                         << "    <pVariable Name=\"X\">ReverseXReg</pVariable>\n"
+                         << "    <pVariable Name=\"Y\">ReverseYReg</pVariable>\n"
+                         << "    <Formula>X+2*Y=" << e.readout << "</Formula>\n  </IntSwissKnife>\n";
         }
         x << "    <pValue>" << regname << "</pValue>\n";
         for (const std::string& selected : f.selects) x << "    <pSelected>" << selected << "</pSelected>\n";

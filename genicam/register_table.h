@@ -31,6 +31,9 @@ struct EnumEntry {
   // false: never available on this device (GenICam pIsAvailable 0; the
   // device refuses it), e.g. Line0 as TriggerSource without a trigger line.
   bool available = true;
+  // >= 0: available only while ReverseX + 2 * ReverseY equals it: a Bayer
+  // format of the CFA phase that readout gives (GenICam pIsAvailable).
+  int readout = -1;
 };
 
 struct Feature {
@@ -144,6 +147,8 @@ inline constexpr uint32_t kChunkEnable = 0x8180;
 // White balance (SFNC AnalogControl). BalanceRatio: one 8-byte Float per
 // BalanceRatioSelector value (Red, Green, Blue), at kBalanceRatio + 8 * value.
 inline constexpr uint32_t kBalanceRatioSelector = 0x8400, kBalanceWhiteAuto = 0x8404, kBalanceRatio = 0x8410;
+// ReverseX, ReverseY (SFNC ImageFormatControl): the sensor's readout mirrored.
+inline constexpr uint32_t kReverseX = 0x8408, kReverseY = 0x840c;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
@@ -191,6 +196,14 @@ enum LineSourceValue : int64_t { kLineSourceOff = 0, kLineSourceExposureActive =
 inline constexpr uint32_t kMono8 = 0x01080001, kMono12 = 0x01100005, kMono16 = 0x01100007, kRGB8 = 0x02180014;
 // Bayer<phase><bits>; bits 8, 12 or 16 (12 unpacked: one 16-bit word per sample).
 uint32_t BayerCode(Cfa cfa, int bits);
+// The CFA phase a readout gives: mirrored columns (ReverseX) swap RG and GR,
+// GB and BG; mirrored rows (ReverseY) swap RG and GB, GR and BG (even widths
+// and heights). Mono stays mono.
+Cfa ReadoutCfa(Cfa sensor, bool reverse_x, bool reverse_y);
+// The format a sensor read out as `readout` (ReverseX + 2 * ReverseY) sends
+// at the depth of `code`: a Bayer code (of any phase) becomes the phase that
+// readout gives; RGB8 and Mono codes stay.
+uint32_t ReadoutFormat(uint32_t code, Cfa sensor, int readout);
 // Bits per pixel of a code (its bits 16..23), 0 when unknown.
 inline int PixelBits(uint32_t code) { return static_cast<int>((code >> 16) & 0xff); }
 // Significant bits per sample: 12 for the unpacked 12-bit formats, else PixelBits (per channel for RGB8).
@@ -224,7 +237,8 @@ inline constexpr uint32_t kMaxGvspDataPackets = 65534, kMinPacketSize = 576, kMa
 inline constexpr uint32_t kMaxPacketDelayTicks = 100000;  // GevSCPD's maximum (100 us at 1 GHz)
 uint32_t MinPacketSize(const SensorInfo& sensor);
 
-// Pixel formats offered for a sensor, first = default (the raw format at the ADC depth).
+// Pixel formats offered for a sensor, first = default (the raw format at the
+// ADC depth). A Bayer sensor's come in the phase of each readout (EnumEntry::readout).
 std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);

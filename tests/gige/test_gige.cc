@@ -275,7 +275,10 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
   ASSERT_NE(pf, nullptr);
   std::vector<std::string> names;
   for (const auto& e : pf->entries) names.push_back(e.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"BayerGB12", "BayerGB8", "BayerGB16", "RGB8"}));
+  // The sensor's phase first; then those ReverseX, ReverseY and both read out.
+  EXPECT_EQ(names, (std::vector<std::string>{"BayerGB12", "BayerGB8", "BayerGB16", "BayerBG12", "BayerBG8", "BayerBG16",
+                                             "BayerRG12", "BayerRG8", "BayerRG16", "BayerGR12", "BayerGR8", "BayerGR16",
+                                             "RGB8"}));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGB, 12), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GB_12));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerRG, 8), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_RG_8));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 16), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_16));
@@ -4112,6 +4115,115 @@ TEST_F(GigeE2E, BalanceWhiteAutoOnceMakesTheMeanGrey) {
   (void)GrabIndex(c, kRunFrame + 1);
   Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), red);
+}
+
+// A frame of w x h pixels of `bytes` bytes each, mirrored.
+std::vector<uint8_t> Mirrored(const std::vector<uint8_t>& f, int w, int h, int bytes, bool x, bool y) {
+  std::vector<uint8_t> out(f.size());
+  for (int r = 0; r < h; ++r)
+    for (int i = 0; i < w; ++i) {
+      const size_t from = (static_cast<size_t>(y ? h - 1 - r : r) * w + (x ? w - 1 - i : i)) * bytes;
+      std::memcpy(&out[(static_cast<size_t>(r) * w + i) * bytes], &f[from], static_cast<size_t>(bytes));
+    }
+  return out;
+}
+
+void SetReverse(Client& c, bool x, bool y) {
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ReverseX", x, &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  arv_camera_set_boolean(c.camera(), "ReverseY", y, &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+}
+
+// ReverseX / ReverseY mirror the readout: each frame is the normal frame
+// (same index: same noise) mirrored, byte for byte, in a window off the
+// corner. A Bayer format names the phase read out (BayerRG -> BayerGR with
+// ReverseX, BayerGB with ReverseY, BayerBG with both): the PixelFormat the
+// client reads, the leader's and the formats it may pick. The other
+// phase's formats are refused, and the readout is locked while acquiring.
+TEST_F(GigeE2E, ReverseXAndYMirrorTheReadout) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  SetInt(c, "Width", 60);
+  SetInt(c, "OffsetX", 2);
+  SetInt(c, "Height", 44);
+  SetInt(c, "OffsetY", 4);
+  const Cfa phases[4] = {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG};  // by ReverseX + 2 ReverseY
+  struct Case {
+    const char* format;
+    int bits, bytes;  // bits 0: RGB8
+  } cases[] = {{"BayerRG12", 12, 2}, {"BayerRG8", 8, 1}, {"RGB8", 0, 3}};
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.format);
+    ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
+    Set(c, "PixelFormat", k.format);
+    const std::vector<uint8_t> normal = GrabIndex(c, 5);
+    ASSERT_EQ(normal.size(), 60u * 44 * k.bytes);
+    for (int readout = 1; readout < 4; ++readout) {
+      SCOPED_TRACE(readout);
+      const bool x = readout & 1, y = readout & 2;
+      ASSERT_NO_FATAL_FAILURE(SetReverse(c, x, y));
+      const uint32_t want = k.bits == 0 ? genicam::kRGB8 : genicam::BayerCode(phases[readout], k.bits);
+      EXPECT_EQ(static_cast<uint32_t>(arv_camera_get_pixel_format(c.camera(), nullptr)), want);
+      uint32_t code = 0;
+      const std::vector<uint8_t> f = GrabIndex(c, 5, &code);
+      EXPECT_EQ(code, want) << "the leader's format";
+      EXPECT_TRUE(f == Mirrored(normal, 60, 44, k.bytes, x, y)) << "the normal frame mirrored";
+      EXPECT_FALSE(f == normal);
+    }
+  }
+  ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
+  Set(c, "PixelFormat", "BayerRG8");
+  ASSERT_NO_FATAL_FAILURE(SetReverse(c, true, false));
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerGR8");
+  guint n = 0;
+  const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
+  EXPECT_EQ(std::vector<std::string>(formats, formats + n),
+            (std::vector<std::string>{"BayerGR12", "BayerGR8", "BayerGR16", "RGB8"}));
+  g_free(formats);
+  GError* e = nullptr;
+  arv_device_write_register(c.device(), reg::kPixelFormat, genicam::BayerCode(Cfa::kBayerRG, 12), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+      << (e != nullptr ? e->message : "no error: BayerRG12 is not what ReverseX reads out");
+  g_clear_error(&e);
+  Set(c, "PixelFormat", "BayerGR12");
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  arv_camera_set_boolean(c.camera(), "ReverseX", false, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error: the readout changed while acquiring");
+  g_clear_error(&e);
+  c.CloseStream();
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "ReverseX", nullptr));
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerGR12");
+  ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
+}
+
+// A mono sensor's readout mirrors too (an odd window; the format stays).
+TEST_F(GigeE2E, ReverseXAndYMirrorMonoFrames) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallMonoDevice()));
+  Client& c = *client_;
+  SetInt(c, "Width", 31);
+  SetInt(c, "OffsetX", 1);
+  SetInt(c, "Height", 23);
+  for (const char* format : {"Mono8", "Mono12"}) {
+    SCOPED_TRACE(format);
+    ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
+    Set(c, "PixelFormat", format);
+    const int bytes = std::strcmp(format, "Mono8") == 0 ? 1 : 2;
+    const std::vector<uint8_t> normal = GrabIndex(c, 3);
+    ASSERT_EQ(normal.size(), 31u * 23 * bytes);
+    for (int readout = 1; readout < 4; ++readout) {
+      const bool x = readout & 1, y = readout & 2;
+      ASSERT_NO_FATAL_FAILURE(SetReverse(c, x, y));
+      EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), format);
+      EXPECT_TRUE(GrabIndex(c, 3) == Mirrored(normal, 31, 23, bytes, x, y)) << readout;
+    }
+  }
 }
 
 }  // namespace
