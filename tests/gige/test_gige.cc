@@ -4117,6 +4117,29 @@ TEST_F(GigeE2E, BalanceWhiteAutoOnceMakesTheMeanGrey) {
   EXPECT_DOUBLE_EQ(ReadFloat(c, "BalanceRatio"), red);
 }
 
+// BalanceWhiteAuto Continuous: gray world on every frame; it stays on.
+TEST_F(GigeE2E, BalanceWhiteAutoContinuousStaysOn) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(RunSceneDevice({})));
+  Client& c = *client_;
+  Set(c, "PixelFormat", "RGB8");
+  Set(c, "BalanceRatioSelector", "Red");
+  SetFloat(c, "BalanceRatio", 0.5);
+  Set(c, "BalanceWhiteAuto", "Continuous");
+  SetInt(c, "SimFrameIndex", kRunFrame);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (int i = 0; i < 2; ++i) ASSERT_FALSE(c.Grab(3000).empty());
+  const ChannelStats on = RgbStats(c.Grab(3000));
+  c.CloseStream();
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "BalanceWhiteAuto", nullptr), "Continuous");
+  EXPECT_GT(ReadFloat(c, "BalanceRatio"), 1.0) << "Red raised from 0.5";
+  for (int ch = 0; ch < 3; ++ch)
+    EXPECT_NEAR(on.mean[ch] / on.mean[1], 1.0, 0.04)
+        << "channel " << ch << ": " << on.mean[0] << " " << on.mean[1] << " " << on.mean[2];
+}
+
 // A frame of w x h pixels of `bytes` bytes each, mirrored.
 std::vector<uint8_t> Mirrored(const std::vector<uint8_t>& f, int w, int h, int bytes, bool x, bool y) {
   std::vector<uint8_t> out(f.size());
