@@ -313,24 +313,70 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* rc, host::Origins
   return true;
 }
 
-void MirrorWindow(uint8_t* out, int w, int h, int bytes_per_pixel, bool reverse_x, bool reverse_y) {
-  const size_t n = static_cast<size_t>(bytes_per_pixel), row = static_cast<size_t>(w) * n;
+// Mirrors the window [x, x + w) x [y, y + h) of a frame of `stride`
+// elements of `n` bytes in place: ReverseX mirrors its columns, ReverseY its
+// rows. Done to the rendered frames (raw codes, RGB8) before a window is
+// converted, so that every format, packed ones too, carries the mirrored
+// readout; done again after, which restores them (a mirror is its own inverse).
+void MirrorWindow(uint8_t* frame, size_t stride, size_t n, int x, int y, int w, int h, bool reverse_x, bool reverse_y) {
+  const size_t row = static_cast<size_t>(w) * n;
+  uint8_t* origin = frame + (static_cast<size_t>(y) * stride + static_cast<size_t>(x)) * n;
   if (reverse_x)
     for (int r = 0; r < h; ++r) {
-      uint8_t* p = out + static_cast<size_t>(r) * row;
-      for (size_t a = 0, b = static_cast<size_t>(w) - 1; a < b; ++a, --b) std::swap_ranges(p + a * n, p + a * n + n, p + b * n);
+      uint8_t* p = origin + static_cast<size_t>(r) * stride * n;
+      for (size_t a = 0, b = static_cast<size_t>(w) - 1; w > 0 && a < b; ++a, --b)
+        std::swap_ranges(p + a * n, p + a * n + n, p + b * n);
     }
   if (reverse_y)
     for (size_t a = 0, b = static_cast<size_t>(h) - 1; h > 0 && a < b; ++a, --b)
-      std::swap_ranges(out + a * row, out + a * row + row, out + b * row);
+      std::swap_ranges(origin + a * stride * n, origin + a * stride * n + row, origin + b * stride * n);
 }
 
-void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
-                   int y, int w, int h, uint8_t* out) {
+void ConvertWindow(uint32_t format, Cfa cfa, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width,
+                   int x, int y, int w, int h, uint8_t* out) {
   if (format == kRGB8) {
     for (int r = 0; r < h; ++r)
       std::memcpy(out + static_cast<size_t>(r) * w * 3, rgb + (static_cast<size_t>(y + r) * sensor_width + x) * 3,
                   static_cast<size_t>(w) * 3);
+    return;
+  }
+  if (FromIsp(format, cfa)) {
+    // Mono8 on a colour sensor: BT.601 luma of RGB8, (77 R + 150 G + 29 B + 128) >> 8 (weights sum to 256).
+    for (int r = 0; r < h; ++r) {
+      const uint8_t* src = rgb + (static_cast<size_t>(y + r) * sensor_width + x) * 3;
+      uint8_t* dst = out + static_cast<size_t>(r) * w;
+      for (int i = 0; i < w; ++i)
+        dst[i] = static_cast<uint8_t>((77 * src[3 * i] + 150 * src[3 * i + 1] + 29 * src[3 * i + 2] + 128) >> 8);
+    }
+    return;
+  }
+  const Packing packing = PackingOf(format);
+  if (packing != Packing::kNone) {
+    // The window's DN at the format's depth (as the unpacked formats: shifted
+    // up for a smaller ADC), row after row, as one stream (rows need not start on a byte).
+    const int bits = PixelBits(format), shift = bits - adc_bits;
+    size_t n = 0;
+    uint32_t acc = 0;  // PFNC: bits not yet written, LSB first
+    int held = 0;
+    for (int r = 0; r < h; ++r) {
+      const uint16_t* src = raw + static_cast<size_t>(y + r) * sensor_width + x;
+      for (int i = 0; i < w; ++i) {
+        const uint32_t v = static_cast<uint32_t>(src[i]) << shift;
+        if (packing == Packing::kPfnc) {
+          acc |= v << held;
+          for (held += bits; held >= 8; held -= 8, acc >>= 8) out[n++] = static_cast<uint8_t>(acc);
+        } else if (held == 0) {  // GigE Vision 12Packed, the first of a pair
+          out[n++] = static_cast<uint8_t>(v >> 4);
+          out[n++] = static_cast<uint8_t>(v & 0xf);
+          held = 1;
+        } else {  // the second: its low nibble in the shared byte's bits 4..7
+          out[n - 1] = static_cast<uint8_t>(out[n - 1] | (v & 0xf) << 4);
+          out[n++] = static_cast<uint8_t>(v >> 4);
+          held = 0;
+        }
+      }
+    }
+    if (packing == Packing::kPfnc && held > 0) out[n] = static_cast<uint8_t>(acc);  // a last partial byte
     return;
   }
   const int bits = SampleBits(format);
@@ -342,7 +388,7 @@ void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uin
       uint8_t* dst = out + static_cast<size_t>(r) * w;
       for (int i = 0; i < w; ++i) dst[i] = static_cast<uint8_t>(src[i] >> shift);
     } else {
-      // 12-bit: the DN at 12 bits; 16-bit: MSB-aligned. Little-endian words.
+      // 10- and 12-bit: the DN at that depth; 16-bit: MSB-aligned. Little-endian words.
       const int shift = bits - adc_bits;
       uint8_t* dst = out + static_cast<size_t>(r) * w * 2;
       for (int i = 0; i < w; ++i) {
@@ -820,8 +866,9 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
   const LineFormat out = plan.output;
   const bool rgb = out.channels == 3 && (out.domain == Domain::kEncoded || out.domain == Domain::kLinear);
   const PlanEntry* sensor = RunningSensor(plan);
-  if (r.at(kPixelFormat) == kRGB8 ? !rgb : sensor == nullptr) {
-    *error = "the selected PixelFormat needs " + std::string(r.at(kPixelFormat) == kRGB8 ? "the ISP" : "the sensor");
+  const bool from_isp = FromIsp(r.at(kPixelFormat), sensor_.cfa);  // RGB8, or Mono8 made from it
+  if (from_isp ? !rgb : sensor == nullptr) {
+    *error = "the selected PixelFormat needs " + std::string(from_isp ? "the ISP" : "the sensor");
     return false;
   }
   if (sensor != nullptr && sensor->out.channels != 1) {
@@ -1063,6 +1110,33 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
     refuse(GevStatus::kInvalidParameter, what, why);
   }
+  // A packed format's frame is one bit stream that must end on a byte: the
+  // fake camera sends Width x Height x bits / 8 whole bytes (12-bit packing:
+  // an even pixel count; 10p: a multiple of 4). A write that would leave a
+  // partial byte is set back.
+  if (covers(reg::kWidth) || covers(reg::kHeight) || covers(reg::kPixelFormat)) {
+    const auto after = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
+    const uint32_t format = static_cast<uint32_t>(after(reg::kPixelFormat));
+    const uint64_t pixel_bits = after(reg::kWidth) * after(reg::kHeight) * static_cast<uint64_t>(PixelBits(format));
+    if (PackingOf(format) != Packing::kNone && pixel_bits % 8 != 0) {
+      const std::string why = "a packed frame of " + std::to_string(after(reg::kWidth)) + " x " +
+                              std::to_string(after(reg::kHeight)) + " pixels of " + std::to_string(PixelBits(format)) +
+                              " bits does not end on a byte (12-bit packing needs an even pixel count, 10p a "
+                              "multiple of 4)";
+      std::string what;
+      for (const auto& [r, name] : {std::pair{reg::kWidth, "Width"}, {reg::kHeight, "Height"}}) {
+        if (!covers(r)) continue;
+        what += (what.empty() ? "" : ", ") + std::string(name) + " = " + std::to_string(value(r));
+        set_back(r);
+      }
+      if (covers(reg::kPixelFormat)) {
+        what += (what.empty() ? "" : ", ") + std::string("PixelFormat = ") +
+                d->ValueText(*FindFeature(d->registers_, "PixelFormat"), format);
+        set_back(reg::kPixelFormat);
+      }
+      refuse(GevStatus::kInvalidParameter, what, why);
+    }
+  }
   // An Auto lower limit stays at or below its upper limit (each one's pMax
   // or pMin): a write that would cross them is set back, the lower first.
   for (const AutoLimits& l : kAutoLimits) {
@@ -1287,6 +1361,15 @@ void GigeDevice::Sync() {
       if (next[axes[a].first] + next[axes[a].second] <= static_cast<uint64_t>(limits[a])) continue;
       if (was_changed(axes[a].second)) refuse(axes[a].second);
       if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
+    }
+    // A packed frame ends on a byte: otherwise the format and size go back
+    // to the applied ones (which do).
+    if (PackingOf(static_cast<uint32_t>(next[kPixelFormat])) != Packing::kNone &&
+        next[kWidth] * next[kHeight] * PixelBits(static_cast<uint32_t>(next[kPixelFormat])) % 8 != 0) {
+      LogRefusal("PixelFormat, Width, Height",
+                 "a packed frame that does not end on a byte (found by the register sync)");
+      for (uint32_t a : {kPixelFormat, kWidth, kHeight})
+        if (was_changed(a)) refuse(a);
     }
     // An Auto lower limit stays at or below its upper limit: refuse the lower, then the upper.
     for (const AutoLimits& l : kAutoLimits) {
@@ -1802,8 +1885,8 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
 
 void GigeDevice::QueueChunks(ArvBuffer* buffer, uint32_t pixel_format) {
   using namespace reg;
-  const size_t image = static_cast<size_t>(arv_buffer_get_image_width(buffer)) * arv_buffer_get_image_height(buffer) *
-                       static_cast<size_t>(PixelBits(pixel_format)) / 8;
+  const size_t image =
+      FrameBytes(pixel_format, arv_buffer_get_image_width(buffer), arv_buffer_get_image_height(buffer));
   const size_t padded = (image + 3) / 4 * 4;  // chunk lengths are whole 4-byte words
   uint8_t tail[kMaxChunkTail] = {};
   size_t n = padded - image;  // the padding's zeros
@@ -1927,8 +2010,10 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   const int x = arv_buffer_get_image_x(buffer), y = arv_buffer_get_image_y(buffer);
   if (static_cast<uint32_t>(w) != Applied(kWidth) || static_cast<uint32_t>(h) != Applied(kHeight) ||
       static_cast<uint32_t>(x) != Applied(kOffsetX) || static_cast<uint32_t>(y) != Applied(kOffsetY) ||
-      pixel_format != Applied(kPixelFormat)) {
-    // A refused write was in the registers when the fake camera read them: send black.
+      pixel_format != Applied(kPixelFormat) || static_cast<uint64_t>(w) * h * PixelBits(pixel_format) % 8 != 0) {
+    // A refused write was in the registers when the fake camera read them (or
+    // a packed frame would end in half a byte): send black (the fake camera's
+    // payload: its bytes rounded down).
     std::memset(data, 0, static_cast<size_t>(w) * h * PixelBits(pixel_format) / 8);
     return;
   }
@@ -1948,7 +2033,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   taps[n].data = raw_.data();
   taps[n].stride = sensor_.width;
   ++n;
-  if (pixel_format == kRGB8) {
+  if (FromIsp(pixel_format, sensor_.cfa)) {
     taps[n].stage = plan.running - 1;
     taps[n].format = TapFormat::kU8;
     taps[n].data = rgb_.data();
@@ -1963,11 +2048,24 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   const auto render_start = std::chrono::steady_clock::now();
   renderer_->Render(index, taps, n, nullptr);
   if (strobe) DriveStrobe(false);
-  ConvertWindow(pixel_format, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h, data);
-  MirrorWindow(data, w, h, PixelBits(pixel_format) / 8, Applied(kReverseX) != 0, Applied(kReverseY) != 0);
+  // (The applied window and format fill whole bytes: FilterClientWrite and Sync refuse others.)
+  const bool reverse_x = Applied(kReverseX) != 0, reverse_y = Applied(kReverseY) != 0;
+  // RGB8, and Mono8 on a colour sensor, come from the ISP's frame; the rest from the raw codes.
+  const bool from_rgb = pixel_format == kRGB8 || (pixel_format == kMono8 && sensor_.cfa != Cfa::kMono);
+  const auto mirror = [&] {
+    if (from_rgb)
+      MirrorWindow(rgb_.data(), static_cast<size_t>(sensor_.width), 3, x, y, w, h, reverse_x, reverse_y);
+    else
+      MirrorWindow(reinterpret_cast<uint8_t*>(raw_.data()), static_cast<size_t>(sensor_.width), sizeof raw_[0], x, y,
+                   w, h, reverse_x, reverse_y);
+  };
+  mirror();
+  ConvertWindow(pixel_format, sensor_.cfa, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h,
+                data);
+  mirror();  // back: the Auto features read the frame as the sensor made it
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   // (The chunks, at most kMaxChunkTail bytes, are left out.)
-  last_send_s_ = FrameSendSeconds(static_cast<size_t>(w) * h * PixelBits(pixel_format) / 8,
+  last_send_s_ = FrameSendSeconds(FrameBytes(pixel_format, w, h),
                                   Read(kPacketSize) & 0xffff, link_bits_per_s_, PacketDelayNs());
 
   // Mean raw level in the window, for the Auto features.

@@ -119,10 +119,10 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* config, host::Ori
                       std::vector<io::SceneFrame>* scenes, std::string* error);
 
 // Converts one frame's taps to the wire format: window (x, y, w, h) of a
-// full-sensor raw tap (uint16 DN, adc_bits) or RGB tap (uint8 x3). out must
-// hold w * h * PixelBits(format) / 8 bytes.
-void ConvertWindow(uint32_t format, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width, int x,
-                   int y, int w, int h, uint8_t* out);
+// full-sensor raw tap (uint16 DN, adc_bits) or RGB tap (uint8 x3; the
+// formats FromIsp(format, cfa) names). out must hold FrameBytes(format, w, h).
+void ConvertWindow(uint32_t format, Cfa cfa, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width,
+                   int x, int y, int w, int h, uint8_t* out);
 
 // ReverseX / ReverseY: mirrors a converted window in place (w x h pixels of
 // bytes_per_pixel bytes), as the sensor reads it out mirrored.

@@ -150,7 +150,7 @@ void PushAutoLimits(std::vector<Feature>* t, const Feature& of, const std::strin
 }  // namespace
 
 uint32_t BayerCode(Cfa cfa, int bits) {
-  // PFNC: 8-bit GR 0x08, RG 0x09, GB 0x0a, BG 0x0b; 12-bit 0x10..0x13; 16-bit 0x2e..0x31.
+  // PFNC: 8-bit GR 0x08, RG 0x09, GB 0x0a, BG 0x0b; 10-bit 0x0c..0x0f; 12-bit 0x10..0x13; 16-bit 0x2e..0x31.
   int phase = 0;
   switch (cfa) {
     case Cfa::kBayerGR: phase = 0; break;
@@ -160,6 +160,7 @@ uint32_t BayerCode(Cfa cfa, int bits) {
     case Cfa::kMono: return 0;
   }
   if (bits == 8) return 0x01080008u + phase;
+  if (bits == 10) return 0x0110000cu + phase;
   if (bits == 12) return 0x01100010u + phase;
   return 0x0110002eu + phase;
 }
@@ -189,13 +190,46 @@ Cfa ReadoutCfa(Cfa sensor, bool reverse_x, bool reverse_y) {
 
 uint32_t ReadoutFormat(uint32_t code, Cfa sensor, int readout) {
   if (sensor == Cfa::kMono) return code;
-  for (const int bits : {8, 12, 16})
-    for (const Cfa phase : {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG})
-      if (BayerCode(phase, bits) == code) return BayerCode(ReadoutCfa(sensor, readout & 1, readout & 2), bits);
+  const Cfa to = ReadoutCfa(sensor, readout & 1, readout & 2);
+  for (const Cfa phase : {Cfa::kBayerRG, Cfa::kBayerGR, Cfa::kBayerGB, Cfa::kBayerBG}) {
+    for (const int bits : {8, 10, 12, 16})
+      if (BayerCode(phase, bits) == code) return BayerCode(to, bits);
+    for (const Packing packing : {Packing::kPfnc, Packing::kGigeLegacy})
+      for (const int bits : {10, 12})
+        if (PackedCode(phase, bits, packing) == code)
+          return PackedCode(to, bits, packing);
+  }
   return code;
 }
 
+uint32_t PackedCode(Cfa cfa, int bits, Packing packing) {
+  // PFNC: BayerXX10p BG 0x52, GB 0x54, GR 0x56, RG 0x58 (12p one more);
+  // GigE Vision BayerXX12Packed GR 0x2a, RG 0x2b, GB 0x2c, BG 0x2d.
+  int p10 = 0, legacy = 0;
+  switch (cfa) {
+    case Cfa::kBayerGR: p10 = 0x56; legacy = 0x2a; break;
+    case Cfa::kBayerRG: p10 = 0x58; legacy = 0x2b; break;
+    case Cfa::kBayerGB: p10 = 0x54; legacy = 0x2c; break;
+    case Cfa::kBayerBG: p10 = 0x52; legacy = 0x2d; break;
+    case Cfa::kMono: break;
+  }
+  const bool mono = cfa == Cfa::kMono;
+  if (packing == Packing::kPfnc && bits == 10) return mono ? kMono10p : 0x010a0000u + p10;
+  if (packing == Packing::kPfnc && bits == 12) return mono ? kMono12p : 0x010c0000u + p10 + 1;
+  if (packing == Packing::kGigeLegacy && bits == 12) return mono ? kMono12Packed : 0x010c0000u + legacy;
+  return 0;
+}
+
+Packing PackingOf(uint32_t code) {
+  if (code == kMono10p || code == kMono12p || (code >= 0x010a0052u && code <= 0x010a0058u && code % 2 == 0) ||
+      (code >= 0x010c0053u && code <= 0x010c0059u && code % 2 == 1))
+    return Packing::kPfnc;
+  if (code == kMono12Packed || (code >= 0x010c002au && code <= 0x010c002du)) return Packing::kGigeLegacy;
+  return Packing::kNone;
+}
+
 int SampleBits(uint32_t code) {
+  if (code == kMono10 || (code >= 0x0110000cu && code <= 0x0110000fu)) return 10;
   if (code == kMono12 || (code >= 0x01100010u && code <= 0x01100013u)) return 12;
   return code == kRGB8 ? 8 : PixelBits(code);
 }
@@ -211,17 +245,28 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
     const std::string base = mono ? "Mono" : CfaName(phase);
     auto code = [&](int bits) -> int64_t {
       if (!mono) return BayerCode(phase, bits);
-      return bits == 8 ? kMono8 : (bits == 12 ? kMono12 : kMono16);
+      return bits == 8 ? kMono8 : bits == 10 ? kMono10 : bits == 12 ? kMono12 : kMono16;
     };
     const int only_at_readout = mono ? -1 : readout;
     out.push_back({base + std::to_string(native), code(native), -1, true, only_at_readout});
-    for (int bits : {8, 12, 16}) {
+    for (int bits : {8, 10, 12, 16}) {
       if (bits == native) continue;
-      if (bits == 12 && s.adc_bits > 12) continue;  // 12-bit would drop ADC bits
+      if (bits == 10 && s.adc_bits > 10) continue;  // would drop ADC bits
+      if (bits == 12 && s.adc_bits > 12) continue;
       out.push_back({base + std::to_string(bits), code(bits), -1, true, only_at_readout});
     }
+    // Packed: like the unpacked format of their depth, so only for an ADC of at most that depth.
+    if (s.adc_bits <= 12) {
+      out.push_back({base + "12p", PackedCode(phase, 12, Packing::kPfnc), -1, true, only_at_readout});
+      out.push_back({base + "12Packed", PackedCode(phase, 12, Packing::kGigeLegacy), -1, true, only_at_readout});
+    }
+    if (s.adc_bits <= 10)
+      out.push_back({base + "10p", PackedCode(phase, 10, Packing::kPfnc), -1, true, only_at_readout});
   }
-  if (s.has_isp_rgb) out.push_back({"RGB8", kRGB8});
+  if (s.has_isp_rgb) {
+    if (!mono) out.push_back({"Mono8", kMono8});  // the luma of RGB8
+    out.push_back({"RGB8", kRGB8});
+  }
   return out;
 }
 
@@ -284,7 +329,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.back().locked_while_acquiring = true;
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
-                   "ADC bits; 16-bit: shifted to the top); RGB8 is the ISP output."));
+                   "ADC bits; 16-bit: shifted to the top; 10p/12p/12Packed: packed, the frame's pixel bits a "
+                   "whole number of bytes); RGB8 is the ISP output, Mono8 on a colour sensor its BT.601 luma."));
   t.back().locked_while_acquiring = true;
 
   const char* ac = "AcquisitionControl";

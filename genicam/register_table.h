@@ -193,8 +193,11 @@ enum TriggerSourceValue : int64_t { kSourceSoftware = 0, kSourceLine0 = 1 };
 enum LineSourceValue : int64_t { kLineSourceOff = 0, kLineSourceExposureActive = 1 };
 
 // PFNC pixel format codes (GigE Vision values).
-inline constexpr uint32_t kMono8 = 0x01080001, kMono12 = 0x01100005, kMono16 = 0x01100007, kRGB8 = 0x02180014;
-// Bayer<phase><bits>; bits 8, 12 or 16 (12 unpacked: one 16-bit word per sample).
+inline constexpr uint32_t kMono8 = 0x01080001, kMono10 = 0x01100003, kMono12 = 0x01100005, kMono16 = 0x01100007,
+                          kRGB8 = 0x02180014;
+// Packed: PFNC Mono10p and Mono12p; GigE Vision 1.x Mono12Packed.
+inline constexpr uint32_t kMono10p = 0x010a0046, kMono12p = 0x010c0047, kMono12Packed = 0x010c0006;
+// Bayer<phase><bits>; bits 8, 10, 12 or 16 (10, 12 unpacked: one 16-bit word per sample).
 uint32_t BayerCode(Cfa cfa, int bits);
 // The CFA phase a readout gives: mirrored columns (ReverseX) swap RG and GR,
 // GB and BG; mirrored rows (ReverseY) swap RG and GB, GR and BG (even widths
@@ -204,10 +207,26 @@ Cfa ReadoutCfa(Cfa sensor, bool reverse_x, bool reverse_y);
 // at the depth of `code`: a Bayer code (of any phase) becomes the phase that
 // readout gives; RGB8 and Mono codes stay.
 uint32_t ReadoutFormat(uint32_t code, Cfa sensor, int readout);
+// How a raw format packs its samples: one per byte or 16-bit word (kNone);
+// PFNC "p" (the frame's samples as one LSB-first bit stream); GigE Vision's
+// legacy 12Packed (two samples in 3 bytes: high 8 bits of the first, both
+// low nibbles (first's in bits 0..3), high 8 bits of the second).
+enum class Packing { kNone, kPfnc, kGigeLegacy };
+// The packed raw format of a sensor: Mono or Bayer<phase>, bits 10 (kPfnc
+// only) or 12; 0 when there is none.
+uint32_t PackedCode(Cfa cfa, int bits, Packing packing);
+Packing PackingOf(uint32_t code);
 // Bits per pixel of a code (its bits 16..23), 0 when unknown.
 inline int PixelBits(uint32_t code) { return static_cast<int>((code >> 16) & 0xff); }
-// Significant bits per sample: 12 for the unpacked 12-bit formats, else PixelBits (per channel for RGB8).
+// Significant bits per sample: 10 or 12 for the unpacked 10- and 12-bit formats, else PixelBits (per channel for RGB8).
 int SampleBits(uint32_t code);
+// Formats made from the ISP's RGB8: RGB8, and Mono8 on a colour sensor (its luma).
+inline bool FromIsp(uint32_t code, Cfa cfa) { return code == kRGB8 || (code == kMono8 && cfa != Cfa::kMono); }
+// Bytes of a w x h frame: a packed frame is one bit stream, so its bits
+// need not end on a byte (GigeDevice refuses such windows).
+inline uint64_t FrameBytes(uint32_t code, int w, int h) {
+  return (static_cast<uint64_t>(w) * static_cast<uint64_t>(h) * static_cast<uint64_t>(PixelBits(code)) + 7) / 8;
+}
 
 // What the table depends on: the simulated sensor.
 struct SensorInfo {

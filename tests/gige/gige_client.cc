@@ -42,9 +42,10 @@ std::vector<uint8_t> ReferenceFrame(const genicam::DeviceOptions& opt, uint32_t 
   taps[1].format = TapFormat::kU8;
   taps[1].data = rgb.data();
   taps[1].stride = sw * 3;
-  r.Render(index, taps, format == genicam::kRGB8 ? 2 : 1, nullptr);
-  std::vector<uint8_t> out(static_cast<size_t>(w) * h * genicam::PixelBits(format) / 8);
-  genicam::ConvertWindow(format, rc.core.geometry.adc_bits, raw.data(), rgb.data(), sw, x, y, w, h, out.data());
+  r.Render(index, taps, genicam::FromIsp(format, rc.core.geometry.cfa) ? 2 : 1, nullptr);
+  std::vector<uint8_t> out(genicam::FrameBytes(format, w, h));
+  genicam::ConvertWindow(format, rc.core.geometry.cfa, rc.core.geometry.adc_bits, raw.data(), rgb.data(), sw, x, y, w,
+                         h, out.data());
   return out;
 }
 

@@ -23,6 +23,7 @@
 #include <latch>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "genicam/fake_camera_hooks.h"
@@ -276,14 +277,41 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
   std::vector<std::string> names;
   for (const auto& e : pf->entries) names.push_back(e.name);
   // The sensor's phase first; then those ReverseX, ReverseY and both read out.
-  EXPECT_EQ(names, (std::vector<std::string>{"BayerGB12", "BayerGB8", "BayerGB16", "BayerBG12", "BayerBG8", "BayerBG16",
-                                             "BayerRG12", "BayerRG8", "BayerRG16", "BayerGR12", "BayerGR8", "BayerGR16",
-                                             "RGB8"}));
+  EXPECT_EQ(names, (std::vector<std::string>{
+                       "BayerGB12", "BayerGB8", "BayerGB16", "BayerGB12p", "BayerGB12Packed",  //
+                       "BayerBG12", "BayerBG8", "BayerBG16", "BayerBG12p", "BayerBG12Packed",  //
+                       "BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",  //
+                       "BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed",  //
+                       "Mono8", "RGB8"}));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGB, 12), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GB_12));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerRG, 8), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_RG_8));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 16), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_16));
   EXPECT_EQ(genicam::kRGB8, static_cast<uint32_t>(ARV_PIXEL_FORMAT_RGB_8_PACKED));
   EXPECT_EQ(genicam::kMono12, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_12));
+  EXPECT_EQ(genicam::kMono10, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_10));
+  EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGR, 10), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GR_10));
+  EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 10), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_10));
+  // Packed (Aravis 0.8.26 names no Mono10p/Mono12p: PFNC 0x010A0046, 0x010C0047).
+  using genicam::Packing;
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerGB, 12, Packing::kPfnc), ARV_PIXEL_FORMAT_BAYER_GB_12P);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerRG, 12, Packing::kPfnc), ARV_PIXEL_FORMAT_BAYER_RG_12P);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerGR, 10, Packing::kPfnc), ARV_PIXEL_FORMAT_BAYER_GR_10P);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerBG, 10, Packing::kPfnc), ARV_PIXEL_FORMAT_BAYER_BG_10P);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerRG, 12, Packing::kGigeLegacy), ARV_PIXEL_FORMAT_BAYER_RG_12_PACKED);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kBayerBG, 12, Packing::kGigeLegacy), ARV_PIXEL_FORMAT_BAYER_BG_12_PACKED);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kMono, 12, Packing::kGigeLegacy), ARV_PIXEL_FORMAT_MONO_12_PACKED);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kMono, 12, Packing::kPfnc), 0x010c0047u);
+  EXPECT_EQ(genicam::PackedCode(Cfa::kMono, 10, Packing::kPfnc), 0x010a0046u);
+  for (Cfa cfa : {Cfa::kBayerGR, Cfa::kBayerRG, Cfa::kBayerGB, Cfa::kBayerBG, Cfa::kMono}) {
+    for (int bits : {10, 12})
+      EXPECT_EQ(genicam::PackingOf(genicam::PackedCode(cfa, bits, Packing::kPfnc)), Packing::kPfnc);
+    EXPECT_EQ(genicam::PackingOf(genicam::PackedCode(cfa, 12, Packing::kGigeLegacy)), Packing::kGigeLegacy);
+    for (int bits : {8, 12, 16})
+      EXPECT_EQ(genicam::PackingOf(cfa == Cfa::kMono ? (bits == 8 ? genicam::kMono8 : bits == 12 ? genicam::kMono12
+                                                                                           : genicam::kMono16)
+                                                     : genicam::BayerCode(cfa, bits)),
+                Packing::kNone);
+  }
   g_object_unref(gc);
 }
 
@@ -406,24 +434,41 @@ TEST(GigeWireFormat, ConvertsDnToEachFormat) {
   // A 4x2 sensor of 12-bit DN; window x=1, y=1, 2x1.
   const uint16_t raw[8] = {0, 1, 2, 3, 4, 4095, 0x800, 7};
   uint8_t out[4] = {};
-  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 8), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 8), Cfa::kBayerRG, 12, raw, nullptr, 4, 1, 1, 2, 1, out);
   EXPECT_EQ(out[0], 255);   // 4095 >> 4
   EXPECT_EQ(out[1], 0x80);  // 0x800 >> 4
-  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 12), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 12), Cfa::kBayerRG, 12, raw, nullptr, 4, 1, 1, 2, 1, out);
   EXPECT_EQ(out[0], 0xff);  // 4095 little-endian
   EXPECT_EQ(out[1], 0x0f);
   EXPECT_EQ(out[2], 0x00);
   EXPECT_EQ(out[3], 0x08);
-  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 16), 12, raw, nullptr, 4, 1, 1, 2, 1, out);
+  genicam::ConvertWindow(genicam::BayerCode(Cfa::kBayerRG, 16), Cfa::kBayerRG, 12, raw, nullptr, 4, 1, 1, 2, 1, out);
   EXPECT_EQ(out[0], 0xf0);  // 4095 << 4 = 0xfff0
   EXPECT_EQ(out[1], 0xff);
   EXPECT_EQ(out[2], 0x00);
   EXPECT_EQ(out[3], 0x80);
   const uint8_t rgb[2 * 2 * 3] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
   uint8_t o3[3];
-  genicam::ConvertWindow(genicam::kRGB8, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
+  genicam::ConvertWindow(genicam::kRGB8, Cfa::kBayerRG, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
   EXPECT_EQ(o3[0], 10);
   EXPECT_EQ(o3[2], 12);
+  // Packed, by hand from the layouts (docs/gige.md): one row of 1x4 DN.
+  using genicam::Packing;
+  const uint16_t dn[4] = {0x123, 0x256, 0x3ff, 0x001};
+  uint8_t p[5] = {};
+  genicam::ConvertWindow(genicam::PackedCode(Cfa::kBayerRG, 12, Packing::kPfnc), Cfa::kBayerRG, 12, dn, nullptr, 4, 0, 0,
+                         2, 1, p);
+  EXPECT_EQ(std::vector<uint8_t>(p, p + 3), (std::vector<uint8_t>{0x23, 0x61, 0x25}));  // LSB first
+  genicam::ConvertWindow(genicam::kMono12Packed, Cfa::kMono, 12, dn, nullptr, 4, 0, 0, 2, 1, p);
+  EXPECT_EQ(std::vector<uint8_t>(p, p + 3), (std::vector<uint8_t>{0x12, 0x63, 0x25}));  // high bits, nibbles, high
+  genicam::ConvertWindow(genicam::kMono10p, Cfa::kMono, 10, dn, nullptr, 4, 0, 0, 4, 1, p);
+  EXPECT_EQ(std::vector<uint8_t>(p, p + 5), (std::vector<uint8_t>{0x23, 0x59, 0xf9, 0x7f, 0x00}));
+  // Mono8 on a colour sensor: BT.601 luma of RGB8.
+  const uint8_t rgb2[2 * 3] = {10, 20, 30, 255, 255, 255};
+  uint8_t y2[2] = {};
+  genicam::ConvertWindow(genicam::kMono8, Cfa::kBayerRG, 12, nullptr, rgb2, 2, 0, 0, 2, 1, y2);
+  EXPECT_EQ(y2[0], 18);  // 0.299 * 10 + 0.587 * 20 + 0.114 * 30 = 18.15
+  EXPECT_EQ(y2[1], 255);
 }
 
 // ---------------------------------------------------------------- GPIO HAL
@@ -1956,7 +2001,8 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
   std::vector<std::string> names(formats, formats + n);
   g_free(formats);
-  EXPECT_EQ(names, (std::vector<std::string>{"BayerRG12", "BayerRG8", "BayerRG16", "RGB8"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",
+                                              "Mono8", "RGB8"}));
   // The fake camera's names keep working: ExposureTimeAbs is ExposureTime, GainRaw is Gain in 0.1 dB.
   SetFloat(c, "ExposureTimeAbs", 2500.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 2500.0);
@@ -2035,7 +2081,7 @@ TEST_F(GigeE2E, MonoSensorServesMonoFormats) {
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
   std::vector<std::string> names(formats, formats + n);
   g_free(formats);
-  EXPECT_EQ(names, (std::vector<std::string>{"Mono12", "Mono8", "Mono16"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"Mono12", "Mono8", "Mono16", "Mono12p", "Mono12Packed"}));
   for (const char* name : {"Mono12", "Mono8", "Mono16"}) {
     SCOPED_TRACE(name);
     Set(c, "PixelFormat", name);
@@ -2168,6 +2214,206 @@ TEST_F(GigeE2E, MonoFramesEqualCamsimRunOutput) {
   SetInt(c, "OffsetY", kY);
   EXPECT_TRUE(GrabRunFrame(c, "Mono16") == RawWindowAs(expected, adc_bits, 16, kX, kY, kW, kH))
       << "a 33x21 window at (7, 5) differs from that window of camsim run's .raw";
+}
+
+// ---------------------------------------------------------------- packed formats and Mono8 from colour
+
+// Reference unpackers, written from the specs (not from the device's code).
+// Unpacked 16-bit formats: one little-endian word per pixel.
+std::vector<uint32_t> Words16(const std::vector<uint8_t>& f) {
+  std::vector<uint32_t> out;
+  for (size_t i = 0; i + 1 < f.size(); i += 2) out.push_back(f[i] | (f[i + 1] << 8));
+  return out;
+}
+// PFNC "p": the frame is one bit stream, LSB first: bit b of pixel k is bit
+// k * bits + b of the stream, and bit j of the stream is bit j % 8 of byte j / 8.
+std::vector<uint32_t> UnpackPfnc(const std::vector<uint8_t>& f, int bits, size_t pixels) {
+  std::vector<uint32_t> out(pixels, 0);
+  for (size_t k = 0; k < pixels; ++k)
+    for (int b = 0; b < bits; ++b) {
+      const size_t j = k * bits + b;
+      if (j / 8 < f.size()) out[k] |= ((f[j / 8] >> (j % 8)) & 1u) << b;
+    }
+  return out;
+}
+// GigE Vision Mono12Packed / BayerXX12Packed: pixels 2i and 2i+1 in bytes
+// 3i..3i+2: [p0 bits 11..4] [p1 bits 3..0 | p0 bits 3..0] [p1 bits 11..4].
+std::vector<uint32_t> UnpackGige12Packed(const std::vector<uint8_t>& f, size_t pixels) {
+  std::vector<uint32_t> out;
+  for (size_t i = 0; 3 * i + 2 < f.size() && out.size() < pixels; ++i) {
+    out.push_back(f[3 * i] << 4 | (f[3 * i + 1] & 0xf));
+    if (out.size() < pixels) out.push_back(f[3 * i + 2] << 4 | f[3 * i + 1] >> 4);
+  }
+  return out;
+}
+
+// Frame `index` in `format` as the camera sends it; `code` gets the leader's format.
+std::vector<uint8_t> GrabAt(Client& c, const char* format, int64_t index, uint32_t* code = nullptr) {
+  Set(c, "PixelFormat", format);
+  SetInt(c, "SimFrameIndex", index);
+  Settle();
+  if (!c.OpenStream()) {
+    ADD_FAILURE() << "no stream for " << format;
+    return {};
+  }
+  Start(c);
+  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, code);
+  c.CloseStream();
+  return f;
+}
+
+// Each packed format of the current window: its PayloadSize, its leader's
+// code, and its bytes unpacked (by the spec) equal the unpacked format's
+// codes of the same frame; with chunks, ChunkPixelFormat names it.
+struct PackedCase {
+  const char* name;
+  uint32_t code;
+  int bits;
+  genicam::Packing packing;
+};
+void CheckPackedFormats(Client& c, const char* unpacked, const std::vector<PackedCase>& cases, int w, int h,
+                        int64_t index) {
+  const std::vector<uint32_t> want = Words16(GrabAt(c, unpacked, index));
+  ASSERT_EQ(want.size(), static_cast<size_t>(w) * h) << unpacked;
+  for (const PackedCase& k : cases) {
+    SCOPED_TRACE(k.name);
+    uint32_t code = 0;
+    const std::vector<uint8_t> f = GrabAt(c, k.name, index, &code);
+    EXPECT_EQ(code, k.code);
+    EXPECT_EQ(ReadInt(c, "PayloadSize"), static_cast<int64_t>(w) * h * k.bits / 8);
+    ASSERT_EQ(f.size(), static_cast<size_t>(w) * h * k.bits / 8);
+    const std::vector<uint32_t> got = k.packing == genicam::Packing::kPfnc
+                                          ? UnpackPfnc(f, k.bits, want.size())
+                                          : UnpackGige12Packed(f, want.size());
+    EXPECT_TRUE(got == want) << "does not unpack to " << unpacked << "'s codes of frame " << index;
+  }
+  // The chunk names the format.
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  for (const PackedCase& k : cases) {
+    SCOPED_TRACE(k.name);
+    Set(c, "PixelFormat", k.name);
+    Settle();
+    ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+    ASSERT_TRUE(c.OpenStream());
+    Start(c);
+    const ChunkedFrame f = GrabChunked(c, parser);
+    c.CloseStream();
+    g_object_unref(parser);
+    ASSERT_TRUE(f.ok);
+    EXPECT_EQ(f.pixel_format, k.name);
+    EXPECT_EQ(f.image.size(), (static_cast<size_t>(w) * h * k.bits / 8 + 3) / 4 * 4);
+  }
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", FALSE, &e);
+  ASSERT_EQ(e, nullptr);
+}
+
+TEST_F(GigeE2E, PackedBayerFormatsUnpackToTheUnpackedCodes) {
+  // 12-bit ADC: BayerRG12p (PFNC) and BayerRG12Packed (GigE Vision) against BayerRG12.
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  const std::vector<PackedCase> cases = {
+      {"BayerRG12p", ARV_PIXEL_FORMAT_BAYER_RG_12P, 12, genicam::Packing::kPfnc},
+      {"BayerRG12Packed", ARV_PIXEL_FORMAT_BAYER_RG_12_PACKED, 12, genicam::Packing::kGigeLegacy}};
+  ASSERT_NO_FATAL_FAILURE(CheckPackedFormats(c, "BayerRG12", cases, 64, 48, 5));
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), 2, 4, 30, 18, &e);  // a window: rows of 15 pixel pairs
+  ASSERT_EQ(e, nullptr);
+  ASSERT_NO_FATAL_FAILURE(CheckPackedFormats(c, "BayerRG12", cases, 30, 18, 9));
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
+TEST_F(GigeE2E, PackedMonoFormatsUnpackToTheUnpackedCodesInAnOddWidthWindow) {
+  // A mono sensor's window of odd width: PFNC packs the frame as one stream,
+  // so the rows do not start on a byte (31 x 12 bits = 46.5 bytes).
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallMonoDevice()));
+  Client& c = *client_;
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), 1, 0, 31, 24, &e);
+  ASSERT_EQ(e, nullptr);
+  ASSERT_NO_FATAL_FAILURE(CheckPackedFormats(
+      c, "Mono12",
+      {{"Mono12p", 0x010c0047u, 12, genicam::Packing::kPfnc},
+       {"Mono12Packed", ARV_PIXEL_FORMAT_MONO_12_PACKED, 12, genicam::Packing::kGigeLegacy}},
+      31, 24, 4));
+  // An odd pixel count would end the frame in half a byte: refused, as a
+  // height (Mono12p is selected) and as a format (at 31 x 23).
+  const uint64_t refused = device_->writes_refused();
+  Set(c, "PixelFormat", "Mono12p");
+  arv_camera_set_integer(c.camera(), "Height", 23, &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Height"), 24);
+  Set(c, "PixelFormat", "Mono12");
+  SetInt(c, "Height", 23);
+  arv_camera_set_string(c.camera(), "PixelFormat", "Mono12Packed", &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  Settle();
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "Mono12");
+  EXPECT_EQ(device_->writes_refused(), refused + 2);
+}
+
+TEST_F(GigeE2E, TenBitPackedFormatsUnpackToTheUnpackedCodes) {
+  // A 10-bit ADC: Mono10p / BayerRG10p against Mono10 / BayerRG10 (the DN
+  // as is), and the 12-bit packings against the unpacked 12-bit format (DN << 2).
+  for (const bool mono : {true, false}) {
+    SCOPED_TRACE(mono ? "mono" : "BayerRG");
+    DeviceOptions o = mono ? SmallMonoDevice() : SmallDevice();
+    o.overrides.push_back("sensor.adc_bits=10");
+    ASSERT_NO_FATAL_FAILURE(StartWith(o));
+    Client& c = *client_;
+    guint n = 0;
+    const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
+    std::vector<std::string> names(formats, formats + n);
+    g_free(formats);
+    const std::string base = mono ? "Mono" : "BayerRG";
+    EXPECT_NE(std::find(names.begin(), names.end(), base + "10p"), names.end());
+    GError* e = nullptr;
+    if (mono) arv_camera_set_region(c.camera(), 1, 0, 31, 20, &e);  // 620 pixels: a multiple of 4
+    ASSERT_EQ(e, nullptr);
+    const int w = mono ? 31 : 64, h = mono ? 20 : 48;
+    const PackedCase k = {mono ? "Mono10p" : "BayerRG10p", mono ? 0x010a0046u : ARV_PIXEL_FORMAT_BAYER_RG_10P, 10,
+                          genicam::Packing::kPfnc};
+    ASSERT_NO_FATAL_FAILURE(CheckPackedFormats(c, (base + "10").c_str(), {k}, w, h, 3));
+    const PackedCase k12 = {mono ? "Mono12p" : "BayerRG12p", mono ? 0x010c0047u : ARV_PIXEL_FORMAT_BAYER_RG_12P, 12,
+                            genicam::Packing::kPfnc};
+    ASSERT_NO_FATAL_FAILURE(CheckPackedFormats(c, (base + "12").c_str(), {k12}, w, h, 3));
+    if (mono) {  // 31 x 22 = 682 pixels, 6820 bits: not whole bytes
+      Set(c, "PixelFormat", "Mono10p");
+      arv_camera_set_integer(c.camera(), "Height", 22, &e);
+      EXPECT_NE(e, nullptr);
+      g_clear_error(&e);
+    }
+    TearDown();
+  }
+}
+
+TEST_F(GigeE2E, Mono8OnAColourSensorIsTheLumaOfRgb8) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  uint32_t code = 0;
+  const std::vector<uint8_t> rgb = GrabAt(c, "RGB8", 6);
+  const std::vector<uint8_t> mono = GrabAt(c, "Mono8", 6, &code);
+  EXPECT_EQ(code, genicam::kMono8);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 64 * 48);
+  ASSERT_EQ(rgb.size(), size_t{64} * 48 * 3);
+  ASSERT_EQ(mono.size(), size_t{64} * 48);
+  // BT.601 weights 0.299, 0.587, 0.114 in 1/256ths, rounded: 77, 150, 29.
+  std::vector<uint8_t> luma;
+  for (size_t i = 0; i < rgb.size(); i += 3)
+    luma.push_back(static_cast<uint8_t>((77 * rgb[i] + 150 * rgb[i + 1] + 29 * rgb[i + 2] + 128) / 256));
+  EXPECT_TRUE(mono == luma) << "Mono8 is not the BT.601 luma of RGB8's frame 6";
+  EXPECT_NE(std::set<uint8_t>(luma.begin(), luma.end()).size(), 1u) << "a flat frame tests nothing";
+  // Like RGB8 it needs the ISP: the demosaic off refuses it.
+  const uint32_t demosaic = StageEnableAddress(*device_, "Stage_demosaic");
+  ASSERT_NE(demosaic, 0u);
+  GError* e = nullptr;
+  arv_device_write_register(c.device(), demosaic, 0, &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
 }
 
 TEST_F(GigeE2E, FirstFrameOfAStreamArrivesWhole) {
@@ -4204,7 +4450,8 @@ TEST_F(GigeE2E, ReverseXAndYMirrorTheReadout) {
   guint n = 0;
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
   EXPECT_EQ(std::vector<std::string>(formats, formats + n),
-            (std::vector<std::string>{"BayerGR12", "BayerGR8", "BayerGR16", "RGB8"}));
+            (std::vector<std::string>{"BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed", "Mono8",
+                                      "RGB8"}));
   g_free(formats);
   GError* e = nullptr;
   arv_device_write_register(c.device(), reg::kPixelFormat, genicam::BayerCode(Cfa::kBayerRG, 12), &e);
@@ -4222,6 +4469,13 @@ TEST_F(GigeE2E, ReverseXAndYMirrorTheReadout) {
   c.CloseStream();
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "ReverseX", nullptr));
   EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerGR12");
+  // Packed formats carry the mirrored readout too: they unpack to its codes.
+  ASSERT_NO_FATAL_FAILURE(
+      CheckPackedFormats(c, "BayerGR12",
+                         {{"BayerGR12p", ARV_PIXEL_FORMAT_BAYER_GR_12P, 12, genicam::Packing::kPfnc},
+                          {"BayerGR12Packed", ARV_PIXEL_FORMAT_BAYER_GR_12_PACKED, 12, genicam::Packing::kGigeLegacy}},
+                         60, 44, 7));
+  Set(c, "PixelFormat", "BayerGR12");
   ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
   EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
 }
