@@ -106,7 +106,8 @@ constexpr int kGvspLeaderBytes = kGvspHeaderBytes + 36;  // GVSP header + image 
 constexpr int kRestartRounds = 4;
 constexpr int kRestartAnswerMs = 2000;
 // ProbeHeartbeat's period: a silent controller's acquisition stops within
-// its heartbeat timeout, this, and the fake camera's answer (between frames).
+// its heartbeat timeout, this, and the fake camera's answer (between frames);
+// a controller's command renews its heartbeat at most this much later.
 constexpr int kHeartbeatProbeMs = 100;
 
 uint64_t DoubleBits(double v) {
@@ -1485,10 +1486,14 @@ void GigeDevice::RestartStream() {
   LogOnce("restart-stream", "camsim-gige: could not make the fake camera drop a killed client's stream");
 }
 
-void GigeDevice::ProbeHeartbeat() {
+void GigeDevice::ProbeHeartbeat(bool acquiring) {
   const auto now = std::chrono::steady_clock::now();
   if (now - last_probe_ < std::chrono::milliseconds(kHeartbeatProbeMs)) return;
   last_probe_ = now;
+  const uint64_t packets = ControllerPackets(address_.c_str());
+  const bool renew = packets != controller_packets_;  // the controller sent a command since the last probe
+  controller_packets_ = packets;
+  if (!renew && !acquiring) return;
   if (probe_fd_ < 0) probe_fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (probe_fd_ < 0) return;
   uint8_t answer[64];
@@ -1497,16 +1502,17 @@ void GigeDevice::ProbeHeartbeat() {
   to.sin_family = AF_INET;
   to.sin_port = htons(kGvcpPort);
   inet_pton(AF_INET, address_.c_str(), &to.sin_addr);
-  // READREG_CMD of the version register (not the privilege register: a
-  // read of that renews the controller's heartbeat, whoever sends it).
-  const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xbe, 0xa7, 0, 0, 0, 0};
-  static_assert(reg::kVersion == 0 && reg::kVersion != reg::kControlChannelPrivilege);
+  // READREG_CMD of the privilege register, whose read renews the
+  // controller's heartbeat (whoever sends it), or else of the version register.
+  const uint32_t read = renew ? kControlChannelPrivilege : reg::kVersion;
+  const uint8_t cmd[12] = {0x42, 0x01, 0x00, 0x80, 0x00, 0x04, 0xbe, 0xa7, static_cast<uint8_t>(read >> 24),
+                           static_cast<uint8_t>(read >> 16), static_cast<uint8_t>(read >> 8), static_cast<uint8_t>(read)};
   sendto(probe_fd_, cmd, sizeof cmd, 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
 }
 
 void GigeDevice::SyncLoop() {
   while (!stop_) {
-    bool restart = false, probe = false;
+    bool restart = false, probe = false, acquiring = false;
     auto wake = std::chrono::steady_clock::now() + std::chrono::milliseconds(kSyncPeriodMs);
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -1518,11 +1524,11 @@ void GigeDevice::SyncLoop() {
       }
       restart = restart_stream_;
       restart_stream_ = false;
-      probe = gv_ != nullptr && probe_heartbeat_ && Read(reg::kAcquisition) != 0 &&
-              Read(kControlChannelPrivilege) != 0;
+      probe = gv_ != nullptr && probe_heartbeat_ && Read(kControlChannelPrivilege) != 0;
+      acquiring = Read(reg::kAcquisition) != 0;
     }
     if (restart) RestartStream();
-    if (probe) ProbeHeartbeat();
+    if (probe) ProbeHeartbeat(acquiring);
     std::this_thread::sleep_until(wake);
   }
 }

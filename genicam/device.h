@@ -102,7 +102,7 @@ struct DeviceOptions {
   int link_mbps = 1000;  // 0 .. kMaxLinkMbps
   // Probe the controller's heartbeat (GigeDevice::ProbeHeartbeat); false:
   // only a client's packet ends a silent controller's control (a test of
-  // that case).
+  // that case), and only its read of the privilege register renews it.
   bool probe_heartbeat = true;
   // false: no network and no threads (register logic only: fuzzing, unit
   // tests); drive it with WriteMemory / SyncNow / RenderNow.
@@ -253,15 +253,19 @@ class GigeDevice {
   std::chrono::steady_clock::time_point FireDueTrigger(std::chrono::steady_clock::time_point now);
   static constexpr int64_t kNextIndex = -1;
   void RestartStream();  // not under mutex_
-  // While a client controls an acquisition: a GVCP read of the version
-  // register sent to the camera every kHeartbeatProbeMs, from the device's
-  // own socket (not under mutex_). The fake camera checks its controller's
-  // heartbeat only when a packet comes; this makes one come, so a silent
-  // controller loses control (and the sync stops the acquisition) within
-  // the heartbeat timeout and a probe period, not at the next client's packet.
-  void ProbeHeartbeat();
+  // While a client is in control: every kHeartbeatProbeMs, a GVCP read
+  // sent to the camera from the device's own socket (not under mutex_). Of
+  // the privilege register when the controller sent any command since the
+  // last probe (ControllerPackets): that read renews its heartbeat, as GigE
+  // Vision has every command do. Else, while it acquires, of the version
+  // register: the fake camera checks its controller's heartbeat only when a
+  // packet comes, so a silent controller loses control (and the sync stops
+  // the acquisition) within the heartbeat timeout and a probe period, not at
+  // the next client's packet.
+  void ProbeHeartbeat(bool acquiring);
   bool probe_heartbeat_ = true;
   int probe_fd_ = -1;
+  uint64_t controller_packets_ = 0;  // ControllerPackets at the last probe
   std::chrono::steady_clock::time_point last_probe_{};
   void SyncLoop();
   void TriggerLoop();

@@ -59,6 +59,14 @@
 // frame's GVSP packets go out only when a link of that rate would have
 // carried the ones before it (StreamSend). Control packets pass at once.
 //
+// Heartbeat: the fake camera renews its controller's heartbeat only on a
+// read of the control channel privilege register (from anyone). The hooks
+// note who took control (the source address and port of the packet whose
+// write set that register from 0, as the fake camera's controller is) and
+// count the controller's well-formed command packets (ControllerPackets);
+// the device reads the register when the count moved (GigeDevice::
+// ProbeHeartbeat).
+//
 // Packet resend: StreamSend also keeps the packets of the thread's last
 // kResendFrames frames, and the receive hook answers a PACKETRESEND with
 // the kept packets it asks for (ResendPackets), hidden from the fake camera.
@@ -203,6 +211,33 @@ void CountRefusedWrite(GSocket* socket) {
   g_refused.push_back({local.s_addr, 1});
 }
 
+// Each camera's controller, by the local address of its GVCP socket
+// (ControllerPackets).
+struct Controller {
+  in_addr_t local;
+  bool set = false;
+  sockaddr_in from{};  // the source of the packet that took control
+  uint64_t packets = 0;
+};
+std::mutex g_controllers_mutex;
+std::list<Controller> g_controllers;
+Controller& ControllerAt(in_addr_t local) {  // under g_controllers_mutex
+  for (Controller& c : g_controllers)
+    if (c.local == local) return c;
+  return g_controllers.emplace_back(Controller{local});
+}
+bool SameSource(const sockaddr_in& a, const sockaddr_in& b) {
+  return a.sin_addr.s_addr == b.sin_addr.s_addr && a.sin_port == b.sin_port;
+}
+// A well-formed command packet from `from` came to the GVCP socket bound to `local`.
+void CountIfFromController(in_addr local, GSocketAddress* from) {
+  sockaddr_in a{};
+  if (from == nullptr || !g_socket_address_to_native(from, &a, sizeof a, nullptr) || a.sin_family != AF_INET) return;
+  std::lock_guard<std::mutex> lock(g_controllers_mutex);
+  Controller& c = ControllerAt(local.s_addr);
+  if (c.set && SameSource(c.from, a)) ++c.packets;
+}
+
 // Sends an error acknowledgement (the header, then 4 bytes of `data`, or
 // zeros: a WRITEREG's index 0) of a command the client asked to
 // acknowledge, as a camera would: not to a command that came by broadcast
@@ -314,6 +349,30 @@ extern "C" gboolean arv_fake_camera_read_memory(ArvFakeCamera* camera, guint32 a
   return next(camera, address, inside, buffer);
 }
 
+namespace {
+constexpr uint32_t kPrivilege = 0x0a00;  // GigE Vision's control channel privilege register
+// Its value, read past the hooks.
+uint32_t Privilege(ArvFakeCamera* camera) {
+  static const ReadFn read = Next<ReadFn>("arv_fake_camera_read_memory");
+  uint8_t v[4] = {};
+  if (read != nullptr) read(camera, kPrivilege, sizeof v, v);
+  return uint32_t{v[0]} << 24 | uint32_t{v[1]} << 16 | uint32_t{v[2]} << 8 | v[3];
+}
+// A client write while the fake camera handles the packet in t_packet took
+// the privilege register from `before` to `after`: its sender took control
+// (from 0), or control ended (to 0: a release, or the fake camera's own
+// write at a heartbeat timeout). The fake camera's controller changes so.
+void NoteController(uint32_t before, uint32_t after) {
+  in_addr local{};
+  if ((before == 0) == (after == 0) || t_packet.socket == nullptr || !GvcpSocketAddress(t_packet.socket, &local))
+    return;
+  std::lock_guard<std::mutex> lock(g_controllers_mutex);
+  Controller& c = ControllerAt(local.s_addr);
+  c.set = after != 0 && t_packet.from.ss_family == AF_INET;
+  if (c.set) std::memcpy(&c.from, &t_packet.from, sizeof c.from);
+}
+}  // namespace
+
 extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 address, guint32 size,
                                                  const void* buffer) {
   static const WriteFn next = Next<WriteFn>("arv_fake_camera_write_memory");
@@ -333,7 +392,10 @@ extern "C" gboolean arv_fake_camera_write_memory(ArvFakeCamera* camera, guint32 
   Filter* f = LockFilter(camera);  // the filter's decision and the store, together
   if (f != nullptr) verdict = f->filter(f->owner, address, size, data);
   else if (UnfilteredRefused()) verdict = {false, GevStatus::kAccessDenied};
+  const bool privilege = address <= kPrivilege && kPrivilege + 4 <= uint64_t{address} + size;
+  const uint32_t before = privilege ? Privilege(camera) : 0;
   if (verdict.store) next(camera, address, size, data);
+  if (privilege) NoteController(before, Privilege(camera));
   if (f != nullptr) UnlockFilter(f);
   if (verdict.status == GevStatus::kSuccess) return TRUE;
   return f != nullptr ? Refuse(verdict.status) : RefuseClientWrite(verdict.status);
@@ -370,7 +432,8 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
   const gssize got = next(socket, address, vectors, num_vectors, messages, num_messages, flags, cancellable, error);
   if (got <= 0 || num_vectors != 1 || vectors == nullptr || vectors[0].buffer == nullptr) return got;
   auto* p = static_cast<uint8_t*>(vectors[0].buffer);
-  if (p[0] != kGvcpCommandKey || !GvcpSocketAddress(socket)) return got;  // not a command to a camera
+  in_addr local{};
+  if (p[0] != kGvcpCommandKey || !GvcpSocketAddress(socket, &local)) return got;  // not a command to a camera
   if (got < static_cast<gssize>(kGvcpHeader)) {  // the rest of its header would be the last packet's
     p[0] = 0;
     return got;
@@ -393,6 +456,7 @@ extern "C" gssize g_socket_receive_message(GSocket* socket, GSocketAddress** add
     p[0] = 0;
     return got;
   }
+  CountIfFromController(local, from);
   // PACKETRESEND is answered with the packets (ResendPackets), not an acknowledgement.
   if (command == kPacketResend) {
     ResendPackets(p + kGvcpHeader, length, (p[1] & kGvcpExtendedIds) != 0);
@@ -772,6 +836,13 @@ uint64_t WritesRefusedAt(const char* address) {
   for (const RefusedAt& r : g_refused)
     if (r.address == a.s_addr) return r.writes;
   return 0;
+}
+
+uint64_t ControllerPackets(const char* address) {
+  in_addr a{};
+  if (address == nullptr || inet_pton(AF_INET, address, &a) != 1) return 0;
+  std::lock_guard<std::mutex> lock(g_controllers_mutex);
+  return ControllerAt(a.s_addr).packets;
 }
 
 UnfilteredWritesRefused::UnfilteredWritesRefused() {

@@ -97,6 +97,15 @@ class ClientWritesHeld {
 // (which the fake camera drops). One per packet.
 uint64_t WritesRefusedAt(const char* address);
 
+// Well-formed command packets that came to the GVCP socket bound to
+// `address` (IPv4, dotted) from the client in control of that camera (the
+// source address and port of the packet whose write of the control channel
+// privilege register took control, as the fake camera tells its controller),
+// since the process started. GigE Vision has each renew the controller's
+// heartbeat; the fake camera renews it only on a read of that register, so
+// the device reads it when this count moved (GigeDevice::ProbeHeartbeat).
+uint64_t ControllerPackets(const char* address);
+
 // How many ClientWritesHeld and client writes hold or wait for `camera`'s
 // filter now (0 without a filter): lets a test see a waiter wait.
 int FilterUsers(ArvFakeCamera* camera);

@@ -3107,6 +3107,70 @@ TEST_F(GigeE2E, ASilentControllersAcquisitionStops) {
   EXPECT_EQ(ReadReg32(*device_, kControlChannelPrivilege), 0u) << "the silent controller still has control";
 }
 
+// GigE Vision has every command from the controller renew its heartbeat;
+// the fake camera renews it only on a read of the privilege register. The
+// device's probe reads that register when the controller sent a command
+// since the last probe (ControllerPackets): a client that keeps itself alive
+// by writing GevHeartbeatTimeout (as Pylon does) or other reads keeps
+// control, idle or acquiring. Another client's commands renew nothing.
+TEST_F(GigeE2E, AnyCommandFromTheControllerRenewsItsHeartbeat) {
+  device_ = StartDevice(SmallDevice());
+  ASSERT_NE(device_, nullptr);
+  constexpr int kTimeoutMs = 1000;
+  RawController ctl, other;
+  ASSERT_TRUE(ctl.Write(kControlChannelPrivilege, 2));
+  ASSERT_TRUE(ctl.Write(kHeartbeatTimeout, kTimeoutMs));
+  // Never a read of the privilege register: writes of the timeout and
+  // reads of another register, every quarter of the timeout.
+  uint32_t value = 0;
+  const auto keep_alive = [&](int i) {
+    const bool acked = i % 2 == 0 ? ctl.Write(kHeartbeatTimeout, kTimeoutMs) : ctl.Read(kStreamPort, &value);
+    EXPECT_TRUE(acked && ctl.status() == 0) << "command " << i << " status " << ctl.status();
+  };
+  for (int i = 0; i < 8; ++i) {  // idle, twice the timeout
+    keep_alive(i);
+    Sleep(kTimeoutMs / 4);
+  }
+  EXPECT_EQ(ReadReg32(*device_, kControlChannelPrivilege), 2u) << "an idle controller lost control";
+  ASSERT_TRUE(ctl.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_EQ(ctl.status(), 0) << "an idle controller's write was refused";
+  ASSERT_TRUE(ctl.Write(kStreamPort, ctl.sink_port()));
+  ASSERT_TRUE(ctl.Write(reg::kAcquisition, 1));  // free run at 25 Hz
+  ASSERT_TRUE(ctl.FrameArrives(5000));
+  for (int i = 0; i < 12; ++i) {  // acquiring, three timeouts
+    const uint64_t before = device_->frames_sent();
+    keep_alive(i);
+    Sleep(kTimeoutMs / 4);
+    EXPECT_GT(device_->frames_sent(), before) << "a live controller's stream stopped, command " << i;
+  }
+  EXPECT_EQ(ReadReg32(*device_, kControlChannelPrivilege), 2u) << "an acquiring controller lost control";
+  // The controller falls silent; another client reads and writes (refused)
+  // every quarter of the timeout. The frames stop within the timeout and a margin.
+  const auto silent = std::chrono::steady_clock::now();
+  auto last_change = silent, last_other = silent - std::chrono::seconds(1);
+  uint64_t last = device_->frames_sent();
+  int other_denied = 0;
+  while (std::chrono::steady_clock::now() - last_change < std::chrono::milliseconds(500) &&
+         std::chrono::steady_clock::now() - silent < std::chrono::seconds(10)) {
+    if (std::chrono::steady_clock::now() - last_other >= std::chrono::milliseconds(kTimeoutMs / 4)) {
+      last_other = std::chrono::steady_clock::now();
+      EXPECT_TRUE(other.Read(kStreamPort, &value));
+      EXPECT_TRUE(other.Write(kHeartbeatTimeout, kTimeoutMs));
+      other_denied += other.status() == 0x8006;
+    }
+    Sleep(20);
+    const uint64_t now = device_->frames_sent();
+    if (now != last) {
+      last = now;
+      last_change = std::chrono::steady_clock::now();
+    }
+  }
+  EXPECT_GT(other_denied, 0) << "the other client was never refused: not a test of its packets";
+  const double stopped_ms = std::chrono::duration<double, std::milli>(last_change - silent).count();
+  EXPECT_LT(stopped_ms, kTimeoutMs + 500) << "frames went on " << stopped_ms << " ms after the controller fell silent";
+  EXPECT_EQ(ReadReg32(*device_, kControlChannelPrivilege), 0u) << "the silent controller still has control";
+}
+
 // The GigE Vision transport-layer features a GenTL producer or vendor SDK
 // reads, through an Aravis client; the MAC address in the discovery answer;
 // frame timestamps on the clock GevTimestampControlLatch reads.
