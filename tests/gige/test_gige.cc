@@ -2247,19 +2247,24 @@ std::vector<uint32_t> UnpackGige12Packed(const std::vector<uint8_t>& f, size_t p
   return out;
 }
 
-// Frame `index` in `format` as the camera sends it; `code` gets the leader's format.
-std::vector<uint8_t> GrabAt(Client& c, const char* format, int64_t index, uint32_t* code = nullptr) {
-  Set(c, "PixelFormat", format);
+// One frame of index `index` as the camera sends it now.
+std::vector<uint8_t> GrabIndex(Client& c, uint32_t index, uint32_t* format = nullptr) {
   SetInt(c, "SimFrameIndex", index);
   Settle();
   if (!c.OpenStream()) {
-    ADD_FAILURE() << "no stream for " << format;
+    ADD_FAILURE() << c.last_error;
     return {};
   }
   Start(c);
-  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, code);
+  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, format);
   c.CloseStream();
   return f;
+}
+
+// Frame `index` in `format` as the camera sends it; `code` gets the leader's format.
+std::vector<uint8_t> GrabAt(Client& c, const char* format, uint32_t index, uint32_t* code = nullptr) {
+  Set(c, "PixelFormat", format);
+  return GrabIndex(c, index, code);
 }
 
 // Each packed format of the current window: its PayloadSize, its leader's
@@ -4317,20 +4322,6 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
 }
 
 // ---------------------------------------------------------------- SFNC white balance, readout
-
-// One frame of index `index` as the camera sends it now.
-std::vector<uint8_t> GrabIndex(Client& c, uint32_t index, uint32_t* format = nullptr) {
-  SetInt(c, "SimFrameIndex", index);
-  Settle();
-  if (!c.OpenStream()) {
-    ADD_FAILURE() << c.last_error;
-    return {};
-  }
-  Start(c);
-  std::vector<uint8_t> f = c.Grab(3000, nullptr, nullptr, format);
-  c.CloseStream();
-  return f;
-}
 
 // Each channel's mean of an RGB8 frame, and its largest sample.
 struct ChannelStats {
