@@ -156,6 +156,7 @@ struct ControlPacket {
 };
 thread_local ControlPacket t_packet;
 std::atomic<uint64_t> g_resent_packets{0};  // PacketsResent
+std::atomic<uint32_t> g_drop_every{0};        // DropStreamPacketsForTest
 
 // Whether a socket is bound to GVCP's port (a fake camera's control or
 // discovery socket), and its local IPv4 address (address may be nullptr).
@@ -563,7 +564,11 @@ gssize StreamSend(GSocket* socket, GSocketAddress* address, const gchar* buffer,
   p.socket = socket;
   KeepSent(socket, address, buffer, size);
   WaitForSlot(&p.next_ns, size, p.link_bits_per_s, p.packet_delay_ns);
-  if ((static_cast<uint8_t>(buffer[4]) & 0x0f) == 2) p.active = false;  // the trailer
+  const uint8_t format = static_cast<uint8_t>(buffer[4]) & 0x0f;
+  if (format == 2) p.active = false;  // the trailer
+  const auto* b = reinterpret_cast<const uint8_t*>(buffer);
+  const uint32_t drop = g_drop_every.load(), id = uint32_t{b[5]} << 16 | Get16(b + 6);
+  if (drop != 0 && format == 3 && id % drop == 0) return static_cast<gssize>(size);  // lost on the way (test hook)
   return next(socket, address, buffer, size, cancellable, error);
 }
 
@@ -769,6 +774,8 @@ void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_
 }
 
 uint64_t PacketsResent() { return g_resent_packets.load(); }
+
+void DropStreamPacketsForTest(uint32_t every) { g_drop_every = every; }
 
 double FrameSendSeconds(size_t payload_bytes, size_t packet_size, uint64_t link_bits_per_s, uint64_t packet_delay_ns) {
   constexpr size_t kLeader = 44, kTrailer = 16;  // UDP payload bytes

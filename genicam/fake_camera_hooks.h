@@ -169,6 +169,10 @@ void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_
 // them (all cameras of the process).
 inline constexpr size_t kResendFrames = 4;
 uint64_t PacketsResent();
+// Test hook: leave out every `every`-th payload packet (by packet ID) the
+// first time it is sent, as a lossy link would; it is kept for PACKETRESEND.
+// 0 (the default): send every packet.
+void DropStreamPacketsForTest(uint32_t every);
 inline constexpr int64_t kPaceAheadNs = 50'000, kPaceBehindNs = 500'000;
 // Ethernet's share of a UDP datagram of `udp_payload` bytes: UDP (8) and
 // IPv4 (20) headers, the Ethernet header (14) and FCS (4), padded to
