@@ -133,6 +133,11 @@ const Feature& TableFeature(const std::vector<Feature>& table, const Feature& r)
   const Feature* f = FindFeature(table, r.name.substr(0, r.name.find('[')));
   return f != nullptr ? *f : r;
 }
+std::string HexAddress(uint32_t a) {  // "0x80a0": a register a refusal names by address
+  char b[16];
+  std::snprintf(b, sizeof b, "0x%x", a);
+  return b;
+}
 std::string Fmt(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%.6g", v);
@@ -931,11 +936,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   // serve): not yet.
   if (!d->ready_) {
     ++d->writes_refused_;
-    d->LogRefusal("a write at 0x" + [address] {
-      char b[16];
-      std::snprintf(b, sizeof b, "%x", address);
-      return std::string(b);
-    }(), "the device is still starting");
+    d->LogRefusal("a write at " + HexAddress(address), "the device is still starting");
     return {false, GevStatus::kAccessDenied};
   }
   // Client writes are whole registers (fake_camera_hooks.h, kMaxClientWrite).
@@ -1005,18 +1006,13 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (verdict.status == GevStatus::kSuccess) verdict.status = s;
     if (!what.empty()) d->LogRefusal(what, why);
   };
-  const auto hex = [](uint32_t a) {
-    char b[16];
-    std::snprintf(b, sizeof b, "0x%x", a);
-    return std::string(b);
-  };
   // A write to a register only the device writes, or to an address of
   // camsim's range the XML does not describe, is refused whole, not stored
   // (it used to stop a free run through the fake camera's trigger mode).
   for (uint32_t r = address; r < address + size; r += 4) {
     if (r == reg::kDeviceMode || r == reg::kGvcpCapability) {
       ++d->writes_refused_;
-      d->LogRefusal("register " + hex(r), "a read-only bootstrap register");
+      d->LogRefusal("register " + HexAddress(r), "a read-only bootstrap register");
       return {false, GevStatus::kWriteProtect};
     }
     // (The fake camera's own write that acknowledges a trigger is not a
@@ -1027,7 +1023,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     for (const Feature& f : d->registers_) described = described || (r >= f.address && r < f.address + f.length);
     if (!described) {
       ++d->writes_refused_;
-      d->LogRefusal("register " + hex(r), "no feature there (or one only the device writes)");
+      d->LogRefusal("register " + HexAddress(r), "no feature there (or one only the device writes)");
       return {false, GevStatus::kInvalidAddress};
     }
   }
