@@ -156,6 +156,7 @@ struct ControlPacket {
 };
 thread_local ControlPacket t_packet;
 std::atomic<uint64_t> g_resent_packets{0};  // PacketsResent
+std::atomic<uint64_t> g_resend_refusals{0};  // ResendRequestsRefused
 std::atomic<uint32_t> g_drop_every{0};        // DropStreamPacketsForTest
 
 // Whether a socket is bound to GVCP's port (a fake camera's control or
@@ -479,6 +480,14 @@ namespace {
 using camsim::genicam::kGvspHeaderBytes, camsim::genicam::kPaceAheadNs, camsim::genicam::kPaceBehindNs,
     camsim::genicam::WirePacketBytes;
 
+// GVSP (standard IDs): status (2), block ID (2), packet format (1: bit 7
+// extended IDs, low 4 bits 1 leader / 2 trailer / 3 payload), packet ID (3).
+constexpr uint8_t kGvspLeader = 1, kGvspTrailer = 2, kGvspPayload = 3;
+void Put16(uint8_t* p, uint32_t v) {
+  p[0] = static_cast<uint8_t>(v >> 8);
+  p[1] = static_cast<uint8_t>(v);
+}
+
 // The frame this thread sends next (PaceNextFrame): its pacing, and where
 // its packets go.
 struct StreamFrame {
@@ -565,10 +574,11 @@ gssize StreamSend(GSocket* socket, GSocketAddress* address, const gchar* buffer,
   KeepSent(socket, address, buffer, size);
   WaitForSlot(&p.next_ns, size, p.link_bits_per_s, p.packet_delay_ns);
   const uint8_t format = static_cast<uint8_t>(buffer[4]) & 0x0f;
-  if (format == 2) p.active = false;  // the trailer
+  if (format == kGvspTrailer) p.active = false;
   const auto* b = reinterpret_cast<const uint8_t*>(buffer);
   const uint32_t drop = g_drop_every.load(), id = uint32_t{b[5]} << 16 | Get16(b + 6);
-  if (drop != 0 && format == 3 && id % drop == 0) return static_cast<gssize>(size);  // lost on the way (test hook)
+  // Lost on the way (test hook).
+  if (drop != 0 && format == kGvspPayload && id % drop == 0) return static_cast<gssize>(size);
   return next(socket, address, buffer, size, cancellable, error);
 }
 
@@ -577,17 +587,25 @@ gssize StreamSend(GSocket* socket, GSocketAddress* address, const gchar* buffer,
 bool StreamPacket(GSocket* socket, const uint8_t* bytes, gsize size) {
   const StreamFrame& p = t_stream;
   if (!p.active || size < kGvspHeaderBytes || Get16(bytes + 2) != p.block_id || (bytes[4] & 0x80) != 0 ||
-      (bytes[4] & 0x0f) < 1 || (bytes[4] & 0x0f) > 3)
+      (bytes[4] & 0x0f) < kGvspLeader || (bytes[4] & 0x0f) > kGvspPayload)
     return false;
   return p.socket != nullptr ? socket == p.socket : (socket != t_packet.socket && !GvcpSocketAddress(socket));
 }
+
+// GVSP packet status of a resend the device cannot answer (GigE Vision 2.0).
+constexpr uint16_t kPacketUnavailable = 0x800C,         // beyond the frame's trailer
+    kPacketNotYetAvailable = 0x8010,                    // of a frame not sent yet
+    kPacketAndPreviousRemovedFromMemory = 0x8011;       // older than the frames kept
 
 // PACKETRESEND (standard IDs): stream channel (2), block ID (2), first and
 // last packet ID (4 each, low 24 bits). With the extended-ID flag: 4
 // reserved bytes, the packet IDs (4 each, 32 bits), and a 64-bit block ID,
 // whose low 16 bits name the frame (the fake camera sends standard IDs).
 // The kept packets asked for go out again to the frame's destination,
-// paced as the frame was; packets no longer kept are not answered.
+// paced as the frame was. A request the device cannot answer gets one
+// header-only payload packet with the first packet ID asked for and the
+// status saying why, so the receiver stops asking (Aravis then gives the
+// frame up at once).
 void ResendPackets(const uint8_t* data, uint16_t length, bool extended) {
   SentFrames& k = t_sent;
   if (k.socket == nullptr || k.to_size == 0 || length < (extended ? 20 : 12)) return;
@@ -596,21 +614,39 @@ void ResendPackets(const uint8_t* data, uint16_t length, bool extended) {
   const uint32_t mask = extended ? 0xffffffffu : 0x00ffffffu;
   const uint32_t first = get32(data + 4) & mask, last = get32(data + 8) & mask;
   static const SendToFn send = Next<SendToFn>("g_socket_send_to");
-  for (const SentFrame& f : k.frames) {
-    if (!f.used || f.block_id != block) continue;
-    GSocketAddress* to = g_socket_address_new_from_native(&k.to, k.to_size);
-    if (to == nullptr) return;
+  GSocketAddress* to = g_socket_address_new_from_native(&k.to, k.to_size);
+  if (to == nullptr) return;
+  const auto refuse = [&](uint16_t status) {
+    const uint8_t p[kGvspHeaderBytes] = {uint8_t(status >> 8), uint8_t(status),   uint8_t(block >> 8),
+                                         uint8_t(block),       kGvspPayload, uint8_t(first >> 16),
+                                         uint8_t(first >> 8),  uint8_t(first)};
+    send(k.socket, to, reinterpret_cast<const gchar*>(p), sizeof p, nullptr, nullptr);
+    ++g_resend_refusals;
+  };
+  const SentFrame* frame = nullptr;
+  for (const SentFrame& f : k.frames)
+    if (f.used && f.block_id == block) frame = &f;
+  if (frame == nullptr) {
+    // Block IDs count up and wrap at 2^16 (0 is never used): within half
+    // the range after the newest frame's is a frame still to come.
+    const uint16_t ahead = static_cast<uint16_t>(block - k.frames[k.newest].block_id);
+    refuse(ahead != 0 && ahead < 0x8000 ? kPacketNotYetAvailable : kPacketAndPreviousRemovedFromMemory);
+  } else if (first > last) {
+    refuse(kPacketUnavailable);
+  } else if (first >= frame->at.size()) {
+    const bool sending = frame == &k.frames[k.newest] && t_stream.active;
+    refuse(sending ? kPacketNotYetAvailable : kPacketUnavailable);
+  } else {
     int64_t next_ns = 0;
-    for (uint32_t id = first; id <= last && id < f.at.size(); ++id) {
-      const auto [offset, size] = f.at[id];
+    for (uint32_t id = first; id <= last && id < frame->at.size(); ++id) {
+      const auto [offset, size] = frame->at[id];
       if (size == 0) continue;
       WaitForSlot(&next_ns, size, t_stream.link_bits_per_s, t_stream.packet_delay_ns);
-      send(k.socket, to, reinterpret_cast<const gchar*>(f.bytes.data() + offset), size, nullptr, nullptr);
+      send(k.socket, to, reinterpret_cast<const gchar*>(frame->bytes.data() + offset), size, nullptr, nullptr);
       ++g_resent_packets;
     }
-    g_object_unref(to);
-    return;
   }
+  g_object_unref(to);
 }
 
 // The chunks of the frame this thread sends next (SendChunksWithNextFrame).
@@ -623,14 +659,6 @@ struct ChunkedFrame {
   size_t tail_bytes = 0;
 };
 thread_local ChunkedFrame t_chunks;
-
-// GVSP (standard IDs): status (2), block ID (2), packet format (1: bit 7
-// extended IDs, low 4 bits 1 leader / 2 trailer / 3 payload), packet ID (3).
-constexpr uint8_t kGvspLeader = 1, kGvspTrailer = 2, kGvspPayload = 3;
-void Put16(uint8_t* p, uint32_t v) {
-  p[0] = static_cast<uint8_t>(v >> 8);
-  p[1] = static_cast<uint8_t>(v);
-}
 
 // One packet of a frame with chunks (t_chunks): the leader and trailer with
 // the payload type of an image with chunks, the trailer after the chunks'
@@ -774,6 +802,7 @@ void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_
 }
 
 uint64_t PacketsResent() { return g_resent_packets.load(); }
+uint64_t ResendRequestsRefused() { return g_resend_refusals.load(); }
 
 void DropStreamPacketsForTest(uint32_t every) { g_drop_every = every; }
 

@@ -166,9 +166,13 @@ void PaceNextFrame(uint16_t block_id, uint64_t link_bits_per_s, uint64_t packet_
 // frames, as sent, and answers a PACKETRESEND (GVCP 0x0040) that reaches
 // the thread's control socket by sending the packets it asks for again, to
 // the frame's stream destination, paced the same way. PacketsResent counts
-// them (all cameras of the process).
+// them (all cameras of the process). A request for packets not kept (a
+// frame older than these, one not sent yet, packet IDs past its trailer)
+// gets a GVSP packet with the status saying so; ResendRequestsRefused counts
+// those.
 inline constexpr size_t kResendFrames = 4;
 uint64_t PacketsResent();
+uint64_t ResendRequestsRefused();
 // Test hook: leave out every `every`-th payload packet (by packet ID) the
 // first time it is sent, as a lossy link would; it is kept for PACKETRESEND.
 // 0 (the default): send every packet.

@@ -2916,6 +2916,24 @@ class RawController {
       if (recv(sink_, packet, sizeof packet, 0) >= 8 && packet[4] == 2) return true;
     }
   }
+  // The next GVSP packet at the stream sink within timeout_ms (empty: none).
+  std::vector<uint8_t> NextStreamPacket(int timeout_ms) {
+    std::vector<uint8_t> packet(9000);
+    pollfd p{sink_, POLLIN, 0};
+    if (poll(&p, 1, timeout_ms) <= 0) return {};
+    const ssize_t got = recv(sink_, packet.data(), packet.size(), 0);
+    packet.resize(got < 0 ? 0 : static_cast<size_t>(got));
+    return packet;
+  }
+  // PACKETRESEND_CMD (0x0040, standard IDs) for packets first..last of a
+  // block: stream channel 0, block ID, the two packet IDs. No
+  // acknowledgement comes back.
+  void AskResend(uint16_t block, uint32_t first, uint32_t last) {
+    std::vector<uint8_t> body = {0, 0, uint8_t(block >> 8), uint8_t(block)};
+    Put32(&body, first);
+    Put32(&body, last);
+    Send(0x40, body, ++id_, -1);
+  }
   uint16_t sink_port() const { return sink_port_; }
   // The GVCP status of the last command's acknowledgement (0: success;
   // kNoAck: none came).
@@ -3567,6 +3585,79 @@ TEST_F(GigeE2E, AReadMemOverGvcpsLimitIsRefused) {
   EXPECT_TRUE(raw.ReadMemory(xml_start, 512, &block)) << "the camera stopped serving";
   EXPECT_EQ(raw.status(), 0);
   EXPECT_EQ(device_->writes_refused(), 0u) << "reads are not writes";
+}
+
+// A PACKETRESEND the camera cannot answer gets a GVSP packet whose status
+// says why (GigE Vision 2.0), so the receiver stops asking: for a frame
+// older than the kResendFrames kept, PACKET_AND_PREV_REMOVED_FROM_MEMORY;
+// for packet IDs past a frame's trailer, PACKET_UNAVAILABLE; for a frame
+// not sent yet, PACKET_NOT_YET_AVAILABLE. Before, nothing came, and the
+// receiver asked again until it gave the frame up.
+TEST_F(GigeE2E, AResendTheCameraCannotAnswerSaysWhy) {
+  device_ = StartDevice(SmallDevice(320, 240));
+  ASSERT_NE(device_, nullptr);
+  constexpr uint16_t kUnavailable = 0x800C, kNotYet = 0x8010, kRemoved = 0x8011;
+  RawController raw;
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 2));
+  ASSERT_TRUE(raw.Write(kHeartbeatTimeout, 30000));  // no heartbeats from this client
+  ASSERT_TRUE(raw.Write(reg::kWidth, 64));
+  ASSERT_TRUE(raw.Write(reg::kHeight, 48));
+  ASSERT_TRUE(raw.Write(kStreamDestAddress, INADDR_LOOPBACK));
+  ASSERT_TRUE(raw.Write(kStreamPort, raw.sink_port()));
+  ASSERT_TRUE(raw.Write(reg::kAcquisitionStart, 1));
+  // Frames until the first whole one is more than kResendFrames behind.
+  uint16_t first_block = 0, last_block = 0;
+  uint32_t last_trailer_id = 0;
+  constexpr int kBehind = static_cast<int>(genicam::kResendFrames) + 1;
+  for (int i = 0; i < 1000 && (first_block == 0 || last_block - first_block < kBehind); ++i) {
+    const std::vector<uint8_t> p = raw.NextStreamPacket(3000);
+    ASSERT_GE(p.size(), genicam::kGvspHeaderBytes) << "the stream stopped";
+    if ((p[4] & 0x0f) != 2) continue;  // trailers only: a frame sent whole
+    last_block = static_cast<uint16_t>(p[2] << 8 | p[3]);
+    last_trailer_id = uint32_t{p[5]} << 16 | uint32_t{p[6]} << 8 | p[7];
+    if (first_block == 0) first_block = last_block;
+  }
+  ASSERT_GE(last_block - first_block, kBehind);
+  ASSERT_TRUE(raw.Write(reg::kAcquisitionStop, 1));
+  while (!raw.NextStreamPacket(300).empty()) {
+  }
+  // The answer to a resend of block, first..last: its status, block and packet ID.
+  struct Answer {
+    uint16_t status = 0xffff, block = 0;
+    uint32_t id = 0;
+    size_t bytes = 0;
+  };
+  const auto ask = [&](uint16_t block, uint32_t first, uint32_t last) {
+    raw.AskResend(block, first, last);
+    const std::vector<uint8_t> p = raw.NextStreamPacket(2000);
+    Answer a;
+    if (p.size() < genicam::kGvspHeaderBytes) return a;
+    a.status = static_cast<uint16_t>(p[0] << 8 | p[1]);
+    a.block = static_cast<uint16_t>(p[2] << 8 | p[3]);
+    a.id = uint32_t{p[5]} << 16 | uint32_t{p[6]} << 8 | p[7];
+    a.bytes = p.size();
+    return a;
+  };
+  const uint64_t refused_before = genicam::ResendRequestsRefused();
+  // The newest frame's packet 1 comes again, whole.
+  Answer a = ask(last_block, 1, 1);
+  EXPECT_EQ(a.status, 0u);
+  EXPECT_EQ(a.block, last_block);
+  EXPECT_EQ(a.id, 1u);
+  EXPECT_GT(a.bytes, genicam::kGvspHeaderBytes);
+  a = ask(first_block, 1, 3);
+  EXPECT_EQ(a.status, kRemoved) << "a frame older than the ones kept";
+  EXPECT_EQ(a.block, first_block);
+  EXPECT_EQ(a.id, 1u);
+  EXPECT_EQ(a.bytes, genicam::kGvspHeaderBytes);
+  a = ask(last_block, last_trailer_id + 1, last_trailer_id + 5);
+  EXPECT_EQ(a.status, kUnavailable) << "packets past the trailer";
+  EXPECT_EQ(a.id, last_trailer_id + 1);
+  a = ask(static_cast<uint16_t>(last_block + 2), 1, 1);
+  EXPECT_EQ(a.status, kNotYet) << "a frame not sent yet";
+  EXPECT_EQ(a.block, static_cast<uint16_t>(last_block + 2));
+  EXPECT_EQ(genicam::ResendRequestsRefused() - refused_before, 3u);
+  ASSERT_TRUE(raw.Write(kControlChannelPrivilege, 0));
 }
 
 TEST_F(GigeE2E, RoiExposureAndGainTakeEffect) {
