@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
@@ -17,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -370,16 +372,80 @@ std::string DwaChunkProblem(const std::vector<DwaChannel>& channels, const uint8
   return "DWA zlib section does not inflate (" + (r == Z_BUF_ERROR ? "cut short" : Printable(zlib_said)) + ")";
 }
 
+// Where the chunks' samples go: the reads' planes (display-window sized, with
+// the origin disp_x, disp_y), inside the overlap x0..x1, y0..y1 of the data
+// and display windows.
+struct Unpack {
+  const std::vector<ChannelRead>* reads;
+  int64_t disp_x, disp_y;
+  int width;
+  int64_t x0, y0, x1, y1;
+  // Set by DecodeChunks: per channel of the part, in file order, its type
+  // (0 uint, 1 half, 2 float) and the index of its read (-1 if not read).
+  std::vector<int> type, read;
+};
+
+uint32_t Load32(const uint8_t* p) {
+  return uint32_t{p[0]} | (uint32_t{p[1]} << 8) | (uint32_t{p[2]} << 16) | (uint32_t{p[3]} << 24);
+}
+
+// Copies the samples of a chunk holding pixels cx0..cx1, cy0..cy1 (`bytes`
+// as the chunk's decompressed data: per row, per channel in file order, a
+// sample per pixel, little-endian) into the planes; as Imf reads them: half
+// and uint become float, float is copied. `stats` holds a count per read.
+// False if the chunk's size is not what its rows need.
+bool UnpackChunk(const Unpack& u, const uint8_t* bytes, uint64_t size, int64_t cx0, int64_t cy0, int64_t cx1,
+                 int64_t cy1, std::vector<InputSanitizeStats>* stats) {
+  uint64_t row = 0;
+  for (const int t : u.type) row += static_cast<uint64_t>(cx1 - cx0 + 1) * (t == 1 ? 2 : 4);
+  if (size != row * static_cast<uint64_t>(cy1 - cy0 + 1)) return false;
+  const int64_t xa = std::max(cx0, u.x0), xb = std::min(cx1, u.x1);
+  for (int64_t y = std::max(cy0, u.y0); y <= std::min(cy1, u.y1) && xa <= xb; ++y) {
+    const uint8_t* src = bytes + static_cast<uint64_t>(y - cy0) * row;
+    for (size_t c = 0; c < u.type.size(); ++c) {
+      const int bpe = u.type[c] == 1 ? 2 : 4;
+      if (u.read[c] >= 0) {
+        const ChannelRead& r = (*u.reads)[static_cast<size_t>(u.read[c])];
+        InputSanitizeStats* st = &(*stats)[static_cast<size_t>(u.read[c])];
+        float* dst = r.out->data.data() + static_cast<size_t>((y - u.disp_y) * u.width);
+        auto copy = [&](auto to_float) {
+          for (int64_t x = xa; x <= xb; ++x) {
+            float v = to_float(src + (x - cx0) * bpe);
+            if (Clean(&v, r.mode, st)) {
+              NoteReplaced(st, r.name, static_cast<int>(x - u.disp_x), static_cast<int>(y - u.disp_y));
+            }
+            dst[x - u.disp_x] = v;
+          }
+        };
+        if (u.type[c] == 1) {
+          copy([](const uint8_t* s) -> float { return half(half::FromBits, static_cast<uint16_t>(s[0] | (s[1] << 8))); });
+        } else if (u.type[c] == 2) {
+          copy([](const uint8_t* s) { return std::bit_cast<float>(Load32(s)); });
+        } else {
+          copy([](const uint8_t* s) { return static_cast<float>(Load32(s)); });
+        }
+      }
+      src += static_cast<uint64_t>(cx1 - cx0 + 1) * static_cast<uint64_t>(bpe);
+    }
+  }
+  return true;
+}
+
 // Throws (naming the chunk) unless every chunk of flat part `part` holding
 // rows y0..y1 of its data window decompresses to the size its rows need.
 // OpenEXR 3.1's C++ reader does not check that: the rows of a ZIP chunk
 // that inflated short were filled from uninitialised memory. Core's decoder
-// checks it; here it only decompresses (the pixels are read by Imf after).
-// DWAA/DWAB chunks, which Core 3.1 cannot decode, get DwaChunkProblem.
+// checks it; then each chunk's samples are copied into `target`'s planes
+// (Core decompresses, camsim converts and cleans: the one pass over the
+// file), chunks stored as they are read too, and the counts added to the
+// reads' stats. Returns true if so; false if the chunks were only checked,
+// for Imf to read the pixels after: DWAA/DWAB chunks, which Core 3.1 cannot
+// decode (DwaChunkProblem checks them), and parts with a subsampled channel
+// (Core 3.1 sizes such a channel's rows by dividing the width, not as Imf).
 // The chunks are decompressed on several threads (a decoder each, as Core
 // allows); the error names the first bad chunk in file order, whatever the
 // threads' timing.
-void CheckChunks(const std::string& path, int part, int y0, int y1) {
+bool DecodeChunks(const std::string& path, int part, int y0, int y1, Unpack* target) {
   CoreFile core(path);
   const exr_const_context_t ctx = core.context();
   auto fail = [&](const std::string& where, const std::string& why) {
@@ -397,25 +463,42 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
   if (r == EXR_ERR_SUCCESS) r = exr_get_data_window(ctx, part, &dw);
   if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
   const bool dwa = compression == EXR_COMPRESSION_DWAA || compression == EXR_COMPRESSION_DWAB;
+  const exr_attr_chlist_t* channels = nullptr;
+  r = exr_get_channels(ctx, part, &channels);
+  if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
   std::vector<DwaChannel> dwa_channels;
-  if (dwa) {
-    const exr_attr_chlist_t* channels = nullptr;
-    r = exr_get_channels(ctx, part, &channels);
-    if (r != EXR_ERR_SUCCESS) throw std::runtime_error(core.Reason(r));
-    for (int i = 0; i < channels->num_channels; ++i) {
-      const exr_attr_chlist_entry_t& c = channels->entries[i];
-      const std::string name(c.name.str, static_cast<size_t>(c.name.length));
+  Unpack* unpack = dwa ? nullptr : target;
+  if (unpack != nullptr) {
+    unpack->type.assign(static_cast<size_t>(channels->num_channels), 0);
+    unpack->read.assign(static_cast<size_t>(channels->num_channels), -1);
+  }
+  for (int i = 0; i < channels->num_channels; ++i) {
+    const exr_attr_chlist_entry_t& c = channels->entries[i];
+    const std::string name(c.name.str, static_cast<size_t>(c.name.length));
+    if (dwa) {
       const size_t dot = name.rfind('.');
       dwa_channels.push_back({dot == std::string::npos ? name : name.substr(dot + 1), static_cast<int>(c.pixel_type),
                               std::max(c.x_sampling, 1), std::max(c.y_sampling, 1)});
     }
+    if (unpack == nullptr) continue;
+    if (c.x_sampling != 1 || c.y_sampling != 1) {
+      unpack = nullptr;
+      continue;
+    }
+    unpack->type[static_cast<size_t>(i)] = static_cast<int>(c.pixel_type);
+    // As Imf's frame buffer: a channel read twice goes to the last plane.
+    for (size_t k = 0; k < unpack->reads->size(); ++k) {
+      if ((*unpack->reads)[k].name == name) unpack->read[static_cast<size_t>(i)] = static_cast<int>(k);
+    }
   }
 
-  // The chunks to decompress, in file order, with the pixels each holds.
+  // The chunks to decompress (or, when unpacking, to read as stored), in
+  // file order, with the pixels each holds.
   struct Item {
     exr_chunk_info_t chunk;
     std::string where;
     int64_t x0, y0, x1, y1;
+    bool stored;  // its bytes are the samples (uncompressed, or no smaller than its rows)
   };
   std::vector<Item> items;
   auto take = [&](const exr_chunk_info_t& chunk, const std::string& where, int64_t x0, int64_t cy0, int64_t x1,
@@ -427,9 +510,10 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
                       std::to_string(chunk.unpacked_size));
     }
     // A chunk no smaller than its rows is stored as it is, and Imf reads it so
-    // (Core 3.1 fails on such a B44 tile at the edge).
-    if (compression == EXR_COMPRESSION_NONE || chunk.packed_size >= chunk.unpacked_size) return;
-    items.push_back({chunk, where, x0, cy0, x1, cy1});
+    // (Core 3.1 fails on such a B44 tile at the edge): read, not decoded.
+    const bool stored = compression == EXR_COMPRESSION_NONE || chunk.packed_size >= chunk.unpacked_size;
+    if (stored && unpack == nullptr) return;
+    items.push_back({chunk, where, x0, cy0, x1, cy1, stored});
   };
 
   exr_chunk_info_t chunk{};
@@ -462,49 +546,66 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
     }
   }
 
-  // Decompresses item `only`, or else items taken from `next`; a result per
-  // item (and for DWA, why it is corrupt).
+  // Decompresses (and unpacks) item `only`, or else items taken from `next`;
+  // a result per item (and for DWA, why it is corrupt). Item `only` is
+  // decoded again for Core's reason alone: not unpacked.
   std::vector<exr_result_t> result(items.size(), EXR_ERR_SUCCESS);
   std::vector<std::string> dwa_problem(items.size());
+  std::vector<char> wrong_size(items.size(), 0);  // decompressed, but not to its rows' size
+  std::vector<char> no_memory(items.size(), 0);   // std::bad_alloc in camsim's code
   std::atomic<size_t> next{0};
+  // A thread per core up to kMaxCheckThreads, for files of many chunks.
+  constexpr unsigned kMaxCheckThreads = 8, kChunksPerThread = 16;
+  const size_t helpers = std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), kMaxCheckThreads,
+                                           items.size() / kChunksPerThread + 1}) - 1;
+  // The counts of each thread (a slot each), per read.
+  std::vector<std::vector<InputSanitizeStats>> slots(
+      helpers + 1, std::vector<InputSanitizeStats>(unpack != nullptr ? unpack->reads->size() : 0));
+  std::atomic<size_t> next_slot{0};
   auto decode = [&](size_t only) {
     exr_decode_pipeline_t decoder{};  // as EXR_DECODE_PIPELINE_INITIALIZER: all zero
     bool started = false;
-    std::vector<uint8_t> packed;  // a DWA chunk's bytes
+    std::vector<uint8_t> packed;  // a DWA or stored chunk's bytes
+    std::vector<InputSanitizeStats>* stats = only < items.size() ? nullptr : &slots[next_slot.fetch_add(1)];
     for (size_t i; (i = only < items.size() ? only : next.fetch_add(1)) < items.size();) {
       exr_result_t d = EXR_ERR_SUCCESS;
-      if (dwa) {
-        const Item& it = items[i];
-        try {
+      const Item& it = items[i];
+      try {
+        const uint8_t* bytes = nullptr;  // the decompressed chunk
+        if (dwa || it.stored) {
           packed.resize(it.chunk.packed_size);
           d = exr_read_chunk(ctx, part, &it.chunk, packed.data());
-          if (d == EXR_ERR_SUCCESS)
+          if (d == EXR_ERR_SUCCESS && dwa)
             dwa_problem[i] = DwaChunkProblem(dwa_channels, packed.data(), packed.size(), it.x0, it.y0, it.x1, it.y1);
           if (!dwa_problem[i].empty()) d = EXR_ERR_CORRUPT_CHUNK;
-        } catch (const std::bad_alloc&) {
-          d = EXR_ERR_OUT_OF_MEMORY;  // checked again below, on the caller's thread
-        }
-      } else {
-        if (!started) {
-          // No channel has a destination: the decoder decompresses and stops.
-          d = exr_decoding_initialize(ctx, part, &items[i].chunk, &decoder);
-          if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
-          decoder.unpack_and_convert_fn = nullptr;
-          started = d == EXR_ERR_SUCCESS;
+          bytes = packed.data();  // a stored chunk's first unpacked_size bytes are its samples
         } else {
-          d = exr_decoding_update(ctx, part, &items[i].chunk, &decoder);
+          if (!started) {
+            // No channel has a destination: the decoder decompresses and stops.
+            d = exr_decoding_initialize(ctx, part, &it.chunk, &decoder);
+            if (d == EXR_ERR_SUCCESS) d = exr_decoding_choose_default_routines(ctx, part, &decoder);
+            decoder.unpack_and_convert_fn = nullptr;
+            started = d == EXR_ERR_SUCCESS;
+          } else {
+            d = exr_decoding_update(ctx, part, &it.chunk, &decoder);
+          }
+          if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
+          bytes = static_cast<const uint8_t*>(decoder.unpacked_buffer);
         }
-        if (d == EXR_ERR_SUCCESS) d = exr_decoding_run(ctx, part, &decoder);
+        if (d == EXR_ERR_SUCCESS && unpack != nullptr && stats != nullptr &&
+            !UnpackChunk(*unpack, bytes, it.chunk.unpacked_size, it.x0, it.y0, it.x1, it.y1, stats)) {
+          wrong_size[i] = 1;
+          d = EXR_ERR_CORRUPT_CHUNK;
+        }
+      } catch (const std::bad_alloc&) {
+        d = EXR_ERR_OUT_OF_MEMORY;  // thrown again below, on the caller's thread
+        no_memory[i] = 1;
       }
       result[i] = d;
       if (only < items.size()) break;
     }
     exr_decoding_destroy(ctx, &decoder);
   };
-  // A thread per core up to kMaxCheckThreads, for files of many chunks.
-  constexpr unsigned kMaxCheckThreads = 8, kChunksPerThread = 16;
-  const size_t helpers = std::min<size_t>({std::max(1u, std::thread::hardware_concurrency()), kMaxCheckThreads,
-                                           items.size() / kChunksPerThread + 1}) - 1;
   {
     std::vector<std::thread> threads;
     try {
@@ -518,12 +619,33 @@ void CheckChunks(const std::string& path, int part, int y0, int y1) {
   for (size_t i = 0; i < items.size(); ++i) {
     if (result[i] == EXR_ERR_SUCCESS) continue;
     if (!dwa_problem[i].empty()) fail(items[i].where, dwa_problem[i]);
-    if (dwa && result[i] == EXR_ERR_OUT_OF_MEMORY) throw std::bad_alloc();
+    if (wrong_size[i]) {
+      fail(items[i].where, "decompressed to " + std::to_string(items[i].chunk.unpacked_size) +
+                               " bytes, not the size of its rows");
+    }
+    if (no_memory[i]) throw std::bad_alloc();
     // What Core says about this chunk alone: decoded again on this thread.
     core.Forget();
     decode(i);
     fail(items[i].where, core.Reason(result[i]));
   }
+  if (unpack == nullptr) return false;
+  // The counts add up; the first sample replaced is the lowest (y, x) of
+  // all, and of the earlier read at the same pixel (one thread held it: its
+  // reads are added in order).
+  for (const std::vector<InputSanitizeStats>& stats : slots) {
+    for (size_t c = 0; c < stats.size(); ++c) {
+      InputSanitizeStats* to = (*unpack->reads)[c].stats;
+      const InputSanitizeStats& from = stats[c];
+      if (to == nullptr) continue;
+      to->nan += from.nan;
+      to->pos_inf += from.pos_inf;
+      to->neg_inf += from.neg_inf;
+      to->negative += from.negative;
+      if (!from.first_channel.empty()) NoteReplaced(to, from.first_channel, from.first_x, from.first_y);
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -572,7 +694,10 @@ void ReadChannels(const std::string& path, Imf::MultiPartInputFile& file, int pa
   const int y0 = std::max(data.min.y, disp.min.y), y1 = std::min(data.max.y, disp.max.y);
   if (x0 > x1 || y0 > y1) return;
 
-  CheckChunks(path, part, y0, y1);
+  Unpack target{&reads, disp.min.x, disp.min.y, width, x0, y0, x1, y1, {}, {}};
+  if (DecodeChunks(path, part, y0, y1, &target)) return;
+
+  // Chunks Core cannot decode: read by Imf (checked above).
   // Imf decompresses the line buffers of one readPixels call on its global
   // thread pool (none by default): a thread per core, set once, for every reader.
   static const bool kThreadPoolSet = [] {

@@ -58,8 +58,11 @@ struct ChannelRead {
 };
 
 // Reads the channels (all in part `part` of `file`, opened from `path`) as
-// float into display-window-sized planes. First every chunk to be read is
-// decompressed by OpenEXRCore, which checks its size (Imf 3.1 does not).
+// float into display-window-sized planes, as Imf would read them. Every
+// chunk to be read is decompressed once, by OpenEXRCore, which checks its
+// size (Imf 3.1 does not), and its samples copied from there; DWAA/DWAB
+// parts (Core 3.1 cannot decode them) and parts with a subsampled channel
+// are checked so and then read by Imf.
 // Throws on any problem (OpenEXR's Iex exceptions, UnsupportedExr for
 // unsupported windows or subsampling, std::runtime_error naming a corrupt
 // chunk); the caller catches.

@@ -72,7 +72,7 @@
 // missing or a directory; not a readable OpenEXR file, truncated or garbage
 // (includes OpenEXR's reason); a chunk to be read that does not decompress to
 // the size its rows need ("corrupt chunk at scan line N" or "at tile (x, y)",
-// checked by OpenEXRCore before the pixels are read; DWAA/DWAB chunks, which
+// checked by OpenEXRCore as it decodes the pixels; DWAA/DWAB chunks, which
 // Core 3.1 cannot decode, by their header's sizes and zlib section, "(DWA
 // ...)"); no colour channels (lists those present);
 // display window empty or too large; depth file problems as above. No

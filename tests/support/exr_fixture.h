@@ -25,12 +25,15 @@ struct ExrChannel {
 
 inline Imath::Box2i Box(int x0, int y0, int x1, int y1) { return Imath::Box2i({x0, y0}, {x1, y1}); }
 
-// One single-part scanline (or tile x tile tiled) file with the given windows.
+// One single-part scanline (or tile x tile tiled) file with the given windows
+// (chunks in `order`).
 inline void WriteExrFixture(const std::string& path, const Imath::Box2i& display, const Imath::Box2i& data,
                             const std::vector<ExrChannel>& channels,
-                            Imf::Compression compression = Imf::ZIP_COMPRESSION, bool tiled = false, int tile = 4) {
+                            Imf::Compression compression = Imf::ZIP_COMPRESSION, bool tiled = false, int tile = 4,
+                            Imf::LineOrder order = Imf::INCREASING_Y) {
   Imf::Header header(display, data);
   header.compression() = compression;
+  header.lineOrder() = order;
   const int w = data.max.x - data.min.x + 1;
   Imf::FrameBuffer fb;
   std::vector<std::vector<half>> halves;
