@@ -441,7 +441,7 @@ bool UnpackChunk(const Unpack& u, const uint8_t* bytes, uint64_t size, int64_t c
 // reads' stats. Returns true if so; false if the chunks were only checked,
 // for Imf to read the pixels after: DWAA/DWAB chunks, which Core 3.1 cannot
 // decode (DwaChunkProblem checks them), and parts with a subsampled channel
-// (Core 3.1 sizes such a channel's rows by dividing the width, not as Imf).
+// (UnpackChunk handles only channels with a sample per pixel).
 // The chunks are decompressed on several threads (a decoder each, as Core
 // allows); the error names the first bad chunk in file order, whatever the
 // threads' timing.

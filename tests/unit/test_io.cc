@@ -1027,8 +1027,8 @@ TEST_F(IoTest, EveryCompressionDecodesTheSamePixelsAsImf) {
   }
 }
 
-// A part with a subsampled channel (not read) is read by Imf after the check:
-// Core 3.1 sizes such rows differently. The pixels are still Imf's.
+// A part with a subsampled channel (not read) is read by Imf after the check
+// (the one-pass copy handles only channels with a sample per pixel).
 TEST_F(IoTest, PartWithASubsampledChannelLoads) {
   const int w = 18, h = 14;
   for (const Imf::Compression compression : {Imf::ZIP_COMPRESSION, Imf::PIZ_COMPRESSION, Imf::NO_COMPRESSION}) {
