@@ -664,6 +664,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kTriggerMode, 0},
       {kTriggerSource, kSourceSoftware},
       {kTriggerActivation, 0},
+      {kTriggerDelay, DoubleBits(0.0)},
       {kGain, DoubleBits(c.sensor.gain_db)},
       {kGainRaw, GainRawOf(c.sensor.gain_db)},
       {kGainAuto, kAutoOff},
@@ -1421,6 +1422,8 @@ void GigeDevice::Sync() {
     std::lock_guard<std::mutex> t(trigger_mutex_);
     trigger_exposure_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
         std::chrono::duration<double, std::micro>(AppliedDouble(kExposureTime)));
+    trigger_delay_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::micro>(AppliedDouble(kTriggerDelay)));
   }
 }
 
@@ -1433,7 +1436,7 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
     return;
   }
   const auto now = std::chrono::steady_clock::now();
-  const auto start = std::max(now, exposure_busy_until_);
+  const auto start = std::max(now + trigger_delay_, exposure_busy_until_);
   exposure_busy_until_ = start + trigger_exposure_;
   pending_triggers_.push_back({index, line0_high, start, exposure_busy_until_});
   FireDueTrigger(now);

@@ -244,8 +244,8 @@ class GigeDevice {
   // bus pulse carries (kNextIndex: the next SimFrameIndex). line0_high: the
   // trigger input's level just after the trigger (after a Line0 edge, the
   // level that edge left): the frame's LineStatus bit 0. Its exposure starts
-  // now, or when the previous trigger's exposure ends, and lasts
-  // ExposureTime; the fake camera is asked for its frame when it has ended
+  // TriggerDelay from now, or when the previous trigger's exposure ends if
+  // that is later, and lasts ExposureTime; the fake camera is asked for its frame when it has ended
   // (FireDueTrigger), as a camera reads a frame out after its exposure.
   void TakeTrigger(int64_t index, bool line0_high);
   // Under trigger_mutex_: asks the fake camera for the oldest trigger's frame
@@ -341,10 +341,10 @@ class GigeDevice {
   };
   std::deque<PendingTrigger> pending_triggers_;
   // Under trigger_mutex_: when the last trigger's exposure ends (the next
-  // one's starts no earlier), and ExposureTime as of the last sync (the
-  // triggers' exposure; written under mutex_ and trigger_mutex_).
+  // one's starts no earlier), and ExposureTime and TriggerDelay as of the
+  // last sync (the triggers' exposure and delay; written under mutex_ and trigger_mutex_).
   std::chrono::steady_clock::time_point exposure_busy_until_{};
-  std::chrono::steady_clock::duration trigger_exposure_{};
+  std::chrono::steady_clock::duration trigger_exposure_{}, trigger_delay_{};
   bool trigger_requested_ = false;  // under trigger_mutex_: the oldest trigger's frame asked of the fake camera
   // Under trigger_mutex_, as of the last sync: TriggerMode On with source
   // Line0, and the edge that triggers (TriggerActivation).

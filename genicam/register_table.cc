@@ -366,7 +366,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                  kAutoExposureTimeUpperLimit);
   t.push_back(Enum("TriggerSelector", ac, kTriggerSelector, true, {{"FrameStart", 0}},
                    "The trigger the other Trigger features configure."));
-  t.back().selects = {"TriggerMode", "TriggerSource", "TriggerActivation", "TriggerSoftware"};
+  t.back().selects = {"TriggerMode", "TriggerSource", "TriggerActivation", "TriggerDelay", "TriggerSoftware"};
   t.push_back(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
                    "On: one frame per trigger; off: free run."));
   t.push_back(Enum("TriggerSource", ac, kTriggerSource, true, {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
@@ -375,6 +375,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.back().entries[1].available = s.has_trigger_line;
   t.push_back(Enum("TriggerActivation", ac, kTriggerActivation, true, {{"RisingEdge", 0}, {"FallingEdge", 1}},
                    "Edge of Line0 that triggers."));
+  t.push_back(Flt("TriggerDelay", ac, kTriggerDelay, 0.0, kMaxTriggerDelayUs,
+                  "Delay from a trigger to the start of its exposure (the frame's timestamp).", "us"));
   t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1, "One frame, when TriggerSource is Software."));
 
   const char* an = "AnalogControl";

@@ -149,6 +149,10 @@ inline constexpr uint32_t kChunkEnable = 0x8180;
 inline constexpr uint32_t kBalanceRatioSelector = 0x8400, kBalanceWhiteAuto = 0x8404, kBalanceRatio = 0x8410;
 // ReverseX, ReverseY (SFNC ImageFormatControl): the sensor's readout mirrored.
 inline constexpr uint32_t kReverseX = 0x8408, kReverseY = 0x840c;
+// TriggerDelay (SFNC AcquisitionControl, under TriggerSelector FrameStart): an 8-byte Float, us.
+inline constexpr uint32_t kTriggerDelay = 0x8430;
+// TriggerDelay's maximum (us): 10 s.
+inline constexpr double kMaxTriggerDelayUs = 1e7;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {

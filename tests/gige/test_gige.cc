@@ -2625,6 +2625,57 @@ TEST_F(GigeE2E, ATriggeredFrameComesAfterItsExposure) {
   EXPECT_EQ(c.failed_buffers(), 0u);
 }
 
+// TriggerDelay (SFNC): a trigger's exposure starts TriggerDelay after it.
+// The frame arrives no sooner than delay + exposure after the trigger and
+// is stamped with its exposure's start, the delay after the trigger (with
+// the delay ignored, the stamp is the trigger's and the frame 300 ms early).
+TEST_F(GigeE2E, TriggerDelayDelaysTheExposure) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  constexpr double kDelayMs = 300.0, kExposureMs = 100.0;
+  const auto now_ns = [] { return static_cast<uint64_t>(g_get_real_time()) * 1000; };
+  constexpr uint64_t kMs = 1000000;
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "TriggerDelay"), 0.0);
+  double lo = 0, hi = 0;
+  arv_camera_get_float_bounds(c.camera(), "TriggerDelay", &lo, &hi, nullptr);
+  EXPECT_EQ(lo, 0.0);
+  EXPECT_EQ(hi, reg::kMaxTriggerDelayUs);
+  Set(c, "TriggerSelector", "FrameStart");
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Software");
+  SetFloat(c, "TriggerDelay", kDelayMs * 1000.0);
+  SetFloat(c, "ExposureTime", kExposureMs * 1000.0);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "TriggerDelay"), kDelayMs * 1000.0);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (int i = 0; i < 2; ++i) {
+    GError* e = nullptr;
+    const uint64_t sent = now_ns();
+    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+    ASSERT_EQ(e, nullptr);
+    ASSERT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
+    const uint64_t arrived = now_ns();
+    EXPECT_GE(arrived, sent + static_cast<uint64_t>(kDelayMs + kExposureMs) * kMs)
+        << "trigger " << i << ": before its delay and exposure ended";
+    // 5 ms for the clocks' reads (the camera's clock is the same real time).
+    EXPECT_GE(c.last_timestamp_ns() + 5 * kMs, sent + static_cast<uint64_t>(kDelayMs) * kMs)
+        << "trigger " << i << ": stamped before its delay ended";
+    EXPECT_LE(c.last_timestamp_ns(), sent + static_cast<uint64_t>(kDelayMs + 100) * kMs)
+        << "trigger " << i << ": stamped long after its delay ended";
+  }
+  // Out of range: refused by the XML's bounds, and by the device as a raw write.
+  GError* e = nullptr;
+  arv_camera_set_float(c.camera(), "TriggerDelay", 2 * reg::kMaxTriggerDelayUs, &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  arv_device_write_memory(c.device(), reg::kTriggerDelay, 8, Be64(-1.0).data(), &e);
+  EXPECT_NE(e, nullptr);
+  g_clear_error(&e);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "TriggerDelay"), kDelayMs * 1000.0);
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
 // A free-running frame is stamped when its slot comes, not when the fake
 // camera asked for it (before the wait): at 5 Hz each stamp lies after the
 // previous frame arrived, and stamps are a period apart.
