@@ -346,6 +346,18 @@ void ConvertWindow(uint32_t format, Cfa cfa, int adc_bits, const uint16_t* raw, 
                   static_cast<size_t>(w) * 3);
     return;
   }
+  if (format == kBGR8) {  // RGB8 with each pixel's R and B swapped
+    for (int r = 0; r < h; ++r) {
+      const uint8_t* src = rgb + (static_cast<size_t>(y + r) * sensor_width + x) * 3;
+      uint8_t* dst = out + static_cast<size_t>(r) * w * 3;
+      for (int i = 0; i < w; ++i) {
+        dst[3 * i] = src[3 * i + 2];
+        dst[3 * i + 1] = src[3 * i + 1];
+        dst[3 * i + 2] = src[3 * i];
+      }
+    }
+    return;
+  }
   if (FromIsp(format, cfa)) {
     // Mono8 on a colour sensor: BT.601 luma of RGB8, (77 R + 150 G + 29 B + 128) >> 8 (weights sum to 256).
     for (int r = 0; r < h; ++r) {
@@ -2055,8 +2067,8 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   if (strobe) DriveStrobe(false);
   // (The applied window and format fill whole bytes: FilterClientWrite and Sync refuse others.)
   const bool reverse_x = Applied(kReverseX) != 0, reverse_y = Applied(kReverseY) != 0;
-  // RGB8, and Mono8 on a colour sensor, come from the ISP's frame; the rest from the raw codes.
-  const bool from_rgb = pixel_format == kRGB8 || (pixel_format == kMono8 && sensor_.cfa != Cfa::kMono);
+  // RGB8, BGR8, and Mono8 on a colour sensor, come from the ISP's frame; the rest from the raw codes.
+  const bool from_rgb = FromIsp(pixel_format, sensor_.cfa);
   const auto mirror = [&] {
     if (from_rgb)
       MirrorWindow(rgb_.data(), static_cast<size_t>(sensor_.width), 3, x, y, w, h, reverse_x, reverse_y);

@@ -231,7 +231,7 @@ Packing PackingOf(uint32_t code) {
 int SampleBits(uint32_t code) {
   if (code == kMono10 || (code >= 0x0110000cu && code <= 0x0110000fu)) return 10;
   if (code == kMono12 || (code >= 0x01100010u && code <= 0x01100013u)) return 12;
-  return code == kRGB8 ? 8 : PixelBits(code);
+  return code == kRGB8 || code == kBGR8 ? 8 : PixelBits(code);
 }
 
 std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
@@ -266,6 +266,7 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
   if (s.has_isp_rgb) {
     if (!mono) out.push_back({"Mono8", kMono8});  // the luma of RGB8
     out.push_back({"RGB8", kRGB8});
+    out.push_back({"BGR8", kBGR8});
   }
   return out;
 }
@@ -330,7 +331,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Enum("PixelFormat", ifc, kPixelFormat, true, PixelFormats(s),
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top; 10p/12p/12Packed: packed, the frame's pixel bits a "
-                   "whole number of bytes); RGB8 is the ISP output, Mono8 on a colour sensor its BT.601 luma."));
+                   "whole number of bytes); RGB8 is the ISP output, BGR8 the same with R and B swapped, Mono8 on a "
+                   "colour sensor its BT.601 luma."));
   t.back().locked_while_acquiring = true;
 
   const char* ac = "AcquisitionControl";

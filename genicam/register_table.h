@@ -198,7 +198,7 @@ enum LineSourceValue : int64_t { kLineSourceOff = 0, kLineSourceExposureActive =
 
 // PFNC pixel format codes (GigE Vision values).
 inline constexpr uint32_t kMono8 = 0x01080001, kMono10 = 0x01100003, kMono12 = 0x01100005, kMono16 = 0x01100007,
-                          kRGB8 = 0x02180014;
+                          kRGB8 = 0x02180014, kBGR8 = 0x02180015;  // BGR8: RGB8 with R and B swapped
 // Packed: PFNC Mono10p and Mono12p; GigE Vision 1.x Mono12Packed.
 inline constexpr uint32_t kMono10p = 0x010a0046, kMono12p = 0x010c0047, kMono12Packed = 0x010c0006;
 // Bayer<phase><bits>; bits 8, 10, 12 or 16 (10, 12 unpacked: one 16-bit word per sample).
@@ -222,10 +222,12 @@ uint32_t PackedCode(Cfa cfa, int bits, Packing packing);
 Packing PackingOf(uint32_t code);
 // Bits per pixel of a code (its bits 16..23), 0 when unknown.
 inline int PixelBits(uint32_t code) { return static_cast<int>((code >> 16) & 0xff); }
-// Significant bits per sample: 10 or 12 for the unpacked 10- and 12-bit formats, else PixelBits (per channel for RGB8).
+// Significant bits per sample: 10 or 12 for the unpacked 10- and 12-bit formats, else PixelBits (per channel for RGB8, BGR8).
 int SampleBits(uint32_t code);
-// Formats made from the ISP's RGB8: RGB8, and Mono8 on a colour sensor (its luma).
-inline bool FromIsp(uint32_t code, Cfa cfa) { return code == kRGB8 || (code == kMono8 && cfa != Cfa::kMono); }
+// Formats made from the ISP's RGB8: RGB8, BGR8, and Mono8 on a colour sensor (its luma).
+inline bool FromIsp(uint32_t code, Cfa cfa) {
+  return code == kRGB8 || code == kBGR8 || (code == kMono8 && cfa != Cfa::kMono);
+}
 // Bytes of a w x h frame: a packed frame is one bit stream, so its bits
 // need not end on a byte (GigeDevice refuses such windows).
 inline uint64_t FrameBytes(uint32_t code, int w, int h) {

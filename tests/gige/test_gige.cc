@@ -282,11 +282,12 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
                        "BayerBG12", "BayerBG8", "BayerBG16", "BayerBG12p", "BayerBG12Packed",  //
                        "BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",  //
                        "BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed",  //
-                       "Mono8", "RGB8"}));
+                       "Mono8", "RGB8", "BGR8"}));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGB, 12), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GB_12));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerRG, 8), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_RG_8));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 16), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_16));
   EXPECT_EQ(genicam::kRGB8, static_cast<uint32_t>(ARV_PIXEL_FORMAT_RGB_8_PACKED));
+  EXPECT_EQ(genicam::kBGR8, static_cast<uint32_t>(ARV_PIXEL_FORMAT_BGR_8_PACKED));
   EXPECT_EQ(genicam::kMono12, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_12));
   EXPECT_EQ(genicam::kMono10, static_cast<uint32_t>(ARV_PIXEL_FORMAT_MONO_10));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGR, 10), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GR_10));
@@ -452,6 +453,8 @@ TEST(GigeWireFormat, ConvertsDnToEachFormat) {
   genicam::ConvertWindow(genicam::kRGB8, Cfa::kBayerRG, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
   EXPECT_EQ(o3[0], 10);
   EXPECT_EQ(o3[2], 12);
+  genicam::ConvertWindow(genicam::kBGR8, Cfa::kBayerRG, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
+  EXPECT_EQ(std::vector<uint8_t>(o3, o3 + 3), (std::vector<uint8_t>{12, 11, 10}));  // B, G, R
   // Packed, by hand from the layouts (docs/gige.md): one row of 1x4 DN.
   using genicam::Packing;
   const uint16_t dn[4] = {0x123, 0x256, 0x3ff, 0x001};
@@ -2002,7 +2005,7 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
   std::vector<std::string> names(formats, formats + n);
   g_free(formats);
   EXPECT_EQ(names, (std::vector<std::string>{"BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",
-                                              "Mono8", "RGB8"}));
+                                              "Mono8", "RGB8", "BGR8"}));
   // The fake camera's names keep working: ExposureTimeAbs is ExposureTime, GainRaw is Gain in 0.1 dB.
   SetFloat(c, "ExposureTimeAbs", 2500.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 2500.0);
@@ -4654,7 +4657,7 @@ TEST_F(GigeE2E, ReverseXAndYMirrorTheReadout) {
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
   EXPECT_EQ(std::vector<std::string>(formats, formats + n),
             (std::vector<std::string>{"BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed", "Mono8",
-                                      "RGB8"}));
+                                      "RGB8", "BGR8"}));
   g_free(formats);
   GError* e = nullptr;
   arv_device_write_register(c.device(), reg::kPixelFormat, genicam::BayerCode(Cfa::kBayerRG, 12), &e);
@@ -4703,6 +4706,38 @@ TEST_F(GigeE2E, ReverseXAndYMirrorMonoFrames) {
       EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), format);
       EXPECT_TRUE(GrabIndex(c, 3) == Mirrored(normal, 31, 23, bytes, x, y)) << readout;
     }
+  }
+}
+
+// BGR8 (PFNC 0x02180015) is RGB8 with R and B swapped, byte for byte: in
+// the whole frame and in a window off the corner under ReverseX.
+TEST_F(GigeE2E, Bgr8IsRgb8WithRedAndBlueSwapped) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  const auto swapped = [](std::vector<uint8_t> f) {
+    for (size_t i = 0; i + 2 < f.size(); i += 3) std::swap(f[i], f[i + 2]);
+    return f;
+  };
+  for (const bool reverse_x : {false, true}) {
+    SCOPED_TRACE(reverse_x ? "ReverseX, 60x44 at (2, 4)" : "whole sensor");
+    if (reverse_x) {
+      SetInt(c, "Width", 60);
+      SetInt(c, "OffsetX", 2);
+      SetInt(c, "Height", 44);
+      SetInt(c, "OffsetY", 4);
+      ASSERT_NO_FATAL_FAILURE(SetReverse(c, true, false));
+    }
+    const size_t bytes = reverse_x ? size_t{60} * 44 * 3 : size_t{64} * 48 * 3;
+    uint32_t code = 0;
+    const std::vector<uint8_t> rgb = GrabAt(c, "RGB8", 6);
+    const std::vector<uint8_t> bgr = GrabAt(c, "BGR8", 6, &code);
+    EXPECT_EQ(code, genicam::kBGR8) << "the leader's format";
+    EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BGR8");
+    EXPECT_EQ(ReadInt(c, "PayloadSize"), static_cast<int64_t>(bytes));
+    ASSERT_EQ(rgb.size(), bytes);
+    ASSERT_EQ(bgr.size(), bytes);
+    EXPECT_TRUE(bgr == swapped(rgb)) << "BGR8 is not RGB8 with R and B swapped";
+    EXPECT_FALSE(bgr == rgb) << "a frame whose red equals its blue tests nothing";
   }
 }
 
