@@ -710,6 +710,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kChunkSelector, 0},
       {kReverseX, 0},
       {kReverseY, 0},
+      {kDeviceTemperatureSelector, 0},
+      {kDeviceTemperature, DoubleBits(c.sensor.temperature_c)},  // the core checked it: [-100, 150]
   };
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);

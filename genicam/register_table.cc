@@ -294,6 +294,16 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Str("DeviceSerialNumber", dc, kSerialNumber, 16, false, "Serial number of the device."));
   t.push_back(Alias(t.back(), "DeviceID", "Serial number (GigE Vision 1.x name)."));
   t.push_back(Str("DeviceUserID", dc, kUserId, 16, true, "User-programmable device identifier."));
+  t.push_back(Enum("DeviceTemperatureSelector", dc, kDeviceTemperatureSelector, true, {{"Sensor", 0}},
+                   "Where DeviceTemperature is measured."));
+  t.back().selects = {"DeviceTemperature"};
+  Feature temperature = Flt("DeviceTemperature", dc, kDeviceTemperature, kMinSensorTemperatureC,
+                            kMaxSensorTemperatureC,
+                            "Temperature of the selected part: the sensor's, as configured (sensor.temperature_c; "
+                            "it sets the dark current).",
+                            "C");
+  temperature.writable = false;
+  t.push_back(temperature);
 
   // Bayer ROIs keep the CFA phase: even offsets and sizes.
   const double step = s.cfa == Cfa::kMono ? 1 : 2;

@@ -153,6 +153,11 @@ inline constexpr uint32_t kReverseX = 0x8408, kReverseY = 0x840c;
 inline constexpr uint32_t kTriggerDelay = 0x8430;
 // TriggerDelay's maximum (us): 10 s.
 inline constexpr double kMaxTriggerDelayUs = 1e7;
+// DeviceTemperatureSelector (one entry, Sensor) and DeviceTemperature (SFNC
+// DeviceControl): the sensor's configured temperature (sensor.temperature_c),
+// an 8-byte Float, read-only; its range is the core's (core/sensor/emva.cc).
+inline constexpr uint32_t kDeviceTemperatureSelector = 0x8438, kDeviceTemperature = 0x8440;
+inline constexpr double kMinSensorTemperatureC = -100.0, kMaxSensorTemperatureC = 150.0;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {

@@ -4741,5 +4741,30 @@ TEST_F(GigeE2E, Bgr8IsRgb8WithRedAndBlueSwapped) {
   }
 }
 
+// DeviceTemperature (SFNC, DeviceTemperatureSelector Sensor) is the sensor's
+// configured temperature, sensor.temperature_c (which sets the dark
+// current): read-only, a write refused as read-only.
+TEST_F(GigeE2E, DeviceTemperatureIsTheSensorsConfiguredTemperature) {
+  DeviceOptions o = SmallDevice();
+  o.overrides.push_back("sensor.temperature_c=41.5");
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "DeviceTemperatureSelector", nullptr), "Sensor");
+  Set(c, "DeviceTemperatureSelector", "Sensor");
+  GError* e = nullptr;
+  EXPECT_DOUBLE_EQ(arv_camera_get_float(c.camera(), "DeviceTemperature", &e), 41.5);
+  ASSERT_EQ(e, nullptr) << e->message;
+  double lo = 0, hi = 0;
+  arv_camera_get_float_bounds(c.camera(), "DeviceTemperature", &lo, &hi, nullptr);
+  EXPECT_EQ(lo, -100.0);
+  EXPECT_EQ(hi, 150.0);
+  arv_device_write_memory(c.device(), reg::kDeviceTemperature, 8, Be64(20.0).data(), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_WRITE_PROTECT))
+      << (e != nullptr ? e->message : "no error: DeviceTemperature was written");
+  g_clear_error(&e);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "DeviceTemperature"), 41.5);
+}
+
 }  // namespace
 }  // namespace camsim::gigetest
