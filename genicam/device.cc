@@ -964,6 +964,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   // TriggerSoftware: one frame per write, taken as it arrives (a register
   // the sync polled merged writes that came within one sync period). Not
   // stored: it reads back 0. TriggerMode and TriggerSource as written so far.
+  // Available (the XML's pIsAvailable) only with TriggerMode On and
+  // TriggerSource Software: otherwise refused, access denied. Available but
+  // while the acquisition is stopped: acknowledged and dropped (counted in
+  // triggers_dropped, logged), as a camera not waiting for a trigger drops it.
   if (covers(reg::kTriggerSoftware)) {
     if (size != 4 || value(reg::kTriggerSoftware) != 1) {
       ++d->writes_refused_;
@@ -971,10 +975,19 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
                     size != 4 ? "a command is written alone" : "its CommandValue is 1");
       return {false, GevStatus::kInvalidParameter};
     }
-    if ((d->Read(reg::kAcquisition) != 0 || d->restarting_) && d->Read(reg::kTriggerMode) == 1 &&
-        d->Read(reg::kTriggerSource) == kSourceSoftware) {
+    const bool mode_on = d->Read(reg::kTriggerMode) == 1;
+    if (!mode_on || d->Read(reg::kTriggerSource) != kSourceSoftware) {
+      ++d->writes_refused_;
+      d->LogRefusal("TriggerSoftware = 1", mode_on ? "not available: TriggerSource is not Software"
+                                                   : "not available: TriggerMode is Off");
+      return {false, GevStatus::kAccessDenied};
+    }
+    if (d->Read(reg::kAcquisition) != 0 || d->restarting_) {
       std::lock_guard<std::mutex> t(d->trigger_mutex_);
       d->TakeTrigger(kNextIndex, d->trigger_level_.load());
+    } else {
+      ++d->triggers_dropped_;
+      d->LogRefusal("TriggerSoftware", "the acquisition is stopped (no frame)", "dropped");
     }
     return {false, GevStatus::kSuccess};
   }
@@ -1755,7 +1768,7 @@ void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
   }
 }
 
-void GigeDevice::LogRefusal(const std::string& what, const std::string& why) const {
+void GigeDevice::LogRefusal(const std::string& what, const std::string& why, const char* verb) const {
   const auto now = std::chrono::steady_clock::now();
   std::lock_guard<std::mutex> lock(refusal_log_mutex_);
   if (now - refusal_window_ >= std::chrono::seconds(1)) {
@@ -1769,10 +1782,10 @@ void GigeDevice::LogRefusal(const std::string& what, const std::string& why) con
   ++refusal_lines_;
   std::string more;
   if (refusals_unlogged_ > 0)
-    more = " (" + std::to_string(refusals_unlogged_) + " earlier refused writes not logged: over " +
+    more = " (" + std::to_string(refusals_unlogged_) + " earlier lines not logged: over " +
            std::to_string(kRefusalLinesPerSecond) + " a second)";
   refusals_unlogged_ = 0;
-  std::fprintf(stderr, "camsim-gige: refused %s: %s%s\n", what.c_str(), why.c_str(), more.c_str());
+  std::fprintf(stderr, "camsim-gige: %s %s: %s%s\n", verb, what.c_str(), why.c_str(), more.c_str());
 }
 
 std::string GigeDevice::ValueText(const Feature& f, uint64_t v) const {

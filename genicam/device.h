@@ -142,6 +142,7 @@ class GigeDevice {
   // Client writes refused: by the device (values, the window, commands) and
   // by the hooks in front of its camera (fake_camera_hooks.h, WritesRefusedAt).
   uint64_t writes_refused() const;
+  // Triggers dropped: beyond kMaxPendingTriggers waiting, or a TriggerSoftware while the acquisition is stopped.
   uint64_t triggers_dropped() const { return triggers_dropped_.load(); }
   uint64_t trigger_edges() const { return trigger_edges_.load(); }  // edges the trigger line delivered, handled
   // Pipelines planned (a client's pipeline write, a sync or auto-exposure
@@ -233,10 +234,11 @@ class GigeDevice {
   // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
   void LimitAutoRange(const ExposureSettings& want);
   void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
-  // One line on stderr per refused write: "refused NAME = VALUE: WHY", at
-  // most kRefusalLinesPerSecond a second (a client could flood it); the
-  // next line logged says how many were left out. Thread-safe.
-  void LogRefusal(const std::string& what, const std::string& why) const;
+  // One line on stderr per refused write: "refused NAME = VALUE: WHY" (or
+  // per dropped trigger: verb "dropped"), at most kRefusalLinesPerSecond a
+  // second (a client could flood it); the next line logged says how many
+  // were left out. Thread-safe.
+  void LogRefusal(const std::string& what, const std::string& why, const char* verb = "refused") const;
   // Why a feature never takes v (empty when it does): its range, increment, entries.
   std::string WhyInvalid(const Feature& f, uint64_t v) const;
   std::string ValueText(const Feature& f, uint64_t v) const;  // v as a client wrote it

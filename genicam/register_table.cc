@@ -389,7 +389,12 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Edge of Line0 that triggers."));
   t.push_back(Flt("TriggerDelay", ac, kTriggerDelay, 0.0, kMaxTriggerDelayUs,
                   "Delay from a trigger to the start of its exposure (the frame's timestamp).", "us"));
-  t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1, "One frame, when TriggerSource is Software."));
+  // Available only where it triggers (the device refuses it elsewhere).
+  t.push_back(Cmd("TriggerSoftware", ac, kTriggerSoftware, 1,
+                  "One frame; available only with TriggerMode On and TriggerSource Software (while the "
+                  "acquisition is stopped it is dropped)."));
+  t.back().available_formula = "(M=1)&&(S=" + std::to_string(kSourceSoftware) + ")";
+  t.back().variables = {{"M", "TriggerMode"}, {"S", "TriggerSource"}};
 
   const char* an = "AnalogControl";
   t.push_back(Flt("Gain", an, kGain, 0.0, 48.0,
@@ -663,6 +668,15 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         "  <!-- " + (f.chunk_id != 0 ? "chunk " + Hex(f.chunk_id) + ", at " : std::string()) + Hex(f.address) + " -->\n";
     const std::string locked =
         f.locked_while_acquiring ? std::string("    <pIsLocked>") + kPayloadLocked + "</pIsLocked>\n" : "";
+    // Written after the Description, with pIsLocked (GenApi's order).
+    const std::string available =
+        f.available_formula.empty() ? "" : "    <pIsAvailable>" + f.name + "Available</pIsAvailable>\n";
+    if (!f.available_formula.empty()) {
+      swiss_knives << "  <IntSwissKnife Name=\"" << f.name << "Available\" NameSpace=\"Custom\">\n";
+      for (const auto& v : f.variables)
+        swiss_knives << "    <pVariable Name=\"" << v.first << "\">" << VariableNode(v.second) << "</pVariable>\n";
+      swiss_knives << "    <Formula>" << Xml(f.available_formula) << "</Formula>\n  </IntSwissKnife>\n";
+    }
     if (f.kind == Kind::kSwissKnife) {
       x << "  <IntSwissKnife Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
         << "    <Description>" << Xml(f.description) << "</Description>\n";
@@ -685,7 +699,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     switch (f.kind) {
       case Kind::kInteger:
         x << "  <Integer Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n" << locked
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available << locked
           << "    <pValue>" << regname << "</pValue>\n"
           << "    <Min>" << static_cast<int64_t>(f.min) << "</Min>\n";
         if (f.max_formula.empty()) x << "    <Max>" << static_cast<int64_t>(f.max) << "</Max>\n";
@@ -702,7 +716,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         break;
       case Kind::kFloat:
         x << "  <Float Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available
           << "    <pValue>" << regname << "</pValue>\n";
         if (f.min_feature.empty()) x << "    <Min>" << Num(f.min) << "</Min>\n";
         else x << "    <pMin>" << f.min_feature << "Reg</pMin>\n";
@@ -714,7 +728,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         break;
       case Kind::kEnum:
         x << "  <Enumeration Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n" << locked;
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available << locked;
         for (const EnumEntry& e : f.entries) {
           x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\""
             << (IsStandard(f.name) && IsStandard(e.name) ? "Standard" : "Custom")
@@ -742,12 +756,12 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
       case Kind::kBoolean:
         x << "  <Boolean Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
           << "    <Description>" << Xml(f.description) << "</Description>\n"
-          << locked << "    <pValue>" << regname << "</pValue>\n    <OnValue>1</OnValue>\n    <OffValue>0</OffValue>\n"
+          << available << locked << "    <pValue>" << regname << "</pValue>\n    <OnValue>1</OnValue>\n    <OffValue>0</OffValue>\n"
           << "  </Boolean>\n";
         break;
       case Kind::kCommand:
         x << "  <Command Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n"
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available
           << "    <pValue>" << regname << "</pValue>\n    <CommandValue>" << f.command_value << "</CommandValue>\n"
           << "  </Command>\n";
         break;

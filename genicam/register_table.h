@@ -73,6 +73,10 @@ struct Feature {
   uint32_t chunk_id = 0;
   // kEnum, a selector: the features it selects (GenICam pSelected).
   std::vector<std::string> selects;
+  // Nonempty: the feature is available only while this formula over
+  // `variables` is nonzero (GenICam pIsAvailable, an IntSwissKnife); the
+  // device refuses it otherwise (e.g. TriggerSoftware outside trigger mode).
+  std::string available_formula;
   // Locked (GenICam pIsLocked: not writable) during an acquisition or while
   // TLParamsLocked is 1, as the device then refuses writes (the payload).
   bool locked_while_acquiring = false;

@@ -1271,7 +1271,7 @@ TEST(GigeRegisters, EachRefusedWriteIsLoggedWithItsReason) {
   testing::internal::CaptureStderr();
   WriteRegRefused(*d, reg::kWidth, Be32(15));
   err = testing::internal::GetCapturedStderr();
-  EXPECT_NE(err.find("(480 earlier refused writes not logged"), std::string::npos) << err;
+  EXPECT_NE(err.find("(480 earlier lines not logged"), std::string::npos) << err;
 }
 
 // Without a trigger line (no --trigger-line), TriggerSource Line0 would arm
@@ -2759,7 +2759,9 @@ TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   Settle();
-  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // ignored: the source is Line0
+  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // refused: the source is Line0
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED));
+  g_clear_error(&e);
   EXPECT_TRUE(c.Grab(300).empty());
   std::string err;
   trigger.Set(true, &err);  // rising edge: one frame
@@ -4764,6 +4766,71 @@ TEST_F(GigeE2E, DeviceTemperatureIsTheSensorsConfiguredTemperature) {
   g_clear_error(&e);
   Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "DeviceTemperature"), 41.5);
+}
+
+// TriggerSoftware is available (the XML's pIsAvailable) only with
+// TriggerMode On and TriggerSource Software; elsewhere a raw write is
+// refused (access denied) with a line naming why, and gives no frame. In
+// trigger mode with the acquisition stopped it is acknowledged and dropped
+// (counted, logged): the acquisition started after it waits for a trigger.
+TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;  // TriggerSource Line0 is available
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  ArvGcNode* node = arv_gc_get_node(arv_device_get_genicam(c.device()), "TriggerSoftware");
+  ASSERT_NE(node, nullptr);
+  const auto available = [&] { return arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(node), nullptr); };
+  // Refused, with the reason logged; and no frame from it.
+  const auto refused = [&](const char* why) {
+    testing::internal::CaptureStderr();
+    GError* e = nullptr;
+    arv_device_write_register(c.device(), reg::kTriggerSoftware, 1, &e);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << (e != nullptr ? e->message : "no error: TriggerSoftware taken");
+    g_clear_error(&e);
+    EXPECT_NE(err.find(std::string("camsim-gige: refused TriggerSoftware = 1: not available: ") + why),
+              std::string::npos)
+        << err;
+  };
+  EXPECT_FALSE(available()) << "TriggerMode Off";
+  // Free run: a refused trigger leaves the frames as they come.
+  SetFloat(c, "AcquisitionFrameRate", 2.0);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  ASSERT_NO_FATAL_FAILURE(refused("TriggerMode is Off"));
+  GError* e = nullptr;
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr);
+  c.CloseStream();
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  EXPECT_FALSE(available()) << "TriggerSource Line0";
+  ASSERT_NO_FATAL_FAILURE(refused("TriggerSource is not Software"));
+  Set(c, "TriggerSource", "Software");
+  EXPECT_TRUE(available()) << "TriggerMode On, TriggerSource Software";
+  Settle();
+  EXPECT_EQ(device_->writes_refused(), 2u);
+  // Stopped: acknowledged, dropped, counted and logged.
+  const uint64_t sent = device_->frames_sent();
+  testing::internal::CaptureStderr();
+  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(e, nullptr) << e->message;
+  g_clear_error(&e);
+  EXPECT_NE(err.find("camsim-gige: dropped TriggerSoftware: the acquisition is stopped"), std::string::npos) << err;
+  EXPECT_EQ(device_->triggers_dropped(), 1u);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  EXPECT_TRUE(c.Grab(400).empty()) << "a frame for the trigger sent while stopped";
+  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  EXPECT_FALSE(c.Grab(3000).empty()) << "no frame for a trigger while acquiring";
+  EXPECT_TRUE(c.Grab(400).empty());
+  EXPECT_EQ(device_->frames_sent(), sent + 1);
+  EXPECT_EQ(device_->writes_refused(), 2u);
 }
 
 }  // namespace
