@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "core/isp/gamma.h"
 #include "genicam/fake_camera_hooks.h"
 #include "host_tools/io/image_write.h"
 #include "host_tools/io/sequence.h"
@@ -40,6 +41,9 @@ constexpr auto kGeometryRegisters = [] {
   for (int i = 0; i < kChunkCount; ++i) r[n++] = reg::SelectedAddress(reg::kChunkEnable, static_cast<size_t>(i));
   return r;
 }();
+// Gamma's range is the core's gamma range (1 / x maps it onto itself).
+static_assert(reg::kMinGamma == GammaStage::kMinGamma && reg::kMaxGamma == GammaStage::kMaxGamma &&
+              reg::kMinGamma * reg::kMaxGamma == 1.0);
 // A frame's chunk bytes after its image: at most 3 bytes of padding, the image's tag and every chunk.
 static_assert(3 + kChunkTagBytes + kChunkCount * (kChunkDataBytes + kChunkTagBytes) <= kMaxChunkTail);
 // The Auto features' limits (Float registers, SFNC names <name>LowerLimit
@@ -500,6 +504,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   register_origins_["pipeline.seed"] = "SimSeed";
   register_origins_["pipeline.stages"] = "SimStageEnable";
   register_origins_["white_balance.gain"] = "BalanceRatio";
+  register_origins_["gamma.gamma"] = "Gamma";
+  register_origins_["gamma.curve"] = "GammaEnable";
   address_ = o.address;
   prime_first_frame_ = o.prime_first_frame;
   if (o.link_mbps < 0 || o.link_mbps > kMaxLinkMbps) {
@@ -542,6 +548,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   sensor_.has_white_balance =
       sensor_.has_isp_rgb && sensor_.cfa != Cfa::kMono &&
       std::find(configured_stages_.begin(), configured_stages_.end(), StageId::kWhiteBalance) != configured_stages_.end();
+  sensor_.has_gamma = sensor_.has_isp_rgb && std::find(configured_stages_.begin(), configured_stages_.end(),
+                                                       StageId::kGamma) != configured_stages_.end();
   if (sensor_.width % 2 || sensor_.height % 2) {
     if (sensor_.cfa != Cfa::kMono) {
       *error = "sensor size " + std::to_string(sensor_.width) + "x" + std::to_string(sensor_.height) +
@@ -724,6 +732,11 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
     for (int i = 0; i < kBalanceCount; ++i)
       SetApplied(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8), DoubleBits(c.white_balance.gain[i]));
   }
+  if (sensor_.has_gamma) {  // off: the configured curve; Gamma from the configured power curve's gamma
+    SetApplied(kGammaEnable, 0);
+    const double g = c.gamma.gamma >= kMinGamma && c.gamma.gamma <= kMaxGamma ? c.gamma.gamma : GammaConfig().gamma;
+    SetApplied(kGamma, DoubleBits(std::clamp(1.0 / g, kMinGamma, kMaxGamma)));
+  }
   seed_register_at_start_ = applied_[kSimSeed];
   Write(SelectedAddress(kLineMode, 0), 0);  // Line0: Input (the trigger)
   Write(SelectedAddress(kLineMode, 1), 1);  // Line1: Output (the strobe)
@@ -879,6 +892,12 @@ bool GigeDevice::PlanFor(const Registers& r, host::PlannedPipeline* planned, std
   if (sensor_.has_white_balance)
     for (int i = 0; i < kBalanceCount; ++i)
       rc.core.white_balance.gain[i] = BitsDouble(r.at(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8)));
+  // GammaEnable: Y^Gamma is the power curve of gamma 1 / Gamma (`camsim run --set gamma.curve="power"
+  // --set gamma.gamma=` that value, to 17 digits, makes the same frames).
+  if (sensor_.has_gamma && r.at(kGammaEnable) != 0) {
+    rc.core.gamma.curve = GammaCurve::kPower;
+    rc.core.gamma.gamma = 1.0 / BitsDouble(r.at(kGamma));
+  }
   // Plan only (no tables): the running renderer stays as it is on failure,
   // and Reconfigure installs this plan.
   if (!renderer_->PlanPipeline(rc, register_origins_, scenes_[0].width, scenes_[0].height, planned, error))
@@ -906,6 +925,10 @@ std::vector<uint64_t> GigeDevice::PlanKey(const Registers& r) const {
   for (size_t i = 0; i < configured_stages_.size(); ++i) key.push_back(r.at(SelectedAddress(kSimStageEnable, i)));
   if (sensor_.has_white_balance)
     for (int i = 0; i < kBalanceCount; ++i) key.push_back(r.at(SelectedAddress(kBalanceRatio, static_cast<size_t>(i), 8)));
+  if (sensor_.has_gamma) {
+    key.push_back(r.at(kGammaEnable));
+    key.push_back(r.at(kGamma));
+  }
   return key;
 }
 
@@ -1266,6 +1289,7 @@ bool GigeDevice::IsPipelineRegister(uint32_t address) const {
     if (address == p) return true;
   if (sensor_.has_white_balance && address >= kBalanceRatio && address < SelectedAddress(kBalanceRatio, kBalanceCount, 8))
     return true;
+  if (sensor_.has_gamma && (address == kGamma || address == kGammaEnable)) return true;
   return address >= kSimStageEnable && address < SelectedAddress(kSimStageEnable, configured_stages_.size());
 }
 

@@ -107,7 +107,9 @@ std::string Hex(uint32_t v) {
 }
 
 bool IsStandard(const std::string& name) {
-  return name.find("Sim") == std::string::npos && name != "ExposureTimeAbs" && name != "GainRaw";
+  // (GammaEnable: the vendors' name, not SFNC's.)
+  return name.find("Sim") == std::string::npos && name != "ExposureTimeAbs" && name != "GainRaw" &&
+         name != "GammaEnable";
 }
 
 // A chunk's value: read from the chunk `chunk` of each frame (Feature::chunk_id).
@@ -422,6 +424,15 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                      "Automatic white balance (gray world on the window): sets the Red and Blue BalanceRatio "
                      "from each frame so its channel means equal Green's (Green stays); Once does it from the "
                      "next frame and returns to Off."));
+  }
+
+  if (s.has_gamma) {
+    t.push_back(Flt("Gamma", an, kGamma, kMinGamma, kMaxGamma,
+                    "Gamma correction Y' = Y^Gamma of the RGB8 frames while GammaEnable is on (the ISP's gamma "
+                    "stage, a power curve of gamma 1 / Gamma; below 1 brightens). Raw formats do not change.",
+                    ""));
+    t.push_back(Bool("GammaEnable", an, kGammaEnable, true,
+                     "On: the gamma stage applies Gamma; off: it applies the configured [gamma] curve."));
   }
 
   const char* io = "DigitalIOControl";

@@ -162,6 +162,12 @@ inline constexpr double kMaxTriggerDelayUs = 1e7;
 // an 8-byte Float, read-only; its range is the core's (core/sensor/emva.cc).
 inline constexpr uint32_t kDeviceTemperatureSelector = 0x8438, kDeviceTemperature = 0x8440;
 inline constexpr double kMinSensorTemperatureC = -100.0, kMaxSensorTemperatureC = 150.0;
+// Gamma (SFNC AnalogControl: Y' = Y^Gamma, an 8-byte Float) and GammaEnable
+// (on: the ISP's gamma stage encodes Y^Gamma, its power curve of gamma 1 /
+// Gamma; off: the configured [gamma] curve). Gamma's range is the core's
+// gamma range (core/isp/gamma.h), which 1 / x maps onto itself.
+inline constexpr uint32_t kGamma = 0x8448, kGammaEnable = 0x8450;
+inline constexpr double kMinGamma = 0.1, kMaxGamma = 10.0;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
@@ -255,6 +261,8 @@ struct SensorInfo {
   // The configured pipeline has the white balance stage on a Bayer sensor
   // and ends in RGB8: BalanceRatio, BalanceRatioSelector, BalanceWhiteAuto.
   bool has_white_balance = false;  // a trigger input (--trigger-line): TriggerSource Line0 is available
+  // The configured pipeline has the gamma stage and ends in RGB8: Gamma, GammaEnable.
+  bool has_gamma = false;
   std::vector<std::string> stage_names;  // configured stages (SimStageSelector entries)
   // SimFocusDistance's Min: a value the device accepts (with depth of field,
   // the next whole millimetre beyond the focal length).

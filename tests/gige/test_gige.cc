@@ -203,6 +203,7 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
   s.scene_count = 3;
   s.has_isp_rgb = true;
   s.stage_names = {"exposure", "sensor", "gamma"};
+  s.has_gamma = true;  // Gamma, GammaEnable
   const auto table = genicam::RegisterTable(s);
   const std::string xml = genicam::GenerateXml(table, genicam::DeviceStrings());
   ArvGc* gc = arv_gc_new(nullptr, xml.data(), xml.size());
@@ -412,6 +413,7 @@ TEST(GigeRegisterTable, AddressesDoNotOverlap) {
   s.width = 64;
   s.height = 48;
   s.has_white_balance = true;  // BalanceRatio's registers too
+  s.has_gamma = true;          // and Gamma's
   // As many stages as a pipeline can have: every SimStageEnable register.
   for (int i = 0; i < kStageCount; ++i) s.stage_names.push_back("stage" + std::to_string(i));
   const auto t = genicam::FeatureRegisters(genicam::RegisterTable(s));
@@ -4831,6 +4833,53 @@ TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
   EXPECT_TRUE(c.Grab(400).empty());
   EXPECT_EQ(device_->frames_sent(), sent + 1);
   EXPECT_EQ(device_->writes_refused(), 2u);
+}
+
+// Gamma (SFNC: Y' = Y^Gamma) with GammaEnable drives the ISP's gamma stage:
+// on, the RGB8 frame is the core's with the power curve of gamma 1 / Gamma
+// (`camsim run --set gamma.curve="power" --set gamma.gamma=2` for Gamma
+// 0.5), byte for byte; off, the configured sRGB curve. Gamma below 1
+// brightens. The raw format does not change; out-of-range values are refused.
+TEST_F(GigeE2E, GammaDrivesTheIspsGammaStage) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "GammaEnable", nullptr));
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gamma"), 1.0 / 2.2);  // the core's default power-curve gamma
+  const auto mean = [](const std::vector<uint8_t>& f) {
+    double sum = 0;
+    for (const uint8_t v : f) sum += v;
+    return f.empty() ? 0.0 : sum / static_cast<double>(f.size());
+  };
+  const std::vector<uint8_t> raw_off = GrabAt(c, "BayerRG12", 6);
+  const std::vector<uint8_t> off = GrabAt(c, "RGB8", 6);
+  ASSERT_EQ(off.size(), size_t{64} * 48 * 3);
+  EXPECT_TRUE(off == Reference(6, genicam::kRGB8, 0, 0, 64, 48)) << "GammaEnable off: the configured sRGB curve";
+  SetFloat(c, "Gamma", 0.5);
+  arv_camera_set_boolean(c.camera(), "GammaEnable", TRUE, nullptr);
+  Settle();
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "GammaEnable", nullptr));
+  const std::vector<uint8_t> bright = GrabIndex(c, 6);
+  EXPECT_TRUE(bright == Reference(6, genicam::kRGB8, 0, 0, 64, 48, {"gamma.curve=\"power\"", "gamma.gamma=2"}))
+      << "Gamma 0.5 is not the power curve of gamma 2";
+  EXPECT_FALSE(bright == off);
+  SetFloat(c, "Gamma", 2.0);
+  Settle();
+  const std::vector<uint8_t> dark = GrabIndex(c, 6);
+  EXPECT_TRUE(dark == Reference(6, genicam::kRGB8, 0, 0, 64, 48, {"gamma.curve=\"power\"", "gamma.gamma=0.5"}))
+      << "Gamma 2 is not the power curve of gamma 0.5";
+  EXPECT_GT(mean(bright), mean(dark) + 20) << "Y' = Y^Gamma: Gamma 0.5 brightens, 2 darkens";
+  EXPECT_TRUE(GrabAt(c, "BayerRG12", 6) == raw_off) << "the raw format changed with Gamma";
+  GError* e = nullptr;
+  for (const double bad : {0.05, 10.5}) {
+    arv_camera_set_float(c.camera(), "Gamma", bad, &e);
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+        << bad << ": " << (e != nullptr ? e->message : "no error");
+    g_clear_error(&e);
+  }
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gamma"), 2.0);
+  arv_camera_set_boolean(c.camera(), "GammaEnable", FALSE, nullptr);
+  Settle();
+  EXPECT_TRUE(GrabAt(c, "RGB8", 6) == off) << "GammaEnable off again: the configured curve";
 }
 
 }  // namespace
