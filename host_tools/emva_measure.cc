@@ -265,6 +265,22 @@ EmvaFigures ConfiguredEmva(const RunConfig& config) {
   return f;
 }
 
+double DcnuPercentForSpreadRatio(double ratio_percent) {
+  const auto ratio = [](double percent) {
+    double mean = 1.0, rms = 0.0;
+    DcnuFactor(percent, &mean, &rms);
+    return 100.0 * rms / mean;
+  };
+  if (!(ratio_percent > 0)) return 0.0;
+  if (ratio_percent >= ratio(100.0)) return 100.0;
+  double lo = 0.0, hi = 100.0;  // the ratio grows with the percentage
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (ratio(mid) < ratio_percent ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 bool FullWellForEmvaSaturation(const RunConfig& config, double saturation_e, double* full_well_e,
                                std::string* error) {
   RunConfig c = config;

@@ -134,6 +134,13 @@ double EmvaDynamicRangeBits(double saturation_e, double dark_var_dn2, double sys
 bool NonUniformity(const FrameStack& dark, const FrameStack& bright, double system_gain, double* dsnu_e,
                    double* prnu_percent, std::string* error);
 
+// DCNU in the clipped-normal model (core/sensor/emva.h): the
+// sensor.dcnu_percent whose pixels' dark currents have this rms over their
+// mean (%); the same below ~30 %, above it the clamp at 0 lifts the mean and
+// trims the spread (80 % reads as 70 %). 100 when the ratio is at or beyond
+// 100 %'s (80 %), the most the model has.
+double DcnuPercentForSpreadRatio(double ratio_percent);
+
 // The measured-versus-configured table as text.
 std::string FormatEmvaReport(const std::string& title, const EmvaReport& report);
 
