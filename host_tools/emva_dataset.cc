@@ -132,9 +132,10 @@ class ImageReader {
 };
 
 // Mean of a pair, its temporal variance (of the difference, / 2) and, unless
-// zero_share is null, the share of its pixels (both images) that read 0.
+// null, the share of its pixels (both images) that read 0 and the spatial
+// variance of the pair's average (temporal share included).
 bool PairOf(const ImageReader& r, const Series& s, double* mean, double* var, double* zero_share,
-            std::string* error) {
+            double* spatial_var, std::string* error) {
   std::vector<uint16_t> a, b;
   if (!r.Read(s.images[0], &a, error) || !r.Read(s.images[1], &b, error)) return false;
   const double n = static_cast<double>(a.size());
@@ -150,6 +151,14 @@ bool PairOf(const ImageReader& r, const Series& s, double* mean, double* var, do
   if (zero_share != nullptr) *zero_share = static_cast<double>(zeros) / (2 * n);
   *mean = sum / (2 * n);
   *var = (dsq / n - (dsum / n) * (dsum / n)) * n / (n - 1) / 2;
+  if (spatial_var != nullptr) {
+    double ss = 0;
+    for (size_t i = 0; i < a.size(); ++i) {
+      const double d = 0.5 * (static_cast<double>(a[i]) + b[i]) - *mean;
+      ss += d * d;
+    }
+    *spatial_var = ss / (n - 1);
+  }
   return true;
 }
 
@@ -180,6 +189,54 @@ bool StackOf(const ImageReader& r, const Series& s, FrameStack* out, std::string
   return true;
 }
 
+// Fits the dark pairs' spatial variance as a + b t^2 (least squares):
+// sqrt(b) / K is the dark current's spatial rms. Not measurable with fewer
+// than 2 exposure times, or when the mean dark signal grows by less than
+// 1 e- over them (no dark current to take a spread of).
+DcnuEstimate EstimateDcnu(std::vector<DcnuPoint> points, double dark_current_e, double K) {
+  DcnuEstimate e;
+  std::sort(points.begin(), points.end(),
+            [](const DcnuPoint& a, const DcnuPoint& b) { return a.exposure < b.exposure; });
+  e.points = points;
+  size_t times = 0;
+  for (size_t i = 0; i < points.size(); ++i) times += i == 0 || points[i].exposure != points[i - 1].exposure;
+  char b[300];
+  if (times < 2) {
+    std::snprintf(b, sizeof b, "the dark pairs are at %zu exposure time; the spread's growth needs 2 or more", times);
+    e.not_measurable = b;
+    return e;
+  }
+  const double t_min = points.front().exposure, t_max = points.back().exposure;
+  const double growth_e = dark_current_e * (t_max - t_min);
+  if (!(growth_e >= 1.0)) {
+    std::snprintf(b, sizeof b,
+                  "the mean dark signal grows by %.3g e- from exposure %g to %g, less than 1 e-: no dark current to "
+                  "take a spread of",
+                  growth_e, t_min, t_max);
+    e.not_measurable = b;
+    return e;
+  }
+  double sx = 0, sy = 0;
+  for (const DcnuPoint& p : points) sx += p.exposure * p.exposure, sy += p.spatial_var_dn2;
+  const double n = static_cast<double>(points.size());
+  sx /= n;
+  sy /= n;
+  double sxx = 0, sxy = 0;
+  for (const DcnuPoint& p : points) {
+    const double x = p.exposure * p.exposure - sx;
+    sxx += x * x;
+    sxy += x * (p.spatial_var_dn2 - sy);
+  }
+  e.slope_dn2 = sxy / sxx;
+  e.intercept_dn2 = sy - e.slope_dn2 * sx;
+  e.measured = true;
+  // A spread that does not grow (noise around 0) is no DCNU.
+  e.spread_e = std::sqrt(std::max(0.0, e.slope_dn2)) / K;
+  e.ratio_percent = 100.0 * e.spread_e / dark_current_e;
+  e.dcnu_percent = DcnuPercentForSpreadRatio(e.ratio_percent);
+  return e;
+}
+
 }  // namespace
 
 bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std::string* error) {
@@ -193,7 +250,7 @@ bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std:
 
   // Dark pairs by exposure; the shortest gives sigma_d and the black level.
   struct DarkPair {
-    double exposure, mean, var;
+    double exposure, mean, var, spatial_var;
   };
   std::vector<DarkPair> darks;
   const Series* dark_stack = nullptr;
@@ -204,9 +261,9 @@ bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std:
       continue;
     }
     if (s.bright) continue;
-    DarkPair p{s.exposure, 0, 0};
+    DarkPair p{s.exposure, 0, 0, 0};
     double zero_share = 0;
-    if (!PairOf(reader, s, &p.mean, &p.var, &zero_share, error)) return false;
+    if (!PairOf(reader, s, &p.mean, &p.var, &zero_share, &p.spatial_var, error)) return false;
     // A dark pair at 0 is clipped (the dark stack is taken at one of the pairs' exposures).
     if (zero_share > kEmvaMaxDarkZeroShare) {
       char b[300];
@@ -238,7 +295,7 @@ bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std:
     }
     TransferLevel l;
     l.photons = s.photons;
-    if (!PairOf(reader, s, &l.mean, &l.var, nullptr, error)) return false;
+    if (!PairOf(reader, s, &l.mean, &l.var, nullptr, nullptr, error)) return false;
     l.dark_mean = dark->mean;
     l.dark_var = dark->var;
     levels.push_back(l);
@@ -263,6 +320,9 @@ bool MeasureEmvaDataset(const std::string& path, EmvaDatasetReport* report, std:
     return false;
   }
   r.dark_current_e = dark_slope_dn / r.fit.system_gain;
+  std::vector<DcnuPoint> points;
+  for (const DarkPair& p : darks) points.push_back({p.exposure, p.spatial_var - p.var / 2, p.var});
+  r.dcnu = EstimateDcnu(points, r.dark_current_e, r.fit.system_gain);
   if (dark_stack != nullptr && bright_stack != nullptr) {
     FrameStack ds, bs;
     if (!StackOf(reader, *dark_stack, &ds, error) || !StackOf(reader, *bright_stack, &bs, error)) return false;
@@ -292,6 +352,25 @@ std::string FormatEmvaDatasetReport(const std::string& descriptor, const EmvaDat
                 r.fit.dynamic_range_bits, "maximum SNR", r.fit.snr_max, "dark level (DN)", r.dark_mean_dn,
                 "dark current (e-)", r.dark_current_e, r.fit.saturation_photons, r.fit.fit_points);
   std::string t = b;
+  const DcnuEstimate& dc = r.dcnu;
+  if (dc.measured) {
+    std::snprintf(b, sizeof b,
+                  "%-30s %12.4g  (per unit of exposure as written)\n%-30s %12.4g  (sensor.dcnu_percent %.4g in "
+                  "camsim's clipped-normal model)\n(DCNU: the dark pairs' spatial variance, temporal / 2 removed, "
+                  "fitted as a + b t^2: a %.4g DN^2, b %.4g DN^2 per unit^2%s)\n%14s %16s %12s %16s\n",
+                  "DCNU (e-, dark current rms)", dc.spread_e, "DCNU (% of the dark current)", dc.ratio_percent,
+                  dc.dcnu_percent, dc.intercept_dn2, dc.slope_dn2,
+                  dc.slope_dn2 > 0 ? "" : "; it does not grow: no DCNU", "exposure", "spatial (DN^2)", "fit (DN^2)",
+                  "temporal (DN^2)");
+    t += b;
+    for (const DcnuPoint& p : dc.points) {
+      std::snprintf(b, sizeof b, "%14g %16.4g %12.4g %16.4g\n", p.exposure, p.spatial_var_dn2,
+                    dc.intercept_dn2 + dc.slope_dn2 * p.exposure * p.exposure, p.temporal_var_dn2);
+      t += b;
+    }
+  } else {
+    t += "DCNU: not measurable: " + dc.not_measurable + "\n";
+  }
   // EMVA 1288 4.0: a dark variance below 0.24 DN^2 gives only an upper limit.
   if (r.fit.dark_noise_upper_limit)
     t += "note: the temporal dark noise is an upper limit, and the dynamic range a lower one: the dark variance is "
@@ -312,6 +391,10 @@ std::string FormatEmvaDatasetReport(const std::string& descriptor, const EmvaDat
   t += b;
   if (r.has_nonuniformity) {
     std::snprintf(b, sizeof b, "dsnu_e = %.2f\nprnu_percent = %.2f\n", r.dsnu_e, r.prnu_percent);
+    t += b;
+  }
+  if (dc.measured) {
+    std::snprintf(b, sizeof b, "dcnu_percent = %.2f\n", dc.dcnu_percent);
     t += b;
   }
   return t;
