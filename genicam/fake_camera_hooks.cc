@@ -620,8 +620,8 @@ void ResendPackets(const uint8_t* data, uint16_t length, bool extended) {
     const uint8_t p[kGvspHeaderBytes] = {uint8_t(status >> 8), uint8_t(status),   uint8_t(block >> 8),
                                          uint8_t(block),       kGvspPayload, uint8_t(first >> 16),
                                          uint8_t(first >> 8),  uint8_t(first)};
+    ++g_resend_refusals;  // before the packet: a receiver may look at the count once it has it
     send(k.socket, to, reinterpret_cast<const gchar*>(p), sizeof p, nullptr, nullptr);
-    ++g_resend_refusals;
   };
   const SentFrame* frame = nullptr;
   for (const SentFrame& f : k.frames)
@@ -642,8 +642,8 @@ void ResendPackets(const uint8_t* data, uint16_t length, bool extended) {
       const auto [offset, size] = frame->at[id];
       if (size == 0) continue;
       WaitForSlot(&next_ns, size, t_stream.link_bits_per_s, t_stream.packet_delay_ns);
-      send(k.socket, to, reinterpret_cast<const gchar*>(frame->bytes.data() + offset), size, nullptr, nullptr);
       ++g_resent_packets;
+      send(k.socket, to, reinterpret_cast<const gchar*>(frame->bytes.data() + offset), size, nullptr, nullptr);
     }
   }
   g_object_unref(to);
