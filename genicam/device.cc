@@ -52,6 +52,15 @@ struct AutoLimits {
   uint32_t lower, upper;
   const char* name;
 };
+// Features the auto loop owns while their Auto feature is not Off (the
+// XML's pIsLocked): a client's change is refused, access denied.
+struct AutoLock {
+  uint32_t address, auto_address;
+  const char* auto_name;
+};
+constexpr AutoLock kAutoLocks[] = {{reg::kExposureTime, reg::kExposureAuto, "ExposureAuto"},
+                                   {reg::kGain, reg::kGainAuto, "GainAuto"},
+                                   {reg::kGainRaw, reg::kGainAuto, "GainAuto"}};
 constexpr AutoLimits kAutoLimits[] = {
     {reg::kAutoExposureTimeLowerLimit, reg::kAutoExposureTimeUpperLimit, "AutoExposureTime"},
     {reg::kAutoGainLowerLimit, reg::kAutoGainUpperLimit, "AutoGain"}};
@@ -1114,6 +1123,27 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     set_back(reg::kPacketSize);
     refuse(GevStatus::kAccessDenied, what, lock_reason);
   }
+  // ExposureTime, Gain and GainRaw while their Auto feature (as the block
+  // leaves it) is Once or Continuous: the auto loop sets them. Before their
+  // values, as the payload's lock.
+  for (const AutoLock& l : kAutoLocks) {
+    const uint32_t mode = covers(l.auto_address) ? value(l.auto_address) : d->Read(l.auto_address);
+    if (mode == kAutoOff) continue;
+    for (const Feature& f : d->registers_) {
+      if (f.address != l.address || !f.alias_of.empty()) continue;
+      bool touched = false;
+      uint64_t v = 0;  // the value as the write leaves it
+      for (uint32_t r = f.address; r < f.address + f.length; r += 4) {
+        touched = touched || covers(r);
+        v = v << 32 | (covers(r) ? value(r) : d->Read(r));
+      }
+      if (!touched || v == d->ReadFeature(f)) continue;
+      set_back_feature(f);
+      refuse(GevStatus::kAccessDenied, d->RegisterName(f) + " = " + d->ValueText(f, v),
+             std::string(l.auto_name) + " is " + (mode == kAutoOnce ? "Once" : "Continuous") +
+                 " (the auto loop sets it; locked until " + l.auto_name + " is Off)");
+    }
+  }
   for (const Feature& f : d->registers_) {
     if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
@@ -1626,6 +1656,9 @@ void GigeDevice::AutoAdjust(double frac) {
   // applied values, which this may replace. (A served camera fills frames on
   // its GVCP thread, which also runs the filter; RenderNow may not.)
   const ClientWritesHeld hold(fake_);
+  // A client changed a mode since the sync (ExposureAuto Off, then maybe
+  // ExposureTime): the sync takes it; no step over those writes.
+  if (Read(kExposureAuto) != ea || Read(kGainAuto) != ga) return;
   // The core's controller (core/control/auto_exposure.h) with the features
   // that are Off held at their current value, and those that are on in
   // their Auto limits (which register_table.cc keeps inside the features'

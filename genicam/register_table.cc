@@ -371,7 +371,15 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   resulting.writable = false;
   t.push_back(resulting);
   // The core's whole range (core/aperture/exposure.cc): any configured exposure is reported as rendered.
-  t.push_back(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8, "Exposure time.", "us"));
+  // Locked while ExposureAuto is not Off: the auto loop sets it (SFNC; the device refuses a change).
+  const auto auto_locked = [](Feature f, const char* auto_name) {
+    f.locked_formula = "A<>" + std::to_string(kAutoOff);
+    f.variables = {{"A", auto_name}};
+    return f;
+  };
+  t.push_back(auto_locked(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8,
+                              "Exposure time (read-only while ExposureAuto is Once or Continuous).", "us"),
+                          "ExposureAuto"));
   t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));
   t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
                    {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
@@ -399,12 +407,17 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.back().variables = {{"M", "TriggerMode"}, {"S", "TriggerSource"}};
 
   const char* an = "AnalogControl";
-  t.push_back(Flt("Gain", an, kGain, 0.0, 48.0,
-                  "Analog gain (amplifies signal and noise), in GainRaw's 0.1 dB steps: a value between "
-                  "steps is applied and reads back as the nearest one.",
-                  "dB"));
+  t.push_back(auto_locked(Flt("Gain", an, kGain, 0.0, 48.0,
+                              "Analog gain (amplifies signal and noise), in GainRaw's 0.1 dB steps: a value between "
+                              "steps is applied and reads back as the nearest one. Read-only while GainAuto is "
+                              "Once or Continuous.",
+                              "dB"),
+                          "GainAuto"));
   t.back().inc = 0.1;
-  t.push_back(Int("GainRaw", an, kGainRaw, true, 0, 480, 1, "Analog gain in 0.1 dB steps (Aravis fake camera name)."));
+  t.push_back(auto_locked(Int("GainRaw", an, kGainRaw, true, 0, 480, 1,
+                              "Analog gain in 0.1 dB steps (Aravis fake camera name; read-only while GainAuto is "
+                              "not Off)."),
+                          "GainAuto"));
   t.push_back(Enum("GainAuto", an, kGainAuto, true, {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
                    "Automatic gain, used when ExposureAuto alone cannot reach SimAutoTarget."));
   PushAutoLimits(&t, *FindFeature(t, "Gain"), "AutoGain", "GainAuto", kAutoGainLowerLimit, kAutoGainUpperLimit);
@@ -678,7 +691,15 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
     const std::string head =
         "  <!-- " + (f.chunk_id != 0 ? "chunk " + Hex(f.chunk_id) + ", at " : std::string()) + Hex(f.address) + " -->\n";
     const std::string locked =
-        f.locked_while_acquiring ? std::string("    <pIsLocked>") + kPayloadLocked + "</pIsLocked>\n" : "";
+        f.locked_while_acquiring ? std::string("    <pIsLocked>") + kPayloadLocked + "</pIsLocked>\n"
+        : f.locked_formula.empty() ? ""
+                                   : "    <pIsLocked>" + f.name + "Locked</pIsLocked>\n";
+    if (!f.locked_while_acquiring && !f.locked_formula.empty()) {
+      swiss_knives << "  <IntSwissKnife Name=\"" << f.name << "Locked\" NameSpace=\"Custom\">\n";
+      for (const auto& v : f.variables)
+        swiss_knives << "    <pVariable Name=\"" << v.first << "\">" << VariableNode(v.second) << "</pVariable>\n";
+      swiss_knives << "    <Formula>" << Xml(f.locked_formula) << "</Formula>\n  </IntSwissKnife>\n";
+    }
     // Written after the Description, with pIsLocked (GenApi's order).
     const std::string available =
         f.available_formula.empty() ? "" : "    <pIsAvailable>" + f.name + "Available</pIsAvailable>\n";
@@ -727,7 +748,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         break;
       case Kind::kFloat:
         x << "  <Float Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n" << available
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available << locked
           << "    <pValue>" << regname << "</pValue>\n";
         if (f.min_feature.empty()) x << "    <Min>" << Num(f.min) << "</Min>\n";
         else x << "    <pMin>" << f.min_feature << "Reg</pMin>\n";
@@ -772,7 +793,7 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
         break;
       case Kind::kCommand:
         x << "  <Command Name=\"" << f.name << "\" NameSpace=\"" << ns << "\">\n"
-          << "    <Description>" << Xml(f.description) << "</Description>\n" << available
+          << "    <Description>" << Xml(f.description) << "</Description>\n" << available << locked
           << "    <pValue>" << regname << "</pValue>\n    <CommandValue>" << f.command_value << "</CommandValue>\n"
           << "  </Command>\n";
         break;

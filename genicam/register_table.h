@@ -50,7 +50,7 @@ struct Feature {
   int64_t command_value = 1;         // Command
   std::string alias_of;              // another feature sharing this register (same checks)
   std::string formula;               // kSwissKnife: formula over the variables
-  std::vector<std::pair<std::string, std::string>> variables;  // (variable, feature) of formula or max_formula
+  std::vector<std::pair<std::string, std::string>> variables;  // (variable, feature) of the formulas
   // kInteger: a maximum that follows other registers (GenICam pMax, an
   // IntSwissKnife over `variables`); `max` stays the largest it can be.
   std::string max_formula;
@@ -80,6 +80,10 @@ struct Feature {
   // Locked (GenICam pIsLocked: not writable) during an acquisition or while
   // TLParamsLocked is 1, as the device then refuses writes (the payload).
   bool locked_while_acquiring = false;
+  // Nonempty (and not locked_while_acquiring): locked while this formula
+  // over `variables` is nonzero (pIsLocked, an IntSwissKnife); the device
+  // refuses a change then, e.g. ExposureTime while ExposureAuto is not Off.
+  std::string locked_formula;
 };
 
 // Register addresses (named once, used by the table, the device and the tests).

@@ -4326,6 +4326,95 @@ TEST_F(GigeE2E, AutoContinuousReachesTheTargetWithTheFeaturesThatAreOn) {
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), exposure) << "ExposureAuto is Off";
 }
 
+// SFNC: the auto loop owns ExposureTime (GainAuto: Gain and GainRaw) while
+// its Auto feature is Once or Continuous. The XML locks them (pIsLocked over
+// the Auto register) and the device refuses a raw write that changes one,
+// access denied, logging why; Off (set by the client, or by Once itself
+// when it settles) makes them writable again.
+TEST_F(GigeE2E, ExposureTimeAndGainAreLockedWhileTheirAutoIsOn) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ArvGc* gc = arv_device_get_genicam(c.device());
+  const auto locked = [gc](const char* name) {
+    ArvGcNode* node = arv_gc_get_node(gc, name);
+    EXPECT_NE(node, nullptr) << name;
+    return node != nullptr && arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr);
+  };
+  // A raw write of a new value: refused with access denied, the reason logged, the value kept.
+  const auto refused = [&](const char* name, uint32_t address, const std::vector<uint8_t>& bytes, const char* why) {
+    const auto read = [&] { return std::string(name) == "GainRaw" ? double(ReadInt(c, name)) : ReadFloat(c, name); };
+    const double before = read();
+    testing::internal::CaptureStderr();
+    GError* e = nullptr;
+    std::vector<uint8_t> b = bytes;
+    arv_device_write_memory(c.device(), address, static_cast<guint32>(b.size()), b.data(), &e);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << name << ": " << (e != nullptr ? e->message : "no error: written");
+    g_clear_error(&e);
+    EXPECT_NE(err.find(std::string("camsim-gige: refused ") + name), std::string::npos) << err;
+    EXPECT_NE(err.find(why), std::string::npos) << err;
+    EXPECT_DOUBLE_EQ(read(), before) << name;
+  };
+  for (const char* name : {"ExposureTime", "ExposureTimeAbs", "Gain", "GainRaw"}) EXPECT_FALSE(locked(name)) << name;
+  SetFloat(c, "ExposureTime", 8000.0);
+  SetFloat(c, "Gain", 2.0);
+  Set(c, "ExposureAuto", "Continuous");
+  Settle();
+  EXPECT_TRUE(locked("ExposureTime"));
+  EXPECT_TRUE(locked("ExposureTimeAbs"));
+  EXPECT_FALSE(locked("Gain")) << "GainAuto is Off";
+  ASSERT_NO_FATAL_FAILURE(refused("ExposureTime", reg::kExposureTime, Be64(1234.0),
+                                  "ExposureAuto is Continuous (the auto loop sets it"));
+  GError* e = nullptr;
+  arv_camera_set_float(c.camera(), "ExposureTime", 1234.0, &e);
+  EXPECT_NE(e, nullptr) << "a locked ExposureTime written through GenApi";
+  g_clear_error(&e);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 8000.0) << "no frame yet: the loop has not moved it";
+  // The value it holds passes (a client writing back what it read).
+  std::vector<uint8_t> same = Be64(8000.0);
+  arv_device_write_memory(c.device(), reg::kExposureTime, 8, same.data(), &e);
+  EXPECT_EQ(e, nullptr) << e->message;
+  g_clear_error(&e);
+  Set(c, "GainAuto", "Continuous");
+  Settle();
+  EXPECT_TRUE(locked("Gain"));
+  EXPECT_TRUE(locked("GainRaw"));
+  ASSERT_NO_FATAL_FAILURE(refused("Gain", reg::kGain, Be64(6.0), "GainAuto is Continuous"));
+  ASSERT_NO_FATAL_FAILURE(refused("GainRaw", reg::kGainRaw, Be32(60), "GainAuto is Continuous"));
+  EXPECT_EQ(ReadInt(c, "GainRaw"), 20);
+  // Off: writable at once (no sync in between).
+  Set(c, "ExposureAuto", "Off");
+  Set(c, "GainAuto", "Off");
+  EXPECT_FALSE(locked("ExposureTime"));
+  EXPECT_FALSE(locked("Gain"));
+  SetFloat(c, "ExposureTime", 5000.0);
+  SetInt(c, "GainRaw", 30);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 5000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 3.0);
+  // Once: locked until it has settled and returned to Off by itself.
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const double level = MeanLevel12(c.Grab(3000));
+  c.CloseStream();
+  SetFloat(c, "SimAutoTarget", 0.6 * level);
+  Set(c, "ExposureAuto", "Once");
+  Settle();
+  EXPECT_TRUE(locked("ExposureTime"));
+  ASSERT_NO_FATAL_FAILURE(refused("ExposureTime", reg::kExposureTime, Be64(1234.0), "ExposureAuto is Once"));
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  for (int i = 0; i < 4; ++i) ASSERT_FALSE(c.Grab(3000).empty());
+  c.CloseStream();
+  Settle();
+  ASSERT_STREQ(arv_camera_get_string(c.camera(), "ExposureAuto", nullptr), "Off") << "Once turns itself off";
+  EXPECT_FALSE(locked("ExposureTime"));
+  SetFloat(c, "ExposureTime", 1234.0);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 1234.0);
+}
+
 // The Auto limits are features an Aravis client reads and writes; each
 // bound of a lower limit (upper limit) that is the other's value reads it.
 TEST_F(GigeE2E, AutoLimitsAreFeaturesBoundingEachOther) {
