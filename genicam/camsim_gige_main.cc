@@ -18,7 +18,7 @@ const char kUsage[] =
     "usage: camsim-gige (--input EXR... | --pattern NAME) [--config FILE] [--set section.key=value]...\n"
     "                   [--address 127.0.0.1] [--serial CS0001] [--trigger-line CHIP:OFFSET|unix:DIR]\n"
     "                   [--strobe-line CHIP:OFFSET|unix:DIR] [--threads N] [--xml-out FILE] [--frames N]\n"
-    "                   [--link-mbps 1000]\n"
+    "                   [--link-mbps 1000] [--user-set-file PATH]\n"
     "  Serves the pipeline's frames as an Aravis fake GigE Vision camera on ADDRESS\n"
     "  (connect by that address). NAME: gradient, checker, flat (size from [sensor]\n"
     "  width/height, else 640x480; depth: a plane from 0.5 m at the left edge to\n"
@@ -27,7 +27,10 @@ const char kUsage[] =
     "  bus shared by a rig of cameras (fire it with camsim-trigger). Receivers at\n"
     "  1080p need a 4 MiB socket buffer: see docs/gige.md. --link-mbps M: the stream's\n"
     "  packets leave no faster than an M Mb/s Ethernet link carries them (default\n"
-    "  1000, GigE; 0 = as fast as the host sends), plus GevSCPD after each.\n";
+    "  1000, GigE; 0 = as fast as the host sends), plus GevSCPD after each.\n"
+    "  --user-set-file PATH: UserSetSave and UserSetDefault are kept in PATH (created\n"
+    "  by the first save) and the start loads UserSetDefault's set from it; without\n"
+    "  it user sets last as long as the process.\n";
 
 // The whole of s as a decimal integer in [min, max] (no spaces, no '+').
 bool ParseInt(const std::string& s, long min, long max, long* out) {
@@ -68,6 +71,7 @@ int main(int argc, char** argv) {
     else if (a == "--trigger-line") o.trigger_line = value();
     else if (a == "--strobe-line") o.strobe_line = value();
     else if (a == "--xml-out") o.xml_path = value();
+    else if (a == "--user-set-file") o.user_set_file = value();
     else if (a == "--threads" || a == "--frames" || a == "--link-mbps") {
       const std::string v = value();
       const long min = a == "--threads" ? 1 : 0,

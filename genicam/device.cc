@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 
 #include "core/isp/gamma.h"
 #include "genicam/fake_camera_hooks.h"
@@ -64,6 +65,18 @@ constexpr AutoLock kAutoLocks[] = {{reg::kExposureTime, reg::kExposureAuto, "Exp
 constexpr AutoLimits kAutoLimits[] = {
     {reg::kAutoExposureTimeLowerLimit, reg::kAutoExposureTimeUpperLimit, "AutoExposureTime"},
     {reg::kAutoGainLowerLimit, reg::kAutoGainUpperLimit, "AutoGain"}};
+
+// The features a user set holds (SFNC UserSetControl): the writable
+// settings of the image, acquisition, trigger, analog, line, chunk and
+// simulation features, not the transport layer's, the selectors, commands
+// or SimFrameIndex (a running count). Each selected one with every selection.
+constexpr const char* kUserSetFeatures[] = {
+    "Width", "Height", "OffsetX", "OffsetY", "ReverseX", "ReverseY", "PixelFormat", "AcquisitionMode",
+    "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureTime", "ExposureAuto",
+    "AutoExposureTimeLowerLimit", "AutoExposureTimeUpperLimit", "TriggerMode", "TriggerSource", "TriggerActivation",
+    "TriggerDelay", "Gain", "GainAuto", "AutoGainLowerLimit", "AutoGainUpperLimit", "BlackLevel", "BalanceRatio",
+    "BalanceWhiteAuto", "Gamma", "GammaEnable", "LineSource", "ChunkModeActive", "ChunkEnable", "SimFNumber",
+    "SimFocusDistance", "SimSeed", "SimStageEnable", "SimAutoTarget"};
 
 // A stable MAC address for a serial number: locally administered unicast
 // (first byte 0x02) and 40 bits of the serial's FNV-1a hash, so the
@@ -729,6 +742,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kReverseY, 0},
       {kDeviceTemperatureSelector, 0},
       {kDeviceTemperature, DoubleBits(c.sensor.temperature_c)},  // the core checked it: [-100, 150]
+      {kUserSetSelector, kUserSetDefaultSet},
+      {kUserSetDefault, kUserSetDefaultSet},
   };
   std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& iv : initial) SetApplied(static_cast<uint32_t>(iv[0]), iv[1]);
@@ -753,6 +768,15 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   Write(kTriggerSoftware, 0);
   WriteDerived();
   ready_ = true;  // the values in use are set: the filter may plan on them
+  // User sets: Default is this start-up configuration; the file's sets and
+  // UserSetDefault's set load through the filter, as a client's writes.
+  user_sets_[0] = {true, UserSetNow()};
+  for (int i = 1; i < kUserSetCount; ++i) user_sets_[i] = {false, user_sets_[0].values};
+  user_set_file_ = o.user_set_file;
+  if (!user_set_file_.empty()) {
+    const ClientWritesHeld hold(fake_);
+    if (!ReadUserSetFile(error)) return false;
+  }
   arv_fake_camera_set_fill_pattern(fake_, &GigeDevice::FillThunk, this);
   if (!o.serve) return true;
   sync_thread_ = std::thread([this] { SyncLoop(); });
@@ -1056,6 +1080,47 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     d->Write(reg::kAcquisition, command == reg::kAcquisitionStart);
     return {false, GevStatus::kSuccess};
   }
+  // UserSetLoad and UserSetSave (value 1, alone): carried out as they
+  // arrive, not stored (read back 0). A load changes the payload's
+  // registers, so it is locked as they are; Default is read-only.
+  if (covers(reg::kUserSetLoad) || covers(reg::kUserSetSave)) {
+    const bool load = covers(reg::kUserSetLoad);
+    const uint32_t command = load ? reg::kUserSetLoad : reg::kUserSetSave;
+    const int64_t set = d->Read(reg::kUserSetSelector);
+    const std::string what = std::string(load ? "UserSetLoad" : "UserSetSave") + "[" + UserSetName(set) + "]";
+    if (size != 4 || value(command) != 1) {
+      ++d->writes_refused_;
+      d->LogRefusal(what + " = " + std::to_string(value(command)),
+                    size != 4 ? "a command is written alone" : "its CommandValue is 1");
+      return {false, GevStatus::kInvalidParameter};
+    }
+    GevStatus status = GevStatus::kSuccess;
+    std::string why;
+    if (load && (d->Read(reg::kAcquisition) != 0 || d->restarting_)) {
+      status = GevStatus::kAccessDenied;
+      why = "acquisition running (a user set changes the payload's registers, which are locked)";
+    } else if (load && d->Read(reg::kTLParamsLocked) == 1) {
+      status = GevStatus::kAccessDenied;
+      why = "TLParamsLocked is 1 (a user set changes the payload's registers, which are locked)";
+    } else if (load) {
+      status = d->LoadUserSet(set, &why);
+    } else if (set == kUserSetDefaultSet) {
+      status = GevStatus::kAccessDenied;
+      why = "not available: UserSetSelector is Default (the start-up configuration, read-only)";
+    } else {
+      const UserSet before = d->user_sets_[set];
+      d->user_sets_[set] = {true, d->UserSetNow()};
+      if (!d->user_set_file_.empty() && !d->WriteUserSetFile(d->Read(reg::kUserSetDefault), &why)) {
+        d->user_sets_[set] = before;
+        status = GevStatus::kError;
+      }
+    }
+    if (status != GevStatus::kSuccess) {
+      ++d->writes_refused_;
+      d->LogRefusal(what, why);
+    }
+    return {false, status};
+  }
   const auto set_back_feature = [&](const Feature& f) {  // the registers of `f` the write covers
     for (uint32_t r = f.address; r < f.address + f.length; r += 4)
       if (covers(r)) set_back(r);
@@ -1165,6 +1230,16 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     // Half of a Float's register would make a value of two writes.
     if (whole) refuse(GevStatus::kInvalidParameter, d->RegisterName(f) + " = " + d->ValueText(f, v), d->WhyInvalid(f, v));
     else refuse(GevStatus::kBadAlignment, d->RegisterName(f), "half of its 8-byte register (write both halves in one block)");
+  }
+  // UserSetDefault is kept in the user set file as it is written (a camera's flash).
+  if (covers(reg::kUserSetDefault) && value(reg::kUserSetDefault) != d->Read(reg::kUserSetDefault) &&
+      !d->user_set_file_.empty()) {
+    std::string why;
+    if (!d->WriteUserSetFile(value(reg::kUserSetDefault), &why)) {
+      const std::string what = "UserSetDefault = " + std::string(UserSetName(value(reg::kUserSetDefault)));
+      set_back(reg::kUserSetDefault);
+      refuse(GevStatus::kError, what, why);
+    }
   }
   // The window must stay on the sensor (SFNC's pMax: WidthMax - OffsetX,
   // ...): a write that would move it off is set back, the offset first.
@@ -1826,6 +1901,7 @@ void GigeDevice::LimitAutoRange(const ExposureSettings& want) {
 }
 
 void GigeDevice::LogRefusal(const std::string& what, const std::string& why, const char* verb) const {
+  if (refusal_capture_ != nullptr && refusal_capture_->empty()) *refusal_capture_ = what + ": " + why;
   const auto now = std::chrono::steady_clock::now();
   std::lock_guard<std::mutex> lock(refusal_log_mutex_);
   if (now - refusal_window_ >= std::chrono::seconds(1)) {
@@ -2174,6 +2250,265 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
       (mode == kMultiFrame && frames_in_acquisition_ >= Applied(kAcquisitionFrameCount)))
     Write(kAcquisition, 0);
   ++frames_sent_;
+}
+
+std::vector<const Feature*> GigeDevice::UserSetRegisters() const {
+  std::vector<const Feature*> out;
+  for (const Feature& f : registers_) {
+    if (!Checked(f)) continue;
+    const std::string base = f.name.substr(0, f.name.find('['));
+    for (const char* name : kUserSetFeatures)
+      if (base == name) out.push_back(&f);
+  }
+  return out;
+}
+
+GigeDevice::Registers GigeDevice::UserSetNow() const {
+  Registers r;
+  for (const Feature* f : UserSetRegisters()) r[f->address] = ReadFeature(*f);
+  return r;
+}
+
+void GigeDevice::RestoreRegisters(const Registers& r) {
+  for (const auto& [address, v] : r)
+    for (const Feature& f : registers_)
+      if (f.address == address && f.alias_of.empty() && Checked(f)) WriteFeature(f, v);
+}
+
+GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
+  using namespace reg;
+  if (set < 0 || set >= kUserSetCount) {
+    *why = "no such user set";
+    return GevStatus::kInvalidParameter;
+  }
+  const Registers& v = user_sets_[set].values;
+  // The writes, in order: (address, value) of one feature, or of the two
+  // halves of an Auto limit pair (lower, upper: one 16-byte block, so the
+  // pair never crosses on the way).
+  struct Step {
+    uint32_t address;
+    std::vector<std::pair<const Feature*, uint64_t>> values;
+  };
+  std::vector<Step> steps;
+  const auto feature = [this](uint32_t address) -> const Feature* {
+    for (const Feature& f : registers_)
+      if (f.address == address && f.alias_of.empty() && Checked(f)) return &f;
+    return nullptr;
+  };
+  const auto add = [&](uint32_t address, uint64_t value) {
+    if (const Feature* f = feature(address)) steps.push_back({address, {{f, value}}});
+  };
+  const auto has = [&](uint32_t address) { return v.count(address) != 0; };
+  // The Auto features Off (the loop would own what the set writes).
+  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
+    if (has(a)) add(a, kAutoOff);
+  // The sensor's own readout and raw format: valid in any window with any stages.
+  add(kReverseX, 0);
+  add(kReverseY, 0);
+  add(kPixelFormat, static_cast<uint64_t>(FindFeature(table_, "PixelFormat")->entries[0].value));
+  for (const auto& [a, x] : v)
+    if (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount)) add(a, x);
+  // The window: offsets 0, then the size, then the offsets (as arv_camera_set_region).
+  add(kOffsetX, 0);
+  add(kOffsetY, 0);
+  for (const uint32_t a : {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat})
+    if (has(a)) add(a, v.at(a));
+  const std::set<uint32_t> done = {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat,
+                                   kExposureAuto, kGainAuto, kBalanceWhiteAuto};
+  for (const auto& [a, x] : v) {
+    if (done.count(a) || (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount))) continue;
+    bool limit = false;
+    for (const AutoLimits& l : kAutoLimits) {
+      limit = limit || a == l.lower || a == l.upper;
+      if (a == l.lower && has(l.upper))
+        steps.push_back({l.lower, {{feature(l.lower), x}, {feature(l.upper), v.at(l.upper)}}});
+    }
+    if (!limit) add(a, x);
+  }
+  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
+    if (has(a)) add(a, v.at(a));
+
+  Registers before = UserSetNow();
+  before[kGainRaw] = Read(kGainRaw);
+  const uint64_t refused_before = writes_refused_.load();
+  refusal_capture_ = why;
+  why->clear();
+  GevStatus status = GevStatus::kSuccess;
+  for (const Step& step : steps) {
+    std::vector<uint8_t> bytes;
+    for (const auto& [f, x] : step.values)
+      for (uint32_t b = 0; b < f->length; ++b) bytes.push_back(static_cast<uint8_t>(x >> (8 * (f->length - 1 - b))));
+    const WriteVerdict verdict = FilterClientWrite(this, step.address, static_cast<uint32_t>(bytes.size()), bytes.data());
+    if (verdict.store) {
+      DeviceWrites own;
+      arv_fake_camera_write_memory(fake_, step.address, static_cast<guint32>(bytes.size()), bytes.data());
+    }
+    if (verdict.status != GevStatus::kSuccess) {
+      status = verdict.status;
+      break;
+    }
+  }
+  refusal_capture_ = nullptr;
+  writes_refused_ = refused_before;  // the load is one write (its caller counts it)
+  if (status != GevStatus::kSuccess) {
+    RestoreRegisters(before);
+    *why += " (nothing of the set is loaded)";
+  }
+  return status;
+}
+
+std::string GigeDevice::UserSetValueText(const Feature& f, uint64_t v) const {
+  switch (f.kind) {
+    case Kind::kFloat: {
+      char buf[40];
+      std::snprintf(buf, sizeof buf, "%.17g", BitsDouble(v));
+      return buf;
+    }
+    case Kind::kEnum:
+      for (const EnumEntry& e : TableFeature(table_, f).entries)
+        if (static_cast<uint64_t>(e.value) == v) return e.name;
+      return std::to_string(v);
+    default: return std::to_string(v);
+  }
+}
+
+bool GigeDevice::WriteUserSetFile(uint64_t default_set, std::string* error) const {
+  std::string text = "# camsim-gige user sets (UserSetSave); UserSetDefault is loaded at start\n";
+  text += "UserSetDefault = " + std::string(UserSetName(static_cast<int64_t>(default_set))) + "\n";
+  for (int64_t i = 1; i < kUserSetCount; ++i) {
+    if (!user_sets_[i].saved) continue;
+    text += std::string("\n[") + UserSetName(i) + "]\n";
+    for (const Feature* f : UserSetRegisters())
+      text += RegisterName(*f) + " = " + UserSetValueText(*f, user_sets_[i].values.at(f->address)) + "\n";
+  }
+  // Written whole beside it, then renamed over it: a reader sees the old file or the new.
+  const std::string temp = user_set_file_ + ".tmp";
+  std::string why;
+  if (!io::WriteTextFile(temp, text, &why)) {
+    *error = "cannot write the user set file " + temp + ": " + why;
+    return false;
+  }
+  if (std::rename(temp.c_str(), user_set_file_.c_str()) != 0) {
+    *error = "cannot rename " + temp + " to the user set file " + user_set_file_ + ": " + std::strerror(errno);
+    std::remove(temp.c_str());
+    return false;
+  }
+  return true;
+}
+
+bool GigeDevice::ReadUserSetFile(std::string* error) {
+  const std::string& path = user_set_file_;
+  std::ifstream in(path);
+  if (!in) {
+    if (errno == ENOENT) return true;  // none yet: the first UserSetSave writes it
+    *error = "--user-set-file " + path + ": cannot read it: " + std::strerror(errno);
+    return false;
+  }
+  std::map<std::string, const Feature*> by_name;
+  for (const Feature* f : UserSetRegisters()) by_name[RegisterName(*f)] = f;
+  const auto trim = [](std::string t) {
+    const size_t a = t.find_first_not_of(" \t\r"), b = t.find_last_not_of(" \t\r");
+    return a == std::string::npos ? std::string() : t.substr(a, b - a + 1);
+  };
+  const auto fail = [&](int line, const std::string& why) {
+    *error = "--user-set-file " + path + ":" + std::to_string(line) + ": " + why;
+    return false;
+  };
+  int64_t set = -1, default_set = kUserSetDefaultSet;
+  std::map<uint32_t, int> lines[kUserSetCount];  // each set's registers given, and their lines
+  std::string text;
+  for (int n = 1; std::getline(in, text); ++n) {
+    const std::string t = trim(text);
+    if (t.empty() || t[0] == '#') continue;
+    if (t.front() == '[') {
+      const std::string name = t.back() == ']' ? t.substr(1, t.size() - 2) : "";
+      set = -1;
+      for (int64_t i = 1; i < kUserSetCount; ++i)
+        if (name == UserSetName(i)) set = i;
+      if (name == UserSetName(kUserSetDefaultSet))
+        return fail(n, "[Default] is the start-up configuration, not a user set (UserSet1, UserSet2, UserSet3)");
+      if (set < 0) return fail(n, "unknown section '" + t + "' (UserSet1, UserSet2, UserSet3)");
+      if (user_sets_[set].saved) return fail(n, "[" + name + "] given twice");
+      user_sets_[set].saved = true;
+      continue;
+    }
+    const size_t eq = t.find('=');
+    if (eq == std::string::npos) return fail(n, "expected 'Feature = value', not '" + t + "'");
+    const std::string name = trim(t.substr(0, eq)), value = trim(t.substr(eq + 1));
+    if (set < 0) {
+      if (name != "UserSetDefault") return fail(n, "'" + name + "' before a [UserSetN] section (only UserSetDefault goes there)");
+      default_set = -1;
+      for (int64_t i = 0; i < kUserSetCount; ++i)
+        if (value == UserSetName(i)) default_set = i;
+      if (default_set < 0) return fail(n, "UserSetDefault = " + value + ": no such set (Default, UserSet1, UserSet2, UserSet3)");
+      continue;
+    }
+    const auto it = by_name.find(name);
+    if (it == by_name.end()) return fail(n, "unknown feature '" + name + "' (not one a user set of this device holds)");
+    const Feature& f = *it->second;
+    if (lines[set].count(f.address)) return fail(n, name + " given twice");
+    uint64_t v = 0;
+    bool parsed = false;
+    char* end = nullptr;
+    errno = 0;
+    if (f.kind == Kind::kFloat) {
+      const double x = std::strtod(value.c_str(), &end);
+      parsed = !value.empty() && *end == '\0' && errno == 0;
+      v = DoubleBits(x);
+    } else if (f.kind == Kind::kEnum) {
+      for (const EnumEntry& e : TableFeature(table_, f).entries)
+        if (e.name == value) {
+          v = static_cast<uint64_t>(e.value);
+          parsed = true;
+        }
+      if (!parsed) return fail(n, name + " = " + value + ": no such entry");
+    } else {
+      const long long x = std::strtoll(value.c_str(), &end, 10);
+      parsed = !value.empty() && *end == '\0' && errno == 0 && x >= 0;
+      v = static_cast<uint64_t>(x);
+    }
+    if (!parsed) return fail(n, name + " = " + value + ": not a number");
+    user_sets_[set].values[f.address] = v;
+    lines[set][f.address] = n;
+  }
+  if (in.bad()) return fail(0, std::string("cannot read it: ") + std::strerror(errno));
+  // Each value in its feature's range (PixelFormat: in the set's readout),
+  // then the whole set through the client's checks by a trial load.
+  for (int64_t i = 1; i < kUserSetCount; ++i) {
+    if (!user_sets_[i].saved) continue;
+    Registers& values = user_sets_[i].values;
+    const int readout = static_cast<int>((values.at(reg::kReverseX) & 1) | (values.at(reg::kReverseY) & 1) << 1);
+    for (const auto& [address, line] : lines[i]) {
+      const Feature* f = nullptr;
+      for (const auto& kv : by_name)
+        if (kv.second->address == address) f = kv.second;
+      if (!Valid(*f, values.at(address), readout)) {
+        std::string why = WhyInvalid(*f, values.at(address));
+        if (why.empty()) why = "not the phase of the set's readout (ReverseX, ReverseY)";
+        return fail(line, RegisterName(*f) + " = " + UserSetValueText(*f, values.at(address)) + ": " + why);
+      }
+    }
+    const Registers before = UserSetNow();
+    const uint64_t gain_raw = Read(reg::kGainRaw);
+    std::string why;
+    const bool loaded = LoadUserSet(i, &why) == GevStatus::kSuccess;
+    RestoreRegisters(before);
+    Write(reg::kGainRaw, static_cast<uint32_t>(gain_raw));
+    if (!loaded) {
+      *error = "--user-set-file " + path + ": [" + UserSetName(i) + "]: " + why;
+      return false;
+    }
+  }
+  SetApplied(reg::kUserSetDefault, static_cast<uint64_t>(default_set));
+  SetApplied(reg::kUserSetSelector, static_cast<uint64_t>(default_set));
+  if (default_set != kUserSetDefaultSet) {
+    std::string why;
+    if (LoadUserSet(default_set, &why) != GevStatus::kSuccess) {
+      *error = "--user-set-file " + path + ": UserSetDefault " + UserSetName(default_set) + ": " + why;
+      return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace camsim::genicam

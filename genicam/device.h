@@ -104,6 +104,10 @@ struct DeviceOptions {
   // only a client's packet ends a silent controller's control (a test of
   // that case), and only its read of the privilege register renews it.
   bool probe_heartbeat = true;
+  // UserSetControl's file (--user-set-file): UserSetSave and UserSetDefault
+  // write it (atomically), and the start loads it and UserSetDefault's set;
+  // empty: user sets live for the process only.
+  std::string user_set_file;
   // false: no network and no threads (register logic only: fuzzing, unit
   // tests); drive it with WriteMemory / SyncNow / RenderNow.
   bool serve = true;
@@ -234,6 +238,29 @@ class GigeDevice {
   // Narrows auto_config_ to what the pipeline accepts between the applied settings and a refused request.
   void LimitAutoRange(const ExposureSettings& want);
   void LogOnce(const std::string& key, const std::string& message);  // to stderr, once per key
+  // UserSetControl. A set holds the registers UserSetRegisters lists
+  // (address -> value); user_sets_[0] is Default, the start-up
+  // configuration; a UserSetN never saved holds Default's values.
+  struct UserSet {
+    bool saved = false;
+    Registers values;
+  };
+  std::array<UserSet, kUserSetCount> user_sets_;
+  std::string user_set_file_;
+  std::vector<const Feature*> UserSetRegisters() const;  // registers_ a set holds, in table order
+  Registers UserSetNow() const;  // their values in memory (as the client's writes left them)
+  void RestoreRegisters(const Registers& r);  // device writes of r's values
+  // Under the camera's client-write lock: the set's values written as a
+  // client would (the Auto features Off first, then the format, the window,
+  // the rest, the Auto features last), each through FilterClientWrite. All
+  // or nothing: at the first refusal every register goes back, and *why
+  // names the write and the reason.
+  GevStatus LoadUserSet(int64_t set, std::string* why);
+  bool WriteUserSetFile(uint64_t default_set, std::string* error) const;
+  // At Init: the file's sets (each checked by a trial load) and UserSetDefault's set loaded.
+  bool ReadUserSetFile(std::string* error);
+  std::string UserSetValueText(const Feature& f, uint64_t v) const;  // the file's text of a value
+  mutable std::string* refusal_capture_ = nullptr;  // set: LogRefusal also keeps its first "what: why" here
   // One line on stderr per refused write: "refused NAME = VALUE: WHY" (or
   // per dropped trigger: verb "dropped"), at most kRefusalLinesPerSecond a
   // second (a client could flood it); the next line logged says how many

@@ -45,6 +45,7 @@ enum class GevStatus : uint16_t {
   kWriteProtect = 0x8004,      // the GenICam XML
   kBadAlignment = 0x8005,      // not whole registers
   kAccessDenied = 0x8006,      // not now: the window while acquiring, a write from a client not in control
+  kError = 0x8FFF,             // the device failed (GEV_STATUS_ERROR): the user set file could not be written
 };
 
 // A filter's verdict on a write: whether the bytes (which the filter may

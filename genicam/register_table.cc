@@ -592,6 +592,24 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                              "Line1 (the strobe, high for the frame under ExposureActive)."),
                          kChunkLineStatusAll));
 
+  // SFNC UserSetControl: what a set holds is GigeDevice::UserSetRegisters (docs/gige.md, User sets).
+  const char* us = "UserSetControl";
+  std::vector<EnumEntry> sets;
+  for (int64_t i = 0; i < kUserSetCount; ++i) sets.push_back({UserSetName(i), i});
+  t.push_back(Enum("UserSetSelector", us, kUserSetSelector, true, sets,
+                   "The user set UserSetLoad and UserSetSave act on (Default: the start-up configuration)."));
+  t.back().selects = {"UserSetLoad", "UserSetSave"};
+  t.push_back(Cmd("UserSetLoad", us, kUserSetLoad, 1,
+                  "Loads the selected set's settings (through the same checks as a client's writes; not while "
+                  "acquiring)."));
+  t.back().locked_while_acquiring = true;
+  t.push_back(Cmd("UserSetSave", us, kUserSetSave, 1,
+                  "Saves the current settings as the selected set (not Default, which is read-only); kept in "
+                  "the --user-set-file when the device has one, else for the process."));
+  t.back().available_formula = "S<>" + std::to_string(kUserSetDefaultSet);
+  t.back().variables = {{"S", "UserSetSelector"}};
+  t.push_back(Enum("UserSetDefault", us, kUserSetDefault, true, sets, "The user set loaded at start."));
+
   const char* sim = "Simulation";
   t.push_back(Int("SimSceneCount", sim, kSimSceneCount, false, s.scene_count, s.scene_count, 1, "Scenes loaded."));
   t.push_back(Int("SimSceneFrame", sim, kSimSceneFrame, false, 0, s.scene_count - 1, 1,

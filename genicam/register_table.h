@@ -172,6 +172,10 @@ inline constexpr double kMinSensorTemperatureC = -100.0, kMaxSensorTemperatureC 
 // gamma range (core/isp/gamma.h), which 1 / x maps onto itself.
 inline constexpr uint32_t kGamma = 0x8448, kGammaEnable = 0x8450;
 inline constexpr double kMinGamma = 0.1, kMaxGamma = 10.0;
+// UserSetControl (SFNC): UserSetSelector, the UserSetLoad and UserSetSave
+// command registers (read back 0), and UserSetDefault (the set loaded at start).
+inline constexpr uint32_t kUserSetSelector = 0x8460, kUserSetLoad = 0x8464, kUserSetSave = 0x8468,
+                          kUserSetDefault = 0x846c;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
@@ -203,6 +207,14 @@ enum ChunkSelectorValue : int64_t {
 };
 inline constexpr uint32_t kChunkIdImage = 0xC5A00000u, kChunkIdBase = 0xC5A00001u;
 inline constexpr uint32_t kChunkDataBytes = 8, kChunkTagBytes = 8;
+
+// UserSetSelector and UserSetDefault values: Default is the start-up
+// configuration (read-only), UserSet1..3 the sets a client saves.
+enum UserSetValue : int64_t { kUserSetDefaultSet = 0, kUserSetCount = 4 };
+inline const char* UserSetName(int64_t set) {
+  static const char* const names[kUserSetCount] = {"Default", "UserSet1", "UserSet2", "UserSet3"};
+  return set >= 0 && set < kUserSetCount ? names[set] : "?";
+}
 
 // BalanceRatioSelector values: the white balance stage's gains (core/isp/white_balance.h).
 enum BalanceRatioSelectorValue : int64_t { kBalanceRed = 0, kBalanceGreen = 1, kBalanceBlue = 2, kBalanceCount = 3 };

@@ -4971,5 +4971,218 @@ TEST_F(GigeE2E, GammaDrivesTheIspsGammaStage) {
   EXPECT_TRUE(GrabAt(c, "RGB8", 6) == off) << "GammaEnable off again: the configured curve";
 }
 
+// ---------------------------------------------------------------- user sets
+
+// A user set file's path for this test (none there yet).
+std::string UserSetFile(const char* name) {
+  const std::string path = testing::TempDir() + "camsim-usersets-" + name + "-" + std::to_string(getpid()) + ".txt";
+  std::remove(path.c_str());
+  return path;
+}
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+// A raw write of a command register: its status (nullptr: done).
+GError* Execute(Client& c, uint32_t address) {
+  GError* e = nullptr;
+  arv_device_write_register(c.device(), address, 1, &e);
+  return e;
+}
+
+// UserSetSave keeps the window, format, exposure and gain; UserSetLoad
+// brings them back, and the frames are the set's (byte for byte the core's
+// frame with the set's exposure and gain in its window). Default loads the
+// start-up configuration and cannot be saved; a load while acquiring is
+// refused (locked like the payload's features).
+TEST_F(GigeE2E, UserSetsSaveAndLoadTheirSettings) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "UserSetSelector", nullptr), "Default");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "UserSetDefault", nullptr), "Default");
+  ArvGc* gc = arv_device_get_genicam(c.device());
+  ArvGcNode* save = arv_gc_get_node(gc, "UserSetSave");
+  ArvGcNode* load = arv_gc_get_node(gc, "UserSetLoad");
+  ASSERT_NE(save, nullptr);
+  ASSERT_NE(load, nullptr);
+  EXPECT_FALSE(arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(save), nullptr)) << "Default is read-only";
+  // Default cannot be saved: refused, the reason logged.
+  testing::internal::CaptureStderr();
+  GError* e = Execute(c, reg::kUserSetSave);
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error: Default saved");
+  g_clear_error(&e);
+  EXPECT_NE(err.find("camsim-gige: refused UserSetSave[Default]: not available: UserSetSelector is Default"),
+            std::string::npos)
+      << err;
+
+  GError* r = nullptr;
+  arv_camera_set_region(c.camera(), 8, 6, 32, 24, &r);
+  ASSERT_EQ(r, nullptr);
+  Set(c, "PixelFormat", "BayerRG8");
+  SetFloat(c, "ExposureTime", 5000.0);
+  SetFloat(c, "Gain", 3.0);
+  Set(c, "UserSetSelector", "UserSet1");
+  EXPECT_TRUE(arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(save), nullptr));
+  arv_camera_execute_command(c.camera(), "UserSetSave", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  // Other settings, then the set again.
+  arv_camera_set_region(c.camera(), 0, 0, 64, 48, &r);
+  ASSERT_EQ(r, nullptr);
+  Set(c, "PixelFormat", "BayerRG12");
+  SetFloat(c, "ExposureTime", 20000.0);
+  SetFloat(c, "Gain", 0.0);
+  Settle();
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 32);
+  EXPECT_EQ(ReadInt(c, "Height"), 24);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 8);
+  EXPECT_EQ(ReadInt(c, "OffsetY"), 6);
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG8");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 5000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 3.0);
+  EXPECT_EQ(ReadInt(c, "GainRaw"), 30);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 32 * 24);
+  const std::vector<uint8_t> f = GrabIndex(c, 3);
+  const uint32_t rg8 = genicam::BayerCode(Cfa::kBayerRG, 8);
+  EXPECT_TRUE(f == Reference(3, rg8, 8, 6, 32, 24, {"exposure.exposure_time_us=5000.0", "sensor.gain_db=3.0"}))
+      << "not the set's frame";
+  // Load while acquiring: refused, locked in the XML.
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  ASSERT_FALSE(c.Grab(3000).empty());
+  EXPECT_TRUE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(load), nullptr));
+  Set(c, "UserSetSelector", "Default");
+  testing::internal::CaptureStderr();
+  e = Execute(c, reg::kUserSetLoad);
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+      << (e != nullptr ? e->message : "no error: loaded while acquiring");
+  g_clear_error(&e);
+  EXPECT_NE(err.find("camsim-gige: refused UserSetLoad[Default]: acquisition running"), std::string::npos) << err;
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr);
+  c.CloseStream();
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 32) << "a refused load changed the window";
+  // Default: the start-up configuration.
+  EXPECT_FALSE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(load), nullptr));
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 64);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerRG12");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 10000.0);
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "Gain"), 0.0);
+  EXPECT_EQ(ReadInt(c, "UserSetLoad"), 0) << "a command reads back 0 (done)";
+}
+
+// A set that changes exposure under ExposureAuto Continuous loads the value
+// first and turns the Auto feature on last; a load goes through the
+// client's checks, so a set whose window the sensor cannot take is refused
+// whole (here a set written into a file for a larger sensor).
+TEST_F(GigeE2E, UserSetDefaultFromTheFileSurvivesARestart) {
+  DeviceOptions o = SmallDevice();
+  o.user_set_file = UserSetFile("restart");
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client* c = client_.get();
+  GError* r = nullptr;
+  arv_camera_set_region(c->camera(), 4, 2, 40, 30, &r);
+  ASSERT_EQ(r, nullptr);
+  SetFloat(*c, "ExposureTime", 4000.0);
+  Set(*c, "UserSetSelector", "UserSet2");
+  GError* e = nullptr;
+  arv_camera_execute_command(c->camera(), "UserSetSave", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Set(*c, "UserSetDefault", "UserSet2");
+  const std::string text = ReadText(o.user_set_file);
+  EXPECT_NE(text.find("UserSetDefault = UserSet2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("[UserSet2]\nWidth = 40\nHeight = 30\nOffsetX = 4\nOffsetY = 2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("ExposureTime = 4000\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("[UserSet1]"), std::string::npos) << "a set never saved is not written";
+  // A second device (a power cycle) on the same file starts with UserSet2.
+  client_.reset();
+  device_.reset();
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  c = client_.get();
+  EXPECT_STREQ(arv_camera_get_string(c->camera(), "UserSetDefault", nullptr), "UserSet2");
+  EXPECT_EQ(ReadInt(*c, "Width"), 40);
+  EXPECT_EQ(ReadInt(*c, "OffsetY"), 2);
+  EXPECT_DOUBLE_EQ(ReadFloat(*c, "ExposureTime"), 4000.0);
+  const uint32_t rg12 = genicam::BayerCode(Cfa::kBayerRG, 12);
+  EXPECT_TRUE(GrabIndex(*c, 5) == Reference(5, rg12, 4, 2, 40, 30, {"exposure.exposure_time_us=4000.0"}))
+      << "not the set's frame after a restart";
+  // Without the file, a new device starts from the configuration.
+  client_.reset();
+  device_.reset();
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  EXPECT_EQ(ReadInt(*client_, "Width"), 64);
+  std::remove(o.user_set_file.c_str());
+}
+
+// A user set file that is not what the device can load stops the start,
+// naming the file, the line and the feature: an unknown feature, a value
+// out of its range, a line that is not 'Feature = value', Default as a
+// section, and a set the sensor cannot take (its window off the sensor:
+// found by loading it through the client's checks).
+TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
+  DeviceOptions o = OfflineDevice();
+  o.user_set_file = UserSetFile("bad");
+  const auto start_error = [&](const std::string& text) {
+    std::ofstream(o.user_set_file) << text;
+    std::string error;
+    testing::internal::CaptureStderr();
+    auto d = GigeDevice::Start(o, &error);
+    testing::internal::GetCapturedStderr();
+    EXPECT_EQ(d, nullptr) << "started with:\n" << text;
+    return error;
+  };
+  const std::string at = "--user-set-file " + o.user_set_file + ":";
+  EXPECT_EQ(start_error("UserSetDefault = UserSet1\n[UserSet1]\nWidth = 32\nBrightness = 3\n"),
+            at + "4: unknown feature 'Brightness' (not one a user set of this device holds)");
+  EXPECT_EQ(start_error("[UserSet1]\n# a comment\nExposureTime = 0.5\n"),
+            at + "3: ExposureTime = 0.5: out of range 1..1e+08");
+  EXPECT_EQ(start_error("[UserSet3]\nPixelFormat = BayerGR12\n"),
+            at + "2: PixelFormat = BayerGR12: entry BayerGR12 is not the phase this readout gives (ReverseX 0, "
+                 "ReverseY 0)");
+  EXPECT_EQ(start_error("[UserSet1]\nWidth 32\n"), at + "2: expected 'Feature = value', not 'Width 32'");
+  EXPECT_EQ(start_error("[Default]\nWidth = 32\n"),
+            at + "1: [Default] is the start-up configuration, not a user set (UserSet1, UserSet2, UserSet3)");
+  EXPECT_EQ(start_error("UserSetDefault = UserSet4\n"),
+            at + "1: UserSetDefault = UserSet4: no such set (Default, UserSet1, UserSet2, UserSet3)");
+  const std::string off = start_error("[UserSet2]\nWidth = 64\nOffsetX = 8\n");
+  EXPECT_NE(off.find("--user-set-file " + o.user_set_file + ": [UserSet2]: OffsetX = 8: window off the sensor"),
+            std::string::npos)
+      << off;
+  // A good file starts, with UserSetDefault's set loaded through the checks.
+  std::ofstream(o.user_set_file) << "UserSetDefault = UserSet1\n[UserSet1]\nWidth = 32\nOffsetX = 32\nGain = 6\n";
+  std::string error;
+  auto d = GigeDevice::Start(o, &error);
+  ASSERT_NE(d, nullptr) << error;
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  EXPECT_EQ(ReadReg32(*d, reg::kOffsetX), 32u);
+  EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 60u);
+  EXPECT_EQ(ReadReg32(*d, reg::kUserSetDefault), 1u);
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+  d.reset();
+  std::remove(o.user_set_file.c_str());
+  // A file that cannot be written: UserSetSave fails (GEV_STATUS_ERROR), saying why.
+  o.user_set_file = "/camsim-no-such-dir/sets.txt";
+  d = GigeDevice::Start(o, &error);
+  ASSERT_NE(d, nullptr) << error << ": no file yet is no error";
+  WriteReg(*d, reg::kUserSetSelector, Be32(1));
+  testing::internal::CaptureStderr();
+  WriteRegRefused(*d, reg::kUserSetSave, Be32(1));
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("refused UserSetSave[UserSet1]: cannot write the user set file /camsim-no-such-dir/sets.txt.tmp"),
+            std::string::npos)
+      << log;
+}
+
 }  // namespace
 }  // namespace camsim::gigetest
