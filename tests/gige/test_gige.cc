@@ -2471,9 +2471,11 @@ TEST_F(GigeE2E, TheStreamIsPacedByTheLinkAndGevSCPD) {
     ASSERT_FALSE(c.Grab(5000).empty()) << "frame " << i;
     const double took_s = static_cast<double>(c.last_popped_ns() - c.last_first_packet_ns()) * 1e-9;
     // From the leader to the trailer: every packet but the trailer's slot (and
-    // up to kPaceAheadNs early); a loaded machine may add tens of ms.
+    // up to kPaceAheadNs early). A loaded machine adds to it (221 ms of 61 with
+    // two builds and a test run beside it), so the upper bound only catches a
+    // pacing several times too slow (a unit wrong by 10 gives 610 ms).
     EXPECT_GE(took_s, expected_s * 0.97 - 1e-3) << "frame " << i;
-    EXPECT_LE(took_s, expected_s * 2 + 0.05) << "frame " << i;
+    EXPECT_LE(took_s, expected_s * 4 + 0.2) << "frame " << i;
   }
   c.CloseStream();
   EXPECT_EQ(c.failed_buffers(), 0u);
