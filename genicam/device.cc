@@ -719,6 +719,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kLineSelector, 0},
       {SelectedAddress(kLineSource, 0), kLineSourceOff},
       {SelectedAddress(kLineSource, 1), kLineSourceOff},
+      {SelectedAddress(kLineInverter, 0), 0},
+      {SelectedAddress(kLineInverter, 1), 0},
       // The fake camera's default (fits a 1500-byte MTU), or what the largest frame needs.
       {kPacketSize, std::max<uint32_t>(1400, MinPacketSize(sensor_))},
       {kPacketDelay, 0},
@@ -892,8 +894,9 @@ uint64_t GigeDevice::PacketDelayNs() const {
   return hz == 0 ? 0 : static_cast<uint64_t>(static_cast<double>(Read(kPacketDelay)) * 1e9 / static_cast<double>(hz));
 }
 
-void GigeDevice::DriveStrobe(bool high) {
+void GigeDevice::DriveStrobe(bool active) {
   std::string error;
+  const bool high = active != (Applied(reg::SelectedAddress(reg::kLineInverter, 1)) != 0);
   if (strobe_->Set(high, &error)) {
     strobe_level_ = high;
     WriteLineStatus();
@@ -1564,14 +1567,19 @@ void GigeDevice::Sync() {
     WriteDerived();
   }
   // A strobe whose falling edge failed is lowered as soon as it can be (the
-  // strobe is high only inside a frame's rendering, which holds mutex_ as
-  // every Sync does): not left high until the next frame, if one comes.
-  if (strobe_ && strobe_level_) DriveStrobe(false);
+  // strobe is active only inside a frame's rendering, which holds mutex_ as
+  // every Sync does): not left active until the next frame, if one comes.
+  // A LineInverter[Line1] change moves the idle level likewise.
+  const bool strobe_idle = Applied(SelectedAddress(kLineInverter, 1)) != 0;
+  if (strobe_ && strobe_level_ != strobe_idle) DriveStrobe(false);
+  if (!strobe_) strobe_level_ = strobe_idle;  // no line: LineStatus says what it would be
   Write(kSimSyncCount, Read(kSimSyncCount) + 1);
   {
     std::lock_guard<std::mutex> t(trigger_mutex_);
     line0_armed_ = Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceLine0;
     line0_rising_ = Applied(kTriggerActivation) == 0;
+    line0_inverted_ = Applied(SelectedAddress(kLineInverter, 0)) != 0;
+    trigger_level_ = line0_electrical_ != line0_inverted_;
   }
   WriteLineStatus();  // the trigger thread changes the input's level without mutex_
   {
@@ -1700,16 +1708,17 @@ void GigeDevice::TriggerLoop() {
       return;
     }
     if (r == 0) continue;
-    trigger_level_ = edge == hal::Edge::kRising;  // LineStatus: written by the next sync
     {
       std::lock_guard<std::mutex> lock(trigger_mutex_);
-      const hal::Edge want = line0_rising_ ? hal::Edge::kRising : hal::Edge::kFalling;
-      if (edge == want && line0_armed_ && Read(reg::kAcquisition) != 0) {
+      // The trigger logic and LineStatus see the level after LineInverter.
+      line0_electrical_ = edge == hal::Edge::kRising;
+      const bool high = line0_electrical_ != line0_inverted_;
+      trigger_level_ = high;  // LineStatus: written by the next sync
+      if (high == line0_rising_ && line0_armed_ && Read(reg::kAcquisition) != 0) {
         // A trigger bus pulse names the frame to take: every camera of the rig
         // renders the same frame index, also after a missed pulse.
         uint32_t index = 0;
-        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex,
-                    edge == hal::Edge::kRising);
+        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex, high);
       }
     }
     ++trigger_edges_;

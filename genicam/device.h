@@ -207,7 +207,9 @@ class GigeDevice {
   void WriteResultingFrameRate();  // AcquisitionResultingFrameRate
   uint64_t PacketDelayNs() const;   // GevSCPD in ns (its ticks at the timestamp tick frequency)
   void WriteLineStatus();  // each line's level
-  void DriveStrobe(bool high);  // sets the strobe line; a failure goes to line_error_
+  // Sets the strobe line active (true) or idle, inverted on the wire by
+  // LineInverter[Line1]; a failure goes to line_error_.
+  void DriveStrobe(bool active);
   void Fill(ArvBuffer* buffer, uint32_t pixel_format);
   // Free run (under mutex_): the fake camera stays in its trigger mode and
   // makes a frame when asked, so its one thread keeps answering control
@@ -343,10 +345,14 @@ class GigeDevice {
   hal::InputLine* trigger_ = nullptr;
   hal::OutputLine* strobe_ = nullptr;
   std::string line_error_;
-  // LineStatus: the trigger input after its last edge (low before one), the
-  // strobe output as last driven.
+  // LineStatus: the trigger input after its last edge (low before one) and
+  // LineInverter[Line0], the strobe output as last driven on the wire.
   std::atomic<bool> trigger_level_{false};
   bool strobe_level_ = false;
+  // Under trigger_mutex_: Line0's electrical level after its last edge, and
+  // LineInverter[Line0] as of the last sync.
+  bool line0_electrical_ = false;
+  bool line0_inverted_ = false;
 
   ArvGvFakeCamera* gv_ = nullptr;
   ArvFakeCamera* fake_ = nullptr;

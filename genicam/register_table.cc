@@ -451,7 +451,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const char* io = "DigitalIOControl";
   t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
                    "Line0: trigger input; Line1: strobe output."));
-  t.back().selects = {"LineMode", "LineSource", "LineStatus"};
+  t.back().selects = {"LineMode", "LineSource", "LineStatus", "LineInverter"};
   constexpr int kLines = 2;
   t.push_back(Selected(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}},
                             "Direction of the selected line."),
@@ -462,8 +462,13 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                             "stays Off."),
                        "LineSelector", kLines));
   t.push_back(Selected(Bool("LineStatus", io, kLineStatus, false,
-                            "Level of the selected line: Line0 after its last edge (low before one), Line1 as "
-                            "last driven."),
+                            "Level of the selected line: Line0 after its last edge (low before one), inverted "
+                            "by its LineInverter; Line1 as last driven on the wire (after its LineInverter)."),
+                       "LineSelector", kLines));
+  t.push_back(Selected(Bool("LineInverter", io, kLineInverter, true,
+                            "Inverts the selected line: Line0's electrical level before the trigger and "
+                            "LineStatus (RisingEdge then fires on the electrical falling edge), Line1's "
+                            "strobe output (low while active)."),
                        "LineSelector", kLines));
 
   const char* tl = "TransportLayerControl";
@@ -589,7 +594,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                          kChunkBlackLevel));
   t.push_back(ChunkValue(Int("ChunkLineStatusAll", cd, 0, false, 0, 3, 1,
                              "Levels of the lines as the frame started: bit 0 Line0 (the trigger input), bit 1 "
-                             "Line1 (the strobe, high for the frame under ExposureActive)."),
+                             "Line1 (the strobe as on the wire: high for the frame under ExposureActive, low if inverted)."),
                          kChunkLineStatusAll));
 
   // SFNC UserSetControl: what a set holds is GigeDevice::UserSetRegisters (docs/gige.md, User sets).

@@ -1961,6 +1961,34 @@ TEST(GigeRegisters, AStrobeEdgeThatFailedIsSentBeforeTheNextPulse) {
   EXPECT_EQ(ReadReg32(*d, genicam::reg::SelectedAddress(reg::kLineStatus, 1)), 0u);
 }
 
+// LineInverter[Line1] inverts the strobe on the wire: idle high (driven at
+// the sync that applies it), low while a frame is made; LineStatus and the
+// frame's ChunkLineStatusAll say the wire's level.
+TEST(GigeRegisters, AnInvertedStrobeIsLowWhileAFrameIsMade) {
+  FailsOnceLowLine line;  // (never told to fail: records the edges)
+  DeviceOptions o = OfflineDevice();
+  o.strobe = &line;
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  const uint32_t line1_status = genicam::reg::SelectedAddress(reg::kLineStatus, 1);
+  WriteReg(*d, genicam::reg::SelectedAddress(reg::kLineSource, 1), Be32(genicam::kLineSourceExposureActive));
+  WriteReg(*d, genicam::reg::SelectedAddress(reg::kLineInverter, 1), Be32(1));
+  WriteReg(*d, reg::kSimFrameIndex, Be32(3));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, line1_status), 1u) << "idle: high on the wire";
+  std::vector<uint8_t> frame;
+  ASSERT_TRUE(d->RenderNow(&frame));
+  const std::vector<std::pair<bool, uint32_t>> want = {{true, 0}, {false, 3}, {true, 3}};
+  EXPECT_EQ(line.sent, want) << "high at the sync, low for the frame, high again";
+  EXPECT_EQ(ReadReg32(*d, line1_status), 1u);
+  // Back to not inverted: the sync lowers the idle line.
+  WriteReg(*d, genicam::reg::SelectedAddress(reg::kLineInverter, 1), Be32(0));
+  d->SyncNow();
+  EXPECT_EQ(ReadReg32(*d, line1_status), 0u);
+  EXPECT_FALSE(line.sent.back().first);
+  EXPECT_EQ(d->line_error(), "");
+}
+
 // ---------------------------------------------------------------- end to end
 
 class GigeE2E : public ::testing::Test {
@@ -2902,6 +2930,60 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
   EXPECT_TRUE(status());
   trigger_.Set(false, &err);
   EXPECT_TRUE(reads(false)) << "low trigger input";
+}
+
+// LineInverter[Line0] inverts the input before the trigger logic and
+// LineStatus: an inverted line reads high while low on the wire, and
+// RisingEdge fires on the electrical falling edge (its frame's
+// ChunkLineStatusAll has Line0 high).
+TEST_F(GigeE2E, AnInvertedLine0TriggersOnTheOppositeEdge) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  auto status = [&] { return arv_camera_get_boolean(c.camera(), "LineStatus", nullptr); };
+  auto reads = [&](bool want) {  // waits up to 2 s (the trigger thread and the sync)
+    for (int i = 0; i < 400 && status() != want; ++i) Sleep(5);
+    return status() == want;
+  };
+  Set(c, "LineSelector", "Line0");
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  EXPECT_TRUE(reads(true)) << "low on the wire, inverted: high";
+  Set(c, "LineSelector", "Line1");
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr)) << "one per line";
+  Set(c, "LineSelector", "Line0");
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  std::string err;
+  trigger_.Set(true, &err);  // electrical rising: inverted, a falling edge: no frame
+  EXPECT_TRUE(reads(false));
+  EXPECT_TRUE(c.Grab(300).empty()) << "a frame on the electrical rising edge";
+  trigger_.Set(false, &err);  // electrical falling: the inverted rising edge
+  ChunkedFrame f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok) << "no frame on the electrical falling edge";
+  EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1) << "Line0 high after the inverted line's rising edge";
+  EXPECT_TRUE(reads(true));
+  // Not inverted again: the electrical rising edge triggers.
+  arv_camera_set_boolean(c.camera(), "LineInverter", FALSE, &e);
+  ASSERT_EQ(e, nullptr);
+  EXPECT_TRUE(reads(false));
+  trigger_.Set(true, &err);
+  f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok);
+  EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1);
+  trigger_.Set(false, &err);
+  EXPECT_TRUE(c.Grab(300).empty());
+  g_object_unref(parser);
 }
 
 using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
@@ -4523,7 +4605,7 @@ TEST_F(GigeE2E, SelectedRegistersFollowTheSelector) {
           << f.name << " at " << e.name;
     }
   }
-  EXPECT_EQ(selected, 6) << "LineMode, LineSource, LineStatus, SimStageEnable, ChunkEnable, BalanceRatio";
+  EXPECT_EQ(selected, 7) << "LineMode, LineSource, LineStatus, LineInverter, SimStageEnable, ChunkEnable, BalanceRatio";
   // LineMode at once; LineSource on the input refused, the output's kept.
   Set(c, "LineSelector", "Line1");
   Set(c, "LineSource", "ExposureActive");
