@@ -721,6 +721,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {SelectedAddress(kLineSource, 1), kLineSourceOff},
       {SelectedAddress(kLineInverter, 0), 0},
       {SelectedAddress(kLineInverter, 1), 0},
+      {kLineDebouncerTime, DoubleBits(0.0)},
       // The fake camera's default (fits a 1500-byte MTU), or what the largest frame needs.
       {kPacketSize, std::max<uint32_t>(1400, MinPacketSize(sensor_))},
       {kPacketDelay, 0},
@@ -1043,7 +1044,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     }
     if (d->Read(reg::kAcquisition) != 0 || d->restarting_) {
       std::lock_guard<std::mutex> t(d->trigger_mutex_);
-      d->TakeTrigger(kNextIndex, d->trigger_level_.load());
+      d->TakeTrigger(kNextIndex, d->trigger_level_.load(), std::chrono::steady_clock::now());
     } else {
       ++d->triggers_dropped_;
       d->LogRefusal("TriggerSoftware", "the acquisition is stopped (no frame)", "dropped");
@@ -1580,6 +1581,8 @@ void GigeDevice::Sync() {
     line0_rising_ = Applied(kTriggerActivation) == 0;
     line0_inverted_ = Applied(SelectedAddress(kLineInverter, 0)) != 0;
     trigger_level_ = line0_electrical_ != line0_inverted_;
+    line0_debounce_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double, std::micro>(AppliedDouble(kLineDebouncerTime)));
   }
   WriteLineStatus();  // the trigger thread changes the input's level without mutex_
   {
@@ -1591,7 +1594,7 @@ void GigeDevice::Sync() {
   }
 }
 
-void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
+void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at) {
   if (pending_triggers_.size() >= kMaxPendingTriggers) {
     ++triggers_dropped_;
     if (!overrun_logged_.exchange(true))
@@ -1599,11 +1602,10 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high) {
                    kMaxPendingTriggers);
     return;
   }
-  const auto now = std::chrono::steady_clock::now();
-  const auto start = std::max(now + trigger_delay_, exposure_busy_until_);
+  const auto start = std::max(at + trigger_delay_, exposure_busy_until_);
   exposure_busy_until_ = start + trigger_exposure_;
   pending_triggers_.push_back({index, line0_high, start, exposure_busy_until_});
-  FireDueTrigger(now);
+  FireDueTrigger(std::chrono::steady_clock::now());
 }
 
 std::chrono::steady_clock::time_point GigeDevice::FireDueTrigger(std::chrono::steady_clock::time_point now) {
@@ -1696,33 +1698,67 @@ void GigeDevice::SyncLoop() {
   }
 }
 
+// LineDebouncerTime: a level is taken once it has held the debounce time,
+// judged by the edges' own timestamps (hal::InputLine::LastEdgeTime; the
+// time an edge was read where a line has none). An edge that comes within
+// the debounce time of the last one cancels it; one that comes later
+// confirms the level before it, at its start plus the debounce time,
+// however late the edges are read. With no edge queued, a level is taken
+// when the thread wakes at its deadline (the wait's 1 ms steps). A debounce
+// time of 0 takes each edge as it is read.
 void GigeDevice::TriggerLoop() {
+  using Clock = std::chrono::steady_clock;
+  // Line0 on the wire as the last edge left it, since when, and the frame index that edge carried.
+  bool wire = false;
+  Clock::time_point wire_since{};
+  int64_t wire_index = kNextIndex;
   while (!stop_) {
+    int timeout_ms = 50;
+    {
+      std::lock_guard<std::mutex> lock(trigger_mutex_);
+      if (wire != line0_electrical_) {  // a level waiting to be taken: wake at its deadline
+        const auto left = wire_since + line0_debounce_ - Clock::now();
+        const auto ms = std::chrono::ceil<std::chrono::milliseconds>(left).count();
+        timeout_ms = static_cast<int>(std::clamp<int64_t>(ms, 0, 50));
+      }
+    }
     hal::Edge edge;
     std::string error;
-    const int r = trigger_->WaitEdge(50, &edge, &error);
+    const int r = trigger_->WaitEdge(timeout_ms, &edge, &error);
     if (r < 0) {
       std::lock_guard<std::mutex> lock(mutex_);
       line_error_ = error;
       std::fprintf(stderr, "camsim-gige: trigger line stopped: %s\n", error.c_str());
       return;
     }
-    if (r == 0) continue;
-    {
-      std::lock_guard<std::mutex> lock(trigger_mutex_);
-      // The trigger logic and LineStatus see the level after LineInverter.
-      line0_electrical_ = edge == hal::Edge::kRising;
-      const bool high = line0_electrical_ != line0_inverted_;
-      trigger_level_ = high;  // LineStatus: written by the next sync
-      if (high == line0_rising_ && line0_armed_ && Read(reg::kAcquisition) != 0) {
-        // A trigger bus pulse names the frame to take: every camera of the rig
-        // renders the same frame index, also after a missed pulse.
-        uint32_t index = 0;
-        TakeTrigger(trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex, high);
-      }
+    const Clock::time_point now = Clock::now();
+    std::lock_guard<std::mutex> lock(trigger_mutex_);
+    if (r == 1) {
+      Clock::time_point at = now;
+      if (!trigger_->LastEdgeTime(&at) || at > now) at = now;
+      // The level before this edge held from wire_since to `at`.
+      if (wire != line0_electrical_ && at - wire_since >= line0_debounce_)
+        TakeLine0Level(wire, wire_since + line0_debounce_, wire_index);
+      wire = edge == hal::Edge::kRising;
+      wire_since = at;
+      // A trigger bus pulse names the frame to take: every camera of the rig
+      // renders the same frame index, also after a missed pulse.
+      uint32_t index = 0;
+      wire_index = trigger_->LastEdgeIndex(&index) ? static_cast<int64_t>(index & 0x7fffffff) : kNextIndex;
     }
-    ++trigger_edges_;
+    if (wire != line0_electrical_ &&
+        (line0_debounce_ == Clock::duration::zero() || (r == 0 && now - wire_since >= line0_debounce_)))
+      TakeLine0Level(wire, wire_since + line0_debounce_, wire_index);
+    if (r == 1) ++trigger_edges_;
   }
+}
+
+void GigeDevice::TakeLine0Level(bool electrical, std::chrono::steady_clock::time_point at, int64_t index) {
+  line0_electrical_ = electrical;
+  // The trigger logic and LineStatus see the level after LineInverter.
+  const bool high = electrical != line0_inverted_;
+  trigger_level_ = high;  // LineStatus: written by the next sync
+  if (high == line0_rising_ && line0_armed_ && Read(reg::kAcquisition) != 0) TakeTrigger(index, high, at);
 }
 
 void GigeDevice::FillThunk(ArvBuffer* buffer, void* self, uint32_t, uint32_t, uint32_t pixel_format) {

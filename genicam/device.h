@@ -275,10 +275,15 @@ class GigeDevice {
   // bus pulse carries (kNextIndex: the next SimFrameIndex). line0_high: the
   // trigger input's level just after the trigger (after a Line0 edge, the
   // level that edge left): the frame's LineStatus bit 0. Its exposure starts
-  // TriggerDelay from now, or when the previous trigger's exposure ends if
+  // TriggerDelay from `at`, or when the previous trigger's exposure ends if
   // that is later, and lasts ExposureTime; the fake camera is asked for its frame when it has ended
   // (FireDueTrigger), as a camera reads a frame out after its exposure.
-  void TakeTrigger(int64_t index, bool line0_high);
+  // `at`: when the trigger came (a Line0 edge's time plus LineDebouncerTime).
+  void TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at);
+  // Under trigger_mutex_: Line0's electrical level `electrical` taken (stable
+  // for LineDebouncerTime) at `at`: LineStatus, and a trigger on the
+  // activation edge. index: the frame index its edge carried (or kNextIndex).
+  void TakeLine0Level(bool electrical, std::chrono::steady_clock::time_point at, int64_t index);
   // Under trigger_mutex_: asks the fake camera for the oldest trigger's frame
   // once its exposure has ended; returns when to call again (max: no trigger waits).
   std::chrono::steady_clock::time_point FireDueTrigger(std::chrono::steady_clock::time_point now);
@@ -353,6 +358,7 @@ class GigeDevice {
   // LineInverter[Line0] as of the last sync.
   bool line0_electrical_ = false;
   bool line0_inverted_ = false;
+  std::chrono::steady_clock::duration line0_debounce_{};  // LineDebouncerTime as of the last sync
 
   ArvGvFakeCamera* gv_ = nullptr;
   ArvFakeCamera* fake_ = nullptr;

@@ -451,7 +451,7 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const char* io = "DigitalIOControl";
   t.push_back(Enum("LineSelector", io, kLineSelector, true, {{"Line0", 0}, {"Line1", 1}},
                    "Line0: trigger input; Line1: strobe output."));
-  t.back().selects = {"LineMode", "LineSource", "LineStatus", "LineInverter"};
+  t.back().selects = {"LineMode", "LineSource", "LineStatus", "LineInverter", "LineDebouncerTime"};
   constexpr int kLines = 2;
   t.push_back(Selected(Enum("LineMode", io, kLineMode, false, {{"Input", 0}, {"Output", 1}},
                             "Direction of the selected line."),
@@ -470,6 +470,13 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                             "LineStatus (RisingEdge then fires on the electrical falling edge), Line1's "
                             "strobe output (low while active)."),
                        "LineSelector", kLines));
+  // Line0's alone (the one input): not selected, available at Line0.
+  t.push_back(Flt("LineDebouncerTime", io, kLineDebouncerTime, 0.0, kMaxLineDebouncerTimeUs,
+                  "Line0 (input): a level change is taken once the level has held this long (by the line's edge "
+                  "timestamps), so shorter pulses are ignored and a trigger comes this much after its edge.",
+                  "us"));
+  t.back().available_formula = "L=0";
+  t.back().variables = {{"L", "LineSelector"}};
 
   const char* tl = "TransportLayerControl";
   // Computed by the client from the registers it has just written: never stale.

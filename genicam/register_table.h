@@ -176,8 +176,11 @@ inline constexpr double kMinGamma = 0.1, kMaxGamma = 10.0;
 // command registers (read back 0), and UserSetDefault (the set loaded at start).
 inline constexpr uint32_t kUserSetSelector = 0x8460, kUserSetLoad = 0x8464, kUserSetSave = 0x8468,
                           kUserSetDefault = 0x846c;
-// LineInverter (SFNC DigitalIOControl): one per line (LineSelector), as LineMode.
-inline constexpr uint32_t kLineInverter = 0x8600;
+// LineInverter (SFNC DigitalIOControl): one per line (LineSelector), as
+// LineMode. LineDebouncerTime: the input Line0's (one register, available
+// at LineSelector Line0), an 8-byte Float, us, 0 .. kMaxLineDebouncerTimeUs.
+inline constexpr uint32_t kLineInverter = 0x8600, kLineDebouncerTime = 0x8610;
+inline constexpr double kMaxLineDebouncerTimeUs = 1e6;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {

@@ -5,6 +5,7 @@
 // variable (tests).
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -27,6 +28,10 @@ class InputLine {
   // The frame index the last edge WaitEdge returned carried (a trigger bus
   // pulse does); false for lines without one (GPIO).
   virtual bool LastEdgeIndex(uint32_t* /*index*/) const { return false; }
+  // When the last edge WaitEdge returned happened on the line, on the steady
+  // clock: a GPIO line's kernel timestamp, a MemoryLine's Set; false for
+  // lines without one (the trigger bus: the reader takes the time it read it).
+  virtual bool LastEdgeTime(std::chrono::steady_clock::time_point* /*time*/) const { return false; }
 };
 
 class OutputLine {
@@ -101,14 +106,15 @@ class BusOutput : public OutputLine {
 std::unique_ptr<BusOutput> OpenBusOutput(const std::string& spec, std::string* error);
 
 // A line in memory: Set() on it (as an output) wakes WaitEdge() (as an input).
-// Edges not yet waited for are queued with their direction; past
-// kMaxPendingEdges the oldest is dropped.
+// Edges not yet waited for are queued with their direction and the time of
+// their Set; past kMaxPendingEdges the oldest is dropped.
 class MemoryLine : public InputLine, public OutputLine {
  public:
   explicit MemoryLine(std::string name) : name_(std::move(name)) {}
   int WaitEdge(int timeout_ms, Edge* edge, std::string* error) override;
   bool Set(bool high, std::string* error) override;
   std::string Name() const override { return name_; }
+  bool LastEdgeTime(std::chrono::steady_clock::time_point* time) const override;
   bool level() const;
   int edges() const;  // edges seen so far
   static constexpr size_t kMaxPendingEdges = 64;
@@ -119,7 +125,12 @@ class MemoryLine : public InputLine, public OutputLine {
   std::condition_variable changed_;
   bool level_ = false;
   int edges_ = 0;
-  std::deque<Edge> pending_;  // not yet returned by WaitEdge, oldest first
+  struct Pending {
+    Edge edge;
+    std::chrono::steady_clock::time_point time;
+  };
+  std::deque<Pending> pending_;  // not yet returned by WaitEdge, oldest first
+  std::chrono::steady_clock::time_point last_time_{};  // of the edge WaitEdge last returned
 };
 
 }  // namespace camsim::hal

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 
 #include "hal/gpio.h"
 
@@ -80,13 +81,29 @@ class GpiodInput : public InputLine {
       return -1;
     }
     *edge = ev.event_type == GPIOD_LINE_EVENT_RISING_EDGE ? Edge::kRising : Edge::kFalling;
+    // The kernel stamps edges with CLOCK_MONOTONIC (the steady clock) since
+    // Linux 5.7, before with CLOCK_REALTIME: a stamp that is not in the last
+    // kMaxEdgeAgeS of the monotonic clock is replaced by the time it was read.
+    timespec mono{};
+    clock_gettime(CLOCK_MONOTONIC, &mono);
+    const long long ns = static_cast<long long>(ev.ts.tv_sec) * 1000000000 + ev.ts.tv_nsec;
+    const long long now_ns = static_cast<long long>(mono.tv_sec) * 1000000000 + mono.tv_nsec;
+    time_ = ns <= now_ns && now_ns - ns < kMaxEdgeAgeS * 1000000000LL
+                ? std::chrono::steady_clock::now() - std::chrono::nanoseconds(now_ns - ns)
+                : std::chrono::steady_clock::now();
     return 1;
   }
   std::string Name() const override { return spec_; }
+  bool LastEdgeTime(std::chrono::steady_clock::time_point* time) const override {
+    *time = time_;
+    return true;
+  }
 
  private:
+  static constexpr long long kMaxEdgeAgeS = 10;
   std::string spec_;
   Opened o_;
+  std::chrono::steady_clock::time_point time_{};
 };
 
 class GpiodOutput : public OutputLine {
@@ -161,9 +178,16 @@ std::unique_ptr<OutputLine> OpenGpiodOutput(const std::string& spec, const std::
 int MemoryLine::WaitEdge(int timeout_ms, Edge* edge, std::string*) {
   std::unique_lock<std::mutex> lock(mutex_);
   if (!changed_.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] { return !pending_.empty(); })) return 0;
-  *edge = pending_.front();
+  *edge = pending_.front().edge;
+  last_time_ = pending_.front().time;
   pending_.pop_front();
   return 1;
+}
+
+bool MemoryLine::LastEdgeTime(std::chrono::steady_clock::time_point* time) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  *time = last_time_;
+  return true;
 }
 
 bool MemoryLine::Set(bool high, std::string*) {
@@ -172,7 +196,7 @@ bool MemoryLine::Set(bool high, std::string*) {
     if (high == level_) return true;
     level_ = high;
     if (pending_.size() == kMaxPendingEdges) pending_.pop_front();
-    pending_.push_back(high ? Edge::kRising : Edge::kFalling);
+    pending_.push_back({high ? Edge::kRising : Edge::kFalling, std::chrono::steady_clock::now()});
     ++edges_;
   }
   changed_.notify_all();

@@ -544,6 +544,27 @@ TEST(GigeGpio, MemoryLineReportsEachEdgeWithItsDirection) {
   EXPECT_TRUE(line.level());
 }
 
+// Each edge keeps the time of its Set (what LineDebouncerTime judges), however late it is read.
+TEST(GigeGpio, MemoryLineStampsEachEdgeWhenItWasSet) {
+  hal::MemoryLine line("test");
+  std::string error;
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(line.Set(true, &error));
+  const auto t1 = std::chrono::steady_clock::now();
+  Sleep(20);
+  ASSERT_TRUE(line.Set(false, &error));
+  const auto t2 = std::chrono::steady_clock::now();
+  Sleep(20);
+  hal::Edge edge;
+  std::chrono::steady_clock::time_point at;
+  ASSERT_EQ(line.WaitEdge(0, &edge, &error), 1);
+  ASSERT_TRUE(line.LastEdgeTime(&at));
+  EXPECT_TRUE(at >= t0 && at <= t1);
+  ASSERT_EQ(line.WaitEdge(0, &edge, &error), 1);
+  ASSERT_TRUE(line.LastEdgeTime(&at));
+  EXPECT_TRUE(at >= t1 + std::chrono::milliseconds(20) && at <= t2);
+}
+
 TEST(GigeGpio, DeviceRefusesToStartWithAMissingTriggerLineOnly) {
   DeviceOptions o = SmallDevice();
   o.trigger_line = "camsim-no-such-chip:1";
@@ -2984,6 +3005,69 @@ TEST_F(GigeE2E, AnInvertedLine0TriggersOnTheOppositeEdge) {
   trigger_.Set(false, &err);
   EXPECT_TRUE(c.Grab(300).empty());
   g_object_unref(parser);
+}
+
+// LineDebouncerTime (Line0): a level is taken once it has held the debounce
+// time. A pulse shorter than it gives no frame; a bouncing edge then a
+// longer pulse give one frame, stamped at its last rising edge plus the
+// debounce time (its exposure's start: a real camera's trigger comes that
+// late too).
+TEST_F(GigeE2E, LineDebouncerTimeIgnoresShortPulsesAndDelaysTheTrigger) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  constexpr double kDebounceMs = 40.0;
+  constexpr uint64_t kMs = 1000000;
+  const auto now_ns = [] { return static_cast<uint64_t>(g_get_real_time()) * 1000; };
+  Set(c, "LineSelector", "Line1");
+  EXPECT_FALSE(arv_camera_is_feature_available(c.camera(), "LineDebouncerTime", nullptr)) << "Line1 is an output";
+  Set(c, "LineSelector", "Line0");
+  EXPECT_TRUE(arv_camera_is_feature_available(c.camera(), "LineDebouncerTime", nullptr));
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), 0.0);
+  double lo = -1, hi = -1;
+  arv_camera_get_float_bounds(c.camera(), "LineDebouncerTime", &lo, &hi, nullptr);
+  EXPECT_EQ(lo, 0.0);
+  EXPECT_EQ(hi, reg::kMaxLineDebouncerTimeUs);
+  SetFloat(c, "LineDebouncerTime", kDebounceMs * 1000.0);
+  GError* e = nullptr;
+  arv_device_write_memory(c.device(), reg::kLineDebouncerTime, 8, Be64(2 * reg::kMaxLineDebouncerTimeUs).data(), &e);
+  EXPECT_NE(e, nullptr) << "beyond 1 s";
+  g_clear_error(&e);
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  SetFloat(c, "ExposureTime", 1000.0);
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), kDebounceMs * 1000.0);
+  std::string err;
+  for (int i = 0; i < 2; ++i) {  // 10 ms pulses: no frame
+    trigger_.Set(true, &err);
+    Sleep(10);
+    trigger_.Set(false, &err);
+    Sleep(60);
+  }
+  EXPECT_TRUE(c.Grab(300).empty()) << "a frame for a pulse shorter than the debounce time";
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineStatus", nullptr));
+  // A bounce (5 ms high, 5 ms low), then 100 ms high: one frame.
+  trigger_.Set(true, &err);
+  Sleep(5);
+  trigger_.Set(false, &err);
+  Sleep(5);
+  const uint64_t sent = now_ns();
+  trigger_.Set(true, &err);
+  Sleep(100);
+  trigger_.Set(false, &err);
+  ASSERT_FALSE(c.Grab(3000).empty()) << "no frame for a pulse longer than the debounce time";
+  // 5 ms for the clocks' reads (the camera's clock is the same real time).
+  EXPECT_GE(c.last_timestamp_ns() + 5 * kMs, sent + static_cast<uint64_t>(kDebounceMs) * kMs)
+      << "stamped before its edge plus the debounce time";
+  EXPECT_LE(c.last_timestamp_ns(), sent + static_cast<uint64_t>(kDebounceMs + 10) * kMs)
+      << "stamped long after its edge plus the debounce time";
+  EXPECT_TRUE(c.Grab(300).empty()) << "more than one frame";
+  EXPECT_EQ(c.failed_buffers(), 0u);
 }
 
 using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
