@@ -72,10 +72,12 @@ constexpr AutoLimits kAutoLimits[] = {
 // or SimFrameIndex (a running count). Each selected one with every selection.
 constexpr const char* kUserSetFeatures[] = {
     "Width", "Height", "OffsetX", "OffsetY", "ReverseX", "ReverseY", "PixelFormat", "AcquisitionMode",
-    "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureTime", "ExposureAuto",
+    "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureMode", "ExposureTime",
+    "ExposureAuto",
     "AutoExposureTimeLowerLimit", "AutoExposureTimeUpperLimit", "TriggerMode", "TriggerSource", "TriggerActivation",
     "TriggerDelay", "Gain", "GainAuto", "AutoGainLowerLimit", "AutoGainUpperLimit", "BlackLevel", "BalanceRatio",
-    "BalanceWhiteAuto", "Gamma", "GammaEnable", "LineSource", "ChunkModeActive", "ChunkEnable", "SimFNumber",
+    "BalanceWhiteAuto", "Gamma", "GammaEnable", "LineSource", "LineInverter", "LineDebouncerTime", "ChunkModeActive",
+    "ChunkEnable", "SimFNumber",
     "SimFocusDistance", "SimSeed", "SimStageEnable", "SimAutoTarget"};
 
 // A stable MAC address for a serial number: locally administered unicast
@@ -702,6 +704,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kAcquisitionFrameRateEnable, 1},
       {kExposureTime, DoubleBits(c.exposure.exposure_time_us)},  // the core checked it: [1, 1e8]
       {kExposureAuto, kAutoOff},
+      {kExposureMode, kExposureTimed},
       {kTriggerSelector, 0},
       {kTriggerMode, 0},
       {kTriggerSource, kSourceSoftware},
@@ -1245,6 +1248,40 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       refuse(GevStatus::kError, what, why);
     }
   }
+  // ExposureMode TriggerWidth is available only with TriggerMode On,
+  // TriggerSource Line0 and ExposureAuto Off (its entry's pIsAvailable), and
+  // locks them and ExposureTime (pIsLocked), as the block leaves them: a
+  // TriggerWidth write that would break that is set back (access denied),
+  // else the writes of the features it locks are.
+  {
+    const auto after = [&](uint32_t r) { return covers(r) ? value(r) : d->Read(r); };
+    const bool width_now = d->Read(reg::kExposureMode) == kExposureTriggerWidth;
+    const bool width_written = covers(reg::kExposureMode) && value(reg::kExposureMode) == kExposureTriggerWidth;
+    const bool allowed = after(reg::kTriggerMode) == 1 && after(reg::kTriggerSource) == kSourceLine0 &&
+                         after(reg::kExposureAuto) == kAutoOff;
+    if (width_written && !width_now && !allowed) {
+      set_back(reg::kExposureMode);
+      refuse(GevStatus::kAccessDenied, "ExposureMode = TriggerWidth",
+             "not available: it needs TriggerMode On, TriggerSource Line0 and ExposureAuto Off");
+    } else if (after(reg::kExposureMode) == kExposureTriggerWidth) {
+      for (const auto& [r, name] : {std::pair{reg::kTriggerMode, "TriggerMode"}, {reg::kTriggerSource, "TriggerSource"},
+                                    {reg::kExposureAuto, "ExposureAuto"}}) {
+        if (!covers(r) || value(r) == d->Read(r)) continue;
+        const Feature* f = FindFeature(d->registers_, name);
+        const std::string what = std::string(name) + " = " + (f ? d->ValueText(*f, value(r)) : std::to_string(value(r)));
+        set_back(r);
+        refuse(GevStatus::kAccessDenied, what, "locked: ExposureMode is TriggerWidth");
+      }
+      bool exposure = false;  // a change of ExposureTime's register (either half)
+      for (const uint32_t r : {reg::kExposureTime, reg::kExposureTime + 4})
+        exposure = exposure || (covers(r) && value(r) != d->Read(r));
+      if (exposure) {
+        for (const uint32_t r : {reg::kExposureTime, reg::kExposureTime + 4})
+          if (covers(r)) set_back(r);
+        refuse(GevStatus::kAccessDenied, "ExposureTime", "locked: ExposureMode is TriggerWidth");
+      }
+    }
+  }
   // The window must stay on the sensor (SFNC's pMax: WidthMax - OffsetX,
   // ...): a write that would move it off is set back, the offset first.
   const std::pair<uint32_t, uint32_t> axes[2] = {{reg::kWidth, reg::kOffsetX}, {reg::kHeight, reg::kOffsetY}};
@@ -1579,6 +1616,7 @@ void GigeDevice::Sync() {
     std::lock_guard<std::mutex> t(trigger_mutex_);
     line0_armed_ = Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceLine0;
     line0_rising_ = Applied(kTriggerActivation) == 0;
+    line0_width_ = line0_armed_ && Applied(kExposureMode) == kExposureTriggerWidth;
     line0_inverted_ = Applied(SelectedAddress(kLineInverter, 0)) != 0;
     trigger_level_ = line0_electrical_ != line0_inverted_;
     line0_debounce_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -1594,7 +1632,7 @@ void GigeDevice::Sync() {
   }
 }
 
-void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at) {
+void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at, bool width) {
   if (pending_triggers_.size() >= kMaxPendingTriggers) {
     ++triggers_dropped_;
     if (!overrun_logged_.exchange(true))
@@ -1603,8 +1641,18 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady
     return;
   }
   const auto start = std::max(at + trigger_delay_, exposure_busy_until_);
-  exposure_busy_until_ = start + trigger_exposure_;
-  pending_triggers_.push_back({index, line0_high, start, exposure_busy_until_});
+  exposure_busy_until_ = width ? start : start + trigger_exposure_;
+  const auto end = width ? std::chrono::steady_clock::time_point::max() : exposure_busy_until_;
+  pending_triggers_.push_back({index, line0_high, start, end, width, width});
+  FireDueTrigger(std::chrono::steady_clock::now());
+}
+
+void GigeDevice::EndTriggerWidth(std::chrono::steady_clock::time_point at) {
+  if (pending_triggers_.empty() || !pending_triggers_.back().width_open) return;
+  PendingTrigger& p = pending_triggers_.back();
+  p.exposure_end = std::max(at + trigger_delay_, p.exposure_start + std::chrono::microseconds(1));
+  p.width_open = false;
+  exposure_busy_until_ = p.exposure_end;
   FireDueTrigger(std::chrono::steady_clock::now());
 }
 
@@ -1758,7 +1806,8 @@ void GigeDevice::TakeLine0Level(bool electrical, std::chrono::steady_clock::time
   // The trigger logic and LineStatus see the level after LineInverter.
   const bool high = electrical != line0_inverted_;
   trigger_level_ = high;  // LineStatus: written by the next sync
-  if (high == line0_rising_ && line0_armed_ && Read(reg::kAcquisition) != 0) TakeTrigger(index, high, at);
+  if (high == line0_rising_ && line0_armed_ && Read(reg::kAcquisition) != 0) TakeTrigger(index, high, at, line0_width_);
+  if (high != line0_rising_) EndTriggerWidth(at);  // (also after the mode changed: none stays open)
 }
 
 void GigeDevice::FillThunk(ArvBuffer* buffer, void* self, uint32_t, uint32_t, uint32_t pixel_format) {
@@ -2193,12 +2242,17 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   // the level its trigger left (a short pulse may have ended before the
   // rendering starts), a free-run frame's the level now.
   bool line0_high = trigger_level_.load();
+  double width_us = 0;  // a TriggerWidth exposure's length
   if (Applied(kTriggerMode) == 1) {
     // This frame answers the oldest trigger; the fake camera is asked for the next one.
     std::lock_guard<std::mutex> t(trigger_mutex_);
     if (!pending_triggers_.empty()) {
       pulse_index = pending_triggers_.front().index;
       line0_high = pending_triggers_.front().line0_high;
+      if (pending_triggers_.front().width)
+        width_us = std::chrono::duration<double, std::micro>(pending_triggers_.front().exposure_end -
+                                                             pending_triggers_.front().exposure_start)
+                       .count();
       pending_triggers_.pop_front();
       trigger_requested_ = false;
       FireDueTrigger(std::chrono::steady_clock::now());  // the next, if its exposure has ended
@@ -2208,8 +2262,21 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
     SetApplied(kSimFrameIndex, static_cast<uint64_t>(pulse_index));
     WriteDerived();
   }
-  // The settings this frame is made with (its chunks).
-  frame_exposure_us_ = AppliedDouble(kExposureTime);
+  // The settings this frame is made with (its chunks). A TriggerWidth
+  // exposure (in the core's range) is rendered by a pipeline planned for it;
+  // the next frame of another exposure plans again.
+  double exposure_us = width_us > 0 ? std::clamp(width_us, 1.0, 1e8) : AppliedDouble(kExposureTime);
+  if (renderer_->pipeline().config().exposure.exposure_time_us != exposure_us) {
+    Registers r = applied_;
+    r[kExposureTime] = DoubleBits(exposure_us);
+    std::string error;
+    const ClientWritesHeld hold(fake_);  // Reconfigure's lock, as AutoAdjust takes it
+    if (!Reconfigure(r, &error)) {  // not expected: the core takes the whole range
+      LogOnce("exposure-" + error, "camsim-gige: cannot render an exposure of " + Fmt(exposure_us) + " us: " + error);
+      exposure_us = renderer_->pipeline().config().exposure.exposure_time_us;
+    }
+  }
+  frame_exposure_us_ = exposure_us;
   frame_gain_db_ = AppliedDouble(kGain);
   frame_black_level_dn_ = AppliedDouble(kBlackLevel);
   frame_index_ = Applied(kSimFrameIndex);
@@ -2344,7 +2411,9 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
     if (const Feature* f = feature(address)) steps.push_back({address, {{f, value}}});
   };
   const auto has = [&](uint32_t address) { return v.count(address) != 0; };
-  // The Auto features Off (the loop would own what the set writes).
+  // ExposureMode Timed and the Auto features Off (TriggerWidth locks the
+  // trigger and ExposureAuto; the loop would own what the set writes).
+  if (has(kExposureMode)) add(kExposureMode, kExposureTimed);
   for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
     if (has(a)) add(a, kAutoOff);
   // The sensor's own readout and raw format: valid in any window with any stages.
@@ -2359,7 +2428,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   for (const uint32_t a : {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat})
     if (has(a)) add(a, v.at(a));
   const std::set<uint32_t> done = {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat,
-                                   kExposureAuto, kGainAuto, kBalanceWhiteAuto};
+                                   kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode};
   for (const auto& [a, x] : v) {
     if (done.count(a) || (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount))) continue;
     bool limit = false;
@@ -2370,7 +2439,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
     }
     if (!limit) add(a, x);
   }
-  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
+  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode})
     if (has(a)) add(a, v.at(a));
 
   Registers before = UserSetNow();

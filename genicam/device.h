@@ -279,7 +279,11 @@ class GigeDevice {
   // that is later, and lasts ExposureTime; the fake camera is asked for its frame when it has ended
   // (FireDueTrigger), as a camera reads a frame out after its exposure.
   // `at`: when the trigger came (a Line0 edge's time plus LineDebouncerTime).
-  void TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at);
+  // width (ExposureMode TriggerWidth): the exposure lasts until EndTriggerWidth.
+  void TakeTrigger(int64_t index, bool line0_high, std::chrono::steady_clock::time_point at, bool width = false);
+  // Under trigger_mutex_: the open TriggerWidth exposure (if any) ends at `at`
+  // (Line0's opposite edge), TriggerDelay later as it began.
+  void EndTriggerWidth(std::chrono::steady_clock::time_point at);
   // Under trigger_mutex_: Line0's electrical level `electrical` taken (stable
   // for LineDebouncerTime) at `at`: LineStatus, and a trigger on the
   // activation edge. index: the frame index its edge carried (or kNextIndex).
@@ -379,6 +383,8 @@ class GigeDevice {
     int64_t index;    // frame index or kNextIndex
     bool line0_high;  // Line0's level at the trigger (ChunkLineStatusAll of its frame)
     std::chrono::steady_clock::time_point exposure_start, exposure_end;
+    bool width = false;       // ExposureMode TriggerWidth: the exposure is exposure_end - exposure_start
+    bool width_open = false;  // its end (Line0's opposite edge) not yet come: exposure_end is max()
   };
   std::deque<PendingTrigger> pending_triggers_;
   // Under trigger_mutex_: when the last trigger's exposure ends (the next
@@ -391,6 +397,7 @@ class GigeDevice {
   // Line0, and the edge that triggers (TriggerActivation).
   bool line0_armed_ = false;
   bool line0_rising_ = true;
+  bool line0_width_ = false;  // and ExposureMode TriggerWidth
   std::atomic<bool> overrun_logged_{false};
   uint32_t frames_in_acquisition_ = 0;
   bool was_acquiring_ = false;

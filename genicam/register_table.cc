@@ -370,16 +370,30 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                           "Hz");
   resulting.writable = false;
   t.push_back(resulting);
+  t.push_back(Enum("ExposureMode", ac, kExposureMode, true,
+                   {{"Timed", kExposureTimed}, {"TriggerWidth", kExposureTriggerWidth}},
+                   "Timed: an exposure lasts ExposureTime. TriggerWidth: as long as Line0 is active, from its "
+                   "TriggerActivation edge to the opposite one (available with TriggerMode On, TriggerSource Line0 "
+                   "and ExposureAuto Off, which it then locks, as it locks ExposureTime)."));
+  t.back().entries[1].available_formula = "(M=1)&&(S=" + std::to_string(kSourceLine0) + ")&&(A=" +
+                                          std::to_string(kAutoOff) + ")";
+  t.back().entries[1].variables = {{"M", "TriggerMode"}, {"S", "TriggerSource"}, {"A", "ExposureAuto"}};
   // The core's whole range (core/aperture/exposure.cc): any configured exposure is reported as rendered.
-  // Locked while ExposureAuto is not Off: the auto loop sets it (SFNC; the device refuses a change).
+  // Locked while ExposureAuto is not Off (the auto loop sets it; SFNC) or
+  // ExposureMode is TriggerWidth (the pulse sets it): the device refuses a change.
   const auto auto_locked = [](Feature f, const char* auto_name) {
     f.locked_formula = "A<>" + std::to_string(kAutoOff);
     f.variables = {{"A", auto_name}};
     return f;
   };
-  t.push_back(auto_locked(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8,
-                              "Exposure time (read-only while ExposureAuto is Once or Continuous).", "us"),
-                          "ExposureAuto"));
+  Feature exposure = auto_locked(Flt("ExposureTime", ac, kExposureTime, 1.0, 1e8,
+                                     "Exposure time (read-only while ExposureAuto is Once or Continuous; not used, "
+                                     "and locked, under ExposureMode TriggerWidth).",
+                                     "us"),
+                                 "ExposureAuto");
+  exposure.locked_formula = "(" + exposure.locked_formula + ")||(E=" + std::to_string(kExposureTriggerWidth) + ")";
+  exposure.variables.push_back({"E", "ExposureMode"});
+  t.push_back(exposure);
   t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));
   t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
                    {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
@@ -795,12 +809,18 @@ std::string GenerateXml(const std::vector<Feature>& table, const DeviceStrings& 
           x << "    <EnumEntry Name=\"" << e.name << "\" NameSpace=\""
             << (IsStandard(f.name) && IsStandard(e.name) ? "Standard" : "Custom")
             << "\">\n";
-          if (e.only_at_selection >= 0 || !e.available || e.readout >= 0)
+          if (e.only_at_selection >= 0 || !e.available || e.readout >= 0 || !e.available_formula.empty())
             x << "      <pIsAvailable>" << f.name << e.name << "Available</pIsAvailable>\n";
           if (!e.available)
             swiss_knives << "  <Integer Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
                          << "    <Value>0</Value>\n  </Integer>\n";
           x << "      <Value>" << e.value << "</Value>\n    </EnumEntry>\n";
+          if (!e.available_formula.empty()) {
+            swiss_knives << "  <IntSwissKnife Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n";
+            for (const auto& v : e.variables)
+              swiss_knives << "    <pVariable Name=\"" << v.first << "\">" << VariableNode(v.second) << "</pVariable>\n";
+            swiss_knives << "    <Formula>" << Xml(e.available_formula) << "</Formula>\n  </IntSwissKnife>\n";
+          }
           if (e.only_at_selection >= 0)
             swiss_knives << "  <IntSwissKnife Name=\"" << f.name << e.name << "Available\" NameSpace=\"Custom\">\n"
                          << "    <pVariable Name=\"S\">" << f.selected_by << "Reg</pVariable>\n"

@@ -34,6 +34,11 @@ struct EnumEntry {
   // >= 0: available only while ReverseX + 2 * ReverseY equals it: a Bayer
   // format of the CFA phase that readout gives (GenICam pIsAvailable).
   int readout = -1;
+  // Nonempty: available only while this formula over `variables` (variable,
+  // feature) is nonzero (GenICam pIsAvailable, an IntSwissKnife); the device
+  // checks it itself (e.g. ExposureMode TriggerWidth).
+  std::string available_formula{};
+  std::vector<std::pair<std::string, std::string>> variables{};
 };
 
 struct Feature {
@@ -82,7 +87,8 @@ struct Feature {
   bool locked_while_acquiring = false;
   // Nonempty (and not locked_while_acquiring): locked while this formula
   // over `variables` is nonzero (pIsLocked, an IntSwissKnife); the device
-  // refuses a change then, e.g. ExposureTime while ExposureAuto is not Off.
+  // refuses a change then, e.g. ExposureTime while ExposureAuto is not Off
+  // or ExposureMode is TriggerWidth.
   std::string locked_formula;
 };
 
@@ -176,6 +182,8 @@ inline constexpr double kMinGamma = 0.1, kMaxGamma = 10.0;
 // command registers (read back 0), and UserSetDefault (the set loaded at start).
 inline constexpr uint32_t kUserSetSelector = 0x8460, kUserSetLoad = 0x8464, kUserSetSave = 0x8468,
                           kUserSetDefault = 0x846c;
+// ExposureMode (SFNC AcquisitionControl): ExposureModeValue.
+inline constexpr uint32_t kExposureMode = 0x8620;
 // LineInverter (SFNC DigitalIOControl): one per line (LineSelector), as
 // LineMode. LineDebouncerTime: the input Line0's (one register, available
 // at LineSelector Line0), an 8-byte Float, us, 0 .. kMaxLineDebouncerTimeUs.
@@ -231,6 +239,7 @@ enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiF
 enum AutoValue : int64_t { kAutoOff = 0, kAutoOnce = 1, kAutoContinuous = 2 };
 enum TriggerSourceValue : int64_t { kSourceSoftware = 0, kSourceLine0 = 1 };
 enum LineSourceValue : int64_t { kLineSourceOff = 0, kLineSourceExposureActive = 1 };
+enum ExposureModeValue : int64_t { kExposureTimed = 0, kExposureTriggerWidth = 1 };
 
 // PFNC pixel format codes (GigE Vision values).
 inline constexpr uint32_t kMono8 = 0x01080001, kMono10 = 0x01100003, kMono12 = 0x01100005, kMono16 = 0x01100007,

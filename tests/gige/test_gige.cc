@@ -3070,6 +3070,82 @@ TEST_F(GigeE2E, LineDebouncerTimeIgnoresShortPulsesAndDelaysTheTrigger) {
   EXPECT_EQ(c.failed_buffers(), 0u);
 }
 
+// ExposureMode TriggerWidth: an exposure lasts as long as Line0 is active.
+// Two pulses of 30 and 90 ms give frames whose ChunkExposureTime is each
+// pulse's width, each equal to the core's frame at that exposure (the
+// pipeline rendered it). The mode is refused with a Software source, and
+// locks TriggerSource and ExposureTime while on.
+TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "Timed");
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Software");
+  Settle();
+  GError* e = nullptr;
+  arv_camera_set_string(c.camera(), "ExposureMode", "TriggerWidth", &e);
+  EXPECT_NE(e, nullptr) << "TriggerWidth with a Software source";
+  g_clear_error(&e);
+  arv_device_write_memory(c.device(), reg::kExposureMode, 4, Be32(genicam::kExposureTriggerWidth).data(), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED)) << "a raw write";
+  g_clear_error(&e);
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "Timed");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  Set(c, "ExposureMode", "TriggerWidth");
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "TriggerWidth");
+  const double exposure = ReadFloat(c, "ExposureTime");
+  arv_device_write_memory(c.device(), reg::kExposureTime, 8, Be64(1234.0).data(), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED)) << "ExposureTime";
+  g_clear_error(&e);
+  arv_device_write_memory(c.device(), reg::kTriggerSource, 4, Be32(genicam::kSourceSoftware).data(), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED)) << "TriggerSource";
+  g_clear_error(&e);
+  Settle();
+  EXPECT_EQ(ReadFloat(c, "ExposureTime"), exposure);
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerSource", nullptr), "Line0");
+  {
+    ArvGcNode* node = arv_device_get_feature(c.device(), "ExposureTime");
+    ASSERT_NE(node, nullptr);
+    EXPECT_TRUE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr)) << "pIsLocked";
+  }
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  std::string err;
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  for (const int width_ms : {30, 90}) {
+    trigger_.Set(true, &err);
+    Sleep(width_ms);
+    EXPECT_TRUE(c.Grab(0).empty());
+    trigger_.Set(false, &err);
+    ChunkedFrame f = GrabChunked(c, parser);
+    ASSERT_TRUE(f.ok) << width_ms << " ms";
+    const double us = f.values.at("ChunkExposureTime");
+    EXPECT_GE(us, width_ms * 1000.0) << width_ms << " ms";
+    EXPECT_LE(us, width_ms * 1000.0 + 25000.0) << width_ms << " ms";  // the sleep may overrun
+    char set[64];
+    std::snprintf(set, sizeof set, "exposure.exposure_time_us=%.17g", us);
+    const auto index = static_cast<uint32_t>(f.values.at("ChunkSimFrameIndex"));
+    EXPECT_TRUE(f.image == Reference(index, code, 0, 0, 64, 48, {set})) << "not rendered at " << set;
+  }
+  EXPECT_TRUE(c.Grab(300).empty()) << "more frames than pulses";
+  g_object_unref(parser);
+  // Timed again: ExposureTime is used (and free) again.
+  arv_camera_stop_acquisition(c.camera(), &e);
+  ASSERT_EQ(e, nullptr);
+  Set(c, "ExposureMode", "Timed");
+  SetFloat(c, "ExposureTime", 1234.0);
+  Settle();
+  EXPECT_EQ(ReadFloat(c, "ExposureTime"), 1234.0);
+}
+
 using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
 
 // A controller that speaks raw GVCP from its own socket, so the test can let
