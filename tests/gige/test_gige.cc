@@ -5325,6 +5325,53 @@ TEST_F(GigeE2E, UserSetsSaveAndLoadTheirSettings) {
   EXPECT_EQ(ReadInt(c, "UserSetLoad"), 0) << "a command reads back 0 (done)";
 }
 
+// A set holds the trigger's ExposureMode and the lines' inverter and
+// debouncer. TriggerWidth locks TriggerMode, TriggerSource and ExposureAuto,
+// so a load sets ExposureMode Timed first and the set's value last: a set
+// saved under TriggerWidth loads back, and one with TriggerMode Off loads
+// while TriggerWidth is on.
+TEST_F(GigeE2E, UserSetsHoldTriggerWidthAndTheLines) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "ExposureMode", "TriggerWidth");
+  Set(c, "LineSelector", "Line0");
+  arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, nullptr);
+  SetFloat(c, "LineDebouncerTime", 1500.0);
+  Settle();
+  ASSERT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "TriggerWidth");
+  Set(c, "UserSetSelector", "UserSet1");
+  GError* e = nullptr;
+  arv_camera_execute_command(c.camera(), "UserSetSave", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  // Back to Timed with a Software source and the lines as at start.
+  Set(c, "ExposureMode", "Timed");
+  Set(c, "TriggerSource", "Software");
+  arv_camera_set_boolean(c.camera(), "LineInverter", FALSE, nullptr);
+  SetFloat(c, "LineDebouncerTime", 0.0);
+  Settle();
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "TriggerWidth");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerSource", nullptr), "Line0");
+  Set(c, "LineSelector", "Line0");
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), 1500.0);
+  // UserSet2, never saved, holds Default's: Timed, TriggerMode Off.
+  Set(c, "UserSetSelector", "UserSet2");
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "Timed");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerMode", nullptr), "Off");
+  Set(c, "LineSelector", "Line0");
+  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
+}
+
 // A set that changes exposure under ExposureAuto Continuous loads the value
 // first and turns the Auto feature on last; a load goes through the
 // client's checks, so a set whose window the sensor cannot take is refused
