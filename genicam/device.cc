@@ -33,8 +33,34 @@ constexpr uint32_t kPipelineRegisters[] = {reg::kExposureTime, reg::kGain,   reg
 // sized) and while TLParamsLocked is 1: the window, the format and chunk mode
 // with every ChunkEnable.
 // (ReverseX and ReverseY change a Bayer format's phase.)
-constexpr uint32_t kWindowRegisters[] = {reg::kWidth,       reg::kHeight,          reg::kOffsetX,  reg::kOffsetY,
-                                         reg::kPixelFormat, reg::kChunkModeActive, reg::kReverseX, reg::kReverseY};
+// (Binning and decimation change the readout the window is cut from.)
+constexpr uint32_t kWindowRegisters[] = {reg::kWidth,
+                                         reg::kHeight,
+                                         reg::kOffsetX,
+                                         reg::kOffsetY,
+                                         reg::kPixelFormat,
+                                         reg::kChunkModeActive,
+                                         reg::kReverseX,
+                                         reg::kReverseY,
+                                         reg::kBinningHorizontal,
+                                         reg::kBinningVertical,
+                                         reg::kBinningHorizontalMode,
+                                         reg::kBinningVerticalMode,
+                                         reg::kDecimationHorizontal,
+                                         reg::kDecimationVertical};
+// The binning and decimation registers (factors and modes).
+constexpr uint32_t kReductionRegisters[] = {reg::kBinningHorizontal, reg::kBinningVertical,
+                                            reg::kBinningHorizontalMode, reg::kBinningVerticalMode,
+                                            reg::kDecimationHorizontal, reg::kDecimationVertical};
+// The readout's extent on axis a (0: x, 1: y), WidthMax or HeightMax, for
+// the factors `at` gives (a register's value; clamped to the factors' range).
+template <class At>
+int ReadoutExtent(const SensorInfo& s, int a, At at) {
+  const auto factor = [&](uint32_t r) { return std::clamp(static_cast<int>(at(r)), 1, reg::kMaxReduction); };
+  const int step = s.cfa == Cfa::kMono ? 1 : 2;
+  return a == 0 ? ReducedExtent(s.width, step, factor(reg::kBinningHorizontal), factor(reg::kDecimationHorizontal))
+                : ReducedExtent(s.height, step, factor(reg::kBinningVertical), factor(reg::kDecimationVertical));
+}
 constexpr auto kGeometryRegisters = [] {
   std::array<uint32_t, std::size(kWindowRegisters) + kChunkCount> r{};
   size_t n = 0;
@@ -71,9 +97,10 @@ constexpr AutoLimits kAutoLimits[] = {
 // simulation features, not the transport layer's, the selectors, commands
 // or SimFrameIndex (a running count). Each selected one with every selection.
 constexpr const char* kUserSetFeatures[] = {
-    "Width", "Height", "OffsetX", "OffsetY", "ReverseX", "ReverseY", "PixelFormat", "AcquisitionMode",
-    "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureMode", "ExposureTime",
-    "ExposureAuto",
+    "Width", "Height", "OffsetX", "OffsetY", "ReverseX", "ReverseY", "BinningHorizontal", "BinningVertical",
+    "BinningHorizontalMode", "BinningVerticalMode", "DecimationHorizontal", "DecimationVertical", "PixelFormat",
+    "AcquisitionMode", "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureMode",
+    "ExposureTime", "ExposureAuto",
     "AutoExposureTimeLowerLimit", "AutoExposureTimeUpperLimit", "TriggerMode", "TriggerSource", "TriggerActivation",
     "TriggerDelay", "Gain", "GainAuto", "AutoGainLowerLimit", "AutoGainUpperLimit", "BlackLevel", "BalanceRatio",
     "BalanceWhiteAuto", "Gamma", "GammaEnable", "LineSource", "LineInverter", "LineDebouncerTime", "ChunkModeActive",
@@ -366,6 +393,40 @@ void MirrorWindow(uint8_t* frame, size_t stride, size_t n, int x, int y, int w, 
       std::swap_ranges(origin + a * stride * n, origin + a * stride * n + row, origin + b * stride * n);
 }
 
+// Binning and decimation of one readout (BinningHorizontal, ...).
+struct Reduction {
+  int bin_x = 1, bin_y = 1, dec_x = 1, dec_y = 1;
+  bool average_x = false, average_y = false;  // BinningHorizontalMode / BinningVerticalMode Average
+};
+// Reduces a frame of `channels` samples per pixel (stride `stride` pixels)
+// to out_w x out_h pixels, per `cell` x `cell` CFA cell (1: per pixel):
+// binning first (cell I sums the same-colour samples of cells I x bin ..
+// I x bin + bin - 1 of the frame), then decimation (every dec-th binned
+// cell), so output cell I comes from frame cells I x dec x bin + k, k < bin,
+// on each axis. The sum of the bin_x x bin_y samples is divided by bin_x for
+// Average horizontally and by bin_y for Average vertically, rounded half up
+// ((s + d / 2) / d), then clamped at `full`.
+template <class T>
+void ReduceReadout(const T* in, int stride, int channels, int cell, const Reduction& r, int full, int out_w, int out_h,
+                   T* out) {
+  const auto first = [cell](int i, int bin, int dec) { return (i / cell) * dec * bin * cell + i % cell; };
+  const uint32_t divisor = static_cast<uint32_t>((r.average_x ? r.bin_x : 1) * (r.average_y ? r.bin_y : 1));
+  for (int j = 0; j < out_h; ++j) {
+    const int row = first(j, r.bin_y, r.dec_y);
+    for (int i = 0; i < out_w; ++i) {
+      const int col = first(i, r.bin_x, r.dec_x);
+      for (int c = 0; c < channels; ++c) {
+        uint32_t sum = 0;
+        for (int l = 0; l < r.bin_y; ++l)
+          for (int k = 0; k < r.bin_x; ++k)
+            sum += in[(static_cast<size_t>(row + l * cell) * stride + col + k * cell) * channels + c];
+        const uint32_t v = std::min<uint32_t>((sum + divisor / 2) / divisor, static_cast<uint32_t>(full));
+        out[(static_cast<size_t>(j) * out_w + i) * channels + c] = static_cast<T>(v);
+      }
+    }
+  }
+}
+
 void ConvertWindow(uint32_t format, Cfa cfa, int adc_bits, const uint16_t* raw, const uint8_t* rgb, int sensor_width,
                    int x, int y, int w, int h, uint8_t* out) {
   if (format == kRGB8) {
@@ -490,6 +551,12 @@ void GigeDevice::SetApplied(uint32_t address, uint64_t value) {
       WriteFeature(f, value);
       return;
     }
+}
+
+void GigeDevice::WriteReadoutMax() {
+  const auto at = [this](uint32_t r) { return Read(r); };
+  Write(reg::kWidthMax, static_cast<uint32_t>(ReadoutExtent(sensor_, 0, at)));
+  Write(reg::kHeightMax, static_cast<uint32_t>(ReadoutExtent(sensor_, 1, at)));
 }
 
 int GigeDevice::Readout() const { return static_cast<int>((Read(reg::kReverseX) & 1) | (Read(reg::kReverseY) & 1) << 1); }
@@ -746,6 +813,12 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kChunkSelector, 0},
       {kReverseX, 0},
       {kReverseY, 0},
+      {kBinningHorizontal, 1},
+      {kBinningVertical, 1},
+      {kBinningHorizontalMode, kBinningSum},
+      {kBinningVerticalMode, kBinningSum},
+      {kDecimationHorizontal, 1},
+      {kDecimationVertical, 1},
       {kDeviceTemperatureSelector, 0},
       {kDeviceTemperature, DoubleBits(c.sensor.temperature_c)},  // the core checked it: [-100, 150]
       {kUserSetSelector, kUserSetDefaultSet},
@@ -847,9 +920,12 @@ std::string GigeDevice::CheckInvariants() const {
     if (ReadFeature(f) != in_use) return f.name + ": the register differs from the value in use";
   }
   using namespace reg;
-  if (applied_.at(kWidth) + applied_.at(kOffsetX) > static_cast<uint64_t>(sensor_.width) ||
-      applied_.at(kHeight) + applied_.at(kOffsetY) > static_cast<uint64_t>(sensor_.height))
-    return "the window is off the sensor";
+  const auto applied = [this](uint32_t r) { return applied_.at(r); };
+  const uint64_t max_w = static_cast<uint64_t>(ReadoutExtent(sensor_, 0, applied)),
+                 max_h = static_cast<uint64_t>(ReadoutExtent(sensor_, 1, applied));
+  if (applied_.at(kWidth) + applied_.at(kOffsetX) > max_w || applied_.at(kHeight) + applied_.at(kOffsetY) > max_h)
+    return "the window is off the readout (WidthMax x HeightMax)";
+  if (Read(kWidthMax) != max_w || Read(kHeightMax) != max_h) return "WidthMax or HeightMax is not the readout's";
   if (applied_.at(kGain) != DoubleBits(GainDbOf(applied_.at(kGainRaw))))
     return "Gain is not GainRaw's step";
   for (const AutoLimits& l : kAutoLimits)
@@ -1282,10 +1358,30 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       }
     }
   }
-  // The window must stay on the sensor (SFNC's pMax: WidthMax - OffsetX,
-  // ...): a write that would move it off is set back, the offset first.
+  // Binning x decimation must leave at least one pixel (Bayer: one 2x2
+  // cell) on the axis: a write that would not is set back.
+  const auto after_write = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
+  const uint32_t axis_factors[2][2] = {{reg::kBinningHorizontal, reg::kDecimationHorizontal},
+                                       {reg::kBinningVertical, reg::kDecimationVertical}};
+  for (int a = 0; a < 2; ++a) {
+    const int step = d->sensor_.cfa == Cfa::kMono ? 1 : 2;
+    if ((!covers(axis_factors[a][0]) && !covers(axis_factors[a][1])) ||
+        ReadoutExtent(d->sensor_, a, after_write) >= step)
+      continue;
+    std::string what;
+    for (const uint32_t r : axis_factors[a])
+      if (covers(r)) what += (what.empty() ? "" : ", ") + register_name(r) + " = " + std::to_string(value(r));
+    for (const uint32_t r : axis_factors[a])
+      if (covers(r)) set_back(r);
+    refuse(GevStatus::kInvalidParameter, what,
+           "binning x decimation leaves less than one " + std::string(step == 1 ? "pixel" : "2x2 cell") +
+               " of the sensor's " + std::to_string(a == 0 ? d->sensor_.width : d->sensor_.height));
+  }
+  // The window must stay on the readout (SFNC's pMax: WidthMax - OffsetX,
+  // ...; WidthMax as the block leaves binning and decimation): a write that
+  // would move it off is set back, the offset first.
   const std::pair<uint32_t, uint32_t> axes[2] = {{reg::kWidth, reg::kOffsetX}, {reg::kHeight, reg::kOffsetY}};
-  const int limits[2] = {d->sensor_.width, d->sensor_.height};
+  const int limits[2] = {ReadoutExtent(d->sensor_, 0, after_write), ReadoutExtent(d->sensor_, 1, after_write)};
   for (int a = 0; a < 2; ++a) {
     const auto [extent, offset] = axes[a];
     const auto after = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
@@ -1294,7 +1390,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     const char* names[2][2] = {{"Width", "OffsetX"}, {"Height", "OffsetY"}};
     const std::string why = std::string("window off the sensor: ") + names[a][0] + " " +
                             std::to_string(after(extent)) + " + " + names[a][1] + " " + std::to_string(after(offset)) +
-                            " > " + std::to_string(limits[a]);
+                            " > " + (a == 0 ? "WidthMax " : "HeightMax ") + std::to_string(limits[a]);
     std::string what;
     for (int i = 1; i >= 0; --i) {
       const uint32_t r = i == 0 ? extent : offset;
@@ -1303,6 +1399,53 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     if (covers(offset)) set_back(offset);
     if (covers(extent) && after(extent) + after(offset) > static_cast<uint64_t>(limits[a])) set_back(extent);
     refuse(GevStatus::kInvalidParameter, what, why);
+  }
+  // A binning or decimation write that leaves the window too large for the
+  // new readout resets it on that axis to the whole readout (Width =
+  // WidthMax, OffsetX = 0), as many cameras do; a window that still fits
+  // stays. Should the reset window leave a packed frame's last byte
+  // partial, the block's reduction and window writes are refused instead.
+  bool reduction = false;
+  for (const uint32_t r : kReductionRegisters) reduction = reduction || covers(r);
+  if (reduction) {
+    uint64_t extent[2], start[2];
+    bool reset[2];
+    for (int a = 0; a < 2; ++a) {
+      extent[a] = after_write(axes[a].first);
+      start[a] = after_write(axes[a].second);
+      reset[a] = extent[a] + start[a] > static_cast<uint64_t>(limits[a]);
+      if (reset[a]) extent[a] = static_cast<uint64_t>(limits[a]), start[a] = 0;
+    }
+    const uint32_t format = static_cast<uint32_t>(after_write(reg::kPixelFormat));
+    if ((reset[0] || reset[1]) && PackingOf(format) != Packing::kNone &&
+        extent[0] * extent[1] * static_cast<uint64_t>(PixelBits(format)) % 8 != 0) {
+      std::string what;
+      for (const uint32_t r : kReductionRegisters)
+        if (covers(r)) what += (what.empty() ? "" : ", ") + register_name(r) + " = " + std::to_string(value(r));
+      for (const uint32_t r : kReductionRegisters)
+        if (covers(r)) set_back(r);
+      for (const auto& [e, o] : axes)
+        for (const uint32_t r : {e, o})
+          if (covers(r)) set_back(r);
+      refuse(GevStatus::kInvalidParameter, what,
+             "the window reset to the new readout, " + std::to_string(extent[0]) + " x " + std::to_string(extent[1]) +
+                 ", would not end a packed frame on a byte");
+    } else {
+      const auto put = [&](uint32_t r, uint64_t v) {  // into the block if it writes r, else the register
+        if (covers(r)) {
+          for (uint32_t b = 0; b < 4; ++b) data[r - address + b] = static_cast<uint8_t>(v >> (24 - 8 * b));
+        } else {
+          d->Write(r, static_cast<uint32_t>(v));
+        }
+      };
+      for (int a = 0; a < 2; ++a)
+        if (reset[a]) {
+          put(axes[a].second, 0);
+          put(axes[a].first, extent[a]);
+        }
+    }
+    d->Write(reg::kWidthMax, static_cast<uint32_t>(ReadoutExtent(d->sensor_, 0, after_write)));
+    d->Write(reg::kHeightMax, static_cast<uint32_t>(ReadoutExtent(d->sensor_, 1, after_write)));
   }
   // A packed format's frame is one bit stream that must end on a byte: the
   // fake camera sends Width x Height x bits / 8 whole bytes (12-bit packing:
@@ -1551,12 +1694,31 @@ void GigeDevice::Sync() {
     // (FilterClientWrite does this as writes arrive; here whatever wrote the
     // registers).
     const std::pair<uint32_t, uint32_t> axes[2] = {{kWidth, kOffsetX}, {kHeight, kOffsetY}};
-    const int limits[2] = {sensor_.width, sensor_.height};
+    // Binning and decimation that leave no pixel go back; the window is on
+    // the readout they leave (a device write past the filter that makes it
+    // too large resets it, as the filter does).
+    const uint32_t axis_factors[2][2] = {{kBinningHorizontal, kDecimationHorizontal},
+                                         {kBinningVertical, kDecimationVertical}};
+    const auto at_next = [&](uint32_t r) { return next.at(r); };
+    for (int a = 0; a < 2; ++a)
+      if (ReadoutExtent(sensor_, a, at_next) < (sensor_.cfa == Cfa::kMono ? 1 : 2))
+        for (const uint32_t r : axis_factors[a])
+          if (was_changed(r)) refuse(r);
+    const int limits[2] = {ReadoutExtent(sensor_, 0, at_next), ReadoutExtent(sensor_, 1, at_next)};
     for (int a = 0; a < 2; ++a) {
       if (next[axes[a].first] + next[axes[a].second] <= static_cast<uint64_t>(limits[a])) continue;
+      if (was_changed(axis_factors[a][0]) || was_changed(axis_factors[a][1])) {
+        next[axes[a].first] = static_cast<uint64_t>(limits[a]);
+        next[axes[a].second] = 0;
+        Write(axes[a].first, static_cast<uint32_t>(limits[a]));
+        Write(axes[a].second, 0);
+        continue;
+      }
       if (was_changed(axes[a].second)) refuse(axes[a].second);
       if (next[axes[a].first] + next[axes[a].second] > static_cast<uint64_t>(limits[a])) refuse(axes[a].first);
     }
+    Write(kWidthMax, static_cast<uint32_t>(limits[0]));
+    Write(kHeightMax, static_cast<uint32_t>(limits[1]));
     // A packed frame ends on a byte: otherwise the format and size go back
     // to the applied ones (which do).
     if (PackingOf(static_cast<uint32_t>(next[kPixelFormat])) != Packing::kNone &&
@@ -2329,16 +2491,42 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   const bool reverse_x = Applied(kReverseX) != 0, reverse_y = Applied(kReverseY) != 0;
   // RGB8, BGR8, and Mono8 on a colour sensor, come from the ISP's frame; the rest from the raw codes.
   const bool from_rgb = FromIsp(pixel_format, sensor_.cfa);
+  // Binning and decimation: the window is cut from the reduced readout (a copy).
+  Reduction reduction;
+  reduction.bin_x = static_cast<int>(Applied(kBinningHorizontal));
+  reduction.bin_y = static_cast<int>(Applied(kBinningVertical));
+  reduction.dec_x = static_cast<int>(Applied(kDecimationHorizontal));
+  reduction.dec_y = static_cast<int>(Applied(kDecimationVertical));
+  reduction.average_x = Applied(kBinningHorizontalMode) == kBinningAverage;
+  reduction.average_y = Applied(kBinningVerticalMode) == kBinningAverage;
+  const int factor_x = reduction.bin_x * reduction.dec_x, factor_y = reduction.bin_y * reduction.dec_y;
+  uint16_t* raw = raw_.data();
+  uint8_t* rgb = rgb_.data();
+  int stride = sensor_.width;
+  if (factor_x * factor_y != 1) {
+    const auto applied = [this](uint32_t r) { return applied_.at(r); };
+    const int rw = ReadoutExtent(sensor_, 0, applied), rh = ReadoutExtent(sensor_, 1, applied);
+    if (from_rgb) {  // per pixel and channel of the ISP's frame
+      reduced_rgb_.resize(static_cast<size_t>(rw) * rh * 3);
+      ReduceReadout(rgb_.data(), sensor_.width, 3, 1, reduction, 255, rw, rh, reduced_rgb_.data());
+      rgb = reduced_rgb_.data();
+    } else {  // per CFA cell of the raw codes (mono: per pixel), clamped at the ADC's full scale
+      reduced_raw_.resize(static_cast<size_t>(rw) * rh);
+      ReduceReadout(raw_.data(), sensor_.width, 1, sensor_.cfa == Cfa::kMono ? 1 : 2, reduction,
+                    (1 << sensor_.adc_bits) - 1, rw, rh, reduced_raw_.data());
+      raw = reduced_raw_.data();
+    }
+    stride = rw;
+  }
   const auto mirror = [&] {
     if (from_rgb)
-      MirrorWindow(rgb_.data(), static_cast<size_t>(sensor_.width), 3, x, y, w, h, reverse_x, reverse_y);
+      MirrorWindow(rgb, static_cast<size_t>(stride), 3, x, y, w, h, reverse_x, reverse_y);
     else
-      MirrorWindow(reinterpret_cast<uint8_t*>(raw_.data()), static_cast<size_t>(sensor_.width), sizeof raw_[0], x, y,
-                   w, h, reverse_x, reverse_y);
+      MirrorWindow(reinterpret_cast<uint8_t*>(raw), static_cast<size_t>(stride), sizeof raw[0], x, y, w, h, reverse_x,
+                   reverse_y);
   };
   mirror();
-  ConvertWindow(pixel_format, sensor_.cfa, sensor_.adc_bits, raw_.data(), rgb_.data(), sensor_.width, x, y, w, h,
-                data);
+  ConvertWindow(pixel_format, sensor_.cfa, sensor_.adc_bits, raw, rgb, stride, x, y, w, h, data);
   mirror();  // back: the Auto features read the frame as the sensor made it
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   // (The chunks, at most kMaxChunkTail bytes, are left out.)
@@ -2346,14 +2534,16 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
                                   Read(kPacketSize) & 0xffff, link_bits_per_s_, PacketDelayNs());
 
   // Mean raw level in the window, for the Auto features.
+  // (With binning or decimation: the sensor's pixels the window covers.)
+  const int sx = x * factor_x, sy = y * factor_y, sw = w * factor_x, sh = h * factor_y;
   if (Applied(kExposureAuto) != kAutoOff || Applied(kGainAuto) != kAutoOff) {
     uint64_t sum = 0;
-    for (int r = 0; r < h; ++r)
-      for (int i = 0; i < w; ++i) sum += raw_[static_cast<size_t>(y + r) * sensor_.width + x + i];
+    for (int r = 0; r < sh; ++r)
+      for (int i = 0; i < sw; ++i) sum += raw_[static_cast<size_t>(sy + r) * sensor_.width + sx + i];
     const double black = AppliedDouble(kBlackLevel), full = (1 << sensor_.adc_bits) - 1;
-    AutoAdjust((static_cast<double>(sum) / (static_cast<double>(w) * h) - black) / (full - black));
+    AutoAdjust((static_cast<double>(sum) / (static_cast<double>(sw) * sh) - black) / (full - black));
   }
-  if (sensor_.has_white_balance && Applied(kBalanceWhiteAuto) != kAutoOff) BalanceWhite(x, y, w, h);
+  if (sensor_.has_white_balance && Applied(kBalanceWhiteAuto) != kAutoOff) BalanceWhite(sx, sy, sw, sh);
   SetApplied(kSimFrameIndex, (index + 1) & 0x7fffffff);
   WriteDerived();
   ++frames_in_acquisition_;
@@ -2385,6 +2575,7 @@ void GigeDevice::RestoreRegisters(const Registers& r) {
   for (const auto& [address, v] : r)
     for (const Feature& f : registers_)
       if (f.address == address && f.alias_of.empty() && Checked(f)) WriteFeature(f, v);
+  WriteReadoutMax();
 }
 
 GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
@@ -2419,16 +2610,22 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   // The sensor's own readout and raw format: valid in any window with any stages.
   add(kReverseX, 0);
   add(kReverseY, 0);
+  for (const uint32_t a : kReductionRegisters)  // factors 1 (Sum for the modes)
+    add(a, a == kBinningHorizontalMode || a == kBinningVerticalMode ? uint64_t{kBinningSum} : uint64_t{1});
   add(kPixelFormat, static_cast<uint64_t>(FindFeature(table_, "PixelFormat")->entries[0].value));
   for (const auto& [a, x] : v)
     if (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount)) add(a, x);
   // The window: offsets 0, then the size, then the offsets (as arv_camera_set_region).
   add(kOffsetX, 0);
   add(kOffsetY, 0);
+  // (Binning and decimation before the window: they set WidthMax and HeightMax.)
+  for (const uint32_t a : kReductionRegisters)
+    if (has(a)) add(a, v.at(a));
   for (const uint32_t a : {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat})
     if (has(a)) add(a, v.at(a));
-  const std::set<uint32_t> done = {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat,
-                                   kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode};
+  std::set<uint32_t> done = {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat,
+                             kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode};
+  done.insert(std::begin(kReductionRegisters), std::end(kReductionRegisters));
   for (const auto& [a, x] : v) {
     if (done.count(a) || (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount))) continue;
     bool limit = false;

@@ -180,6 +180,7 @@ class GigeDevice {
   // readout: ReverseX + 2 * ReverseY a Bayer PixelFormat must match; -1: the registers'.
   bool Valid(const Feature& f, uint64_t value, int readout = -1) const;
   int Readout() const;  // ReverseX + 2 * ReverseY in the registers
+  void WriteReadoutMax();  // WidthMax, HeightMax from the binning and decimation registers
   double AppliedDouble(uint32_t address) const;
   uint32_t Applied(uint32_t address) const { return static_cast<uint32_t>(applied_.at(address)); }
   void SetApplied(uint32_t address, uint64_t value);  // register and applied value
@@ -340,6 +341,8 @@ class GigeDevice {
   uint64_t seed_register_at_start_ = 0;
   std::vector<uint16_t> raw_;   // full-sensor taps
   std::vector<uint8_t> rgb_;
+  std::vector<uint16_t> reduced_raw_;  // the taps binned and decimated (WidthMax x HeightMax)
+  std::vector<uint8_t> reduced_rgb_;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   AutoExposureConfig auto_config_;  // its configuration (ranges narrowed by LimitAutoRange)
   std::set<std::string> logged_;    // LogOnce keys

@@ -312,8 +312,16 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   const char* ifc = "ImageFormatControl";
   t.push_back(Int("SensorWidth", ifc, kSensorWidth, false, s.width, s.width, 1, "Simulated sensor width.", "px"));
   t.push_back(Int("SensorHeight", ifc, kSensorHeight, false, s.height, s.height, 1, "Simulated sensor height.", "px"));
-  t.push_back(Int("WidthMax", ifc, kWidthMax, false, s.width, s.width, 1, "Largest Width.", "px"));
-  t.push_back(Int("HeightMax", ifc, kHeightMax, false, s.height, s.height, 1, "Largest Height.", "px"));
+  // (Binning and decimation reduce them, down to a factor of kMaxReduction x kMaxReduction.)
+  const int istep = static_cast<int>(step);
+  t.push_back(Int("WidthMax", ifc, kWidthMax, false, ReducedExtent(s.width, istep, kMaxReduction, kMaxReduction),
+                  s.width, 1,
+                  "Largest Width: SensorWidth / (BinningHorizontal x DecimationHorizontal), rounded down to whole "
+                  "CFA cells.",
+                  "px"));
+  t.push_back(Int("HeightMax", ifc, kHeightMax, false, ReducedExtent(s.height, istep, kMaxReduction, kMaxReduction),
+                  s.height, 1, "Largest Height: SensorHeight / (BinningVertical x DecimationVertical), likewise.",
+                  "px"));
   // SFNC: each window feature's maximum leaves room for the other on its
   // axis, so a client orders its writes by the limits it reads.
   const auto window = [&t](Feature f, const char* max_name, const char* other) {
@@ -323,15 +331,37 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
     t.push_back(f);
   };
   window(Int("Width", ifc, kWidth, true, step, s.width, step,
-             "Width of the image window (OffsetX + Width <= SensorWidth).", "px"),
+             "Width of the image window (OffsetX + Width <= WidthMax).", "px"),
          "WidthMax", "OffsetX");
   window(Int("Height", ifc, kHeight, true, step, s.height, step,
-             "Height of the image window (OffsetY + Height <= SensorHeight).", "px"),
+             "Height of the image window (OffsetY + Height <= HeightMax).", "px"),
          "HeightMax", "OffsetY");
   window(Int("OffsetX", ifc, kOffsetX, true, 0, s.width - step, step, "Left edge of the image window.", "px"),
          "WidthMax", "Width");
   window(Int("OffsetY", ifc, kOffsetY, true, 0, s.height - step, step, "Top edge of the image window.", "px"),
          "HeightMax", "Height");
+  // Binning and decimation reduce the readout before the window (Width,
+  // OffsetX, ... count reduced pixels); a Bayer readout keeps its CFA.
+  const auto reduction = [&t](const char* name, uint32_t address, const char* desc) {
+    t.push_back(Int(name, "ImageFormatControl", address, true, 1, kMaxReduction, 1, desc));
+    t.back().locked_while_acquiring = true;
+  };
+  reduction("BinningHorizontal", kBinningHorizontal,
+            "Horizontal binning: each pixel read out combines this many same-colour pixels of a row (Bayer: of "
+            "neighbouring 2x2 cells), as BinningHorizontalMode says. A window that no longer fits is reset to the "
+            "whole readout on this axis.");
+  reduction("BinningVertical", kBinningVertical, "Vertical binning (as BinningHorizontal, over rows).");
+  const std::vector<EnumEntry> modes = {{"Sum", kBinningSum}, {"Average", kBinningAverage}};
+  t.push_back(Enum("BinningHorizontalMode", ifc, kBinningHorizontalMode, true, modes,
+                   "Sum (clamped at full scale) or Average (rounded half up) of the binned pixels."));
+  t.back().locked_while_acquiring = true;
+  t.push_back(Enum("BinningVerticalMode", ifc, kBinningVerticalMode, true, modes,
+                   "Sum (clamped at full scale) or Average (rounded half up) of the binned rows."));
+  t.back().locked_while_acquiring = true;
+  reduction("DecimationHorizontal", kDecimationHorizontal,
+            "Horizontal decimation: keeps every Nth pixel (Bayer: every Nth 2x2 cell, so the phase stays). A "
+            "window that no longer fits is reset to the whole readout on this axis.");
+  reduction("DecimationVertical", kDecimationVertical, "Vertical decimation (as DecimationHorizontal, over rows).");
   // Before PixelFormat: the device checks a block's readout before its format.
   t.push_back(Bool("ReverseX", ifc, kReverseX, true,
                    "Mirrors the readout horizontally (the window stays on the sensor; its content is mirrored). "

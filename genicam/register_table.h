@@ -189,6 +189,12 @@ inline constexpr uint32_t kExposureMode = 0x8620;
 // at LineSelector Line0), an 8-byte Float, us, 0 .. kMaxLineDebouncerTimeUs.
 inline constexpr uint32_t kLineInverter = 0x8600, kLineDebouncerTime = 0x8610;
 inline constexpr double kMaxLineDebouncerTimeUs = 1e6;
+// Binning and decimation (SFNC ImageFormatControl): the readout reduced
+// before the window. Factors 1 .. kMaxReduction per axis; BinningHorizontalMode /
+// BinningVerticalMode: Sum or Average (BinningModeValue).
+inline constexpr uint32_t kBinningHorizontal = 0x8500, kBinningVertical = 0x8504, kBinningHorizontalMode = 0x8508,
+                          kBinningVerticalMode = 0x850c, kDecimationHorizontal = 0x8510, kDecimationVertical = 0x8514;
+inline constexpr int kMaxReduction = 4;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
@@ -233,6 +239,12 @@ inline const char* UserSetName(int64_t set) {
 enum BalanceRatioSelectorValue : int64_t { kBalanceRed = 0, kBalanceGreen = 1, kBalanceBlue = 2, kBalanceCount = 3 };
 // BalanceRatio's range: the white balance stage's gains.
 inline constexpr double kMaxBalanceRatio = 16.0;
+
+// The pixels of an axis of `sensor` pixels read out with binning `bin` and
+// decimation `dec`: sensor / (bin x dec), rounded down to the CFA's `step`
+// (a Bayer readout keeps whole 2x2 cells). WidthMax and HeightMax.
+inline int ReducedExtent(int sensor, int step, int bin, int dec) { return sensor / (bin * dec * step) * step; }
+enum BinningModeValue : int64_t { kBinningSum = 0, kBinningAverage = 1 };
 
 // Enumeration values of camsim's own enum registers.
 enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiFrame = 2 };

@@ -1260,7 +1260,7 @@ TEST(GigeRegisters, EachRefusedWriteIsLoggedWithItsReason) {
   auto d = StartDevice(OfflineDevice());  // 64 x 48 BayerRG12
   ASSERT_NE(d, nullptr);
   const std::vector<std::pair<std::pair<uint32_t, std::vector<uint8_t>>, std::string>> cases = {
-      {{reg::kOffsetY, Be32(32)}, "refused OffsetY = 32: window off the sensor: Height 48 + OffsetY 32 > 48"},
+      {{reg::kOffsetY, Be32(32)}, "refused OffsetY = 32: window off the sensor: Height 48 + OffsetY 32 > HeightMax 48"},
       {{reg::kWidth, Be32(15)}, "refused Width = 15: off its increment 2"},
       {{reg::kWidth, Be32(66)}, "refused Width = 66: out of range 2..64"},
       {{reg::kExposureTime, Be64(0.5)}, "refused ExposureTime = 0.5: out of range 1..1e+08"},
@@ -5473,6 +5473,210 @@ TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
   EXPECT_NE(log.find("refused UserSetSave[UserSet1]: cannot write the user set file /camsim-no-such-dir/sets.txt.tmp"),
             std::string::npos)
       << log;
+}
+
+
+// ---------------------------------------------------------------- binning and decimation
+
+// A frame of w x h little-endian 16-bit words as values, and back.
+std::vector<uint32_t> Words(const std::vector<uint8_t>& f) {
+  std::vector<uint32_t> v(f.size() / 2);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = f[2 * i] | f[2 * i + 1] << 8;
+  return v;
+}
+std::vector<uint8_t> Bytes16(const std::vector<uint32_t>& v) {
+  std::vector<uint8_t> f;
+  for (const uint32_t x : v) {
+    f.push_back(static_cast<uint8_t>(x & 0xff));
+    f.push_back(static_cast<uint8_t>(x >> 8));
+  }
+  return f;
+}
+
+// Decimation from its definition: of the w x h frame's cells (2x2 on a
+// Bayer sensor, pixels on mono or RGB), keep those whose cell column is a
+// multiple of dx and whose cell row one of dy, in order.
+std::vector<uint8_t> DecimatedCells(const std::vector<uint8_t>& f, int w, int h, int bytes, int cell, int dx, int dy) {
+  std::vector<uint8_t> out;
+  for (int y = 0; y < h; ++y) {
+    if ((y / cell) % dy != 0 || (y / cell) / dy >= h / (cell * dy)) continue;  // (whole kept cells only)
+    for (int x = 0; x < w; ++x)
+      if ((x / cell) % dx == 0 && (x / cell) / dx < w / (cell * dx))
+        out.insert(out.end(), f.begin() + (static_cast<ptrdiff_t>(y) * w + x) * bytes,
+                   f.begin() + (static_cast<ptrdiff_t>(y) * w + x + 1) * bytes);
+  }
+  return out;
+}
+
+// Binning b x b from its definition, on a Bayer mosaic: split it into its
+// four colour planes (plane (p, q) holds pixels (2u + p, 2v + q)), bin each
+// plane b x b as a mono image (sum, or the average rounded half up), clamp
+// at `full`, and interleave the planes again. cell 1: the frame is mono.
+std::vector<uint32_t> Binned(const std::vector<uint32_t>& f, int w, int h, int cell, int b, bool average,
+                             uint32_t full) {
+  const int ow = w / (cell * b) * cell, oh = h / (cell * b) * cell;
+  std::vector<uint32_t> out(static_cast<size_t>(ow) * oh);
+  for (int q = 0; q < cell; ++q)
+    for (int p = 0; p < cell; ++p) {
+      const int pw = w / cell, ph = h / cell;  // the plane
+      const auto plane = [&](int u, int v) { return f[static_cast<size_t>(v * cell + q) * w + u * cell + p]; };
+      for (int v = 0; v < ph / b; ++v)
+        for (int u = 0; u < pw / b; ++u) {
+          uint32_t sum = 0;
+          for (int l = 0; l < b; ++l)
+            for (int k = 0; k < b; ++k) sum += plane(u * b + k, v * b + l);
+          const uint32_t n = average ? static_cast<uint32_t>(b * b) : 1;
+          out[static_cast<size_t>(v * cell + q) * ow + u * cell + p] = std::min((sum + n / 2) / n, full);
+        }
+    }
+  return out;
+}
+
+// A w x h window at (x, y) of a frame of `fw` pixels of `bytes` bytes per row.
+std::vector<uint8_t> WindowOf(const std::vector<uint8_t>& f, int fw, int bytes, int x, int y, int w, int h) {
+  std::vector<uint8_t> out;
+  for (int r = y; r < y + h; ++r)
+    out.insert(out.end(), f.begin() + (static_cast<ptrdiff_t>(r) * fw + x) * bytes,
+               f.begin() + (static_cast<ptrdiff_t>(r) * fw + x + w) * bytes);
+  return out;
+}
+
+// DecimationHorizontal / DecimationVertical keep every Nth 2x2 cell of the
+// Bayer readout: the frame is, byte for byte, the reference frame's cells
+// subsampled (the same phase: the format stays BayerRG12), WidthMax,
+// HeightMax and PayloadSize follow, a window too large for the new readout
+// is reset to it (offsets 0) and a window that fits stays. RGB8 keeps every
+// Nth pixel of the ISP's frame.
+TEST_F(GigeE2E, DecimationKeepsEveryNthCfaCell) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  const std::vector<uint8_t> full = Reference(4, code, 0, 0, 64, 48);
+  SetInt(c, "OffsetX", 0);
+  SetInt(c, "Width", 60);
+  SetInt(c, "OffsetX", 2);
+  SetInt(c, "DecimationHorizontal", 2);
+  // As the write is answered (the write filter), not only after a sync.
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 32);
+  EXPECT_EQ(ReadInt(c, "Width"), 32) << "reset to the new readout";
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
+  SetInt(c, "DecimationVertical", 2);
+  EXPECT_EQ(ReadInt(c, "HeightMax"), 24);
+  EXPECT_EQ(ReadInt(c, "Height"), 24);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 32 * 24 * 2);
+  uint32_t leader = 0;
+  const std::vector<uint8_t> f = GrabIndex(c, 4, &leader);
+  EXPECT_EQ(leader, code);
+  const std::vector<uint8_t> want = DecimatedCells(full, 64, 48, 2, 2, 2, 2);
+  ASSERT_EQ(want.size(), 32u * 24 * 2);
+  EXPECT_TRUE(f == want) << "not the reference's every other 2x2 cell";
+  // A window of the decimated readout.
+  SetInt(c, "Width", 16);
+  SetInt(c, "OffsetX", 8);
+  SetInt(c, "Height", 12);
+  SetInt(c, "OffsetY", 6);
+  EXPECT_TRUE(GrabIndex(c, 4) == WindowOf(want, 32, 2, 8, 6, 16, 12));
+  // Horizontal 4 only: the window (8 + 16 > 16) is reset on x; y keeps it.
+  SetInt(c, "DecimationHorizontal", 4);
+  SetInt(c, "DecimationVertical", 1);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 16);
+  EXPECT_EQ(ReadInt(c, "HeightMax"), 48);
+  EXPECT_EQ(ReadInt(c, "Width"), 16);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 0);
+  EXPECT_EQ(ReadInt(c, "Height"), 12);
+  EXPECT_EQ(ReadInt(c, "OffsetY"), 6);
+  EXPECT_EQ(ReadInt(c, "PayloadSize"), 16 * 12 * 2);
+  EXPECT_TRUE(GrabIndex(c, 4) == WindowOf(DecimatedCells(full, 64, 48, 2, 2, 4, 1), 16, 2, 0, 6, 16, 12));
+  // RGB8: every other pixel of the ISP's frame.
+  SetInt(c, "DecimationHorizontal", 2);
+  SetInt(c, "DecimationVertical", 2);
+  SetInt(c, "OffsetY", 0);
+  SetInt(c, "Height", 24);
+  SetInt(c, "Width", 32);
+  const std::vector<uint8_t> rgb = GrabAt(c, "RGB8", 4);
+  EXPECT_TRUE(rgb == DecimatedCells(Reference(4, genicam::kRGB8, 0, 0, 64, 48), 64, 48, 3, 1, 2, 2));
+  // Back to 1: the readout is the sensor again, the window stays.
+  SetInt(c, "DecimationHorizontal", 1);
+  SetInt(c, "DecimationVertical", 1);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 64);
+  EXPECT_EQ(ReadInt(c, "HeightMax"), 48);
+  EXPECT_EQ(ReadInt(c, "Width"), 32);
+  EXPECT_TRUE(GrabAt(c, "BayerRG12", 4) == WindowOf(full, 64, 2, 0, 0, 32, 24));
+  GError* e = nullptr;
+  arv_camera_set_integer(c.camera(), "DecimationHorizontal", 5, &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+      << (e != nullptr ? e->message : "no error: 5 is past the maximum 4");
+  g_clear_error(&e);
+  EXPECT_EQ(device_->CheckInvariants(), "");
+}
+
+// BinningHorizontal / BinningVertical 2 combine the same-colour pixels of
+// 2 x 2 neighbouring cells (Bayer) or 2 x 2 pixels (mono): Sum clamped at
+// full scale (4095 in a 12-bit format), Average rounded half up; each equal
+// to the test's own binning of the reference frame's colour planes.
+TEST_F(GigeE2E, BinningSumsOrAveragesSameColourPixels) {
+  for (const bool mono : {false, true}) {
+    SCOPED_TRACE(mono ? "Mono12" : "BayerRG12");
+    ASSERT_NO_FATAL_FAILURE(StartWith(mono ? SmallMonoDevice() : SmallDevice()));
+    Client& c = *client_;
+    const int w = mono ? 32 : 64, h = mono ? 24 : 48, cell = mono ? 1 : 2;
+    const uint32_t code = mono ? genicam::kMono12 : genicam::BayerCode(Cfa::kBayerRG, 12);
+    Set(c, "PixelFormat", mono ? "Mono12" : "BayerRG12");
+    const std::vector<uint32_t> full = Words(Reference(2, code, 0, 0, w, h));
+    SetInt(c, "BinningHorizontal", 2);
+    SetInt(c, "BinningVertical", 2);
+    Settle();
+    EXPECT_EQ(ReadInt(c, "WidthMax"), w / 2);
+    EXPECT_EQ(ReadInt(c, "HeightMax"), h / 2);
+    EXPECT_EQ(ReadInt(c, "PayloadSize"), w / 2 * h / 2 * 2);
+    bool saturated = false;
+    for (const bool average : {true, false}) {
+      SCOPED_TRACE(average ? "Average" : "Sum");
+      Set(c, "BinningHorizontalMode", average ? "Average" : "Sum");
+      Set(c, "BinningVerticalMode", average ? "Average" : "Sum");
+      const std::vector<uint32_t> want = Binned(full, w, h, cell, 2, average, 4095);
+      const std::vector<uint8_t> f = GrabIndex(c, 2);
+      EXPECT_TRUE(f == Bytes16(want)) << "not the reference binned";
+      for (const uint32_t v : want) saturated = saturated || (!average && v == 4095);
+    }
+    EXPECT_TRUE(saturated || mono) << "no summed pixel reaches full scale: the clamp is not tested";
+    EXPECT_EQ(device_->CheckInvariants(), "");
+    TearDown();
+  }
+}
+
+// Binning and decimation change the payload: refused while acquiring
+// (access denied), as the window is, and writable again after the stop.
+TEST_F(GigeE2E, BinningAndDecimationAreLockedWhileAcquiring) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  EXPECT_FALSE(c.Grab(3000).empty());
+  for (const char* name : {"DecimationHorizontal", "DecimationVertical", "BinningHorizontal", "BinningVertical"}) {
+    GError* e = nullptr;
+    arv_camera_set_integer(c.camera(), name, 2, &e);
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << name << ": " << (e != nullptr ? e->message : "no error");
+    g_clear_error(&e);
+    EXPECT_EQ(ReadInt(c, name), 1) << name;
+  }
+  for (const char* name : {"BinningHorizontalMode", "BinningVerticalMode"}) {
+    GError* e = nullptr;
+    arv_camera_set_string(c.camera(), name, "Average", &e);
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << name << ": " << (e != nullptr ? e->message : "no error");
+    g_clear_error(&e);
+    EXPECT_STREQ(arv_camera_get_string(c.camera(), name, nullptr), "Sum") << name;
+  }
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 64);
+  c.CloseStream();
+  SetInt(c, "DecimationHorizontal", 2);
+  Settle();
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 32);
 }
 
 }  // namespace
