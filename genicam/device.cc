@@ -1340,8 +1340,13 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       refuse(GevStatus::kAccessDenied, "ExposureMode = TriggerWidth",
              "not available: it needs TriggerMode On, TriggerSource Line0 and ExposureAuto Off");
     } else if (after(reg::kExposureMode) == kExposureTriggerWidth) {
-      for (const auto& [r, name] : {std::pair{reg::kTriggerMode, "TriggerMode"}, {reg::kTriggerSource, "TriggerSource"},
-                                    {reg::kExposureAuto, "ExposureAuto"}}) {
+      // TriggerActivation and Line0's LineInverter too: a change mid-pulse
+      // would take the pulse's end for a new start, and its exposure would
+      // never end.
+      for (const auto& [r, name] :
+           {std::pair{reg::kTriggerMode, "TriggerMode"}, {reg::kTriggerSource, "TriggerSource"},
+            {reg::kExposureAuto, "ExposureAuto"}, {reg::kTriggerActivation, "TriggerActivation"},
+            {reg::SelectedAddress(reg::kLineInverter, 0), "LineInverter[Line0]"}}) {
         if (!covers(r) || value(r) == d->Read(r)) continue;
         const Feature* f = FindFeature(d->registers_, name);
         const std::string what = std::string(name) + " = " + (f ? d->ValueText(*f, value(r)) : std::to_string(value(r)));
@@ -1779,6 +1784,7 @@ void GigeDevice::Sync() {
     line0_armed_ = Applied(kTriggerMode) == 1 && Applied(kTriggerSource) == kSourceLine0;
     line0_rising_ = Applied(kTriggerActivation) == 0;
     line0_width_ = line0_armed_ && Applied(kExposureMode) == kExposureTriggerWidth;
+    if (!line0_width_) EndTriggerWidth(std::chrono::steady_clock::now());  // out of TriggerWidth: none stays open
     line0_inverted_ = Applied(SelectedAddress(kLineInverter, 0)) != 0;
     trigger_level_ = line0_electrical_ != line0_inverted_;
     line0_debounce_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -1802,6 +1808,7 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady
                    kMaxPendingTriggers);
     return;
   }
+  if (width) EndTriggerWidth(at);  // an activation edge ends any pulse still open (one at a time)
   const auto start = std::max(at + trigger_delay_, exposure_busy_until_);
   exposure_busy_until_ = width ? start : start + trigger_exposure_;
   const auto end = width ? std::chrono::steady_clock::time_point::max() : exposure_busy_until_;
@@ -1810,8 +1817,12 @@ void GigeDevice::TakeTrigger(int64_t index, bool line0_high, std::chrono::steady
 }
 
 void GigeDevice::EndTriggerWidth(std::chrono::steady_clock::time_point at) {
-  if (pending_triggers_.empty() || !pending_triggers_.back().width_open) return;
-  PendingTrigger& p = pending_triggers_.back();
+  // At most one is open, the newest of its kind; later Timed triggers may
+  // queue behind it (a mode change), so it is found wherever it is.
+  const auto open = std::find_if(pending_triggers_.begin(), pending_triggers_.end(),
+                                 [](const PendingTrigger& q) { return q.width_open; });
+  if (open == pending_triggers_.end()) return;
+  PendingTrigger& p = *open;
   p.exposure_end = std::max(at + trigger_delay_, p.exposure_start + std::chrono::microseconds(1));
   p.width_open = false;
   exposure_busy_until_ = p.exposure_end;

@@ -427,20 +427,31 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Alias(t.back(), "ExposureTimeAbs", "Exposure time (Aravis fake camera name)."));
   t.push_back(Enum("ExposureAuto", ac, kExposureAuto, true,
                    {{"Off", kAutoOff}, {"Once", kAutoOnce}, {"Continuous", kAutoContinuous}},
-                   "Automatic exposure: scales ExposureTime so the mean raw level reaches SimAutoTarget."));
+                   "Automatic exposure: scales ExposureTime so the mean raw level reaches SimAutoTarget "
+                   "(locked under ExposureMode TriggerWidth)."));
+  t.back().locked_formula = "E=" + std::to_string(kExposureTriggerWidth);
+  t.back().variables = {{"E", "ExposureMode"}};
   PushAutoLimits(&t, *FindFeature(t, "ExposureTime"), "AutoExposureTime", "ExposureAuto", kAutoExposureTimeLowerLimit,
                  kAutoExposureTimeUpperLimit);
   t.push_back(Enum("TriggerSelector", ac, kTriggerSelector, true, {{"FrameStart", 0}},
                    "The trigger the other Trigger features configure."));
   t.back().selects = {"TriggerMode", "TriggerSource", "TriggerActivation", "TriggerDelay", "TriggerSoftware"};
-  t.push_back(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
-                   "On: one frame per trigger; off: free run."));
-  t.push_back(Enum("TriggerSource", ac, kTriggerSource, true, {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
-                   "Software (TriggerSoftware) or Line0 (the GPIO line given by --trigger-line; "
-                   "not available without one)."));
+  // Locked under ExposureMode TriggerWidth (with ExposureAuto and Line0's
+  // LineInverter): the pulse's exposure needs them as they are.
+  const auto width_locked = [](Feature f) {
+    f.locked_formula = "E=" + std::to_string(kExposureTriggerWidth);
+    f.variables = {{"E", "ExposureMode"}};
+    return f;
+  };
+  t.push_back(width_locked(Enum("TriggerMode", ac, kTriggerMode, true, {{"Off", 0}, {"On", 1}},
+                                "On: one frame per trigger; off: free run.")));
+  t.push_back(width_locked(Enum("TriggerSource", ac, kTriggerSource, true,
+                                {{"Software", kSourceSoftware}, {"Line0", kSourceLine0}},
+                                "Software (TriggerSoftware) or Line0 (the GPIO line given by --trigger-line; "
+                                "not available without one).")));
   t.back().entries[1].available = s.has_trigger_line;
-  t.push_back(Enum("TriggerActivation", ac, kTriggerActivation, true, {{"RisingEdge", 0}, {"FallingEdge", 1}},
-                   "Edge of Line0 that triggers."));
+  t.push_back(width_locked(Enum("TriggerActivation", ac, kTriggerActivation, true,
+                                {{"RisingEdge", 0}, {"FallingEdge", 1}}, "Edge of Line0 that triggers.")));
   t.push_back(Flt("TriggerDelay", ac, kTriggerDelay, 0.0, kMaxTriggerDelayUs,
                   "Delay from a trigger to the start of its exposure (the frame's timestamp).", "us"));
   // Available only where it triggers (the device refuses it elsewhere).
@@ -512,8 +523,11 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
   t.push_back(Selected(Bool("LineInverter", io, kLineInverter, true,
                             "Inverts the selected line: Line0's electrical level before the trigger and "
                             "LineStatus (RisingEdge then fires on the electrical falling edge), Line1's "
-                            "strobe output (low while active)."),
+                            "strobe output (low while active). Line0's is locked under ExposureMode "
+                            "TriggerWidth."),
                        "LineSelector", kLines));
+  t.back().locked_formula = "(E=" + std::to_string(kExposureTriggerWidth) + ")&&(L=0)";
+  t.back().variables = {{"E", "ExposureMode"}, {"L", "LineSelector"}};
   // Line0's alone (the one input): not selected, available at Line0.
   t.push_back(Flt("LineDebouncerTime", io, kLineDebouncerTime, 0.0, kMaxLineDebouncerTimeUs,
                   "Line0 (input): a level change is taken once the level has held this long (by the line's edge "

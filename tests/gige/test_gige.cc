@@ -3112,6 +3112,28 @@ TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
     ASSERT_NE(node, nullptr);
     EXPECT_TRUE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr)) << "pIsLocked";
   }
+  // What the pulse's exposure needs is locked too, in the XML and by the
+  // device: a TriggerActivation or Line0 LineInverter change mid-pulse would
+  // take the pulse's end for a new start and leave its exposure open.
+  Set(c, "LineSelector", "Line0");
+  for (const char* name : {"TriggerMode", "TriggerSource", "TriggerActivation", "ExposureAuto", "LineInverter"}) {
+    ArvGcNode* node = arv_device_get_feature(c.device(), name);
+    ASSERT_NE(node, nullptr) << name;
+    EXPECT_TRUE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr)) << name << ": pIsLocked";
+  }
+  for (const uint32_t address : {reg::kTriggerActivation, reg::SelectedAddress(reg::kLineInverter, 0)}) {
+    arv_device_write_memory(c.device(), address, 4, Be32(1).data(), &e);
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << "a write at " << std::hex << address;
+    g_clear_error(&e);
+  }
+  Set(c, "LineSelector", "Line1");
+  {
+    ArvGcNode* node = arv_device_get_feature(c.device(), "LineInverter");
+    EXPECT_FALSE(arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr)) << "Line1's: the strobe";
+  }
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerActivation", nullptr), "RisingEdge");
   arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
   ASSERT_EQ(e, nullptr);
   ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
@@ -5337,10 +5359,10 @@ TEST_F(GigeE2E, UserSetsHoldTriggerWidthAndTheLines) {
   Client& c = *client_;
   Set(c, "TriggerMode", "On");
   Set(c, "TriggerSource", "Line0");
-  Set(c, "ExposureMode", "TriggerWidth");
   Set(c, "LineSelector", "Line0");
-  arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, nullptr);
+  arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, nullptr);  // before TriggerWidth, which locks it
   SetFloat(c, "LineDebouncerTime", 1500.0);
+  Set(c, "ExposureMode", "TriggerWidth");
   Settle();
   ASSERT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "TriggerWidth");
   Set(c, "UserSetSelector", "UserSet1");
