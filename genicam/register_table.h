@@ -85,6 +85,8 @@ struct Feature {
   // Locked (GenICam pIsLocked: not writable) during an acquisition or while
   // TLParamsLocked is 1, as the device then refuses writes (the payload).
   bool locked_while_acquiring = false;
+  // (A feature has at most one of available_formula, locked_formula and
+  // locked_while_acquiring: the two formulas share `variables`.)
   // Nonempty (and not locked_while_acquiring): locked while this formula
   // over `variables` is nonzero (pIsLocked, an IntSwissKnife); the device
   // refuses a change then, e.g. ExposureTime while ExposureAuto is not Off

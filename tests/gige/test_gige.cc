@@ -431,6 +431,26 @@ TEST(GigeRegisterTable, AddressesDoNotOverlap) {
     }
 }
 
+// The XML generator writes a feature's pIsAvailable and pIsLocked formulas
+// over the one `variables` list, and a payload lock (locked_while_acquiring)
+// takes the place of a locked_formula: each feature may use one of them.
+TEST(GigeRegisterTable, EachFeatureHasAtMostOneFormula) {
+  genicam::SensorInfo s;
+  s.width = 64;
+  s.height = 48;
+  s.has_white_balance = true;
+  s.has_gamma = true;
+  s.has_trigger_line = true;
+  s.stage_names = {"exposure", "cfa", "sensor"};
+  int formulas = 0;
+  for (const genicam::Feature& f : genicam::RegisterTable(s)) {
+    const int n = !f.available_formula.empty() + !f.locked_formula.empty() + f.locked_while_acquiring;
+    EXPECT_LE(n, 1) << f.name;
+    formulas += !f.available_formula.empty() + !f.locked_formula.empty();
+  }
+  EXPECT_GE(formulas, 8) << "TriggerSoftware, ExposureTime, Gain, the trigger features, LineInverter";
+}
+
 // ---------------------------------------------------------------- wire format
 
 TEST(GigeWireFormat, ConvertsDnToEachFormat) {
@@ -5392,6 +5412,50 @@ TEST_F(GigeE2E, UserSetsHoldTriggerWidthAndTheLines) {
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerMode", nullptr), "Off");
   Set(c, "LineSelector", "Line0");
   EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
+}
+
+// A set with binning, decimation, a window and ReverseX loads back to the
+// same readout: the reductions before the window, the window before the
+// mirror, the Bayer phase the mirror gives. Frame 4 grabbed after the load
+// equals frame 4 grabbed before the save.
+TEST_F(GigeE2E, UserSetsHoldBinningDecimationAndTheMirroredWindow) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  SetInt(c, "BinningHorizontal", 2);
+  SetInt(c, "DecimationVertical", 2);
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), 8, 4, 16, 12, &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  arv_camera_set_boolean(c.camera(), "ReverseX", TRUE, &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Set(c, "PixelFormat", "BayerGR12");  // BayerRG's phase under ReverseX
+  Settle();
+  const std::vector<uint8_t> before = GrabIndex(c, 4);
+  ASSERT_EQ(before.size(), 16u * 12 * 2);
+  Set(c, "UserSetSelector", "UserSet1");
+  arv_camera_execute_command(c.camera(), "UserSetSave", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Set(c, "UserSetSelector", "Default");
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  ASSERT_EQ(ReadInt(c, "BinningHorizontal"), 1);
+  ASSERT_EQ(ReadInt(c, "Width"), 64);
+  Set(c, "UserSetSelector", "UserSet1");
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_EQ(ReadInt(c, "BinningHorizontal"), 2);
+  EXPECT_EQ(ReadInt(c, "DecimationVertical"), 2);
+  EXPECT_EQ(ReadInt(c, "WidthMax"), 32);
+  EXPECT_EQ(ReadInt(c, "HeightMax"), 24);
+  EXPECT_EQ(ReadInt(c, "OffsetX"), 8);
+  EXPECT_EQ(ReadInt(c, "OffsetY"), 4);
+  EXPECT_EQ(ReadInt(c, "Width"), 16);
+  EXPECT_EQ(ReadInt(c, "Height"), 12);
+  EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "ReverseX", nullptr));
+  EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), "BayerGR12");
+  EXPECT_TRUE(GrabIndex(c, 4) == before) << "not the saved readout's frame";
 }
 
 // A set that changes exposure under ExposureAuto Continuous loads the value
