@@ -99,6 +99,7 @@ constexpr AutoLimits kAutoLimits[] = {
 constexpr const char* kUserSetFeatures[] = {
     "Width", "Height", "OffsetX", "OffsetY", "ReverseX", "ReverseY", "BinningHorizontal", "BinningVertical",
     "BinningHorizontalMode", "BinningVerticalMode", "DecimationHorizontal", "DecimationVertical", "PixelFormat",
+    "TestPattern",
     "AcquisitionMode", "AcquisitionFrameCount", "AcquisitionFrameRate", "AcquisitionFrameRateEnable", "ExposureMode",
     "ExposureTime", "ExposureAuto",
     "AutoExposureTimeLowerLimit", "AutoExposureTimeUpperLimit", "TriggerMode", "TriggerSource", "TriggerActivation",
@@ -819,6 +820,8 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
       {kBinningVerticalMode, kBinningSum},
       {kDecimationHorizontal, 1},
       {kDecimationVertical, 1},
+      {kTestPatternGeneratorSelector, 0},
+      {kTestPattern, kTestPatternOff},
       {kDeviceTemperatureSelector, 0},
       {kDeviceTemperature, DoubleBits(c.sensor.temperature_c)},  // the core checked it: [-100, 150]
       {kUserSetSelector, kUserSetDefaultSet},
@@ -2513,17 +2516,38 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   const int factor_x = reduction.bin_x * reduction.dec_x, factor_y = reduction.bin_y * reduction.dec_y;
   uint16_t* raw = raw_.data();
   uint8_t* rgb = rgb_.data();
+  // TestPattern: its codes replace the ADC's (and the ISP's RGB: R = G = B =
+  // the code's top 8 bits, as the raw 8-bit formats carry it); the rendered
+  // frame stays in raw_ for the Auto features.
+  const int64_t pattern = Applied(kTestPattern);
+  if (pattern != kTestPatternOff) {
+    const size_t pixels = static_cast<size_t>(sensor_.width) * sensor_.height;
+    pattern_raw_.resize(pixels);
+    if (from_rgb) pattern_rgb_.resize(pixels * 3);
+    for (int j = 0; j < sensor_.height; ++j)
+      for (int i = 0; i < sensor_.width; ++i) {
+        const size_t at = static_cast<size_t>(j) * sensor_.width + i;
+        const uint32_t code =
+            TestPatternCode(pattern, i, j, sensor_.width, sensor_.height, sensor_.adc_bits, index);
+        pattern_raw_[at] = static_cast<uint16_t>(code);
+        if (from_rgb) {
+          std::fill_n(&pattern_rgb_[at * 3], 3, static_cast<uint8_t>(code >> (sensor_.adc_bits - 8)));  // 8..16 bits
+        }
+      }
+    raw = pattern_raw_.data();
+    if (from_rgb) rgb = pattern_rgb_.data();
+  }
   int stride = sensor_.width;
   if (factor_x * factor_y != 1) {
     const auto applied = [this](uint32_t r) { return applied_.at(r); };
     const int rw = ReadoutExtent(sensor_, 0, applied), rh = ReadoutExtent(sensor_, 1, applied);
     if (from_rgb) {  // per pixel and channel of the ISP's frame
       reduced_rgb_.resize(static_cast<size_t>(rw) * rh * 3);
-      ReduceReadout(rgb_.data(), sensor_.width, 3, 1, reduction, 255, rw, rh, reduced_rgb_.data());
+      ReduceReadout(rgb, sensor_.width, 3, 1, reduction, 255, rw, rh, reduced_rgb_.data());
       rgb = reduced_rgb_.data();
     } else {  // per CFA cell of the raw codes (mono: per pixel), clamped at the ADC's full scale
       reduced_raw_.resize(static_cast<size_t>(rw) * rh);
-      ReduceReadout(raw_.data(), sensor_.width, 1, sensor_.cfa == Cfa::kMono ? 1 : 2, reduction,
+      ReduceReadout(raw, sensor_.width, 1, sensor_.cfa == Cfa::kMono ? 1 : 2, reduction,
                     (1 << sensor_.adc_bits) - 1, rw, rh, reduced_raw_.data());
       raw = reduced_raw_.data();
     }

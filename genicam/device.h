@@ -343,6 +343,9 @@ class GigeDevice {
   std::vector<uint8_t> rgb_;
   std::vector<uint16_t> reduced_raw_;  // the taps binned and decimated (WidthMax x HeightMax)
   std::vector<uint8_t> reduced_rgb_;
+  // TestPattern's codes in place of the taps (full sensor; RGB: R = G = B).
+  std::vector<uint16_t> pattern_raw_;
+  std::vector<uint8_t> pattern_rgb_;
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   AutoExposureConfig auto_config_;  // its configuration (ranges narrowed by LimitAutoRange)
   std::set<std::string> logged_;    // LogOnce keys

@@ -204,6 +204,24 @@ uint32_t ReadoutFormat(uint32_t code, Cfa sensor, int readout) {
   return code;
 }
 
+uint32_t TestPatternCode(int64_t pattern, int x, int y, int width, int height, int bits, uint64_t frame_index) {
+  const uint64_t full = (uint64_t{1} << bits) - 1;
+  // round(t x M / (n - 1)), half up.
+  const auto ramp = [full](uint64_t t, uint64_t n) {
+    return n <= 1 ? 0 : static_cast<uint32_t>((2 * t * full + (n - 1)) / (2 * (n - 1)));
+  };
+  const uint64_t ux = static_cast<uint64_t>(x), uy = static_cast<uint64_t>(y);
+  const uint64_t w = static_cast<uint64_t>(width), h = static_cast<uint64_t>(height);
+  switch (pattern) {
+    case kTestPatternWhite: return static_cast<uint32_t>(full);
+    case kTestPatternGreyHorizontalRamp: return ramp(ux, w);
+    case kTestPatternGreyVerticalRamp: return ramp(uy, h);
+    case kTestPatternGreyDiagonalRamp: return ramp(ux + uy, w + h - 1);
+    case kTestPatternGreyHorizontalRampMoving: return ramp((ux + frame_index % w) % w, w);
+    default: return 0;  // Black (Off has no pattern)
+  }
+}
+
 uint32_t PackedCode(Cfa cfa, int bits, Packing packing) {
   // PFNC: BayerXX10p BG 0x52, GB 0x54, GR 0x56, RG 0x58 (12p one more);
   // GigE Vision BayerXX12Packed GR 0x2a, RG 0x2b, GB 0x2c, BG 0x2d.
@@ -376,6 +394,23 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "whole number of bytes); RGB8 is the ISP output, BGR8 the same with R and B swapped, Mono8 on a "
                    "colour sensor its BT.601 luma."));
   t.back().locked_while_acquiring = true;
+  // Writable while acquiring: the payload does not change (from the next frame).
+  t.push_back(Enum("TestPatternGeneratorSelector", ifc, kTestPatternGeneratorSelector, true, {{"Sensor", 0}},
+                   "The test pattern generator TestPattern configures: the sensor's, after its ADC."));
+  t.back().selects = {"TestPattern"};
+  t.push_back(Enum("TestPattern", ifc, kTestPattern, true,
+                   {{"Off", kTestPatternOff},
+                    {"Black", kTestPatternBlack},
+                    {"White", kTestPatternWhite},
+                    {"GreyHorizontalRamp", kTestPatternGreyHorizontalRamp},
+                    {"GreyVerticalRamp", kTestPatternGreyVerticalRamp},
+                    {"GreyDiagonalRamp", kTestPatternGreyDiagonalRamp},
+                    {"GreyHorizontalRampMoving", kTestPatternGreyHorizontalRampMoving}},
+                   "Off: the modelled image. Otherwise exact codes that replace the ADC's over the whole sensor "
+                   "(no optics, no noise), before binning, decimation, ReverseX/Y and the window: Black 0, White "
+                   "full scale M = 2^bits - 1, a ramp round(t x M / (n - 1)) over x (Horizontal), y (Vertical) or "
+                   "x + y (Diagonal) of the sensor; Moving: the horizontal ramp at (x + frame index) mod "
+                   "SensorWidth. RGB8, BGR8 and Mono8 from the ISP get R = G = B = the code's top 8 bits."));
 
   const char* ac = "AcquisitionControl";
   t.push_back(Enum("AcquisitionMode", ac, kAcquisitionMode, true,

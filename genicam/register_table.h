@@ -197,6 +197,9 @@ inline constexpr double kMaxLineDebouncerTimeUs = 1e6;
 inline constexpr uint32_t kBinningHorizontal = 0x8500, kBinningVertical = 0x8504, kBinningHorizontalMode = 0x8508,
                           kBinningVerticalMode = 0x850c, kDecimationHorizontal = 0x8510, kDecimationVertical = 0x8514;
 inline constexpr int kMaxReduction = 4;
+// TestPatternGeneratorSelector (one entry, Sensor) and TestPattern (SFNC
+// ImageFormatControl): TestPatternValue.
+inline constexpr uint32_t kTestPatternGeneratorSelector = 0x8520, kTestPattern = 0x8524;
 // A selected feature's register of selector value `value`: one register of
 // `length` bytes (4, a Float's 8) per value.
 inline constexpr uint32_t SelectedAddress(uint32_t base, size_t value, uint32_t length = 4) {
@@ -247,6 +250,24 @@ inline constexpr double kMaxBalanceRatio = 16.0;
 // (a Bayer readout keeps whole 2x2 cells). WidthMax and HeightMax.
 inline int ReducedExtent(int sensor, int step, int bin, int dec) { return sensor / (bin * dec * step) * step; }
 enum BinningModeValue : int64_t { kBinningSum = 0, kBinningAverage = 1 };
+// TestPattern values: Off is the modelled image; the others replace the
+// ADC's codes (TestPatternCode).
+enum TestPatternValue : int64_t {
+  kTestPatternOff = 0,
+  kTestPatternBlack = 1,
+  kTestPatternWhite = 2,
+  kTestPatternGreyHorizontalRamp = 3,
+  kTestPatternGreyVerticalRamp = 4,
+  kTestPatternGreyDiagonalRamp = 5,
+  kTestPatternGreyHorizontalRampMoving = 6
+};
+// A test pattern's code at sensor pixel (x, y) of a width x height sensor
+// with a `bits`-bit ADC (full scale M = 2^bits - 1) in frame `frame_index`:
+// Black 0, White M; a ramp r(t, n) = round(t x M / (n - 1)), half up (0 when
+// n is 1): GreyHorizontalRamp r(x, width), GreyVerticalRamp r(y, height),
+// GreyDiagonalRamp r(x + y, width + height - 1); GreyHorizontalRampMoving
+// r((x + frame_index) mod width, width): the ramp moves one pixel left per frame.
+uint32_t TestPatternCode(int64_t pattern, int x, int y, int width, int height, int bits, uint64_t frame_index);
 
 // Enumeration values of camsim's own enum registers.
 enum AcquisitionModeValue : int64_t { kContinuous = 0, kSingleFrame = 1, kMultiFrame = 2 };

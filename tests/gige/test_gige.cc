@@ -5765,5 +5765,139 @@ TEST_F(GigeE2E, BinningAndDecimationAreLockedWhileAcquiring) {
   EXPECT_EQ(ReadInt(c, "WidthMax"), 32);
 }
 
+// ---------------------------------------------------------------- test patterns
+
+// TestPattern's codes from their definition in docs/gige.md, in floating
+// point (the device computes them in integers): M = 2^bits - 1, ramp(t, n) =
+// floor(t x M / (n - 1) + 1/2); the window (x, y, w, h) of a sw x sh sensor
+// in frame `index`, row after row.
+std::vector<uint32_t> PatternWindow(const std::string& pattern, int sw, int sh, int bits, uint32_t index, int x, int y,
+                                    int w, int h) {
+  const double full = std::ldexp(1.0, bits) - 1;
+  const auto ramp = [full](int t, int n) { return static_cast<uint32_t>(std::floor(t * full / (n - 1) + 0.5)); };
+  std::vector<uint32_t> out;
+  for (int r = y; r < y + h; ++r)
+    for (int i = x; i < x + w; ++i) {
+      if (pattern == "Black") out.push_back(0);
+      else if (pattern == "White") out.push_back(static_cast<uint32_t>(full));
+      else if (pattern == "GreyHorizontalRamp") out.push_back(ramp(i, sw));
+      else if (pattern == "GreyVerticalRamp") out.push_back(ramp(r, sh));
+      else if (pattern == "GreyDiagonalRamp") out.push_back(ramp(i + r, sw + sh - 1));
+      else if (pattern == "GreyHorizontalRampMoving") out.push_back(ramp(static_cast<int>((i + index) % sw), sw));
+      else ADD_FAILURE() << "no pattern " << pattern;
+    }
+  return out;
+}
+
+// A 62 x 46 BayerRG sensor: 4095 / 61 and 4095 / 45 are not whole, so the
+// ramps' rounding shows; a 30 x 18 window at (6, 4).
+constexpr int kPatternW = 62, kPatternH = 46, kPatternX = 6, kPatternY = 4, kPatternWinW = 30, kPatternWinH = 18;
+
+// TestPattern replaces the ADC's codes of the whole sensor before the
+// window: the window shows the pattern's part at its offset, in each
+// pattern, exactly (BayerRG12: the codes). With GreyHorizontalRamp: the
+// packed formats unpack to those codes, BayerRG8 and Mono8 (from the ISP)
+// carry their top 8 bits, RGB8 R = G = B = those; ReverseX mirrors the
+// window; DecimationHorizontal keeps every other 2x2 cell of it; Off gives
+// the modelled frame (the Reference) again; a user set holds it.
+TEST_F(GigeE2E, TestPatternsAreExactCodesOfTheWholeSensorBeforeTheWindow) {
+  constexpr int kSw = kPatternW, kSh = kPatternH, kX = kPatternX, kY = kPatternY, kW = kPatternWinW,
+                kH = kPatternWinH;
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice(kSw, kSh)));
+  Client& c = *client_;
+  ASSERT_EQ(device_->sensor().adc_bits, 12) << "configs/camera.toml's ADC; the codes below assume it";
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TestPattern", nullptr), "Off");
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TestPatternGeneratorSelector", nullptr), "Sensor");
+  GError* e = nullptr;
+  arv_camera_set_region(c.camera(), kX, kY, kW, kH, &e);
+  ASSERT_EQ(e, nullptr);
+  const size_t pixels = static_cast<size_t>(kW) * kH;
+  for (const char* p : {"Black", "White", "GreyHorizontalRamp", "GreyVerticalRamp", "GreyDiagonalRamp"}) {
+    SCOPED_TRACE(p);
+    Set(c, "TestPattern", p);
+    uint32_t code = 0;
+    EXPECT_TRUE(GrabAt(c, "BayerRG12", 3, &code) == Bytes16(PatternWindow(p, kSw, kSh, 12, 3, kX, kY, kW, kH)));
+    EXPECT_EQ(code, genicam::BayerCode(Cfa::kBayerRG, 12));
+  }
+  Set(c, "TestPattern", "GreyHorizontalRamp");
+  const std::vector<uint32_t> codes = PatternWindow("GreyHorizontalRamp", kSw, kSh, 12, 0, kX, kY, kW, kH);
+  EXPECT_EQ(codes[1], 470u) << "column 7: 7 x 4095 / 61 = 469.9 rounds up";
+  EXPECT_TRUE(UnpackPfnc(GrabAt(c, "BayerRG12p", 3), 12, pixels) == codes);
+  EXPECT_TRUE(UnpackGige12Packed(GrabAt(c, "BayerRG12Packed", 3), pixels) == codes);
+  std::vector<uint8_t> top8, grey;
+  for (const uint32_t v : codes) top8.push_back(static_cast<uint8_t>(v >> 4));
+  for (const uint8_t v : top8) grey.insert(grey.end(), 3, v);
+  EXPECT_TRUE(GrabAt(c, "BayerRG8", 3) == top8) << "the top 8 of the 12 bits";
+  EXPECT_TRUE(GrabAt(c, "Mono8", 3) == top8) << "the luma of R = G = B";
+  EXPECT_TRUE(GrabAt(c, "RGB8", 3) == grey) << "R = G = B = the top 8 bits";
+  // ReverseX: the window's columns read right to left (as BayerGR12).
+  Set(c, "PixelFormat", "BayerRG12");
+  ASSERT_NO_FATAL_FAILURE(SetReverse(c, true, false));
+  uint32_t code = 0;
+  EXPECT_TRUE(GrabIndex(c, 3, &code) == Mirrored(Bytes16(codes), kW, kH, 2, true, false));
+  EXPECT_EQ(code, genicam::BayerCode(Cfa::kBayerGR, 12));
+  ASSERT_NO_FATAL_FAILURE(SetReverse(c, false, false));
+  // Decimation after the pattern: every other 2x2 cell of the whole sensor's ramp.
+  arv_camera_set_region(c.camera(), 0, 0, kSw, kSh, &e);
+  ASSERT_EQ(e, nullptr);
+  SetInt(c, "DecimationHorizontal", 2);
+  Settle();
+  ASSERT_EQ(ReadInt(c, "Width"), 30);
+  const std::vector<uint8_t> whole = Bytes16(PatternWindow("GreyHorizontalRamp", kSw, kSh, 12, 0, 0, 0, kSw, kSh));
+  EXPECT_TRUE(GrabAt(c, "BayerRG12", 3) == DecimatedCells(whole, kSw, kSh, 2, 2, 2, 1));
+  SetInt(c, "DecimationHorizontal", 1);
+  arv_camera_set_region(c.camera(), kX, kY, kW, kH, &e);
+  ASSERT_EQ(e, nullptr);
+  // A user set holds it.
+  Set(c, "UserSetSelector", "UserSet1");
+  EXPECT_EQ(Execute(c, reg::kUserSetSave), nullptr);
+  Set(c, "TestPattern", "Off");
+  EXPECT_EQ(Execute(c, reg::kUserSetLoad), nullptr);
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "TestPattern", nullptr), "GreyHorizontalRamp");
+  // Off: the modelled frame.
+  Set(c, "TestPattern", "Off");
+  const uint32_t rg12 = genicam::BayerCode(Cfa::kBayerRG, 12);
+  EXPECT_TRUE(GrabAt(c, "BayerRG12", 3) == Reference(3, rg12, kX, kY, kW, kH));
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
+// GreyHorizontalRampMoving: frame i is the horizontal ramp at
+// (x + i) mod SensorWidth, so frame i + 1 is frame i moved one pixel left
+// (its column x is frame i's column x + 1, wrapping round). TestPattern is
+// writable while acquiring and applies to a following frame.
+TEST_F(GigeE2E, TheMovingRampShiftsAPixelPerFrameAndPatternsChangeWhileAcquiring) {
+  constexpr int kSw = kPatternW, kSh = kPatternH;
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice(kSw, kSh)));
+  Client& c = *client_;
+  Set(c, "TestPattern", "GreyHorizontalRampMoving");
+  const std::vector<uint32_t> f5 = Words(GrabAt(c, "BayerRG12", 5)), f6 = Words(GrabIndex(c, 6));
+  EXPECT_TRUE(f5 == PatternWindow("GreyHorizontalRampMoving", kSw, kSh, 12, 5, 0, 0, kSw, kSh));
+  EXPECT_TRUE(f6 == PatternWindow("GreyHorizontalRampMoving", kSw, kSh, 12, 6, 0, 0, kSw, kSh));
+  ASSERT_EQ(f5.size(), static_cast<size_t>(kSw) * kSh);
+  ASSERT_EQ(f6.size(), f5.size());
+  int shifted = 0;
+  for (int r = 0; r < kSh; ++r)
+    for (int i = 0; i < kSw; ++i)
+      shifted += f6[static_cast<size_t>(r) * kSw + i] == f5[static_cast<size_t>(r) * kSw + (i + 1) % kSw];
+  EXPECT_EQ(shifted, kSw * kSh) << "frame 6 is frame 5 one pixel left";
+  EXPECT_FALSE(f5 == f6);
+  const uint32_t late = 1000003;  // (x + index) mod SensorWidth for a large index
+  EXPECT_TRUE(Words(GrabIndex(c, late)) == PatternWindow("GreyHorizontalRampMoving", kSw, kSh, 12, late, 0, 0, kSw, kSh));
+  // While acquiring: Black, then White written, without error; a later frame is White.
+  Set(c, "TestPattern", "Black");
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  const std::vector<uint32_t> black = Words(c.Grab(3000));
+  EXPECT_TRUE(black == std::vector<uint32_t>(f5.size(), 0u));
+  Set(c, "TestPattern", "White");
+  Settle();
+  bool white = false;
+  for (int i = 0; i < 8 && !white; ++i) white = Words(c.Grab(3000)) == std::vector<uint32_t>(f5.size(), 4095u);
+  c.CloseStream();
+  EXPECT_TRUE(white) << "no White frame after the write";
+  EXPECT_EQ(c.failed_buffers(), 0u);
+}
+
 }  // namespace
 }  // namespace camsim::gigetest
