@@ -5789,9 +5789,9 @@ std::vector<uint32_t> PatternWindow(const std::string& pattern, int sw, int sh, 
   return out;
 }
 
-// A 62 x 46 BayerRG sensor: 4095 / 61 and 4095 / 45 are not whole, so the
+// A 62 x 44 BayerRG sensor: 4095 / 61 and 4095 / 43 are not whole, so the
 // ramps' rounding shows; a 30 x 18 window at (6, 4).
-constexpr int kPatternW = 62, kPatternH = 46, kPatternX = 6, kPatternY = 4, kPatternWinW = 30, kPatternWinH = 18;
+constexpr int kPatternW = 62, kPatternH = 44, kPatternX = 6, kPatternY = 4, kPatternWinW = 30, kPatternWinH = 18;
 
 // TestPattern replaces the ADC's codes of the whole sensor before the
 // window: the window shows the pattern's part at its offset, in each
