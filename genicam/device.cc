@@ -856,6 +856,16 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   for (int i = 1; i < kUserSetCount; ++i) user_sets_[i] = {false, user_sets_[0].values};
   user_set_file_ = o.user_set_file;
   if (!user_set_file_.empty()) {
+    // UserSetSave writes it later: a directory it cannot write in fails now.
+    const size_t slash = user_set_file_.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : user_set_file_.substr(0, slash);
+    if (access(dir.c_str(), W_OK | X_OK) != 0) {
+      *error = "--user-set-file " + user_set_file_ + ": cannot write in its directory " + dir + ": " +
+               std::strerror(errno);
+      return false;
+    }
+  }
+  if (!user_set_file_.empty()) {
     const ClientWritesHeld hold(fake_);
     if (!ReadUserSetFile(error)) return false;
   }
@@ -1261,7 +1271,10 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   if (geometry && (acquiring || d->Read(reg::kTLParamsLocked) == 1)) {
     for (uint32_t g : kGeometryRegisters) {
       if (!covers(g) || value(g) == d->Read(g)) continue;
-      const std::string what = register_name(g) + " = " + std::to_string(value(g));
+      const Feature* f = nullptr;
+      for (const Feature& x : d->registers_)
+        if (x.address == g && x.length == 4) f = &x;
+      const std::string what = register_name(g) + " = " + (f ? d->ValueText(*f, value(g)) : std::to_string(value(g)));
       set_back(g);
       refuse(GevStatus::kAccessDenied, what, lock_reason);
     }
@@ -1364,6 +1377,21 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
           if (covers(r)) set_back(r);
         refuse(GevStatus::kAccessDenied, "ExposureTime", "locked: ExposureMode is TriggerWidth");
       }
+    }
+  }
+  // LineDebouncerTime is Line0's (the input): available at LineSelector
+  // Line0 only (its pIsAvailable), as the block leaves the selector. A write
+  // at Line1 would change Line0's debounce.
+  {
+    bool debounce = false;
+    for (const uint32_t r : {reg::kLineDebouncerTime, reg::kLineDebouncerTime + 4})
+      debounce = debounce || (covers(r) && value(r) != d->Read(r));
+    const uint32_t line = covers(reg::kLineSelector) ? value(reg::kLineSelector) : d->Read(reg::kLineSelector);
+    if (debounce && line != 0) {
+      for (const uint32_t r : {reg::kLineDebouncerTime, reg::kLineDebouncerTime + 4})
+        if (covers(r)) set_back(r);
+      refuse(GevStatus::kAccessDenied, "LineDebouncerTime",
+             "not available: LineSelector is Line" + std::to_string(line) + " (the debouncer is Line0's, the input)");
     }
   }
   // Binning x decimation must leave at least one pixel (Bayer: one 2x2
@@ -2218,6 +2246,9 @@ std::string GigeDevice::WhyInvalid(const Feature& f, uint64_t v) const {
         if (static_cast<uint64_t>(e.value) == v && e.readout >= 0)
           return "entry " + e.name + " is not the phase this readout gives (ReverseX " + std::to_string(Readout() & 1) +
                  ", ReverseY " + std::to_string(Readout() >> 1) + ")";
+        else if (static_cast<uint64_t>(e.value) == v && f.address == reg::kTriggerSource && v == kSourceLine0 &&
+                 !sensor_.has_trigger_line)
+          return "entry Line0 is not available: this camera has no trigger line (start it with --trigger-line)";
         else if (static_cast<uint64_t>(e.value) == v)
           return "entry " + e.name + " is not available (at this selector value, or on this device)";
       return "no such entry";
@@ -2640,6 +2671,10 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   // ExposureMode Timed and the Auto features Off (TriggerWidth locks the
   // trigger and ExposureAuto; the loop would own what the set writes).
   if (has(kExposureMode)) add(kExposureMode, kExposureTimed);
+  // LineDebouncerTime is written at LineSelector Line0 (where it is
+  // available); the client's selector is put back last.
+  const uint64_t line_selector = Read(kLineSelector);
+  if (has(kLineDebouncerTime)) add(kLineSelector, 0);
   for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
     if (has(a)) add(a, kAutoOff);
   // The sensor's own readout and raw format: valid in any window with any stages.
@@ -2673,6 +2708,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   }
   for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode})
     if (has(a)) add(a, v.at(a));
+  if (has(kLineDebouncerTime)) add(kLineSelector, line_selector);
 
   Registers before = UserSetNow();
   before[kGainRaw] = Read(kGainRaw);
@@ -2698,6 +2734,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   writes_refused_ = refused_before;  // the load is one write (its caller counts it)
   if (status != GevStatus::kSuccess) {
     RestoreRegisters(before);
+    Write(kLineSelector, static_cast<uint32_t>(line_selector));
     *why += " (nothing of the set is loaded)";
   }
   return status;
@@ -2727,16 +2764,11 @@ bool GigeDevice::WriteUserSetFile(uint64_t default_set, std::string* error) cons
     for (const Feature* f : UserSetRegisters())
       text += RegisterName(*f) + " = " + UserSetValueText(*f, user_sets_[i].values.at(f->address)) + "\n";
   }
-  // Written whole beside it, then renamed over it: a reader sees the old file or the new.
-  const std::string temp = user_set_file_ + ".tmp";
+  // WriteTextFile writes a temporary file beside it and renames it over it:
+  // a reader sees the old file or the new.
   std::string why;
-  if (!io::WriteTextFile(temp, text, &why)) {
-    *error = "cannot write the user set file " + temp + ": " + why;
-    return false;
-  }
-  if (std::rename(temp.c_str(), user_set_file_.c_str()) != 0) {
-    *error = "cannot rename " + temp + " to the user set file " + user_set_file_ + ": " + std::strerror(errno);
-    std::remove(temp.c_str());
+  if (!io::WriteTextFile(user_set_file_, text, &why)) {
+    *error = "the user set file: " + why;
     return false;
   }
   return true;
@@ -2808,6 +2840,9 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
           parsed = true;
         }
       if (!parsed) return fail(n, name + " = " + value + ": no such entry");
+    } else if (f.kind == Kind::kBoolean && (value == "true" || value == "false")) {
+      v = value == "true";
+      parsed = true;
     } else {
       const long long x = std::strtoll(value.c_str(), &end, 10);
       parsed = !value.empty() && *end == '\0' && errno == 0 && x >= 0;

@@ -5403,6 +5403,21 @@ TEST_F(GigeE2E, UserSetsHoldTriggerWidthAndTheLines) {
   Set(c, "LineSelector", "Line0");
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
   EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), 1500.0);
+  // LineDebouncerTime is Line0's: a write at Line1 is refused, and a load
+  // with the selector at Line1 still sets it (and leaves the selector there).
+  Set(c, "LineSelector", "Line0");
+  SetFloat(c, "LineDebouncerTime", 0.0);
+  Set(c, "LineSelector", "Line1");
+  arv_device_write_memory(c.device(), reg::kLineDebouncerTime, 8, Be64(9000.0).data(), &e);
+  EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED)) << "at Line1";
+  g_clear_error(&e);
+  Set(c, "UserSetSelector", "UserSet1");
+  arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
+  ASSERT_EQ(e, nullptr) << e->message;
+  Settle();
+  EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineSelector", nullptr), "Line1");
+  Set(c, "LineSelector", "Line0");
+  EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), 1500.0);
   // UserSet2, never saved, holds Default's: Timed, TriggerMode Off.
   Set(c, "UserSetSelector", "UserSet2");
   arv_camera_execute_command(c.camera(), "UserSetLoad", &e);
@@ -5527,6 +5542,9 @@ TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
             at + "2: PixelFormat = BayerGR12: entry BayerGR12 is not the phase this readout gives (ReverseX 0, "
                  "ReverseY 0)");
   EXPECT_EQ(start_error("[UserSet1]\nWidth 32\n"), at + "2: expected 'Feature = value', not 'Width 32'");
+  EXPECT_EQ(start_error("[UserSet1]\nTriggerSource = Line0\n"),
+            at + "2: TriggerSource = Line0: entry Line0 is not available: this camera has no trigger line (start it "
+                 "with --trigger-line)");
   EXPECT_EQ(start_error("[Default]\nWidth = 32\n"),
             at + "1: [Default] is the start-up configuration, not a user set (UserSet1, UserSet2, UserSet3)");
   EXPECT_EQ(start_error("UserSetDefault = UserSet4\n"),
@@ -5536,10 +5554,12 @@ TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
             std::string::npos)
       << off;
   // A good file starts, with UserSetDefault's set loaded through the checks.
-  std::ofstream(o.user_set_file) << "UserSetDefault = UserSet1\n[UserSet1]\nWidth = 32\nOffsetX = 32\nGain = 6\n";
+  std::ofstream(o.user_set_file)
+      << "UserSetDefault = UserSet1\n[UserSet1]\nWidth = 32\nOffsetX = 32\nGain = 6\nLineInverter[Line1] = true\n";
   std::string error;
   auto d = GigeDevice::Start(o, &error);
   ASSERT_NE(d, nullptr) << error;
+  EXPECT_EQ(ReadReg32(*d, reg::SelectedAddress(reg::kLineInverter, 1)), 1u) << "a Boolean written true";
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
   EXPECT_EQ(ReadReg32(*d, reg::kOffsetX), 32u);
   EXPECT_EQ(ReadReg32(*d, reg::kGainRaw), 60u);
@@ -5548,15 +5568,23 @@ TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
   EXPECT_EQ(d->CheckInvariants(), "");
   d.reset();
   std::remove(o.user_set_file.c_str());
-  // A file that cannot be written: UserSetSave fails (GEV_STATUS_ERROR), saying why.
+  // A directory it cannot write in stops the start (UserSetSave would fail later).
   o.user_set_file = "/camsim-no-such-dir/sets.txt";
+  EXPECT_EQ(GigeDevice::Start(o, &error), nullptr);
+  EXPECT_EQ(error, "--user-set-file /camsim-no-such-dir/sets.txt: cannot write in its directory /camsim-no-such-dir: "
+                   "No such file or directory");
+  // A file that can no longer be written: UserSetSave fails (GEV_STATUS_ERROR), saying why.
+  const std::string dir = testing::TempDir() + "camsim-usersets-dir-" + std::to_string(getpid());
+  ASSERT_EQ(mkdir(dir.c_str(), 0700), 0);
+  o.user_set_file = dir + "/sets.txt";
   d = GigeDevice::Start(o, &error);
   ASSERT_NE(d, nullptr) << error << ": no file yet is no error";
+  ASSERT_EQ(rmdir(dir.c_str()), 0);
   WriteReg(*d, reg::kUserSetSelector, Be32(1));
   testing::internal::CaptureStderr();
   WriteRegRefused(*d, reg::kUserSetSave, Be32(1));
   const std::string log = testing::internal::GetCapturedStderr();
-  EXPECT_NE(log.find("refused UserSetSave[UserSet1]: cannot write the user set file /camsim-no-such-dir/sets.txt.tmp"),
+  EXPECT_NE(log.find("refused UserSetSave[UserSet1]: the user set file: cannot write '" + o.user_set_file + "'"),
             std::string::npos)
       << log;
 }
