@@ -1951,8 +1951,9 @@ void GigeDevice::SyncLoop() {
 }
 
 // LineDebouncerTime: a level is taken once it has held the debounce time,
-// judged by the edges' own timestamps (hal::InputLine::LastEdgeTime; the
-// time an edge was read where a line has none). An edge that comes within
+// judged by the edges' own timestamps (hal::InputLine::LastEdgeTime: a GPIO
+// line's kernel stamp, a trigger bus sender's; the time an edge was read
+// where a line has none). An edge that comes within
 // the debounce time of the last one cancels it; one that comes later
 // confirms the level before it, at its start plus the debounce time,
 // however late the edges are read. With no edge queued, a level is taken
@@ -1977,6 +1978,8 @@ void GigeDevice::TriggerLoop() {
     hal::Edge edge;
     std::string error;
     const int r = trigger_->WaitEdge(timeout_ms, &edge, &error);
+    if (const std::string notice = trigger_->TakeNotice(); !notice.empty())
+      std::fprintf(stderr, "camsim-gige: %s\n", notice.c_str());
     if (r < 0) {
       std::lock_guard<std::mutex> lock(mutex_);
       line_error_ = error;

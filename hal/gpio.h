@@ -29,10 +29,20 @@ class InputLine {
   // pulse does); false for lines without one (GPIO).
   virtual bool LastEdgeIndex(uint32_t* /*index*/) const { return false; }
   // When the last edge WaitEdge returned happened on the line, on the steady
-  // clock: a GPIO line's kernel timestamp, a MemoryLine's Set; false for
-  // lines without one (the trigger bus: the reader takes the time it read it).
+  // clock: a GPIO line's kernel timestamp, a trigger bus sender's stamp, a
+  // MemoryLine's Set; false for lines without one.
   virtual bool LastEdgeTime(std::chrono::steady_clock::time_point* /*time*/) const { return false; }
+  // Input the line ignored since the last call, said once (a trigger bus
+  // message of another version), or "".
+  virtual std::string TakeNotice() { return {}; }
 };
+
+// The steady-clock time of an edge stamped `ns` on CLOCK_MONOTONIC. A stamp
+// in the future or older than kMaxEdgeAgeS is another clock's (an old
+// kernel's CLOCK_REALTIME, a sender in another time namespace): the time now.
+inline constexpr long long kMaxEdgeAgeS = 10;
+std::chrono::steady_clock::time_point MonotonicEdgeTime(long long ns);
+long long MonotonicNowNs();  // CLOCK_MONOTONIC
 
 class OutputLine {
  public:
@@ -62,22 +72,34 @@ std::unique_ptr<OutputLine> OpenOutputLine(const std::string& spec, const std::s
 // binds a datagram socket DIR/line-<pid>-<n>.sock, n the first number no live
 // input holds (DIR is created if missing, its parent must exist); an output (camsim-trigger, or a master camera's
 // strobe) sends every edge to all sockets in DIR. An edge is one datagram
-// (TriggerBusMessage) carrying its level and a frame index, so a camera that
-// missed pulses still renders the same frame index as the others.
+// (TriggerBusMessage) carrying its level, a frame index, so a camera that
+// missed pulses still renders the same frame index as the others, and the
+// time the sender set it, so a camera times the edge as a GPIO line's
+// kernel stamp would, not by when its reader got to it.
 inline constexpr char kBusScheme[] = "unix:";
 bool IsBusSpec(const std::string& spec);
 // The directory of "unix:DIR"; false and a message naming the spec if it is not one.
 bool ParseBusSpec(const std::string& spec, std::string* dir, std::string* error);
 
-// One edge on the bus: 16 bytes, little-endian.
+// One edge on the bus: 24 bytes, little-endian: magic, version, level, 2
+// zero bytes, frame index, sequence, edge time. Version 1 (16 bytes) had no
+// edge time; an input ignores a message of another version and says so once
+// (TakeNotice) rather than misread it.
 struct TriggerBusMessage {
   static constexpr uint32_t kMagic = 0x42545343;  // "CSTB" (camsim trigger bus)
-  static constexpr uint8_t kVersion = 1;
+  static constexpr uint8_t kVersion = 2;
+  static constexpr size_t kSize = 24;
   bool rising = true;
   uint32_t frame_index = 0;
   uint32_t sequence = 0;  // the sender's edge count (diagnostics)
-  void Encode(uint8_t out[16]) const;
+  // When the sender set the edge, CLOCK_MONOTONIC nanoseconds: the bus is
+  // UNIX sockets on one host, so senders and inputs share that clock.
+  uint64_t edge_time_ns = 0;
+  void Encode(uint8_t out[kSize]) const;
+  // False for anything but a well-formed message of kVersion.
   static bool Decode(const uint8_t* data, size_t size, TriggerBusMessage* out);
+  // The version byte of a datagram that starts with kMagic (any version), else -1.
+  static int VersionOf(const uint8_t* data, size_t size);
 };
 
 std::unique_ptr<InputLine> OpenBusInput(const std::string& spec, std::string* error);

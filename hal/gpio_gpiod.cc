@@ -82,15 +82,9 @@ class GpiodInput : public InputLine {
     }
     *edge = ev.event_type == GPIOD_LINE_EVENT_RISING_EDGE ? Edge::kRising : Edge::kFalling;
     // The kernel stamps edges with CLOCK_MONOTONIC (the steady clock) since
-    // Linux 5.7, before with CLOCK_REALTIME: a stamp that is not in the last
-    // kMaxEdgeAgeS of the monotonic clock is replaced by the time it was read.
-    timespec mono{};
-    clock_gettime(CLOCK_MONOTONIC, &mono);
-    const long long ns = static_cast<long long>(ev.ts.tv_sec) * 1000000000 + ev.ts.tv_nsec;
-    const long long now_ns = static_cast<long long>(mono.tv_sec) * 1000000000 + mono.tv_nsec;
-    time_ = ns <= now_ns && now_ns - ns < kMaxEdgeAgeS * 1000000000LL
-                ? std::chrono::steady_clock::now() - std::chrono::nanoseconds(now_ns - ns)
-                : std::chrono::steady_clock::now();
+    // Linux 5.7, before with CLOCK_REALTIME, which MonotonicEdgeTime replaces
+    // by the time it was read.
+    time_ = MonotonicEdgeTime(static_cast<long long>(ev.ts.tv_sec) * 1000000000 + ev.ts.tv_nsec);
     return 1;
   }
   std::string Name() const override { return spec_; }
@@ -100,7 +94,6 @@ class GpiodInput : public InputLine {
   }
 
  private:
-  static constexpr long long kMaxEdgeAgeS = 10;
   std::string spec_;
   Opened o_;
   std::chrono::steady_clock::time_point time_{};
@@ -130,6 +123,19 @@ class GpiodOutput : public OutputLine {
 };
 
 }  // namespace
+
+long long MonotonicNowNs() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<long long>(t.tv_sec) * 1000000000 + t.tv_nsec;
+}
+
+std::chrono::steady_clock::time_point MonotonicEdgeTime(long long ns) {
+  const long long now_ns = MonotonicNowNs();
+  const auto now = std::chrono::steady_clock::now();
+  if (ns > now_ns || now_ns - ns >= kMaxEdgeAgeS * 1000000000LL) return now;
+  return now - std::chrono::nanoseconds(now_ns - ns);
+}
 
 bool ParseLineSpec(const std::string& spec, std::string* chip, unsigned* offset, std::string* error) {
   const size_t colon = spec.rfind(':');

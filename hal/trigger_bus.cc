@@ -10,9 +10,12 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <bitset>
 #include <cerrno>
+#include <climits>
 #include <chrono>
 #include <cstring>
+#include <utility>
 
 #include "hal/gpio.h"
 
@@ -28,6 +31,11 @@ uint32_t Get32(const uint8_t* p) {
   return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 | static_cast<uint32_t>(p[2]) << 16 |
          static_cast<uint32_t>(p[3]) << 24;
 }
+void Put64(uint8_t* p, uint64_t v) {
+  Put32(p, static_cast<uint32_t>(v));
+  Put32(p + 4, static_cast<uint32_t>(v >> 32));
+}
+uint64_t Get64(const uint8_t* p) { return static_cast<uint64_t>(Get32(p)) | static_cast<uint64_t>(Get32(p + 4)) << 32; }
 
 // A socket path fits sockaddr_un's sun_path (108 bytes on Linux, with the NUL).
 bool MakeAddress(const std::string& path, sockaddr_un* a) {
@@ -108,9 +116,21 @@ class BusInput : public InputLine {
         return -1;
       }
       TriggerBusMessage m;
-      if (!TriggerBusMessage::Decode(buf, static_cast<size_t>(n), &m)) continue;  // not a bus edge: ignored
+      if (!TriggerBusMessage::Decode(buf, static_cast<size_t>(n), &m)) {  // not an edge we read: ignored
+        const int version = TriggerBusMessage::VersionOf(buf, static_cast<size_t>(n));
+        if (version >= 0 && version != TriggerBusMessage::kVersion && !versions_seen_[version]) {
+          versions_seen_[version] = true;
+          notice_ = "trigger bus '" + spec_ + "': ignored an edge in message version " + std::to_string(version) +
+                    " (this camera reads version " + std::to_string(TriggerBusMessage::kVersion) +
+                    "; give camsim-trigger and every camera of the rig the same build)";
+        }
+        continue;
+      }
       *edge = m.rising ? Edge::kRising : Edge::kFalling;
       index_ = m.frame_index;
+      time_ = m.edge_time_ns > static_cast<uint64_t>(INT64_MAX)
+                  ? std::chrono::steady_clock::now()
+                  : MonotonicEdgeTime(static_cast<long long>(m.edge_time_ns));
       return 1;
     }
   }
@@ -119,30 +139,44 @@ class BusInput : public InputLine {
     *index = index_;
     return true;
   }
+  bool LastEdgeTime(std::chrono::steady_clock::time_point* time) const override {
+    *time = time_;
+    return true;
+  }
+  std::string TakeNotice() override { return std::exchange(notice_, std::string()); }
 
  private:
   std::string spec_, dir_, path_;
   int fd_;
   uint32_t index_ = 0;
+  std::chrono::steady_clock::time_point time_{};  // of the last edge returned
+  std::bitset<256> versions_seen_;                 // other versions already noticed
+  std::string notice_;
 };
 
 }  // namespace
 
-void TriggerBusMessage::Encode(uint8_t out[16]) const {
+void TriggerBusMessage::Encode(uint8_t out[kSize]) const {
   Put32(out, kMagic);
   out[4] = kVersion;
   out[5] = rising ? 1 : 0;
   out[6] = out[7] = 0;
   Put32(out + 8, frame_index);
   Put32(out + 12, sequence);
+  Put64(out + 16, edge_time_ns);
 }
 
 bool TriggerBusMessage::Decode(const uint8_t* data, size_t size, TriggerBusMessage* out) {
-  if (size != 16 || Get32(data) != kMagic || data[4] != kVersion || data[5] > 1) return false;
+  if (size != kSize || Get32(data) != kMagic || data[4] != kVersion || data[5] > 1) return false;
   out->rising = data[5] == 1;
   out->frame_index = Get32(data + 8);
   out->sequence = Get32(data + 12);
+  out->edge_time_ns = Get64(data + 16);
   return true;
+}
+
+int TriggerBusMessage::VersionOf(const uint8_t* data, size_t size) {
+  return size >= 5 && Get32(data) == kMagic ? data[4] : -1;
 }
 
 bool IsBusSpec(const std::string& spec) { return spec.rfind(kBusScheme, 0) == 0; }
@@ -221,6 +255,7 @@ BusOutput::~BusOutput() {
 
 bool BusOutput::Set(bool high, std::string* error) {
   if (high == level_) return true;
+  const long long edge_time_ns = MonotonicNowNs();
   // The level changes only once the edge could be sent: after a failure the
   // same Set tries again instead of finding the line already at that level.
   if (fd_ < 0) {
@@ -248,7 +283,8 @@ bool BusOutput::Set(bool high, std::string* error) {
   m.rising = high;
   m.frame_index = index_;
   m.sequence = ++sequence_;
-  uint8_t msg[16];
+  m.edge_time_ns = static_cast<uint64_t>(edge_time_ns);
+  uint8_t msg[TriggerBusMessage::kSize];
   m.Encode(msg);
   receivers_ = 0;
   const size_t prefix = sizeof kInputPrefix - 1, suffix = sizeof kInputSuffix - 1;

@@ -827,16 +827,16 @@ TEST(GigeTriggerBus, EveryInputGetsEachEdgeWithItsFrameIndex) {
     EXPECT_EQ(index, 1235u);
     EXPECT_EQ(in->WaitEdge(20, &edge, &error), 0) << "one datagram per edge";
   }
-  // Anything that is not a 16-byte bus message is ignored by the inputs.
+  // Anything that is not a whole bus message is ignored by the inputs.
   hal::TriggerBusMessage m;
-  uint8_t bytes[16];
+  uint8_t bytes[hal::TriggerBusMessage::kSize];
   m.frame_index = 7;
   m.Encode(bytes);
-  ASSERT_TRUE(hal::TriggerBusMessage::Decode(bytes, 16, &m));
+  ASSERT_TRUE(hal::TriggerBusMessage::Decode(bytes, sizeof bytes, &m));
   EXPECT_EQ(m.frame_index, 7u);
-  EXPECT_FALSE(hal::TriggerBusMessage::Decode(bytes, 15, &m));
+  EXPECT_FALSE(hal::TriggerBusMessage::Decode(bytes, sizeof bytes - 1, &m));
   bytes[0] ^= 1;
-  EXPECT_FALSE(hal::TriggerBusMessage::Decode(bytes, 16, &m));
+  EXPECT_FALSE(hal::TriggerBusMessage::Decode(bytes, sizeof bytes, &m));
   // Inputs remove their sockets: one left, then none.
   a.reset();
   out->SetEdgeIndex(9);
@@ -844,6 +844,108 @@ TEST(GigeTriggerBus, EveryInputGetsEachEdgeWithItsFrameIndex) {
   EXPECT_EQ(out->last_receivers(), 1);
   b.reset();
   EXPECT_EQ(rmdir(dir.c_str()), 0) << "sockets left in " << dir;
+}
+
+// The bus input's socket in DIR (the only one there), and a datagram sent to it.
+std::string BusSocketIn(const std::string& dir) {
+  std::string path;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) path = e.path().string();
+  return path;
+}
+void SendDatagram(const std::string& socket_path, const uint8_t* data, size_t size) {
+  const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  std::snprintf(a.sun_path, sizeof a.sun_path, "%s", socket_path.c_str());
+  EXPECT_EQ(sendto(fd, data, size, 0, reinterpret_cast<sockaddr*>(&a), sizeof a), static_cast<ssize_t>(size));
+  close(fd);
+}
+// A version 2 bus edge stamped `edge_time_ns` (CLOCK_MONOTONIC).
+void SendBusEdge(const std::string& socket_path, bool rising, uint32_t index, long long edge_time_ns) {
+  hal::TriggerBusMessage m;
+  m.rising = rising;
+  m.frame_index = index;
+  m.edge_time_ns = static_cast<uint64_t>(edge_time_ns);
+  uint8_t bytes[hal::TriggerBusMessage::kSize];
+  m.Encode(bytes);
+  SendDatagram(socket_path, bytes, sizeof bytes);
+}
+
+// Version 2 of the bus message carries the sender's edge time (CLOCK_MONOTONIC
+// ns) at bytes 16..23, little-endian; an input's LastEdgeTime is that time,
+// not when it read the edge, unless the stamp is in the future or more than
+// kMaxEdgeAgeS old (another clock). A message of another version (version
+// 1: 16 bytes, no time) is not misread: it is ignored and named once.
+TEST(GigeTriggerBus, MessagesCarryTheSendersEdgeTime) {
+  hal::TriggerBusMessage m;
+  m.rising = false;
+  m.frame_index = 0x01020304;
+  m.sequence = 0x0a0b0c0d;
+  m.edge_time_ns = 0x1122334455667788ULL;
+  uint8_t bytes[hal::TriggerBusMessage::kSize];
+  static_assert(sizeof bytes == 24);
+  m.Encode(bytes);
+  const uint8_t want[24] = {'C', 'S', 'T', 'B', 2, 0, 0, 0, 0x04, 0x03, 0x02, 0x01, 0x0d, 0x0c, 0x0b, 0x0a,
+                            0x88, 0x77, 0x66, 0x55, 0x44, 0x33, 0x22, 0x11};
+  EXPECT_EQ(std::vector<uint8_t>(bytes, bytes + 24), std::vector<uint8_t>(want, want + 24));
+  hal::TriggerBusMessage d;
+  ASSERT_TRUE(hal::TriggerBusMessage::Decode(bytes, sizeof bytes, &d));
+  EXPECT_FALSE(d.rising);
+  EXPECT_EQ(d.frame_index, m.frame_index);
+  EXPECT_EQ(d.sequence, m.sequence);
+  EXPECT_EQ(d.edge_time_ns, m.edge_time_ns);
+  EXPECT_EQ(hal::TriggerBusMessage::VersionOf(bytes, sizeof bytes), 2);
+  // Version 1 as its senders wrote it: magic, 1, level, 0, 0, index, sequence.
+  const uint8_t v1[16] = {'C', 'S', 'T', 'B', 1, 1, 0, 0, 5, 0, 0, 0, 1, 0, 0, 0};
+  EXPECT_FALSE(hal::TriggerBusMessage::Decode(v1, sizeof v1, &d));
+  EXPECT_EQ(hal::TriggerBusMessage::VersionOf(v1, sizeof v1), 1);
+  EXPECT_EQ(hal::TriggerBusMessage::VersionOf(reinterpret_cast<const uint8_t*>("junk"), 4), -1);
+
+  const std::string dir = testing::TempDir() + "camsim-stamp-" + std::to_string(getpid());
+  std::string error;
+  auto in = hal::OpenInputLine("unix:" + dir, "test", &error);
+  ASSERT_NE(in, nullptr) << error;
+  const std::string socket_path = BusSocketIn(dir);
+  hal::Edge edge;
+  std::chrono::steady_clock::time_point at;
+  // A version 1 edge: no edge, and one notice naming both versions; a second one: no new notice.
+  SendDatagram(socket_path, v1, sizeof v1);
+  EXPECT_EQ(in->WaitEdge(50, &edge, &error), 0) << "a version 1 message taken for an edge";
+  EXPECT_EQ(in->TakeNotice(), "trigger bus 'unix:" + dir +
+                                  "': ignored an edge in message version 1 (this camera reads version 2; give "
+                                  "camsim-trigger and every camera of the rig the same build)");
+  SendDatagram(socket_path, v1, sizeof v1);
+  EXPECT_EQ(in->WaitEdge(50, &edge, &error), 0);
+  EXPECT_EQ(in->TakeNotice(), "") << "said twice";
+  // A BusOutput's edge: stamped within its Set, read 30 ms later.
+  auto out = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(out, nullptr) << error;
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(out->Set(true, &error)) << error;
+  const auto t1 = std::chrono::steady_clock::now();
+  Sleep(30);
+  ASSERT_EQ(in->WaitEdge(1000, &edge, &error), 1);
+  ASSERT_TRUE(in->LastEdgeTime(&at));
+  const auto ms = [](auto span) { return std::chrono::duration<double, std::milli>(span).count(); };
+  EXPECT_TRUE(at >= t0 - std::chrono::milliseconds(1) && at <= t1 + std::chrono::milliseconds(1))
+      << "stamped " << ms(at - t0) << " ms after the Set began (it took " << ms(t1 - t0) << " ms)";
+  // A stamp 200 ms old is kept; one in the future or 11 s old is another clock's: the time it was read.
+  const long long now_ns = hal::MonotonicNowNs();
+  const auto now = std::chrono::steady_clock::now();
+  SendBusEdge(socket_path, false, 1, now_ns - 200000000LL);
+  ASSERT_EQ(in->WaitEdge(1000, &edge, &error), 1);
+  ASSERT_TRUE(in->LastEdgeTime(&at));
+  EXPECT_LT(std::abs(ms(at - (now - std::chrono::milliseconds(200)))), 1.0) << ms(at - now) << " ms from now";
+  for (const long long stamp : {now_ns + 3600000000000LL, now_ns - 11000000000LL}) {
+    SendBusEdge(socket_path, true, 2, stamp);
+    const auto before = std::chrono::steady_clock::now();
+    ASSERT_EQ(in->WaitEdge(1000, &edge, &error), 1);
+    const auto after = std::chrono::steady_clock::now();
+    ASSERT_TRUE(in->LastEdgeTime(&at));
+    EXPECT_TRUE(at >= before && at <= after) << "stamp " << stamp << " taken, " << ms(at - before) << " ms";
+  }
+  in.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
 }
 
 // A burst longer than an input's socket queue (max_dgram_qlen, 10 by default)
@@ -3186,6 +3288,58 @@ TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
   SetFloat(c, "ExposureTime", 1234.0);
   Settle();
   EXPECT_EQ(ReadFloat(c, "ExposureTime"), 1234.0);
+}
+
+// TriggerWidth over the trigger bus times each edge by its sender's stamp,
+// not by when the camera's reader got to it. A rising edge stamped 60 ms
+// ago and a falling one stamped now, sent back to back, expose 60 ms (read
+// times: a few microseconds); a BusOutput pulse exposes the time between its
+// two Sets, to well under a millisecond (read times: the reader's latency).
+TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
+  const std::string dir = testing::TempDir() + "camsim-width-bus-" + std::to_string(getpid());
+  DeviceOptions o = SmallDevice();
+  o.trigger_line = "unix:" + dir;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  Set(c, "TriggerMode", "On");
+  Set(c, "TriggerSource", "Line0");
+  Set(c, "TriggerActivation", "RisingEdge");
+  Set(c, "ExposureMode", "TriggerWidth");
+  GError* e = nullptr;
+  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+  ASSERT_EQ(e, nullptr);
+  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  const std::string socket_path = BusSocketIn(dir);
+  const long long now_ns = hal::MonotonicNowNs();
+  SendBusEdge(socket_path, true, 10, now_ns - 60000000LL);
+  SendBusEdge(socket_path, false, 10, now_ns);
+  ChunkedFrame f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok) << "no frame for the stamped pulse";
+  EXPECT_NEAR(f.values.at("ChunkExposureTime"), 60000.0, 200.0) << "µs: not the stamps' 60 ms";
+  std::string error;
+  auto bus = hal::OpenBusOutput("unix:" + dir, &error);
+  ASSERT_NE(bus, nullptr) << error;
+  const auto r0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(bus->Set(true, &error)) << error;
+  const auto r1 = std::chrono::steady_clock::now();
+  Sleep(30);
+  const auto f0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(bus->Set(false, &error)) << error;
+  const auto f1 = std::chrono::steady_clock::now();
+  f = GrabChunked(c, parser);
+  ASSERT_TRUE(f.ok) << "no frame for the BusOutput pulse";
+  const auto us = [](auto span) { return std::chrono::duration<double, std::micro>(span).count(); };
+  EXPECT_GE(f.values.at("ChunkExposureTime"), us(f0 - r1) - 50.0);
+  EXPECT_LE(f.values.at("ChunkExposureTime"), us(f1 - r0) + 50.0);
+  EXPECT_TRUE(c.Grab(300).empty()) << "more frames than pulses";
+  g_object_unref(parser);
+  client_.reset();
+  device_.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
 }
 
 using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
