@@ -1474,11 +1474,25 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
           d->Write(r, static_cast<uint32_t>(v));
         }
       };
-      for (int a = 0; a < 2; ++a)
-        if (reset[a]) {
-          put(axes[a].second, 0);
-          put(axes[a].first, extent[a]);
+      for (int a = 0; a < 2; ++a) {
+        if (!reset[a]) continue;
+        // Said once per reset axis; not during a user set load, whose own
+        // window is written after its binning and decimation.
+        if (d->refusal_capture_ == nullptr) {
+          const char* names[2][3] = {{"Width", "OffsetX", "WidthMax"}, {"Height", "OffsetY", "HeightMax"}};
+          std::string cause;
+          for (const uint32_t r : axis_factors[a])
+            if (covers(r)) cause += (cause.empty() ? "" : ", ") + register_name(r) + " = " + std::to_string(value(r));
+          if (cause.empty()) cause = "the binning and decimation";
+          d->LogRefusal(std::string(names[a][0]) + " = " + std::to_string(extent[a]) + ", " + names[a][1] + " = 0",
+                        cause + " leaves " + names[a][2] + " " + std::to_string(limits[a]) + ", too small for the window (" +
+                            names[a][0] + " " + std::to_string(after_write(axes[a].first)) + " + " + names[a][1] +
+                            " " + std::to_string(after_write(axes[a].second)) + "): it is now the whole readout",
+                        "reset");
         }
+        put(axes[a].second, 0);
+        put(axes[a].first, extent[a]);
+      }
     }
     d->Write(reg::kWidthMax, static_cast<uint32_t>(ReadoutExtent(d->sensor_, 0, after_write)));
     d->Write(reg::kHeightMax, static_cast<uint32_t>(ReadoutExtent(d->sensor_, 1, after_write)));

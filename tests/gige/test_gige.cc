@@ -5947,6 +5947,31 @@ TEST_F(GigeE2E, BinningAndDecimationAreLockedWhileAcquiring) {
   EXPECT_EQ(ReadInt(c, "WidthMax"), 32);
 }
 
+// A binning or decimation write that leaves the window too large resets it
+// on that axis (Width = WidthMax, OffsetX = 0) and says so in one line;
+// one whose window still fits, and the other axis, say nothing.
+TEST(GigeRegisters, AWindowResetByBinningIsLogged) {
+  auto d = StartDevice(OfflineDevice());  // 64 x 48 BayerRG
+  ASSERT_NE(d, nullptr);
+  WriteReg(*d, reg::kWidth, Be32(48));
+  WriteReg(*d, reg::kOffsetX, Be32(16));
+  WriteReg(*d, reg::kHeight, Be32(24));
+  testing::internal::CaptureStderr();
+  WriteReg(*d, reg::kDecimationVertical, Be32(2));  // HeightMax 24: Height 24 still fits
+  std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(log, "") << "a window that fits was reported";
+  testing::internal::CaptureStderr();
+  WriteReg(*d, reg::kBinningHorizontal, Be32(2));
+  log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(log, "camsim-gige: reset Width = 32, OffsetX = 0: BinningHorizontal = 2 leaves WidthMax 32, too small "
+                 "for the window (Width 48 + OffsetX 16): it is now the whole readout\n");
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  EXPECT_EQ(ReadReg32(*d, reg::kOffsetX), 0u);
+  EXPECT_EQ(ReadReg32(*d, reg::kHeight), 24u);
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // ---------------------------------------------------------------- test patterns
 
 // TestPattern's codes from their definition in docs/gige.md, in floating
