@@ -855,6 +855,7 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   user_sets_[0] = {true, UserSetNow()};
   for (int i = 1; i < kUserSetCount; ++i) user_sets_[i] = {false, user_sets_[0].values};
   user_set_file_ = o.user_set_file;
+  start_user_set_ = "the Default user set (no --user-set-file)";
   if (!user_set_file_.empty()) {
     // UserSetSave writes it later: a directory it cannot write in fails now.
     const size_t slash = user_set_file_.find_last_of('/');
@@ -2795,7 +2796,10 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
   const std::string& path = user_set_file_;
   std::ifstream in(path);
   if (!in) {
-    if (errno == ENOENT) return true;  // none yet: the first UserSetSave writes it
+    if (errno == ENOENT) {  // none yet: the first UserSetSave writes it
+      start_user_set_ = "the Default user set (no " + path + " yet)";
+      return true;
+    }
     *error = "--user-set-file " + path + ": cannot read it: " + std::strerror(errno);
     return false;
   }
@@ -2906,6 +2910,9 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
       return false;
     }
   }
+  start_user_set_ = default_set == kUserSetDefaultSet
+                        ? "the Default user set (UserSetDefault in " + path + ")"
+                        : "user set " + std::string(UserSetName(default_set)) + " from " + path + " (its UserSetDefault)";
   return true;
 }
 

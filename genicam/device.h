@@ -142,6 +142,9 @@ class GigeDevice {
   const std::vector<Feature>& table() const { return table_; }
   const std::string& xml_path() const { return xml_path_; }
   const SensorInfo& sensor() const { return sensor_; }
+  // The user set the start loaded, for the start-up line: "user set UserSet1
+  // from PATH (its UserSetDefault)", or "the Default user set (...)" saying why.
+  const std::string& start_user_set() const { return start_user_set_; }
   uint64_t frames_sent() const { return frames_sent_.load(); }
   // Client writes refused: by the device (values, the window, commands) and
   // by the hooks in front of its camera (fake_camera_hooks.h, WritesRefusedAt).
@@ -250,6 +253,7 @@ class GigeDevice {
   };
   std::array<UserSet, kUserSetCount> user_sets_;
   std::string user_set_file_;
+  std::string start_user_set_;  // start_user_set()
   std::vector<const Feature*> UserSetRegisters() const;  // registers_ a set holds, in table order
   Registers UserSetNow() const;  // their values in memory (as the client's writes left them)
   void RestoreRegisters(const Registers& r);  // device writes of r's values

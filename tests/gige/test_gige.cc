@@ -5675,6 +5675,31 @@ TEST_F(GigeE2E, UserSetDefaultFromTheFileSurvivesARestart) {
 // out of its range, a line that is not 'Feature = value', Default as a
 // section, and a set the sensor cannot take (its window off the sensor:
 // found by loading it through the client's checks).
+// The start-up line (camsim-gige's "serving ..., loaded X") names the set
+// the start loaded: UserSetDefault's set from --user-set-file, or Default
+// and why.
+TEST(GigeRegisters, TheStartSaysWhichUserSetItLoaded) {
+  DeviceOptions o = OfflineDevice();
+  auto d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->start_user_set(), "the Default user set (no --user-set-file)");
+  o.user_set_file = UserSetFile("start");
+  d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->start_user_set(), "the Default user set (no " + o.user_set_file + " yet)");
+  std::ofstream(o.user_set_file) << "[UserSet2]\nWidth = 32\n";
+  d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->start_user_set(), "the Default user set (UserSetDefault in " + o.user_set_file + ")");
+  std::ofstream(o.user_set_file) << "UserSetDefault = UserSet2\n[UserSet2]\nWidth = 32\n";
+  d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->start_user_set(), "user set UserSet2 from " + o.user_set_file + " (its UserSetDefault)");
+  EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
+  d.reset();
+  std::remove(o.user_set_file.c_str());
+}
+
 TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
   DeviceOptions o = OfflineDevice();
   o.user_set_file = UserSetFile("bad");
