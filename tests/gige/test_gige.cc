@@ -5769,6 +5769,56 @@ TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
 }
 
 
+// A --user-set-file saved by a camera started with another configuration
+// stops the start, naming the file, the line and the feature: a window
+// saved on a 64 x 48 sensor does not fit a 32 x 24 one, and TriggerSource
+// Line0 needs a trigger line.
+TEST(GigeRegisters, AUserSetFileOfAnotherCameraStopsTheStartNamingTheLine) {
+  hal::MemoryLine line("test-trigger");
+  DeviceOptions o = OfflineDevice();  // 64 x 48
+  o.trigger = &line;
+  o.user_set_file = UserSetFile("other");
+  {
+    auto d = StartDevice(o);
+    ASSERT_NE(d, nullptr);
+    WriteReg(*d, reg::kWidth, Be32(48));
+    WriteReg(*d, reg::kTriggerSource, Be32(genicam::kSourceLine0));
+    WriteReg(*d, reg::kUserSetSelector, Be32(1));
+    WriteReg(*d, reg::kUserSetSave, Be32(1));
+  }
+  const std::string text = ReadText(o.user_set_file);
+  // The number of the file's line that starts with `start`.
+  const auto line_of = [&text](const std::string& start) {
+    int n = 1;
+    for (size_t at = 0; at < text.size(); at = text.find('\n', at) + 1, ++n) {
+      if (text.compare(at, start.size(), start) == 0) return n;
+      if (text.find('\n', at) == std::string::npos) break;
+    }
+    return 0;
+  };
+  ASSERT_GT(line_of("Width = 48"), 0) << text;
+  ASSERT_GT(line_of("TriggerSource = Line0"), 0) << text;
+  const auto start_error = [&](const DeviceOptions& other) {
+    std::string error;
+    testing::internal::CaptureStderr();
+    auto d = GigeDevice::Start(other, &error);
+    testing::internal::GetCapturedStderr();
+    EXPECT_EQ(d, nullptr) << "started with:\n" << text;
+    return error;
+  };
+  const std::string at = "--user-set-file " + o.user_set_file + ":";
+  DeviceOptions smaller = o;
+  smaller.overrides = SmallDevice(32, 24).overrides;
+  const std::string window = start_error(smaller);
+  EXPECT_EQ(window.rfind(at + std::to_string(line_of("Width = 48")) + ": Width = 48: ", 0), 0u) << window;
+  DeviceOptions no_line = o;
+  no_line.trigger = nullptr;
+  EXPECT_EQ(start_error(no_line), at + std::to_string(line_of("TriggerSource = Line0")) +
+                                      ": TriggerSource = Line0: entry Line0 is not available: this camera has no "
+                                      "trigger line (start it with --trigger-line)");
+  std::remove(o.user_set_file.c_str());
+}
+
 // ---------------------------------------------------------------- binning and decimation
 
 // A frame of w x h little-endian 16-bit words as values, and back.
@@ -5995,6 +6045,47 @@ TEST(GigeRegisters, AWindowResetByBinningIsLogged) {
   EXPECT_EQ(ReadReg32(*d, reg::kHeight), 24u);
   d->SyncNow();
   EXPECT_EQ(d->CheckInvariants(), "");
+}
+
+// Binning x decimation that leaves less than one pixel (mono) or one 2x2
+// cell (Bayer) of the sensor on an axis is refused with INVALID_PARAMETER:
+// the factor reads back unchanged, WidthMax / HeightMax stay, the refusal
+// is logged with why. One that leaves exactly one stays.
+TEST_F(GigeE2E, BinningThatLeavesNoCellIsRefused) {
+  for (const bool mono : {false, true}) {
+    SCOPED_TRACE(mono ? "mono 6 x 4" : "BayerRG 12 x 8");
+    DeviceOptions o = SmallDevice(mono ? 6 : 12, mono ? 4 : 8);
+    if (mono) o.overrides.push_back("sensor.cfa=\"Mono\"");
+    ASSERT_NO_FATAL_FAILURE(StartWith(o));
+    Client& c = *client_;
+    SetInt(c, "DecimationHorizontal", 2);  // Bayer: 3 cells of 6 across; mono: 3 pixels
+    SetInt(c, "DecimationVertical", 2);    // Bayer: 2 cells of 4 down; mono: 2 pixels
+    Settle();
+    const int64_t width_max = ReadInt(c, "WidthMax"), height_max = ReadInt(c, "HeightMax");
+    EXPECT_EQ(width_max, mono ? 3 : 6);
+    EXPECT_EQ(height_max, mono ? 2 : 4);
+    for (const auto& [name, value] : {std::pair{"BinningHorizontal", 4}, {"BinningVertical", 3}}) {
+      GError* e = nullptr;
+      testing::internal::CaptureStderr();
+      arv_camera_set_integer(c.camera(), name, value, &e);
+      const std::string log = testing::internal::GetCapturedStderr();
+      EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_INVALID_PARAMETER))
+          << name << " " << value << ": " << (e != nullptr ? e->message : "no error");
+      g_clear_error(&e);
+      const std::string why = std::string("refused ") + name + " = " + std::to_string(value) +
+                              ": binning x decimation leaves less than one " + (mono ? "pixel" : "2x2 cell");
+      EXPECT_NE(log.find(why), std::string::npos) << log;
+      Settle();
+      EXPECT_EQ(ReadInt(c, name), 1) << name;
+    }
+    EXPECT_EQ(ReadInt(c, "WidthMax"), width_max);
+    EXPECT_EQ(ReadInt(c, "HeightMax"), height_max);
+    SetInt(c, "BinningVertical", 2);  // exactly one cell (pixel) down
+    Settle();
+    EXPECT_EQ(ReadInt(c, "HeightMax"), mono ? 1 : 2);
+    EXPECT_EQ(device_->CheckInvariants(), "");
+    TearDown();
+  }
 }
 
 // ---------------------------------------------------------------- test patterns
