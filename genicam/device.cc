@@ -79,15 +79,6 @@ struct AutoLimits {
   uint32_t lower, upper;
   const char* name;
 };
-// Features the auto loop owns while their Auto feature is not Off (the
-// XML's pIsLocked): a client's change is refused, access denied.
-struct AutoLock {
-  uint32_t address, auto_address;
-  const char* auto_name;
-};
-constexpr AutoLock kAutoLocks[] = {{reg::kExposureTime, reg::kExposureAuto, "ExposureAuto"},
-                                   {reg::kGain, reg::kGainAuto, "GainAuto"},
-                                   {reg::kGainRaw, reg::kGainAuto, "GainAuto"}};
 constexpr AutoLimits kAutoLimits[] = {
     {reg::kAutoExposureTimeLowerLimit, reg::kAutoExposureTimeUpperLimit, "AutoExposureTime"},
     {reg::kAutoGainLowerLimit, reg::kAutoGainUpperLimit, "AutoGain"}};
@@ -675,6 +666,10 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
 
   table_ = RegisterTable(sensor_);
   registers_ = FeatureRegisters(table_);
+  if (!RegisterRules(registers_, &rules_, error)) {
+    *error = "register table: " + *error;
+    return false;
+  }
   raw_.assign(static_cast<size_t>(sensor_.width) * sensor_.height, 0);
   rgb_.assign(static_cast<size_t>(sensor_.width) * sensor_.height * 3, 0);
 
@@ -1086,9 +1081,12 @@ bool GigeDevice::Install(host::PlannedPipeline planned, std::string* error) {
 // window that would leave the sensor or an Auto lower limit above its upper
 // limit is set back to the value in memory: invalid parameter; so is
 // half of a Float: bad alignment, and a read-only feature's register:
-// write protect. A change of the pipeline's registers that the pipeline
-// cannot run (a raw format without the sensor, RGB8 without the ISP, ...)
-// is set back: invalid parameter (the block's pipeline registers together).
+// write protect. A change of a feature (or to an entry) that the table's
+// availability and lock formulas refuse, on the registers as the block
+// leaves them, is set back: access denied. A change of the pipeline's
+// registers that the pipeline cannot run (a raw format without the sensor,
+// RGB8 without the ISP, ...) is set back: invalid parameter (the block's
+// pipeline registers together).
 // Control privilege 0 (the client lets go, or libaravis ends it at a
 // heartbeat timeout, maybe inside the packet that hands control to the next
 // client) clears TLParamsLocked. A change of the payload's registers while
@@ -1116,11 +1114,11 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   };
   // TriggerSoftware: one frame per write, taken as it arrives (a register
   // the sync polled merged writes that came within one sync period). Not
-  // stored: it reads back 0. TriggerMode and TriggerSource as written so far.
-  // Available (the XML's pIsAvailable) only with TriggerMode On and
-  // TriggerSource Software: otherwise refused, access denied. Available but
-  // while the acquisition is stopped: acknowledged and dropped (counted in
-  // triggers_dropped, logged), as a camera not waiting for a trigger drops it.
+  // stored: it reads back 0. Not available (its formula, the XML's
+  // pIsAvailable, on TriggerMode and TriggerSource as written so far):
+  // refused, access denied. Available but while the acquisition is stopped:
+  // acknowledged and dropped (counted in triggers_dropped, logged), as a
+  // camera not waiting for a trigger drops it.
   if (covers(reg::kTriggerSoftware)) {
     if (size != 4 || value(reg::kTriggerSoftware) != 1) {
       ++d->writes_refused_;
@@ -1128,11 +1126,9 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
                     size != 4 ? "a command is written alone" : "its CommandValue is 1");
       return {false, GevStatus::kInvalidParameter};
     }
-    const bool mode_on = d->Read(reg::kTriggerMode) == 1;
-    if (!mode_on || d->Read(reg::kTriggerSource) != kSourceSoftware) {
+    if (const std::string why = d->CommandRefusal(reg::kTriggerSoftware); !why.empty()) {
       ++d->writes_refused_;
-      d->LogRefusal("TriggerSoftware = 1", mode_on ? "not available: TriggerSource is not Software"
-                                                   : "not available: TriggerMode is Off");
+      d->LogRefusal("TriggerSoftware = 1", why);
       return {false, GevStatus::kAccessDenied};
     }
     if (d->Read(reg::kAcquisition) != 0 || d->restarting_) {
@@ -1179,7 +1175,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   }
   // UserSetLoad and UserSetSave (value 1, alone): carried out as they
   // arrive, not stored (read back 0). A load changes the payload's
-  // registers, so it is locked as they are; Default is read-only.
+  // registers, so it is locked as they are; a save is refused where its
+  // formula says it is not available (Default: read-only).
   if (covers(reg::kUserSetLoad) || covers(reg::kUserSetSave)) {
     const bool load = covers(reg::kUserSetLoad);
     const uint32_t command = load ? reg::kUserSetLoad : reg::kUserSetSave;
@@ -1201,9 +1198,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       why = "TLParamsLocked is 1 (a user set changes the payload's registers, which are locked)";
     } else if (load) {
       status = d->LoadUserSet(set, &why);
-    } else if (set == kUserSetDefaultSet) {
+    } else if (why = d->CommandRefusal(reg::kUserSetSave); !why.empty()) {
       status = GevStatus::kAccessDenied;
-      why = "not available: UserSetSelector is Default (the start-up configuration, read-only)";
     } else {
       const UserSet before = d->user_sets_[set];
       d->user_sets_[set] = {true, d->UserSetNow()};
@@ -1288,27 +1284,38 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
     set_back(reg::kPacketSize);
     refuse(GevStatus::kAccessDenied, what, lock_reason);
   }
-  // ExposureTime, Gain and GainRaw while their Auto feature (as the block
-  // leaves it) is Once or Continuous: the auto loop sets them. Before their
-  // values, as the payload's lock.
-  for (const AutoLock& l : kAutoLocks) {
-    const uint32_t mode = covers(l.auto_address) ? value(l.auto_address) : d->Read(l.auto_address);
-    if (mode == kAutoOff) continue;
-    for (const Feature& f : d->registers_) {
-      if (f.address != l.address || !f.alias_of.empty()) continue;
-      bool touched = false;
-      uint64_t v = 0;  // the value as the write leaves it
-      for (uint32_t r = f.address; r < f.address + f.length; r += 4) {
-        touched = touched || covers(r);
-        v = v << 32 | (covers(r) ? value(r) : d->Read(r));
+  // The table's availability and lock formulas (rules_: ExposureTime and
+  // Gain while their Auto is not Off, the trigger while ExposureMode is
+  // TriggerWidth, LineDebouncerTime at Line0, ...) on the registers as the block leaves them: a change of a feature
+  // locked or not available there, or to an entry not available there, is
+  // set back (access denied). A refusal changes the state the others are
+  // judged on, so the rules run again until none refuses. Before the
+  // values (a locked write is access denied whatever its value, as the
+  // payload's lock) and again after them (a value set back may change a
+  // formula's variable).
+  const auto enforce_rules = [&] {
+    const auto after = [&](uint32_t r) { return covers(r) ? value(r) : d->Read(r); };
+    for (bool again = true; again;) {
+      again = false;
+      for (const RegisterRule& rule : d->rules_) {
+        const Feature& f = *rule.feature;
+        bool touched = false;
+        uint64_t v = 0;  // the value as the block leaves it
+        for (uint32_t r = f.address; r < f.address + f.length; r += 4) {
+          touched = touched || covers(r);
+          v = v << 32 | after(r);
+        }
+        if (!touched || v == d->ReadFeature(f)) continue;
+        if (rule.entry != nullptr && v != static_cast<uint64_t>(rule.entry->value)) continue;
+        const std::vector<int64_t> values = RuleValues(rule, after);
+        if (!RuleRefuses(rule, values)) continue;
+        set_back_feature(f);
+        refuse(GevStatus::kAccessDenied, d->RegisterName(f) + " = " + d->ValueText(f, v), RuleWhy(rule, values));
+        again = true;
       }
-      if (!touched || v == d->ReadFeature(f)) continue;
-      set_back_feature(f);
-      refuse(GevStatus::kAccessDenied, d->RegisterName(f) + " = " + d->ValueText(f, v),
-             std::string(l.auto_name) + " is " + (mode == kAutoOnce ? "Once" : "Continuous") +
-                 " (the auto loop sets it; locked until " + l.auto_name + " is Off)");
     }
-  }
+  };
+  enforce_rules();
   for (const Feature& f : d->registers_) {
     if (f.address >= uint64_t{address} + size || f.address + f.length <= address) continue;
     if (!f.writable && f.kind != Kind::kSwissKnife) {  // a read-only feature's register
@@ -1341,60 +1348,7 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       refuse(GevStatus::kError, what, why);
     }
   }
-  // ExposureMode TriggerWidth is available only with TriggerMode On,
-  // TriggerSource Line0 and ExposureAuto Off (its entry's pIsAvailable), and
-  // locks them and ExposureTime (pIsLocked), as the block leaves them: a
-  // TriggerWidth write that would break that is set back (access denied),
-  // else the writes of the features it locks are.
-  {
-    const auto after = [&](uint32_t r) { return covers(r) ? value(r) : d->Read(r); };
-    const bool width_now = d->Read(reg::kExposureMode) == kExposureTriggerWidth;
-    const bool width_written = covers(reg::kExposureMode) && value(reg::kExposureMode) == kExposureTriggerWidth;
-    const bool allowed = after(reg::kTriggerMode) == 1 && after(reg::kTriggerSource) == kSourceLine0 &&
-                         after(reg::kExposureAuto) == kAutoOff;
-    if (width_written && !width_now && !allowed) {
-      set_back(reg::kExposureMode);
-      refuse(GevStatus::kAccessDenied, "ExposureMode = TriggerWidth",
-             "not available: it needs TriggerMode On, TriggerSource Line0 and ExposureAuto Off");
-    } else if (after(reg::kExposureMode) == kExposureTriggerWidth) {
-      // TriggerActivation and Line0's LineInverter too: a change mid-pulse
-      // would take the pulse's end for a new start, and its exposure would
-      // never end.
-      for (const auto& [r, name] :
-           {std::pair{reg::kTriggerMode, "TriggerMode"}, {reg::kTriggerSource, "TriggerSource"},
-            {reg::kExposureAuto, "ExposureAuto"}, {reg::kTriggerActivation, "TriggerActivation"},
-            {reg::SelectedAddress(reg::kLineInverter, 0), "LineInverter[Line0]"}}) {
-        if (!covers(r) || value(r) == d->Read(r)) continue;
-        const Feature* f = FindFeature(d->registers_, name);
-        const std::string what = std::string(name) + " = " + (f ? d->ValueText(*f, value(r)) : std::to_string(value(r)));
-        set_back(r);
-        refuse(GevStatus::kAccessDenied, what, "locked: ExposureMode is TriggerWidth");
-      }
-      bool exposure = false;  // a change of ExposureTime's register (either half)
-      for (const uint32_t r : {reg::kExposureTime, reg::kExposureTime + 4})
-        exposure = exposure || (covers(r) && value(r) != d->Read(r));
-      if (exposure) {
-        for (const uint32_t r : {reg::kExposureTime, reg::kExposureTime + 4})
-          if (covers(r)) set_back(r);
-        refuse(GevStatus::kAccessDenied, "ExposureTime", "locked: ExposureMode is TriggerWidth");
-      }
-    }
-  }
-  // LineDebouncerTime is Line0's (the input): available at LineSelector
-  // Line0 only (its pIsAvailable), as the block leaves the selector. A write
-  // at Line1 would change Line0's debounce.
-  {
-    bool debounce = false;
-    for (const uint32_t r : {reg::kLineDebouncerTime, reg::kLineDebouncerTime + 4})
-      debounce = debounce || (covers(r) && value(r) != d->Read(r));
-    const uint32_t line = covers(reg::kLineSelector) ? value(reg::kLineSelector) : d->Read(reg::kLineSelector);
-    if (debounce && line != 0) {
-      for (const uint32_t r : {reg::kLineDebouncerTime, reg::kLineDebouncerTime + 4})
-        if (covers(r)) set_back(r);
-      refuse(GevStatus::kAccessDenied, "LineDebouncerTime",
-             "not available: LineSelector is Line" + std::to_string(line) + " (the debouncer is Line0's, the input)");
-    }
-  }
+  enforce_rules();
   // Binning x decimation must leave at least one pixel (Bayer: one 2x2
   // cell) on the axis: a write that would not is set back.
   const auto after_write = [&](uint32_t r) { return uint64_t{covers(r) ? value(r) : d->Read(r)}; };
@@ -2235,6 +2189,16 @@ void GigeDevice::LogRefusal(const std::string& what, const std::string& why, con
            std::to_string(kRefusalLinesPerSecond) + " a second)";
   refusals_unlogged_ = 0;
   std::fprintf(stderr, "camsim-gige: %s %s: %s%s\n", verb, what.c_str(), why.c_str(), more.c_str());
+}
+
+std::string GigeDevice::CommandRefusal(uint32_t address) const {
+  const auto read = [this](uint32_t r) { return Read(r); };
+  for (const RegisterRule& rule : rules_) {
+    if (rule.feature->address != address || rule.entry != nullptr) continue;
+    const std::vector<int64_t> values = RuleValues(rule, read);
+    if (RuleRefuses(rule, values)) return RuleWhy(rule, values);
+  }
+  return "";
 }
 
 std::string GigeDevice::ValueText(const Feature& f, uint64_t v) const {

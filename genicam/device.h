@@ -4,8 +4,9 @@
 // Register writes: a client's write reaches the device's write filter
 // (FilterClientWrite, behind genicam/fake_camera_hooks.h) as it arrives, and
 // a value a feature never takes, a window off the sensor, an Auto lower
-// limit above its upper limit, a window change while acquiring, or a
-// pipeline setting the pipeline cannot run (planned there) is refused with
+// limit above its upper limit, a window change while acquiring, a change
+// the table's availability and lock formulas refuse (genicam/formula.h), or
+// a pipeline setting the pipeline cannot run (planned there) is refused with
 // its GVCP status. A sync step (every kSyncPeriodMs,
 // and before every frame) takes the new values and rebuilds the pipeline for
 // pipeline settings. A refused write reads back as the previous value and
@@ -35,6 +36,7 @@
 
 #include "core/control/auto_exposure.h"
 #include "genicam/fake_camera_hooks.h"
+#include "genicam/formula.h"
 #include "genicam/register_table.h"
 #include "hal/gpio.h"
 #include "host_tools/config.h"
@@ -317,9 +319,15 @@ class GigeDevice {
   static void FillThunk(ArvBuffer* buffer, void* self, uint32_t exposure_us, uint32_t gain, uint32_t pixel_format);
   // The write filter (fake_camera_hooks.h) on clients' writes, as they arrive.
   static WriteVerdict FilterClientWrite(void* self, uint32_t address, uint32_t size, uint8_t* data);
+  // Why a command's register (TriggerSoftware, UserSetSave) is not
+  // available now (its rule, RuleWhy), or "" when it is.
+  std::string CommandRefusal(uint32_t address) const;
 
   std::vector<Feature> table_;
   std::vector<Feature> registers_;  // FeatureRegisters(table_): what Sync reads and checks
+  // The table's availability and lock formulas on registers_ (RegisterRules):
+  // the write filter refuses what they refuse.
+  std::vector<RegisterRule> rules_;
   SensorInfo sensor_;
   std::string xml_path_;
   bool own_xml_ = false;

@@ -755,8 +755,8 @@ std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table) {
       Feature r = f;
       r.name = f.name + "[" + std::to_string(i) + "]";
       r.address = reg::SelectedAddress(f.address, static_cast<size_t>(i), f.length);
-      r.selected_by.clear();
       r.selections = 1;
+      r.selection = i;
       std::erase_if(r.entries, [i](const EnumEntry& e) {
         return !e.available || (e.only_at_selection >= 0 && e.only_at_selection != i);
       });

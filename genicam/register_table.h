@@ -68,6 +68,9 @@ struct Feature {
   // selector the device last saw, so Selector-then-value writes cannot race.
   std::string selected_by;
   int selections = 1;
+  // FeatureRegisters' register of one selection: the selector's value it is
+  // at (selected_by stays the selector's name); -1 otherwise.
+  int selection = -1;
   // kInteger, kBoolean: the value is `low_bits` bits of the register from
   // bit `shift` up (a GenICam MaskedIntReg; writes keep the other bits); 0:
   // the whole register.
@@ -350,8 +353,9 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& sensor);
 
 std::vector<Feature> RegisterTable(const SensorInfo& sensor);
 // The table with each selected feature spread into one entry per register
-// (named Feature[i], at SelectedAddress(address, i, length), with the entries available at
-// selection i), and without the chunk features: what the device reads and checks.
+// (named Feature[i], at SelectedAddress(address, i, length), selection i,
+// with the entries available at selection i), and without the chunk
+// features: what the device reads and checks.
 std::vector<Feature> FeatureRegisters(const std::vector<Feature>& table);
 const Feature* FindFeature(const std::vector<Feature>& table, const std::string& name);
 

@@ -19,6 +19,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <latch>
 #include <map>
@@ -3342,6 +3343,162 @@ TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
   EXPECT_EQ(rmdir(dir.c_str()), 0);
 }
 
+// One mechanism for the XML and the device: for every feature and entry with
+// an availability or lock formula, over every value of the formula's
+// variables (a selected feature's own selector at each selection), Aravis's
+// view from the downloaded XML (the node's is_available or is_locked) agrees
+// with whether the device takes a raw write that changes the value (or, for
+// an entry, changes to it); each formula is seen both ways.
+TEST_F(GigeE2E, TheDeviceRefusesWhatTheXmlsFormulasSay) {
+  DeviceOptions o = SmallDevice();
+  o.trigger = &trigger_;  // TriggerSource Line0: ExposureMode TriggerWidth can be reached
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  ArvDevice* dev = c.device();
+  ArvGc* gc = arv_device_get_genicam(dev);
+  const std::vector<genicam::Feature>& table = device_->table();
+  // A raw write (Aravis checks nothing): taken, or refused with access denied.
+  const auto takes = [&](uint32_t address, std::vector<uint8_t> bytes) {
+    GError* e = nullptr;
+    arv_device_write_memory(dev, address, static_cast<guint32>(bytes.size()), bytes.data(), &e);
+    const bool taken = e == nullptr;
+    EXPECT_TRUE(taken || g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << "at 0x" << std::hex << address << ": " << e->message;
+    g_clear_error(&e);
+    return taken;
+  };
+  using State = std::vector<std::pair<const genicam::Feature*, int64_t>>;
+  // ExposureMode Timed (it locks the trigger), then TriggerMode On,
+  // TriggerSource Line0 and ExposureAuto Off (where TriggerWidth is
+  // available), then the state, ExposureMode last; false when the device
+  // did not take it all (a state the rules leave out).
+  const auto reach = [&](const State& state) {
+    takes(reg::kExposureMode, Be32(genicam::kExposureTimed));
+    takes(reg::kTriggerMode, Be32(1));
+    takes(reg::kTriggerSource, Be32(genicam::kSourceLine0));
+    takes(reg::kExposureAuto, Be32(genicam::kAutoOff));
+    for (const bool mode : {false, true})
+      for (const auto& [f, v] : state)
+        if ((f->address == reg::kExposureMode) == mode) takes(f->address, Be32(static_cast<uint32_t>(v)));
+    for (const auto& [f, v] : state)
+      if (ReadReg32(*device_, f->address) != static_cast<uint32_t>(v)) return false;
+    return true;
+  };
+  const auto says = [](const State& state) {
+    std::string s;
+    for (const auto& [f, v] : state) s += " " + f->name + "=" + std::to_string(v);
+    return s;
+  };
+  // Every state of the variables: each one's values (an Enumeration's
+  // entries, a Boolean's 0 and 1), a selected feature's selector at `selection`.
+  const auto each_state = [&](const genicam::Feature& f, const std::vector<std::pair<std::string, std::string>>& vars,
+                              int selection, const std::function<void(const State&)>& check) {
+    std::vector<const genicam::Feature*> features;
+    std::vector<std::vector<int64_t>> values;
+    for (const auto& [name, feature] : vars) {
+      const genicam::Feature* v = genicam::FindFeature(table, feature);
+      ASSERT_NE(v, nullptr) << f.name << ": " << feature;
+      features.push_back(v);
+      values.emplace_back();
+      if (feature == f.selected_by) values.back() = {selection};
+      else if (v->kind == genicam::Kind::kBoolean) values.back() = {0, 1};
+      else if (v->kind == genicam::Kind::kEnum)
+        for (const genicam::EnumEntry& e : v->entries) values.back().push_back(e.value);
+      else FAIL() << f.name << ": give the values of " << feature;
+    }
+    std::vector<size_t> at(features.size(), 0);
+    for (;;) {
+      State state;
+      for (size_t i = 0; i < features.size(); ++i) state.push_back({features[i], values[i][at[i]]});
+      check(state);
+      size_t i = 0;
+      while (i < at.size() && at[i] + 1 == values[i].size()) at[i++] = 0;
+      if (i == at.size()) return;
+      ++at[i];
+    }
+  };
+  int formulas = 0, states = 0;
+  for (const genicam::Feature& f : table) {
+    // The feature's own formula: a change of its value.
+    const bool lock = !f.locked_formula.empty();
+    if (lock || !f.available_formula.empty()) {
+      ++formulas;
+      ArvGcNode* node = arv_gc_get_node(gc, f.name.c_str());
+      ASSERT_NE(node, nullptr) << f.name;
+      for (int selection = 0; selection < f.selections; ++selection) {
+        const uint32_t address = reg::SelectedAddress(f.address, static_cast<size_t>(selection), f.length);
+        bool seen[2] = {false, false};
+        each_state(f, f.variables, selection, [&](const State& state) {
+          if (!reach(state)) return;
+          ++states;
+          const bool xml = lock ? !arv_gc_feature_node_is_locked(ARV_GC_FEATURE_NODE(node), nullptr)
+                                : arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(node), nullptr);
+          // Another valid value, and the value now to put back.
+          std::vector<uint8_t> other, now;
+          switch (f.kind) {
+            case genicam::Kind::kFloat: {
+              const double x = ReadRegDouble(*device_, address);
+              other = Be64(x == 0 ? f.max / 4 : x * 2 <= f.max ? x * 2 : x / 2);
+              now = Be64(x);
+              break;
+            }
+            case genicam::Kind::kCommand: other = Be32(static_cast<uint32_t>(f.command_value)); break;
+            default: {
+              const uint32_t x = ReadReg32(*device_, address);
+              uint32_t y = x == 0 ? 1 : 0;  // a Boolean's other value, an Enumeration's first other entry
+              if (f.kind == genicam::Kind::kInteger) y = x + f.inc <= f.max ? x + uint32_t(f.inc) : x - uint32_t(f.inc);
+              for (size_t e = f.entries.size(); e-- > 0;)
+                if (f.entries[e].value != x && f.entries[e].available) y = static_cast<uint32_t>(f.entries[e].value);
+              other = Be32(y);
+              now = Be32(x);
+            }
+          }
+          const bool taken = takes(address, other);
+          if (taken && !now.empty()) {
+            EXPECT_TRUE(takes(address, now)) << f.name << ": put back";
+          }
+          EXPECT_EQ(taken, xml) << f.name << "[" << selection << "]" << (lock ? " locked" : " available")
+                                << " by the XML: " << !xml << "; the device " << (taken ? "took" : "refused")
+                                << " a change at" << says(state);
+          seen[taken] = true;
+        });
+        if (f.name != "LineInverter" || selection == 0) {  // (Line1's is never locked)
+          EXPECT_TRUE(seen[0] && seen[1]) << f.name << "[" << selection << "]: taken " << seen[1] << ", refused "
+                                          << seen[0];
+        }
+      }
+    }
+    // Its entries' formulas: a change to the entry.
+    for (const genicam::EnumEntry& entry : f.entries) {
+      if (entry.available_formula.empty()) continue;
+      ++formulas;
+      ArvGcNode* node = nullptr;
+      for (const GSList* e = arv_gc_enumeration_get_entries(ARV_GC_ENUMERATION(arv_gc_get_node(gc, f.name.c_str())));
+           e != nullptr; e = e->next)
+        if (entry.name == arv_gc_feature_node_get_name(ARV_GC_FEATURE_NODE(e->data))) node = ARV_GC_NODE(e->data);
+      ASSERT_NE(node, nullptr) << f.name << " " << entry.name;
+      bool seen[2] = {false, false};
+      each_state(f, entry.variables, 0, [&](const State& state) {
+        if (!reach(state)) return;
+        const uint32_t now = ReadReg32(*device_, f.address);
+        if (now == static_cast<uint32_t>(entry.value)) return;  // no change to it
+        ++states;
+        const bool xml = arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(node), nullptr);
+        const bool taken = takes(f.address, Be32(static_cast<uint32_t>(entry.value)));
+        if (taken) {
+          EXPECT_TRUE(takes(f.address, Be32(now))) << f.name << ": put back";
+        }
+        EXPECT_EQ(taken, xml) << f.name << " entry " << entry.name << " available by the XML: " << xml
+                              << "; the device " << (taken ? "took" : "refused") << " it at" << says(state);
+        seen[taken] = true;
+      });
+      EXPECT_TRUE(seen[0] && seen[1]) << f.name << " " << entry.name;
+    }
+  }
+  EXPECT_GE(formulas, 13) << "ExposureTime(Abs), Gain(Raw), the trigger's, the lines', UserSetSave, ...";
+  EXPECT_GE(states, 45);
+}
+
 using reg::kControlChannelPrivilege, reg::kHeartbeatTimeout, reg::kStreamPort, reg::kStreamDestAddress;
 
 // A controller that speaks raw GVCP from its own socket, so the test can let
@@ -4805,7 +4962,8 @@ TEST_F(GigeE2E, ExposureTimeAndGainAreLockedWhileTheirAutoIsOn) {
   EXPECT_TRUE(locked("ExposureTimeAbs"));
   EXPECT_FALSE(locked("Gain")) << "GainAuto is Off";
   ASSERT_NO_FATAL_FAILURE(refused("ExposureTime", reg::kExposureTime, Be64(1234.0),
-                                  "ExposureAuto is Continuous (the auto loop sets it"));
+                                  "locked: ExposureAuto is Continuous (locked while ExposureAuto is not Off or "
+                                  "ExposureMode is TriggerWidth)"));
   GError* e = nullptr;
   arv_camera_set_float(c.camera(), "ExposureTime", 1234.0, &e);
   EXPECT_NE(e, nullptr) << "a locked ExposureTime written through GenApi";
@@ -5339,7 +5497,7 @@ TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
   Set(c, "TriggerMode", "On");
   Set(c, "TriggerSource", "Line0");
   EXPECT_FALSE(available()) << "TriggerSource Line0";
-  ASSERT_NO_FATAL_FAILURE(refused("TriggerSource is not Software"));
+  ASSERT_NO_FATAL_FAILURE(refused("TriggerSource is Line0"));
   Set(c, "TriggerSource", "Software");
   EXPECT_TRUE(available()) << "TriggerMode On, TriggerSource Software";
   Settle();
