@@ -1286,7 +1286,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
   }
   // The table's availability and lock formulas (rules_: ExposureTime and
   // Gain while their Auto is not Off, the trigger while ExposureMode is
-  // TriggerWidth, LineDebouncerTime at Line0, ...) on the registers as the block leaves them: a change of a feature
+  // TriggerWidth, LineDebouncerTime at Line0, Gamma with GammaEnable on,
+  // ...) on the registers as the block leaves them: a change of a feature
   // locked or not available there, or to an entry not available there, is
   // set back (access denied). A refusal changes the state the others are
   // judged on, so the rules run again until none refuses. Before the
@@ -2659,6 +2660,9 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   if (has(kLineDebouncerTime)) add(kLineSelector, 0);
   for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto})
     if (has(a)) add(a, kAutoOff);
+  // Gamma is available with GammaEnable on: on while the set's Gamma is
+  // written, then the set's GammaEnable.
+  if (has(kGamma)) add(kGammaEnable, 1);
   // The sensor's own readout and raw format: valid in any window with any stages.
   add(kReverseX, 0);
   add(kReverseY, 0);
@@ -2676,7 +2680,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
   for (const uint32_t a : {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat})
     if (has(a)) add(a, v.at(a));
   std::set<uint32_t> done = {kWidth, kHeight, kOffsetX, kOffsetY, kReverseX, kReverseY, kPixelFormat,
-                             kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode};
+                             kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode, kGammaEnable};
   done.insert(std::begin(kReductionRegisters), std::end(kReductionRegisters));
   for (const auto& [a, x] : v) {
     if (done.count(a) || (a >= kSimStageEnable && a < SelectedAddress(kSimStageEnable, kStageCount))) continue;
@@ -2688,7 +2692,7 @@ GevStatus GigeDevice::LoadUserSet(int64_t set, std::string* why) {
     }
     if (!limit) add(a, x);
   }
-  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode})
+  for (const uint32_t a : {kExposureAuto, kGainAuto, kBalanceWhiteAuto, kExposureMode, kGammaEnable})
     if (has(a)) add(a, v.at(a));
   if (has(kLineDebouncerTime)) add(kLineSelector, line_selector);
 

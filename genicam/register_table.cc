@@ -531,9 +531,12 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
 
   if (s.has_gamma) {
     t.push_back(Flt("Gamma", an, kGamma, kMinGamma, kMaxGamma,
-                    "Gamma correction Y' = Y^Gamma of the RGB8 frames while GammaEnable is on (the ISP's gamma "
-                    "stage, a power curve of gamma 1 / Gamma; below 1 brightens). Raw formats do not change.",
+                    "Gamma correction Y' = Y^Gamma of the RGB8 frames (the ISP's gamma stage, a power curve of "
+                    "gamma 1 / Gamma; below 1 brightens). Available while GammaEnable is on. Raw formats do not "
+                    "change.",
                     ""));
+    t.back().available_formula = "G=1";
+    t.back().variables = {{"G", "GammaEnable"}};
     t.push_back(Bool("GammaEnable", an, kGammaEnable, true,
                      "On: the gamma stage applies Gamma; off: it applies the configured [gamma] curve."));
   }

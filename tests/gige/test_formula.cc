@@ -136,7 +136,7 @@ TEST(GigeFormula, TheTablesRulesBuildAndABadOneIsNamed) {
   for (const auto& r : rules) names.push_back(r.feature->name + (r.entry ? "." + r.entry->name : ""));
   EXPECT_EQ(names, (std::vector<std::string>{"ExposureMode.TriggerWidth", "ExposureTime", "ExposureAuto",
                                               "TriggerMode", "TriggerSource", "TriggerActivation", "TriggerSoftware",
-                                              "Gain", "GainRaw", "LineInverter[0]", "LineInverter[1]",
+                                              "Gain", "GainRaw", "Gamma", "LineInverter[0]", "LineInverter[1]",
                                               "LineDebouncerTime", "UserSetSave"}));
   // LineInverter[1]'s LineSelector is its selection: never locked.
   for (const auto& r : rules)
@@ -192,6 +192,8 @@ TEST(GigeFormula, RulesSayWhyInWords) {
             "entry TriggerWidth not available: TriggerMode is Off (available while TriggerMode is On and "
             "TriggerSource is Line0 and ExposureAuto is Off)");
   EXPECT_FALSE(genicam::RuleRefuses(width, {1, genicam::kSourceLine0, genicam::kAutoOff}));
+  EXPECT_EQ(genicam::RuleWhy(rule("Gamma"), {0}), "not available: GammaEnable is false (available while GammaEnable "
+                                                  "is true)");
   EXPECT_EQ(genicam::RuleWhy(rule("LineDebouncerTime"), {1}),
             "not available: LineSelector is Line1 (available while LineSelector is Line0)");
   EXPECT_EQ(genicam::RuleWhy(rule("UserSetSave"), {0}),

@@ -3495,7 +3495,7 @@ TEST_F(GigeE2E, TheDeviceRefusesWhatTheXmlsFormulasSay) {
       EXPECT_TRUE(seen[0] && seen[1]) << f.name << " " << entry.name;
     }
   }
-  EXPECT_GE(formulas, 13) << "ExposureTime(Abs), Gain(Raw), the trigger's, the lines', UserSetSave, ...";
+  EXPECT_GE(formulas, 14) << "ExposureTime(Abs), Gain(Raw), the trigger's, Gamma, the lines', UserSetSave, ...";
   EXPECT_GE(states, 45);
 }
 
@@ -5541,8 +5541,30 @@ TEST_F(GigeE2E, GammaDrivesTheIspsGammaStage) {
   const std::vector<uint8_t> off = GrabAt(c, "RGB8", 6);
   ASSERT_EQ(off.size(), size_t{64} * 48 * 3);
   EXPECT_TRUE(off == Reference(6, genicam::kRGB8, 0, 0, 64, 48)) << "GammaEnable off: the configured sRGB curve";
-  SetFloat(c, "Gamma", 0.5);
+  // Gamma is available only with GammaEnable on (it would do nothing off):
+  // the XML says so, and the device refuses a raw write, access denied.
+  ArvGcNode* gamma = arv_device_get_feature(c.device(), "Gamma");
+  ASSERT_NE(gamma, nullptr);
+  EXPECT_FALSE(arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(gamma), nullptr));
+  const auto gamma_refused = [&] {
+    testing::internal::CaptureStderr();
+    GError* e = nullptr;
+    std::vector<uint8_t> b = Be64(0.5);
+    arv_device_write_memory(c.device(), reg::kGamma, 8, b.data(), &e);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED))
+        << (e != nullptr ? e->message : "no error: Gamma taken with GammaEnable off");
+    g_clear_error(&e);
+    EXPECT_NE(err.find("refused Gamma = 0.5: not available: GammaEnable is false (available while GammaEnable is "
+                       "true)"),
+              std::string::npos)
+        << err;
+  };
+  ASSERT_NO_FATAL_FAILURE(gamma_refused());
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*device_, reg::kGamma), 1.0 / 2.2);
   arv_camera_set_boolean(c.camera(), "GammaEnable", TRUE, nullptr);
+  EXPECT_TRUE(arv_gc_feature_node_is_available(ARV_GC_FEATURE_NODE(gamma), nullptr));
+  SetFloat(c, "Gamma", 0.5);
   Settle();
   EXPECT_TRUE(arv_camera_get_boolean(c.camera(), "GammaEnable", nullptr));
   const std::vector<uint8_t> bright = GrabIndex(c, 6);
@@ -5567,6 +5589,8 @@ TEST_F(GigeE2E, GammaDrivesTheIspsGammaStage) {
   arv_camera_set_boolean(c.camera(), "GammaEnable", FALSE, nullptr);
   Settle();
   EXPECT_TRUE(GrabAt(c, "RGB8", 6) == off) << "GammaEnable off again: the configured curve";
+  ASSERT_NO_FATAL_FAILURE(gamma_refused());
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*device_, reg::kGamma), 2.0);
 }
 
 // ---------------------------------------------------------------- user sets
@@ -5975,6 +5999,42 @@ TEST(GigeRegisters, AUserSetFileOfAnotherCameraStopsTheStartNamingTheLine) {
                                       ": TriggerSource = Line0: entry Line0 is not available: this camera has no "
                                       "trigger line (start it with --trigger-line)");
   std::remove(o.user_set_file.c_str());
+}
+
+// Gamma is available only with GammaEnable on, so a load writes GammaEnable
+// on before the set's Gamma and the set's GammaEnable after: a set saved
+// with GammaEnable off loads its Gamma while GammaEnable is off.
+TEST(GigeRegisters, UserSetsHoldGammaWithGammaEnableOnOrOff) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  const auto save = [&](uint32_t set) {
+    WriteReg(*d, reg::kUserSetSelector, Be32(set));
+    WriteReg(*d, reg::kUserSetSave, Be32(1));
+  };
+  const auto load = [&](uint32_t set) {
+    WriteReg(*d, reg::kUserSetSelector, Be32(set));
+    WriteReg(*d, reg::kUserSetLoad, Be32(1));
+  };
+  WriteReg(*d, reg::kGammaEnable, Be32(1));
+  WriteReg(*d, reg::kGamma, Be64(0.5));
+  save(1);  // on, 0.5
+  WriteReg(*d, reg::kGammaEnable, Be32(0));
+  save(2);  // off, 0.5
+  WriteReg(*d, reg::kGammaEnable, Be32(1));
+  WriteReg(*d, reg::kGamma, Be64(2.0));
+  WriteReg(*d, reg::kGammaEnable, Be32(0));
+  WriteRegRefused(*d, reg::kGamma, Be64(3.0));  // not available
+  ASSERT_NO_FATAL_FAILURE(load(2));
+  EXPECT_EQ(ReadReg32(*d, reg::kGammaEnable), 0u);
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*d, reg::kGamma), 0.5);
+  WriteReg(*d, reg::kGammaEnable, Be32(1));
+  WriteReg(*d, reg::kGamma, Be64(2.0));
+  WriteReg(*d, reg::kGammaEnable, Be32(0));
+  ASSERT_NO_FATAL_FAILURE(load(1));
+  EXPECT_EQ(ReadReg32(*d, reg::kGammaEnable), 1u);
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*d, reg::kGamma), 0.5);
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
 }
 
 // ---------------------------------------------------------------- binning and decimation
