@@ -2420,6 +2420,31 @@ void GigeDevice::PrimeReceiver(ArvBuffer* buffer, uint64_t dest, bool chunks) {
   std::this_thread::sleep_for(std::chrono::milliseconds(kPrimeDelayMs));
 }
 
+void GigeDevice::KeepPatternCodes(int64_t pattern, bool with_rgb) {
+  PatternCodes& p = pattern_codes_;
+  if (p.pattern == pattern && p.width == sensor_.width && p.height == sensor_.height &&
+      p.bits == sensor_.adc_bits && (p.has_rgb || !with_rgb))
+    return;
+  p.pattern = pattern;
+  p.width = sensor_.width;
+  p.height = sensor_.height;
+  p.bits = sensor_.adc_bits;
+  p.has_rgb = with_rgb;
+  const size_t pixels = static_cast<size_t>(p.width) * p.height;
+  const size_t again = pattern == kTestPatternGreyHorizontalRampMoving ? p.width - 1 : 0;
+  p.raw.resize(pixels + again);
+  p.rgb.resize(with_rgb ? (pixels + again) * 3 : 0);
+  for (int j = 0; j < p.height; ++j)
+    for (int i = 0; i < p.width; ++i) {
+      const size_t at = static_cast<size_t>(j) * p.width + i;
+      const uint32_t code = TestPatternCode(pattern, i, j, p.width, p.height, p.bits, 0);  // (moving: frame 0's)
+      p.raw[at] = static_cast<uint16_t>(code);
+      if (with_rgb) std::fill_n(&p.rgb[at * 3], 3, static_cast<uint8_t>(code >> (p.bits - 8)));  // 8..16 bits
+    }
+  std::copy_n(p.raw.begin(), again, p.raw.begin() + pixels);
+  if (with_rgb) std::copy_n(p.rgb.begin(), again * 3, p.rgb.begin() + pixels * 3);
+}
+
 void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   using namespace reg;
   Sync();
@@ -2535,21 +2560,10 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   // frame stays in raw_ for the Auto features.
   const int64_t pattern = Applied(kTestPattern);
   if (pattern != kTestPatternOff) {
-    const size_t pixels = static_cast<size_t>(sensor_.width) * sensor_.height;
-    pattern_raw_.resize(pixels);
-    if (from_rgb) pattern_rgb_.resize(pixels * 3);
-    for (int j = 0; j < sensor_.height; ++j)
-      for (int i = 0; i < sensor_.width; ++i) {
-        const size_t at = static_cast<size_t>(j) * sensor_.width + i;
-        const uint32_t code =
-            TestPatternCode(pattern, i, j, sensor_.width, sensor_.height, sensor_.adc_bits, index);
-        pattern_raw_[at] = static_cast<uint16_t>(code);
-        if (from_rgb) {
-          std::fill_n(&pattern_rgb_[at * 3], 3, static_cast<uint8_t>(code >> (sensor_.adc_bits - 8)));  // 8..16 bits
-        }
-      }
-    raw = pattern_raw_.data();
-    if (from_rgb) rgb = pattern_rgb_.data();
+    KeepPatternCodes(pattern, from_rgb);
+    const size_t shift = pattern == kTestPatternGreyHorizontalRampMoving ? index % sensor_.width : 0;
+    raw = pattern_codes_.raw.data() + shift;
+    if (from_rgb) rgb = pattern_codes_.rgb.data() + shift * 3;
   }
   int stride = sensor_.width;
   if (factor_x * factor_y != 1) {
@@ -2576,7 +2590,7 @@ void GigeDevice::FillLocked(ArvBuffer* buffer, uint32_t pixel_format) {
   };
   mirror();
   ConvertWindow(pixel_format, sensor_.cfa, sensor_.adc_bits, raw, rgb, stride, x, y, w, h, data);
-  mirror();  // back: the Auto features read the frame as the sensor made it
+  mirror();  // back: the Auto features and the kept pattern codes read as made
   last_render_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
   // (The chunks, at most kMaxChunkTail bytes, are left out.)
   last_send_s_ = FrameSendSeconds(FrameBytes(pixel_format, w, h),

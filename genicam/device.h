@@ -355,9 +355,20 @@ class GigeDevice {
   std::vector<uint8_t> rgb_;
   std::vector<uint16_t> reduced_raw_;  // the taps binned and decimated (WidthMax x HeightMax)
   std::vector<uint8_t> reduced_rgb_;
-  // TestPattern's codes in place of the taps (full sensor; RGB: R = G = B).
-  std::vector<uint16_t> pattern_raw_;
-  std::vector<uint8_t> pattern_rgb_;
+  // TestPattern's codes in place of the taps (RGB: R = G = B) for the
+  // whole sensor, kept while the pattern and the sensor stay the same.
+  // GreyHorizontalRampMoving holds the horizontal ramp and then its first
+  // SensorWidth - 1 codes again: every row is the same ramp, so the frame
+  // read from code i mod SensorWidth on is frame i's. KeepPatternCodes fills them.
+  struct PatternCodes {
+    int64_t pattern = kTestPatternOff;
+    int width = 0, height = 0, bits = 0;
+    bool has_rgb = false;
+    std::vector<uint16_t> raw;
+    std::vector<uint8_t> rgb;
+  };
+  PatternCodes pattern_codes_;
+  void KeepPatternCodes(int64_t pattern, bool with_rgb);  // under mutex_
   AutoExposure auto_exposure_;  // state of ExposureAuto / GainAuto between frames
   AutoExposureConfig auto_config_;  // its configuration (ranges narrowed by LimitAutoRange)
   std::set<std::string> logged_;    // LogOnce keys
