@@ -2148,6 +2148,8 @@ class GigeE2E : public ::testing::Test {
     g_client = client_.get();
   }
   void TearDown() override {
+    if (chunks_ != nullptr) g_object_unref(chunks_);
+    chunks_ = nullptr;
     g_client = nullptr;
     client_.reset();
     device_.reset();
@@ -2156,10 +2158,63 @@ class GigeE2E : public ::testing::Test {
                                  const std::vector<std::string>& extra = {}) {
     return ReferenceFrame(options_, index, format, x, y, w, h, extra);
   }
+
+  // The trigger tests' steps. StartWith with trigger_ as the Line0 input
+  // (call through ASSERT_NO_FATAL_FAILURE, as StartWith).
+  void StartWithTriggerLine(DeviceOptions o = SmallDevice()) {
+    o.trigger = &trigger_;
+    StartWith(o);
+  }
+  // TriggerMode On at FrameStart from `source`, on `activation` when given.
+  void TriggerOn(const char* source, const char* activation = nullptr) {
+    Client& c = *client_;
+    Set(c, "TriggerSelector", "FrameStart");
+    Set(c, "TriggerMode", "On");
+    Set(c, "TriggerSource", source);
+    if (activation != nullptr) Set(c, "TriggerActivation", activation);
+  }
+  // Chunk mode on (chunks_ parses the frames), the stream opened, the
+  // acquisition started and settled. Call through ASSERT_NO_FATAL_FAILURE.
+  void StartWithChunks() {
+    Client& c = *client_;
+    GError* e = nullptr;
+    arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
+    ASSERT_EQ(e, nullptr);
+    chunks_ = arv_camera_create_chunk_parser(c.camera());
+    ASSERT_TRUE(c.OpenStream());
+    Start(c);
+    Settle();
+  }
+  void Line0(bool high) {  // trigger_'s level (a MemoryLine takes every level)
+    std::string error;
+    trigger_.Set(high, &error);
+  }
+  void Pulse(int high_ms) {  // trigger_ high for high_ms, then low
+    Line0(true);
+    Sleep(high_ms);
+    Line0(false);
+  }
+  bool LineStatus() { return arv_camera_get_boolean(client_->camera(), "LineStatus", nullptr); }
+  // Waits up to 2 s for LineStatus to read `want` (the trigger thread takes an edge, the sync a LineInverter).
+  bool WaitLineStatus(bool want) {
+    for (int i = 0; i < 400 && LineStatus() != want; ++i) Sleep(5);
+    return LineStatus() == want;
+  }
+  // TriggerSoftware executed by the client.
+  testing::AssertionResult SendTriggerSoftware() {
+    GError* e = nullptr;
+    arv_camera_execute_command(client_->camera(), "TriggerSoftware", &e);
+    if (e == nullptr) return testing::AssertionSuccess();
+    testing::AssertionResult failed = testing::AssertionFailure() << "TriggerSoftware: " << e->message;
+    g_clear_error(&e);
+    return failed;
+  }
+
   DeviceOptions options_;
   hal::MemoryLine trigger_{"test-trigger"}, strobe_{"test-strobe"};  // outlive the device
   std::unique_ptr<GigeDevice> device_;
   std::unique_ptr<Client> client_;
+  ArvChunkParser* chunks_ = nullptr;  // StartWithChunks's
 };
 
 TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
@@ -2731,28 +2786,20 @@ TEST_F(GigeE2E, LostPacketsAreSentAgainOnRequest) {
 TEST_F(GigeE2E, SoftwareTriggerGivesExactlyOneFrame) {
   ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
   Client& c = *client_;
-  Set(c, "TriggerSelector", "FrameStart");
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Software");
+  TriggerOn("Software");
   Settle();  // the fake camera must be in trigger mode before the acquisition starts
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   EXPECT_TRUE(c.Grab(300).empty()) << "a frame without a trigger";
   for (int i = 0; i < 3; ++i) {
-    GError* e = nullptr;
-    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-    ASSERT_EQ(e, nullptr);
+    ASSERT_TRUE(SendTriggerSoftware());
     EXPECT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
     EXPECT_TRUE(c.Grab(400).empty()) << "more than one frame for trigger " << i;
   }
   EXPECT_EQ(device_->frames_sent(), 3u);
   // Back to back, well within one register sync: each still gives a frame
   // (they used to be merged into one).
-  for (int i = 0; i < 4; ++i) {
-    GError* e = nullptr;
-    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-    ASSERT_EQ(e, nullptr);
-  }
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(SendTriggerSoftware());
   for (int i = 0; i < 4; ++i) EXPECT_FALSE(c.Grab(3000).empty()) << "back-to-back trigger " << i;
   EXPECT_TRUE(c.Grab(400).empty()) << "more frames than triggers";
   EXPECT_EQ(device_->frames_sent(), 7u);
@@ -2768,18 +2815,14 @@ TEST_F(GigeE2E, ATriggeredFrameComesAfterItsExposure) {
   constexpr double kExposureMs = 200.0;
   const auto now_ns = [] { return static_cast<uint64_t>(g_get_real_time()) * 1000; };
   constexpr uint64_t kMs = 1000000;
-  Set(c, "TriggerSelector", "FrameStart");
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Software");
+  TriggerOn("Software");
   SetFloat(c, "ExposureTime", kExposureMs * 1000.0);
   Settle();
   ASSERT_TRUE(c.OpenStream());
   Start(c);
-  GError* e = nullptr;
   // One trigger.
   uint64_t sent = now_ns();
-  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-  ASSERT_EQ(e, nullptr);
+  ASSERT_TRUE(SendTriggerSoftware());
   ASSERT_FALSE(c.Grab(3000).empty());
   uint64_t arrived = now_ns();
   EXPECT_GE(arrived, sent + static_cast<uint64_t>(kExposureMs) * kMs) << "before its exposure ended";
@@ -2787,10 +2830,7 @@ TEST_F(GigeE2E, ATriggeredFrameComesAfterItsExposure) {
   EXPECT_LE(c.last_timestamp_ns(), sent + 100 * kMs) << "stamped long after its trigger (not the exposure's start)";
   // Three back to back: exposures one after another.
   sent = now_ns();
-  for (int i = 0; i < 3; ++i) {
-    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-    ASSERT_EQ(e, nullptr);
-  }
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(SendTriggerSoftware());
   std::vector<uint64_t> stamp;
   for (int i = 0; i < 3; ++i) {
     ASSERT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
@@ -2819,9 +2859,7 @@ TEST_F(GigeE2E, TriggerDelayDelaysTheExposure) {
   arv_camera_get_float_bounds(c.camera(), "TriggerDelay", &lo, &hi, nullptr);
   EXPECT_EQ(lo, 0.0);
   EXPECT_EQ(hi, reg::kMaxTriggerDelayUs);
-  Set(c, "TriggerSelector", "FrameStart");
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Software");
+  TriggerOn("Software");
   SetFloat(c, "TriggerDelay", kDelayMs * 1000.0);
   SetFloat(c, "ExposureTime", kExposureMs * 1000.0);
   Settle();
@@ -2829,10 +2867,8 @@ TEST_F(GigeE2E, TriggerDelayDelaysTheExposure) {
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   for (int i = 0; i < 2; ++i) {
-    GError* e = nullptr;
     const uint64_t sent = now_ns();
-    arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-    ASSERT_EQ(e, nullptr);
+    ASSERT_TRUE(SendTriggerSoftware());
     ASSERT_FALSE(c.Grab(3000).empty()) << "trigger " << i;
     const uint64_t arrived = now_ns();
     EXPECT_GE(arrived, sent + static_cast<uint64_t>(kDelayMs + kExposureMs) * kMs)
@@ -2913,82 +2949,56 @@ TEST_F(GigeE2E, ControlAnswersWhileAFrameWaitsForItsSlot) {
 }
 
 TEST_F(GigeE2E, HardwareTriggerAndStrobeThroughTheLineInterface) {
-  hal::MemoryLine& trigger = trigger_;
-  hal::MemoryLine& strobe = strobe_;
   DeviceOptions o = SmallDevice();
-  o.trigger = &trigger;
-  o.strobe = &strobe;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  o.strobe = &strobe_;
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine(o));
   Client& c = *client_;
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
-  Set(c, "TriggerActivation", "RisingEdge");
+  TriggerOn("Line0", "RisingEdge");
   Set(c, "LineSelector", "Line1");
   Settle();
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "LineMode", nullptr), "Output");
   Set(c, "LineSource", "ExposureActive");
   // Each frame's ChunkLineStatusAll: the lines as it started.
+  ASSERT_NO_FATAL_FAILURE(StartWithChunks());
   GError* e = nullptr;
-  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
-  ASSERT_EQ(e, nullptr);
-  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
   arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);  // refused: the source is Line0
   EXPECT_TRUE(g_error_matches(e, ARV_DEVICE_ERROR, ARV_DEVICE_ERROR_PROTOCOL_ERROR_ACCESS_DENIED));
   g_clear_error(&e);
   EXPECT_TRUE(c.Grab(300).empty());
-  std::string err;
-  trigger.Set(true, &err);  // rising edge: one frame
-  ChunkedFrame f = GrabChunked(c, parser);
+  Line0(true);  // rising edge: one frame
+  ChunkedFrame f = GrabChunked(c, chunks_);
   ASSERT_TRUE(f.ok);
   EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 3) << "Line0 high after its rising edge, Line1 (the strobe) high";
-  trigger.Set(false, &err);  // falling edge: none
+  Line0(false);  // falling edge: none
   EXPECT_TRUE(c.Grab(300).empty());
-  EXPECT_EQ(strobe.edges(), 2);  // high while the frame was made, then low
-  EXPECT_FALSE(strobe.level());
+  EXPECT_EQ(strobe_.edges(), 2);  // high while the frame was made, then low
+  EXPECT_FALSE(strobe_.level());
   Set(c, "TriggerActivation", "FallingEdge");
   Settle();
-  trigger.Set(true, &err);
+  Line0(true);
   EXPECT_TRUE(c.Grab(300).empty());
-  trigger.Set(false, &err);
-  f = GrabChunked(c, parser);
+  Line0(false);
+  f = GrabChunked(c, chunks_);
   ASSERT_TRUE(f.ok);
   EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 2) << "Line0 low after its falling edge, the strobe high";
-  g_object_unref(parser);
 }
 
 // A 1 ms trigger pulse ends before its frame's rendering starts: the frame's
 // ChunkLineStatusAll still has Line0 high, the level its rising edge left
 // at the exposure start (it was read when the rendering started: 0).
 TEST_F(GigeE2E, AShortPulsesFrameHasLine0HighInItsLineStatus) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
-  Set(c, "TriggerActivation", "RisingEdge");
-  GError* e = nullptr;
-  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
-  ASSERT_EQ(e, nullptr);
-  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
-  std::string err;
+  TriggerOn("Line0", "RisingEdge");
+  ASSERT_NO_FATAL_FAILURE(StartWithChunks());
   for (int i = 0; i < 5; ++i) {
-    trigger_.Set(true, &err);
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    trigger_.Set(false, &err);
-    ChunkedFrame f = GrabChunked(c, parser);
+    Pulse(1);
+    ChunkedFrame f = GrabChunked(c, chunks_);
     ASSERT_TRUE(f.ok) << i;
     EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1) << "pulse " << i << ": Line0 high at its exposure start";
   }
   Settle();
-  EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineStatus", nullptr)) << "LineStatus (Line0 selected): the level now";
-  g_object_unref(parser);
+  EXPECT_FALSE(LineStatus()) << "LineStatus (Line0 selected): the level now";
 }
 
 // Pulses that come before the fake camera has looked for a trigger (at a
@@ -3001,8 +3011,7 @@ TEST_F(GigeE2E, QuickPulsesEachGiveTheirOwnFrame) {
   o.trigger_line = "unix:" + dir;
   ASSERT_NO_FATAL_FAILURE(StartWith(o));
   Client& c = *client_;
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
+  TriggerOn("Line0");
   Settle();  // the fake camera must be in trigger mode before the acquisition starts
   constexpr int kPulses = 24;
   ASSERT_TRUE(c.OpenStream(kPulses + 2));
@@ -3053,27 +3062,18 @@ TEST_F(GigeE2E, QuickPulsesEachGiveTheirOwnFrame) {
 
 // LineStatus on Line0 is the trigger input's level after its last edge.
 TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
-  auto status = [&] { return arv_camera_get_boolean(c.camera(), "LineStatus", nullptr); };
-  // Waits up to 2 s for LineStatus to read `want` (the trigger thread takes the edge).
-  auto reads = [&](bool want) {
-    for (int i = 0; i < 400 && status() != want; ++i) Sleep(5);
-    return status() == want;
-  };
   Set(c, "LineSelector", "Line0");
-  EXPECT_FALSE(status());
-  std::string err;
-  trigger_.Set(true, &err);
-  EXPECT_TRUE(reads(true)) << "high trigger input";
+  EXPECT_FALSE(LineStatus());
+  Line0(true);
+  EXPECT_TRUE(WaitLineStatus(true)) << "high trigger input";
   Set(c, "LineSelector", "Line1");  // the strobe, not driven: at once, without waiting for a sync
-  EXPECT_FALSE(status());
+  EXPECT_FALSE(LineStatus());
   Set(c, "LineSelector", "Line0");
-  EXPECT_TRUE(status());
-  trigger_.Set(false, &err);
-  EXPECT_TRUE(reads(false)) << "low trigger input";
+  EXPECT_TRUE(LineStatus());
+  Line0(false);
+  EXPECT_TRUE(WaitLineStatus(false)) << "low trigger input";
 }
 
 // LineInverter[Line0] inverts the input before the trigger logic and
@@ -3081,53 +3081,37 @@ TEST_F(GigeE2E, LineStatusFollowsTheTriggerInput) {
 // RisingEdge fires on the electrical falling edge (its frame's
 // ChunkLineStatusAll has Line0 high).
 TEST_F(GigeE2E, AnInvertedLine0TriggersOnTheOppositeEdge) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
-  auto status = [&] { return arv_camera_get_boolean(c.camera(), "LineStatus", nullptr); };
-  auto reads = [&](bool want) {  // waits up to 2 s (the trigger thread and the sync)
-    for (int i = 0; i < 400 && status() != want; ++i) Sleep(5);
-    return status() == want;
-  };
   Set(c, "LineSelector", "Line0");
   EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr));
   GError* e = nullptr;
   arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, &e);
   ASSERT_EQ(e, nullptr) << e->message;
-  EXPECT_TRUE(reads(true)) << "low on the wire, inverted: high";
+  EXPECT_TRUE(WaitLineStatus(true)) << "low on the wire, inverted: high";
   Set(c, "LineSelector", "Line1");
   EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineInverter", nullptr)) << "one per line";
   Set(c, "LineSelector", "Line0");
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
-  Set(c, "TriggerActivation", "RisingEdge");
-  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
-  ASSERT_EQ(e, nullptr);
-  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
-  std::string err;
-  trigger_.Set(true, &err);  // electrical rising: inverted, a falling edge: no frame
-  EXPECT_TRUE(reads(false));
+  TriggerOn("Line0", "RisingEdge");
+  ASSERT_NO_FATAL_FAILURE(StartWithChunks());
+  Line0(true);  // electrical rising: inverted, a falling edge: no frame
+  EXPECT_TRUE(WaitLineStatus(false));
   EXPECT_TRUE(c.Grab(300).empty()) << "a frame on the electrical rising edge";
-  trigger_.Set(false, &err);  // electrical falling: the inverted rising edge
-  ChunkedFrame f = GrabChunked(c, parser);
+  Line0(false);  // electrical falling: the inverted rising edge
+  ChunkedFrame f = GrabChunked(c, chunks_);
   ASSERT_TRUE(f.ok) << "no frame on the electrical falling edge";
   EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1) << "Line0 high after the inverted line's rising edge";
-  EXPECT_TRUE(reads(true));
+  EXPECT_TRUE(WaitLineStatus(true));
   // Not inverted again: the electrical rising edge triggers.
   arv_camera_set_boolean(c.camera(), "LineInverter", FALSE, &e);
   ASSERT_EQ(e, nullptr);
-  EXPECT_TRUE(reads(false));
-  trigger_.Set(true, &err);
-  f = GrabChunked(c, parser);
+  EXPECT_TRUE(WaitLineStatus(false));
+  Line0(true);
+  f = GrabChunked(c, chunks_);
   ASSERT_TRUE(f.ok);
   EXPECT_EQ(f.values.at("ChunkLineStatusAll"), 1);
-  trigger_.Set(false, &err);
+  Line0(false);
   EXPECT_TRUE(c.Grab(300).empty());
-  g_object_unref(parser);
 }
 
 // LineDebouncerTime (Line0): a level is taken once it has held the debounce
@@ -3136,9 +3120,7 @@ TEST_F(GigeE2E, AnInvertedLine0TriggersOnTheOppositeEdge) {
 // debounce time (its exposure's start: a real camera's trigger comes that
 // late too).
 TEST_F(GigeE2E, LineDebouncerTimeIgnoresShortPulsesAndDelaysTheTrigger) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
   constexpr double kDebounceMs = 40.0;
   constexpr uint64_t kMs = 1000000;
@@ -3157,32 +3139,23 @@ TEST_F(GigeE2E, LineDebouncerTimeIgnoresShortPulsesAndDelaysTheTrigger) {
   arv_device_write_memory(c.device(), reg::kLineDebouncerTime, 8, Be64(2 * reg::kMaxLineDebouncerTimeUs).data(), &e);
   EXPECT_NE(e, nullptr) << "beyond 1 s";
   g_clear_error(&e);
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
-  Set(c, "TriggerActivation", "RisingEdge");
+  TriggerOn("Line0", "RisingEdge");
   SetFloat(c, "ExposureTime", 1000.0);
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   Settle();
   EXPECT_DOUBLE_EQ(ReadFloat(c, "LineDebouncerTime"), kDebounceMs * 1000.0);
-  std::string err;
   for (int i = 0; i < 2; ++i) {  // 10 ms pulses: no frame
-    trigger_.Set(true, &err);
-    Sleep(10);
-    trigger_.Set(false, &err);
+    Pulse(10);
     Sleep(60);
   }
   EXPECT_TRUE(c.Grab(300).empty()) << "a frame for a pulse shorter than the debounce time";
   EXPECT_FALSE(arv_camera_get_boolean(c.camera(), "LineStatus", nullptr));
   // A bounce (5 ms high, 5 ms low), then 100 ms high: one frame.
-  trigger_.Set(true, &err);
-  Sleep(5);
-  trigger_.Set(false, &err);
+  Pulse(5);
   Sleep(5);
   const uint64_t sent = now_ns();
-  trigger_.Set(true, &err);
-  Sleep(100);
-  trigger_.Set(false, &err);
+  Pulse(100);
   ASSERT_FALSE(c.Grab(3000).empty()) << "no frame for a pulse longer than the debounce time";
   // 5 ms for the clocks' reads (the camera's clock is the same real time).
   EXPECT_GE(c.last_timestamp_ns() + 5 * kMs, sent + static_cast<uint64_t>(kDebounceMs) * kMs)
@@ -3199,13 +3172,10 @@ TEST_F(GigeE2E, LineDebouncerTimeIgnoresShortPulsesAndDelaysTheTrigger) {
 // pipeline rendered it). The mode is refused with a Software source, and
 // locks TriggerSource and ExposureTime while on.
 TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "ExposureMode", nullptr), "Timed");
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Software");
+  TriggerOn("Software");
   Settle();
   GError* e = nullptr;
   arv_camera_set_string(c.camera(), "ExposureMode", "TriggerWidth", &e);
@@ -3257,20 +3227,14 @@ TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
   }
   Settle();
   EXPECT_STREQ(arv_camera_get_string(c.camera(), "TriggerActivation", nullptr), "RisingEdge");
-  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
-  ASSERT_EQ(e, nullptr);
-  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
-  std::string err;
+  ASSERT_NO_FATAL_FAILURE(StartWithChunks());
   const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
   for (const int width_ms : {30, 90}) {
-    trigger_.Set(true, &err);
+    Line0(true);
     Sleep(width_ms);
     EXPECT_TRUE(c.Grab(0).empty());
-    trigger_.Set(false, &err);
-    ChunkedFrame f = GrabChunked(c, parser);
+    Line0(false);
+    ChunkedFrame f = GrabChunked(c, chunks_);
     ASSERT_TRUE(f.ok) << width_ms << " ms";
     const double us = f.values.at("ChunkExposureTime");
     EXPECT_GE(us, width_ms * 1000.0) << width_ms << " ms";
@@ -3281,7 +3245,6 @@ TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
     EXPECT_TRUE(f.image == Reference(index, code, 0, 0, 64, 48, {set})) << "not rendered at " << set;
   }
   EXPECT_TRUE(c.Grab(300).empty()) << "more frames than pulses";
-  g_object_unref(parser);
   // Timed again: ExposureTime is used (and free) again.
   arv_camera_stop_acquisition(c.camera(), &e);
   ASSERT_EQ(e, nullptr);
@@ -5463,9 +5426,7 @@ TEST_F(GigeE2E, DeviceTemperatureIsTheSensorsConfiguredTemperature) {
 // trigger mode with the acquisition stopped it is acknowledged and dropped
 // (counted, logged): the acquisition started after it waits for a trigger.
 TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;  // TriggerSource Line0 is available
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());  // TriggerSource Line0 is available
   Client& c = *client_;
   ArvGcNode* node = arv_gc_get_node(arv_device_get_genicam(c.device()), "TriggerSoftware");
   ASSERT_NE(node, nullptr);
@@ -5494,8 +5455,7 @@ TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
   arv_camera_stop_acquisition(c.camera(), &e);
   ASSERT_EQ(e, nullptr);
   c.CloseStream();
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
+  TriggerOn("Line0");
   EXPECT_FALSE(available()) << "TriggerSource Line0";
   ASSERT_NO_FATAL_FAILURE(refused("TriggerSource is Line0"));
   Set(c, "TriggerSource", "Software");
@@ -5514,8 +5474,7 @@ TEST_F(GigeE2E, TriggerSoftwareIsAvailableOnlyWhereItTriggers) {
   ASSERT_TRUE(c.OpenStream());
   Start(c);
   EXPECT_TRUE(c.Grab(400).empty()) << "a frame for the trigger sent while stopped";
-  arv_camera_execute_command(c.camera(), "TriggerSoftware", &e);
-  ASSERT_EQ(e, nullptr) << e->message;
+  ASSERT_TRUE(SendTriggerSoftware());
   EXPECT_FALSE(c.Grab(3000).empty()) << "no frame for a trigger while acquiring";
   EXPECT_TRUE(c.Grab(400).empty());
   EXPECT_EQ(device_->frames_sent(), sent + 1);
@@ -5709,12 +5668,9 @@ TEST_F(GigeE2E, UserSetsSaveAndLoadTheirSettings) {
 // saved under TriggerWidth loads back, and one with TriggerMode Off loads
 // while TriggerWidth is on.
 TEST_F(GigeE2E, UserSetsHoldTriggerWidthAndTheLines) {
-  DeviceOptions o = SmallDevice();
-  o.trigger = &trigger_;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerLine());
   Client& c = *client_;
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
+  TriggerOn("Line0");
   Set(c, "LineSelector", "Line0");
   arv_camera_set_boolean(c.camera(), "LineInverter", TRUE, nullptr);  // before TriggerWidth, which locks it
   SetFloat(c, "LineDebouncerTime", 1500.0);
