@@ -1,26 +1,32 @@
 // camsim-trigger: fires pulses on a loopback trigger bus (hal/gpio.h,
 // "unix:DIR") so the camsim-gige cameras of a rig take the same frames.
-#include <chrono>
+#include <time.h>
+
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
-#include <thread>
 
 #include "hal/gpio.h"
 
 namespace {
 
 const char kUsage[] =
-    "usage: camsim-trigger unix:DIR [--count K] [--first-index N] [--interval-ms MS] [--width-ms W]\n"
-    "  Sends K pulses (a rising edge, W ms later a falling edge; one every MS ms)\n"
-    "  to every camera whose --trigger-line is unix:DIR. Pulse k carries frame\n"
-    "  index N + k: with TriggerMode On, TriggerSource Line0 each camera renders\n"
-    "  that frame, so the rig stays on one frame index even if a camera missed\n"
-    "  a pulse. Defaults: K 1, N 0, MS 100, W 1.\n";
+    "usage: camsim-trigger unix:DIR [--count K] [--first-index N] [--interval-ms MS]\n"
+    "                      [--width-ms W | --width-us U]\n"
+    "  Sends K pulses (a rising edge, W ms or U us later a falling edge; one\n"
+    "  every MS ms) to every camera whose --trigger-line is unix:DIR. Pulse k\n"
+    "  carries frame index N + k: with TriggerMode On, TriggerSource Line0 each\n"
+    "  camera renders that frame, so the rig stays on one frame index even if a\n"
+    "  camera missed a pulse. Each edge is stamped with its scheduled time (the\n"
+    "  first rising edge's plus k MS, plus the width), so ExposureMode\n"
+    "  TriggerWidth exposes exactly the width. Defaults: K 1, N 0, MS 100, W 1.\n";
 
-bool ParseInt(const char* s, long min, long max, long* out) {
+bool ParseInt(const char* s, long long min, long long max, long long* out) {
   char* end = nullptr;
-  const long v = std::strtol(s, &end, 10);
+  errno = 0;
+  const long long v = std::strtoll(s, &end, 10);
+  if (errno != 0) return false;
   if (!*s || *end || v < min || v > max) return false;
   *out = v;
   return true;
@@ -30,7 +36,7 @@ bool ParseInt(const char* s, long min, long max, long* out) {
 
 int main(int argc, char** argv) {
   std::string bus;
-  long count = 1, first = 0, interval_ms = 100, width_ms = 1;
+  long long count = 1, first = 0, interval_ms = 100, width_ms = -1, width_us = -1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -45,17 +51,24 @@ int main(int argc, char** argv) {
       bus = a;
       continue;
     }
-    long* target = a == "--count" ? &count : a == "--first-index" ? &first : a == "--interval-ms" ? &interval_ms
-                 : a == "--width-ms" ? &width_ms : nullptr;
+    long long* target = a == "--count"         ? &count
+                        : a == "--first-index" ? &first
+                        : a == "--interval-ms" ? &interval_ms
+                        : a == "--width-ms"    ? &width_ms
+                        : a == "--width-us"    ? &width_us
+                                               : nullptr;
     if (!target) {
       std::fprintf(stderr, "camsim-trigger: unknown option '%s'\n%s", a.c_str(), kUsage);
       return 1;
     }
     // Ranges: frame indices are 31-bit (SimFrameIndex); an hour at most between pulses.
-    const long min = target == &count ? 1 : 0;
-    const long max = target == &first ? 0x7fffffffL : target == &count ? 1000000L : 3600000L;
+    const long long min = target == &count ? 1 : 0;
+    const long long max = target == &first       ? 0x7fffffffLL
+                          : target == &count     ? 1000000LL
+                          : target == &width_us ? 3600000000LL
+                                                 : 3600000LL;
     if (i + 1 >= argc || !ParseInt(argv[i + 1], min, max, target)) {
-      std::fprintf(stderr, "camsim-trigger: %s needs an integer %ld..%ld\n", a.c_str(), min, max);
+      std::fprintf(stderr, "camsim-trigger: %s needs an integer %lld..%lld\n", a.c_str(), min, max);
       return 1;
     }
     ++i;
@@ -64,9 +77,15 @@ int main(int argc, char** argv) {
     std::fputs(kUsage, stderr);
     return 1;
   }
-  if (width_ms >= interval_ms && count > 1) {
-    std::fprintf(stderr, "camsim-trigger: --width-ms (%ld) must be shorter than --interval-ms (%ld)\n", width_ms,
-                 interval_ms);
+  if (width_ms >= 0 && width_us >= 0) {
+    std::fprintf(stderr, "camsim-trigger: give --width-ms or --width-us, not both\n");
+    return 1;
+  }
+  const long long width_ns = width_us >= 0 ? width_us * 1000 : (width_ms >= 0 ? width_ms : 1) * 1000000;
+  const long long interval_ns = interval_ms * 1000000;
+  if (width_ns >= interval_ns && count > 1) {
+    std::fprintf(stderr, "camsim-trigger: the width (%lld us) must be shorter than --interval-ms (%lld)\n",
+                 width_ns / 1000, interval_ms);
     return 1;
   }
   std::string error;
@@ -75,22 +94,25 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "camsim-trigger: %s\n", error.c_str());
     return 1;
   }
-  for (long k = 0; k < count; ++k) {
-    const auto t0 = std::chrono::steady_clock::now();
+  // Each edge at its scheduled time on CLOCK_MONOTONIC, stamped with it
+  // (BusOutput::SetAt): a late wake delays the edge's sending, not its time.
+  const auto edge = [&](bool high, long long at_ns) {
+    const timespec at{static_cast<time_t>(at_ns / 1000000000), static_cast<long>(at_ns % 1000000000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, nullptr) == EINTR) {
+    }
+    if (line->SetAt(high, at_ns, &error)) return true;
+    std::fprintf(stderr, "camsim-trigger: %s\n", error.c_str());
+    return false;
+  };
+  const long long start_ns = camsim::hal::MonotonicNowNs();
+  for (long long k = 0; k < count; ++k) {
+    const long long rise_ns = start_ns + k * interval_ns;
     line->SetEdgeIndex(static_cast<uint32_t>((first + k) & 0x7fffffff));
-    if (!line->Set(true, &error)) {
-      std::fprintf(stderr, "camsim-trigger: %s\n", error.c_str());
-      return 1;
-    }
+    if (!edge(true, rise_ns)) return 1;
     const int receivers = line->last_receivers();
-    std::this_thread::sleep_for(std::chrono::milliseconds(width_ms));
-    if (!line->Set(false, &error)) {
-      std::fprintf(stderr, "camsim-trigger: %s\n", error.c_str());
-      return 1;
-    }
-    std::printf("pulse %ld: frame index %ld, %d camera(s)\n", k, (first + k) & 0x7fffffff, receivers);
+    if (!edge(false, rise_ns + width_ns)) return 1;
+    std::printf("pulse %lld: frame index %lld, %d camera(s)\n", k, (first + k) & 0x7fffffff, receivers);
     std::fflush(stdout);
-    if (k + 1 < count) std::this_thread::sleep_until(t0 + std::chrono::milliseconds(interval_ms));
   }
   return 0;
 }

@@ -113,6 +113,12 @@ class BusOutput : public OutputLine {
   // kSendTimeoutMs, so a burst of edges is not lost; one that stays full, or
   // whose process is gone, misses the edge and is not counted.
   bool Set(bool high, std::string* error) override;
+  // The same, the edge stamped edge_time_ns (CLOCK_MONOTONIC) instead of
+  // now: a sender keeping a schedule (camsim-trigger) stamps each edge at
+  // its scheduled time and sends it once that time has come, so the pulse
+  // widths and intervals the cameras see are the scheduled ones, however
+  // late the sender woke.
+  bool SetAt(bool high, long long edge_time_ns, std::string* error);
   static constexpr int kSendTimeoutMs = 100;
   std::string Name() const override { return spec_; }
   void SetEdgeIndex(uint32_t index) override { index_ = index; }

@@ -253,9 +253,10 @@ BusOutput::~BusOutput() {
   if (fd_ >= 0) close(fd_);
 }
 
-bool BusOutput::Set(bool high, std::string* error) {
+bool BusOutput::Set(bool high, std::string* error) { return SetAt(high, MonotonicNowNs(), error); }
+
+bool BusOutput::SetAt(bool high, long long edge_time_ns, std::string* error) {
   if (high == level_) return true;
-  const long long edge_time_ns = MonotonicNowNs();
   // The level changes only once the edge could be sent: after a failure the
   // same Set tries again instead of finding the line already at that level.
   if (fd_ < 0) {

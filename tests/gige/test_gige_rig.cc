@@ -7,14 +7,19 @@
 #include <ifaddrs.h>
 #include <netinet/in.h>
 #include <arpa/inet.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <thread>
+#include <vector>
 
+#include "hal/gpio.h"
 #include "tests/gige/gige_client.h"
 
 namespace camsim::gigetest {
@@ -242,6 +247,49 @@ TEST(GigeRigAddresses, OneCameraPerAddressAndOnlyLocalAddresses) {
     EXPECT_EQ(GigeDevice::Start(o, &error), nullptr) << a;
     EXPECT_NE(error.find("a camera serves on one interface's address"), std::string::npos) << error;
     EXPECT_EQ(error.find("ip addr add"), std::string::npos) << error;
+  }
+}
+
+// camsim-trigger stamps each edge with its scheduled time: a pulse's
+// falling edge is exactly --width-us after its rising one, and pulses are
+// exactly --interval-ms apart, however late the sender woke (it stamped
+// each edge when it got to it: "1 ms" pulses came out 1.7-5 ms wide).
+TEST(GigeTrigger, PulsesAreStampedWithTheirScheduledTimes) {
+  const std::string dir = BusDir("camsim-schedule");
+  ASSERT_EQ(mkdir(dir.c_str(), 0700), 0);
+  // A bus input of our own: the raw messages, as a camera receives them.
+  const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  const std::string path = dir + "/line-" + std::to_string(getpid()) + "-0.sock";
+  std::strncpy(a.sun_path, path.c_str(), sizeof a.sun_path - 1);
+  ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << std::strerror(errno);
+  const std::string cmd = std::string(CAMSIM_TRIGGER_BINARY) + " unix:" + dir +
+                          " --count 4 --first-index 7 --interval-ms 20 --width-us 700 > /dev/null";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  std::vector<hal::TriggerBusMessage> edges;
+  uint8_t buf[64];
+  for (;;) {
+    const ssize_t n = recv(fd, buf, sizeof buf, MSG_DONTWAIT);
+    if (n < 0) break;
+    hal::TriggerBusMessage m;
+    ASSERT_TRUE(hal::TriggerBusMessage::Decode(buf, static_cast<size_t>(n), &m)) << n << " bytes";
+    edges.push_back(m);
+  }
+  close(fd);
+  unlink(path.c_str());
+  rmdir(dir.c_str());
+  ASSERT_EQ(edges.size(), 8u);
+  for (size_t k = 0; k < 4; ++k) {
+    const hal::TriggerBusMessage &rise = edges[2 * k], &fall = edges[2 * k + 1];
+    EXPECT_TRUE(rise.rising);
+    EXPECT_FALSE(fall.rising);
+    EXPECT_EQ(rise.frame_index, 7 + k);
+    EXPECT_EQ(fall.edge_time_ns - rise.edge_time_ns, 700000u) << "pulse " << k;
+    if (k > 0) {
+      EXPECT_EQ(rise.edge_time_ns - edges[2 * k - 2].edge_time_ns, 20000000u) << "pulse " << k;
+    }
   }
 }
 
