@@ -881,6 +881,7 @@ GigeDevice::~GigeDevice() {
   if (gv_) g_object_unref(gv_);  // stops the fake camera's thread
   else if (fake_) g_object_unref(fake_);
   if (own_xml_) unlink(xml_path_.c_str());
+  FlushRefusalLog(true);
 }
 
 uint64_t GigeDevice::TimestampNow() const { return static_cast<uint64_t>(RealTimeNs() - timestamp_origin_ns_.load()); }
@@ -1626,6 +1627,7 @@ bool GigeDevice::PipelineTakes(uint32_t address, uint32_t size, const uint8_t* d
 
 void GigeDevice::Sync() {
   using namespace reg;
+  FlushRefusalLog(false);
   const ClientWritesHeld hold(fake_);  // one consistent state of the registers
   TakeClientStops();
   const bool acquiring = Read(kAcquisition) != 0;
@@ -2190,6 +2192,15 @@ void GigeDevice::LogRefusal(const std::string& what, const std::string& why, con
            std::to_string(kRefusalLinesPerSecond) + " a second)";
   refusals_unlogged_ = 0;
   std::fprintf(stderr, "camsim-gige: %s %s: %s%s\n", verb, what.c_str(), why.c_str(), more.c_str());
+}
+
+void GigeDevice::FlushRefusalLog(bool at_end) const {
+  std::lock_guard<std::mutex> lock(refusal_log_mutex_);
+  if (refusals_unlogged_ == 0) return;
+  if (!at_end && std::chrono::steady_clock::now() - refusal_window_ < std::chrono::seconds(1)) return;
+  std::fprintf(stderr, "camsim-gige: %llu more lines not logged: over %d a second\n",
+               static_cast<unsigned long long>(refusals_unlogged_), kRefusalLinesPerSecond);
+  refusals_unlogged_ = 0;
 }
 
 std::string GigeDevice::CommandRefusal(uint32_t address) const {

@@ -272,9 +272,13 @@ class GigeDevice {
   mutable std::string* refusal_capture_ = nullptr;  // set: LogRefusal also keeps its first "what: why" here
   // One line on stderr per refused write: "refused NAME = VALUE: WHY" (or
   // per dropped trigger: verb "dropped"), at most kRefusalLinesPerSecond a
-  // second (a client could flood it); the next line logged says how many
-  // were left out. Thread-safe.
+  // second (a client could flood it); the next line logged, or else
+  // FlushRefusalLog, says how many were left out. Thread-safe.
   void LogRefusal(const std::string& what, const std::string& why, const char* verb = "refused") const;
+  // The count of lines left out, said once their second is over (every
+  // sync) or at the end (the destructor), so a flood's last lines are never
+  // lost without a trace. Thread-safe.
+  void FlushRefusalLog(bool at_end) const;
   // Why a feature never takes v (empty when it does): its range, increment, entries.
   std::string WhyInvalid(const Feature& f, uint64_t v) const;
   std::string ValueText(const Feature& f, uint64_t v) const;  // v as a client wrote it

@@ -1418,6 +1418,26 @@ TEST(GigeRegisters, EachRefusedWriteIsLoggedWithItsReason) {
   WriteRegRefused(*d, reg::kWidth, Be32(15));
   err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("(480 earlier lines not logged"), std::string::npos) << err;
+  // A flood with no line after it: its count comes at the first sync after
+  // its second, or at the end, not never.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  testing::internal::CaptureStderr();
+  for (int i = 0; i < 25; ++i) WriteRegRefused(*d, reg::kWidth, Be32(15));
+  d->SyncNow();  // within the second: not yet
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 20) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  testing::internal::CaptureStderr();
+  d->SyncNow();
+  d->SyncNow();
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(err, "camsim-gige: 5 more lines not logged: over 20 a second\n");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  testing::internal::CaptureStderr();
+  for (int i = 0; i < 23; ++i) WriteRegRefused(*d, reg::kWidth, Be32(15));
+  d.reset();
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("camsim-gige: 3 more lines not logged: over 20 a second\n"), std::string::npos) << err;
 }
 
 // Without a trigger line (no --trigger-line), TriggerSource Line0 would arm
