@@ -108,6 +108,9 @@ uint64_t MacOfSerial(const std::string& serial) {
   return uint64_t{0x02} << 40 | (hash & 0xffffffffffull);
 }
 int64_t RealTimeNs() { return g_get_real_time() * 1000; }
+int64_t SteadyNs(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
 // A masked feature's value (Feature::low_bits, shift) in its register's bits v.
 uint64_t MaskedValue(const Feature& f, uint64_t v) {
   return f.low_bits > 0 ? (v >> f.shift) & ((uint64_t{1} << f.low_bits) - 1) : v;
@@ -576,6 +579,7 @@ bool GigeDevice::Valid(const Feature& f, uint64_t v, int readout) const {
 }
 
 bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
+  clock_offset_ns_ = RealTimeNs() - SteadyNs(std::chrono::steady_clock::now());
   if (!LoadDeviceScenes(o, &base_config_, &origins_, &scenes_, error)) return false;
   // PlanFor's settings come from the registers, whatever the file said.
   register_origins_ = origins_;
@@ -884,7 +888,9 @@ GigeDevice::~GigeDevice() {
   FlushRefusalLog(true);
 }
 
-uint64_t GigeDevice::TimestampNow() const { return static_cast<uint64_t>(RealTimeNs() - timestamp_origin_ns_.load()); }
+uint64_t GigeDevice::DeviceTime(std::chrono::steady_clock::time_point t) const {
+  return static_cast<uint64_t>(SteadyNs(t) + clock_offset_ns_ - timestamp_origin_ns_.load());
+}
 
 // Ranges, the read-only XML and the client-write rules: fake_camera_hooks.cc.
 uint64_t GigeDevice::writes_refused() const {
@@ -1156,7 +1162,8 @@ WriteVerdict GigeDevice::FilterClientWrite(void* self, uint32_t address, uint32_
       d->Write(reg::kTimestampValue, static_cast<uint32_t>(now >> 32));
       d->Write(reg::kTimestampValue + 4, static_cast<uint32_t>(now));
     }
-    if (bits & reg::kTimestampReset) d->timestamp_origin_ns_ = RealTimeNs();
+    if (bits & reg::kTimestampReset)
+      d->timestamp_origin_ns_ = SteadyNs(std::chrono::steady_clock::now()) + d->clock_offset_ns_;
     return {false, GevStatus::kSuccess};
   }
   for (const uint32_t command : {reg::kAcquisitionStart, reg::kAcquisitionStop, reg::kAcquisitionAbort}) {
@@ -2315,10 +2322,12 @@ void GigeDevice::Fill(ArvBuffer* buffer, uint32_t pixel_format) {
       std::lock_guard<std::mutex> t(trigger_mutex_);
       if (!pending_triggers_.empty()) start = pending_triggers_.front().exposure_start;
     }
-    const auto late = std::max(std::chrono::steady_clock::duration::zero(), std::chrono::steady_clock::now() - start);
-    // The device's clock (TimestampNow), as GevTimestampControlLatch reads it.
-    const auto late_ns = static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(late).count());
-    arv_buffer_set_timestamp(buffer, TimestampNow() - late_ns);
+    const auto now = std::chrono::steady_clock::now();
+    start = std::min(start, now);
+    // The device's clock, as GevTimestampControlLatch reads it; the host's
+    // real time for the system timestamp.
+    arv_buffer_set_timestamp(buffer, DeviceTime(start));
+    const auto late_ns = static_cast<guint64>(std::chrono::duration_cast<std::chrono::nanoseconds>(now - start).count());
     arv_buffer_set_system_timestamp(buffer, static_cast<guint64>(RealTimeNs()) - late_ns);
     // The GVSP block ID (and ChunkFrameID): a stream opened since the last
     // frame starts at 1, as a camera's does; the fake camera sends the

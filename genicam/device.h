@@ -464,11 +464,16 @@ class GigeDevice {
   std::atomic<uint64_t> stream_opens_{0};  // FilterClientWrite: writes of GevSCPHostPort / GevSCDA
   uint64_t stream_opens_seen_ = 0;         // under mutex_
   uint32_t block_id_ = 0;                  // the last frame's (under mutex_)
-  // The device's timestamp (frame timestamps, GevTimestampValue): ns of the
-  // host's real time since this origin (0: since the epoch; a
-  // GevTimestampControlReset moves it to the time of the reset).
+  // The device's timestamp (frame timestamps, GevTimestampValue), in ns:
+  // the steady clock plus clock_offset_ns_ (set at Init so that the clock
+  // then reads the host's real time since the epoch) less the origin (0; a
+  // GevTimestampControlReset moves it to the time of the reset). On the
+  // steady clock, so a frame's time is its slot's or edge's, to the ns, and
+  // the host's clock being set does not move it.
+  int64_t clock_offset_ns_ = 0;
   std::atomic<int64_t> timestamp_origin_ns_{0};
-  uint64_t TimestampNow() const;
+  uint64_t DeviceTime(std::chrono::steady_clock::time_point t) const;
+  uint64_t TimestampNow() const { return DeviceTime(std::chrono::steady_clock::now()); }
   // LogRefusal's rate limit: lines in the current second, and those left out.
   static constexpr int kRefusalLinesPerSecond = 20;
   mutable std::mutex refusal_log_mutex_;
