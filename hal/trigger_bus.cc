@@ -120,9 +120,11 @@ class BusInput : public InputLine {
         const int version = TriggerBusMessage::VersionOf(buf, static_cast<size_t>(n));
         if (version >= 0 && version != TriggerBusMessage::kVersion && !versions_seen_[version]) {
           versions_seen_[version] = true;
-          notice_ = "trigger bus '" + spec_ + "': ignored an edge in message version " + std::to_string(version) +
-                    " (this camera reads version " + std::to_string(TriggerBusMessage::kVersion) +
-                    "; give camsim-trigger and every camera of the rig the same build)";
+          // (Appended: one wait can ignore several versions before its caller takes the notice.)
+          notice_ += (notice_.empty() ? "" : "; ") + std::string("trigger bus '") + spec_ +
+                     "': ignored an edge in message version " + std::to_string(version) +
+                     " (this camera reads version " + std::to_string(TriggerBusMessage::kVersion) +
+                     "; give camsim-trigger and every camera of the rig the same build)";
         }
         continue;
       }

@@ -919,6 +919,15 @@ TEST(GigeTriggerBus, MessagesCarryTheSendersEdgeTime) {
   SendDatagram(socket_path, v1, sizeof v1);
   EXPECT_EQ(in->WaitEdge(50, &edge, &error), 0);
   EXPECT_EQ(in->TakeNotice(), "") << "said twice";
+  // Two new versions ignored in one wait: each named once.
+  for (const uint8_t version : {3, 4}) {
+    uint8_t other[24] = {'C', 'S', 'T', 'B', version, 1};
+    SendDatagram(socket_path, other, sizeof other);
+  }
+  EXPECT_EQ(in->WaitEdge(50, &edge, &error), 0);
+  const std::string notice = in->TakeNotice();
+  EXPECT_NE(notice.find("message version 3 ("), std::string::npos) << notice;
+  EXPECT_NE(notice.find("message version 4 ("), std::string::npos) << notice;
   // A BusOutput's edge: stamped within its Set, read 30 ms later.
   auto out = hal::OpenBusOutput("unix:" + dir, &error);
   ASSERT_NE(out, nullptr) << error;
