@@ -1970,6 +1970,9 @@ void GigeDevice::TriggerLoop() {
     if (r == 1) {
       Clock::time_point at = now;
       if (!trigger_->LastEdgeTime(&at) || at > now) at = now;
+      // Edges are in order: one whose stamp fell back to its read time (the
+      // reader stalled past kMaxEdgeAgeS) must not come before the next.
+      at = std::max(at, wire_since);
       // The level before this edge held from wire_since to `at`.
       if (wire != line0_electrical_ && at - wire_since >= line0_debounce_)
         TakeLine0Level(wire, wire_since + line0_debounce_, wire_index);
@@ -2816,6 +2819,7 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
     return false;
   };
   int64_t set = -1, default_set = kUserSetDefaultSet;
+  bool default_named = false;  // a UserSetDefault line was read
   std::map<uint32_t, int> lines[kUserSetCount];  // each set's registers given, and their lines
   std::string text;
   for (int n = 1; std::getline(in, text); ++n) {
@@ -2839,6 +2843,7 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
     if (set < 0) {
       if (name != "UserSetDefault") return fail(n, "'" + name + "' before a [UserSetN] section (only UserSetDefault goes there)");
       default_set = -1;
+      default_named = true;
       for (int64_t i = 0; i < kUserSetCount; ++i)
         if (value == UserSetName(i)) default_set = i;
       if (default_set < 0) return fail(n, "UserSetDefault = " + value + ": no such set (Default, UserSet1, UserSet2, UserSet3)");
@@ -2912,9 +2917,10 @@ bool GigeDevice::ReadUserSetFile(std::string* error) {
       return false;
     }
   }
-  start_user_set_ = default_set == kUserSetDefaultSet
-                        ? "the Default user set (UserSetDefault in " + path + ")"
-                        : "user set " + std::string(UserSetName(default_set)) + " from " + path + " (its UserSetDefault)";
+  start_user_set_ = default_set != kUserSetDefaultSet
+                        ? "user set " + std::string(UserSetName(default_set)) + " from " + path + " (its UserSetDefault)"
+                    : default_named ? "the Default user set (UserSetDefault is Default in " + path + ")"
+                                    : "the Default user set (" + path + " names no UserSetDefault)";
   return true;
 }
 

@@ -38,7 +38,7 @@ class InputLine {
 };
 
 // The steady-clock time of an edge stamped `ns` on CLOCK_MONOTONIC. A stamp
-// in the future or older than kMaxEdgeAgeS is another clock's (an old
+// in the future or kMaxEdgeAgeS old or more is another clock's (an old
 // kernel's CLOCK_REALTIME, a sender in another time namespace): the time now.
 inline constexpr long long kMaxEdgeAgeS = 10;
 std::chrono::steady_clock::time_point MonotonicEdgeTime(long long ns);

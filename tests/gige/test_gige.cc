@@ -3376,6 +3376,42 @@ TEST_F(GigeE2E, TriggeredFramesAreStampedAtTheirEdgesToTheNanosecond) {
   EXPECT_EQ(rmdir(dir.c_str()), 0);
 }
 
+// Edges are taken in order even when a stamp falls back to its read time
+// (a reader stalled past kMaxEdgeAgeS): a rising edge stamped 11 s ago
+// counts from when it was read, and the falling and rising edges after it,
+// stamped 1 s and 0.5 s ago, cannot move the line back before it; the
+// debounced trigger comes 20 ms after the read, not 480 ms before it.
+TEST_F(GigeE2E, AStaleEdgeStampDoesNotTakeTheLineBackInTime) {
+  const std::string dir = testing::TempDir() + "camsim-stale-bus-" + std::to_string(getpid());
+  DeviceOptions o = SmallDevice();
+  o.trigger_line = "unix:" + dir;
+  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  Client& c = *client_;
+  TriggerOn("Line0", "RisingEdge");
+  Set(c, "LineSelector", "Line0");
+  SetFloat(c, "LineDebouncerTime", 20000.0);
+  Settle();
+  ASSERT_TRUE(c.OpenStream());
+  Start(c);
+  Settle();
+  GError* e = nullptr;
+  arv_camera_execute_command(c.camera(), "GevTimestampControlLatch", &e);
+  ASSERT_EQ(e, nullptr);
+  const int64_t before = arv_camera_get_integer(c.camera(), "GevTimestampValue", &e);
+  ASSERT_EQ(e, nullptr);
+  const std::string socket_path = BusSocketIn(dir);
+  const long long now_ns = hal::MonotonicNowNs();
+  SendBusEdge(socket_path, true, 30, now_ns - 11000000000LL);
+  SendBusEdge(socket_path, false, 30, now_ns - 1000000000LL);
+  SendBusEdge(socket_path, true, 31, now_ns - 500000000LL);
+  ASSERT_FALSE(c.Grab(3000).empty()) << "no frame for the last rising edge";
+  EXPECT_GE(static_cast<int64_t>(c.last_timestamp_ns()), before + 20000000) << "stamped before the edges were read";
+  EXPECT_TRUE(c.Grab(300).empty()) << "more frames than rising levels";
+  client_.reset();
+  device_.reset();
+  EXPECT_EQ(rmdir(dir.c_str()), 0);
+}
+
 // One mechanism for the XML and the device: for every feature and entry with
 // an availability or lock formula, over every value of the formula's
 // variables (a selected feature's own selector at each selection), Aravis's
@@ -5878,11 +5914,6 @@ TEST_F(GigeE2E, UserSetDefaultFromTheFileSurvivesARestart) {
   std::remove(o.user_set_file.c_str());
 }
 
-// A user set file that is not what the device can load stops the start,
-// naming the file, the line and the feature: an unknown feature, a value
-// out of its range, a line that is not 'Feature = value', Default as a
-// section, and a set the sensor cannot take (its window off the sensor:
-// found by loading it through the client's checks).
 // The start-up line (camsim-gige's "serving ..., loaded X") names the set
 // the start loaded: UserSetDefault's set from --user-set-file, or Default
 // and why.
@@ -5898,7 +5929,11 @@ TEST(GigeRegisters, TheStartSaysWhichUserSetItLoaded) {
   std::ofstream(o.user_set_file) << "[UserSet2]\nWidth = 32\n";
   d = StartDevice(o);
   ASSERT_NE(d, nullptr);
-  EXPECT_EQ(d->start_user_set(), "the Default user set (UserSetDefault in " + o.user_set_file + ")");
+  EXPECT_EQ(d->start_user_set(), "the Default user set (" + o.user_set_file + " names no UserSetDefault)");
+  std::ofstream(o.user_set_file) << "UserSetDefault = Default\n[UserSet2]\nWidth = 32\n";
+  d = StartDevice(o);
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d->start_user_set(), "the Default user set (UserSetDefault is Default in " + o.user_set_file + ")");
   std::ofstream(o.user_set_file) << "UserSetDefault = UserSet2\n[UserSet2]\nWidth = 32\n";
   d = StartDevice(o);
   ASSERT_NE(d, nullptr);
@@ -5908,6 +5943,11 @@ TEST(GigeRegisters, TheStartSaysWhichUserSetItLoaded) {
   std::remove(o.user_set_file.c_str());
 }
 
+// A user set file that is not what the device can load stops the start,
+// naming the file, the line and the feature: an unknown feature, a value
+// out of its range, a line that is not 'Feature = value', Default as a
+// section, and a set the sensor cannot take (its window off the sensor:
+// found by loading it through the client's checks).
 TEST(GigeRegisters, ABadUserSetFileStopsTheStartNamingIt) {
   DeviceOptions o = OfflineDevice();
   o.user_set_file = UserSetFile("bad");
