@@ -99,9 +99,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto& s = device->sensor();
-  std::fprintf(stderr, "camsim-gige: serving %dx%d %s %d-bit as serial %s on %s (GenICam XML %s), loaded %s\n",
+  std::fprintf(stderr,
+               "camsim-gige: serving %dx%d %s %d-bit as serial %s on %s (GenICam XML %s), loaded %s: frames of %s\n",
                s.width, s.height, camsim::CfaName(s.cfa), s.adc_bits, o.serial.c_str(), o.address.c_str(),
-               device->xml_path().c_str(), device->start_user_set().c_str());
+               device->xml_path().c_str(), device->start_user_set().c_str(), device->FrameFormat().c_str());
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   while (!g_stop && (frames == 0 || device->frames_sent() < static_cast<uint64_t>(frames)))

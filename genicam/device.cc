@@ -1574,6 +1574,16 @@ void GigeDevice::TakeClientStops() {
   }
 }
 
+std::string GigeDevice::FrameFormat() const {
+  const uint32_t code = Read(reg::kPixelFormat);
+  std::string format = HexAddress(code);
+  if (const Feature* f = FindFeature(table_, "PixelFormat"))
+    for (const EnumEntry& e : f->entries)
+      if (static_cast<uint32_t>(e.value) == code) format = e.name;
+  return std::to_string(Read(reg::kWidth)) + "x" + std::to_string(Read(reg::kHeight)) + " at (" +
+         std::to_string(Read(reg::kOffsetX)) + ", " + std::to_string(Read(reg::kOffsetY)) + ") in " + format;
+}
+
 std::string GigeDevice::RegisterName(const Feature& r) const {
   for (const Feature& f : table_) {
     if (f.selected_by.empty() || r.address < f.address || r.address >= f.address + f.length * f.selections) continue;

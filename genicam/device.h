@@ -147,6 +147,8 @@ class GigeDevice {
   // The user set the start loaded, for the start-up line: "user set UserSet1
   // from PATH (its UserSetDefault)", or "the Default user set (...)" saying why.
   const std::string& start_user_set() const { return start_user_set_; }
+  // The frames the registers now give: "320x480 at (0, 0) in BayerRG12".
+  std::string FrameFormat() const;
   uint64_t frames_sent() const { return frames_sent_.load(); }
   // Client writes refused: by the device (values, the window, commands) and
   // by the hooks in front of its camera (fake_camera_hooks.h, WritesRefusedAt).
