@@ -6067,6 +6067,38 @@ TEST(GigeRegisters, AUserSetFileOfAnotherCameraStopsTheStartNamingTheLine) {
   std::remove(o.user_set_file.c_str());
 }
 
+// A set saved with ExposureAuto Continuous loads it (last, after its
+// ExposureTime, which the lock would refuse after it), and a set with
+// ExposureAuto Off loads its ExposureTime while Continuous is in use
+// (ExposureAuto goes Off first).
+TEST(GigeRegisters, UserSetsHoldExposureAutoContinuous) {
+  auto d = StartDevice(OfflineDevice());
+  ASSERT_NE(d, nullptr);
+  const auto save = [&](uint32_t set) {
+    WriteReg(*d, reg::kUserSetSelector, Be32(set));
+    WriteReg(*d, reg::kUserSetSave, Be32(1));
+  };
+  const auto load = [&](uint32_t set) {
+    WriteReg(*d, reg::kUserSetSelector, Be32(set));
+    WriteReg(*d, reg::kUserSetLoad, Be32(1));
+  };
+  WriteReg(*d, reg::kExposureTime, Be64(1500.0));
+  save(1);  // Off, 1500 us
+  WriteReg(*d, reg::kExposureTime, Be64(2500.0));
+  WriteReg(*d, reg::kExposureAuto, Be32(genicam::kAutoContinuous));
+  save(2);  // Continuous, 2500 us
+  WriteRegRefused(*d, reg::kExposureTime, Be64(900.0));  // locked
+  ASSERT_NO_FATAL_FAILURE(load(1));
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), static_cast<uint32_t>(genicam::kAutoOff));
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*d, reg::kExposureTime), 1500.0);
+  ASSERT_NO_FATAL_FAILURE(load(2));
+  EXPECT_EQ(ReadReg32(*d, reg::kExposureAuto), static_cast<uint32_t>(genicam::kAutoContinuous));
+  EXPECT_DOUBLE_EQ(ReadRegDouble(*d, reg::kExposureTime), 2500.0);
+  WriteRegRefused(*d, reg::kExposureTime, Be64(900.0));  // locked again
+  d->SyncNow();
+  EXPECT_EQ(d->CheckInvariants(), "");
+}
+
 // Gamma is available only with GammaEnable on, so a load writes GammaEnable
 // on before the set's Gamma and the set's GammaEnable after: a set saved
 // with GammaEnable off loads its Gamma while GammaEnable is off.
