@@ -6307,6 +6307,65 @@ TEST_F(GigeE2E, BinningSumsOrAveragesSameColourPixels) {
   }
 }
 
+// Binning and decimation together, with different modes and factors per
+// axis: same-colour pixels of bx x by cells summed, divided by the factors
+// of the Average axes (rounded half up), clamped at full scale; then every
+// dx-th / dy-th binned cell kept. Each frame equals the test's own reduction.
+std::vector<uint32_t> Reduced(const std::vector<uint32_t>& f, int w, int h, int cell, int bx, int by, bool avg_x,
+                              bool avg_y, int dx, int dy, uint32_t full) {
+  const int cw = w / cell / (bx * dx), ch = h / cell / (by * dy);  // output cells
+  const int ow = cw * cell, oh = ch * cell;
+  const uint32_t n = static_cast<uint32_t>((avg_x ? bx : 1) * (avg_y ? by : 1));
+  std::vector<uint32_t> out(static_cast<size_t>(ow) * oh);
+  for (int v = 0; v < ch; ++v)
+    for (int u = 0; u < cw; ++u)
+      for (int q = 0; q < cell; ++q)
+        for (int p = 0; p < cell; ++p) {
+          const int u0 = u * dx * bx, v0 = v * dy * by;  // the first binned cell's first sensor cell
+          uint32_t sum = 0;
+          for (int l = 0; l < by; ++l)
+            for (int k = 0; k < bx; ++k) sum += f[static_cast<size_t>((v0 + l) * cell + q) * w + (u0 + k) * cell + p];
+          out[static_cast<size_t>(v * cell + q) * ow + u * cell + p] = std::min((sum + n / 2) / n, full);
+        }
+  return out;
+}
+TEST_F(GigeE2E, BinningAndDecimationCombineWithMixedModes) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));  // 64 x 48 BayerRG
+  Client& c = *client_;
+  Set(c, "PixelFormat", "BayerRG12");
+  const uint32_t code = genicam::BayerCode(Cfa::kBayerRG, 12);
+  const std::vector<uint32_t> full = Words(Reference(3, code, 0, 0, 64, 48));
+  struct Case {
+    int bx, by;
+    bool avg_x, avg_y;
+    int dx, dy;
+  };
+  for (const Case& k : {Case{2, 2, false, true, 1, 2}, Case{2, 2, true, false, 2, 1}, Case{3, 1, true, true, 1, 3},
+                        Case{1, 2, false, false, 2, 2}}) {
+    SCOPED_TRACE(testing::Message() << "binning " << k.bx << "x" << k.by << (k.avg_x ? " Average" : " Sum") << "/"
+                                    << (k.avg_y ? "Average" : "Sum") << ", decimation " << k.dx << "x" << k.dy);
+    SetInt(c, "DecimationHorizontal", 1);
+    SetInt(c, "DecimationVertical", 1);
+    SetInt(c, "BinningHorizontal", k.bx);
+    SetInt(c, "BinningVertical", k.by);
+    Set(c, "BinningHorizontalMode", k.avg_x ? "Average" : "Sum");
+    Set(c, "BinningVerticalMode", k.avg_y ? "Average" : "Sum");
+    SetInt(c, "DecimationHorizontal", k.dx);
+    SetInt(c, "DecimationVertical", k.dy);
+    Settle();
+    const int ow = 64 / 2 / (k.bx * k.dx) * 2, oh = 48 / 2 / (k.by * k.dy) * 2;
+    EXPECT_EQ(ReadInt(c, "WidthMax"), ow);
+    EXPECT_EQ(ReadInt(c, "HeightMax"), oh);
+    SetInt(c, "OffsetX", 0);
+    SetInt(c, "OffsetY", 0);
+    SetInt(c, "Width", ow);
+    SetInt(c, "Height", oh);
+    const std::vector<uint32_t> want = Reduced(full, 64, 48, 2, k.bx, k.by, k.avg_x, k.avg_y, k.dx, k.dy, 4095);
+    EXPECT_TRUE(GrabIndex(c, 3) == Bytes16(want)) << "not the reference reduced";
+  }
+  EXPECT_EQ(device_->CheckInvariants(), "");
+}
+
 // Binning and decimation change the payload: refused while acquiring
 // (access denied), as the window is, and writable again after the stop.
 TEST_F(GigeE2E, BinningAndDecimationAreLockedWhileAcquiring) {
