@@ -442,6 +442,40 @@ void ConvertWindow(uint32_t format, Cfa cfa, int adc_bits, const uint16_t* raw, 
     }
     return;
   }
+  if (Is422(format)) {
+    // Full-range BT.601 from Kr = 0.299, Kb = 0.114 (Kg = 1 - Kr - Kb =
+    // 0.587): Y = Kr R + Kg G + Kb B, Cb = 128 + (B - Y) / (2 (1 - Kb)),
+    // Cr = 128 + (R - Y) / (2 (1 - Kr)). In thousandths these are exact
+    // integer ratios: Y = (299 R + 587 G + 114 B) / 1000, Cb = 128 +
+    // (886 B - 299 R - 587 G) / 1772, Cr = 128 + (701 R - 587 G - 114 B) / 1402,
+    // each rounded half up (numerators made non-negative by the offset 128)
+    // and clamped at 255 (Cb, Cr reach 255.5). Cb and Cr are co-sited: those
+    // of each pair's even pixel (the window's, after ReverseX).
+    const auto y_of = [](int r, int g, int b) { return (299 * r + 587 * g + 114 * b + 500) / 1000; };
+    const auto cb_of = [](int r, int g, int b) {
+      return std::min((886 * b - 299 * r - 587 * g + 886 + 128 * 1772) / 1772, 255);
+    };
+    const auto cr_of = [](int r, int g, int b) {
+      return std::min((701 * r - 587 * g - 114 * b + 701 + 128 * 1402) / 1402, 255);
+    };
+    const bool uyvy = format == kYUV422_8_UYVY;  // else Y Cb Y Cr (YCbCr422_8 and YUV422_8 alike)
+    for (int r = 0; r < h; ++r) {
+      const uint8_t* src = rgb + (static_cast<size_t>(y + r) * sensor_width + x) * 3;
+      uint8_t* dst = out + static_cast<size_t>(r) * w * 2;
+      for (int i = 0; i + 1 < w; i += 2, src += 6, dst += 4) {
+        const uint8_t y0 = static_cast<uint8_t>(y_of(src[0], src[1], src[2]));
+        const uint8_t y1 = static_cast<uint8_t>(y_of(src[3], src[4], src[5]));
+        const uint8_t cb = static_cast<uint8_t>(cb_of(src[0], src[1], src[2]));
+        const uint8_t cr = static_cast<uint8_t>(cr_of(src[0], src[1], src[2]));
+        if (uyvy) {
+          dst[0] = cb, dst[1] = y0, dst[2] = cr, dst[3] = y1;
+        } else {
+          dst[0] = y0, dst[1] = cb, dst[2] = y1, dst[3] = cr;
+        }
+      }
+    }
+    return;
+  }
   if (FromIsp(format, cfa)) {
     // Mono8 on a colour sensor: BT.601 luma of RGB8, (77 R + 150 G + 29 B + 128) >> 8 (weights sum to 256).
     for (int r = 0; r < h; ++r) {

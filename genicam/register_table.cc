@@ -251,7 +251,7 @@ Packing PackingOf(uint32_t code) {
 int SampleBits(uint32_t code) {
   if (code == kMono10 || (code >= 0x0110000cu && code <= 0x0110000fu)) return 10;
   if (code == kMono12 || (code >= 0x01100010u && code <= 0x01100013u)) return 12;
-  return code == kRGB8 || code == kBGR8 ? 8 : PixelBits(code);
+  return code == kRGB8 || code == kBGR8 || Is422(code) ? 8 : PixelBits(code);
 }
 
 std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
@@ -287,6 +287,13 @@ std::vector<EnumEntry> PixelFormats(const SensorInfo& s) {
     if (!mono) out.push_back({"Mono8", kMono8});  // the luma of RGB8
     out.push_back({"RGB8", kRGB8});
     out.push_back({"BGR8", kBGR8});
+    // 4:2:2: a Cb and Cr per pixel pair. Only on a Bayer sensor (the only one
+    // with an ISP RGB image), whose Width, OffsetX and WidthMax are even.
+    if (!mono) {
+      out.push_back({"YCbCr422_8", kYCbCr422_8});
+      out.push_back({"YUV422_8", kYUV422_8});
+      out.push_back({"YUV422_8_UYVY", kYUV422_8_UYVY});
+    }
   }
   return out;
 }
@@ -392,7 +399,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "Format of the pixels sent. Raw formats carry the sensor's digital numbers (8-bit: the top 8 "
                    "ADC bits; 16-bit: shifted to the top; 10p/12p/12Packed: packed, the frame's pixel bits a "
                    "whole number of bytes); RGB8 is the ISP output, BGR8 the same with R and B swapped, Mono8 on a "
-                   "colour sensor its BT.601 luma."));
+                   "colour sensor its BT.601 luma; YCbCr422_8 (Y Cb Y Cr), YUV422_8 (Y U Y V) and YUV422_8_UYVY "
+                   "(U Y V Y) its full-range BT.601 YCbCr, Cb and Cr those of each pair's even pixel."));
   t.back().locked_while_acquiring = true;
   // Writable while acquiring: the payload does not change (from the next frame).
   t.push_back(Enum("TestPatternGeneratorSelector", ifc, kTestPatternGeneratorSelector, true, {{"Sensor", 0}},
@@ -410,7 +418,8 @@ std::vector<Feature> RegisterTable(const SensorInfo& s) {
                    "(no optics, no noise), before binning, decimation, ReverseX/Y and the window: Black 0, White "
                    "full scale M = 2^bits - 1, a ramp round(t x M / (n - 1)) over x (Horizontal), y (Vertical) or "
                    "x + y (Diagonal) of the sensor; Moving: the horizontal ramp at (x + frame index) mod "
-                   "SensorWidth. RGB8, BGR8 and Mono8 from the ISP get R = G = B = the code's top 8 bits."));
+                   "SensorWidth. RGB8 and the formats made from it (BGR8, Mono8, 4:2:2) get R = G = B = the code's top "
+                   "8 bits."));
 
   const char* ac = "AcquisitionControl";
   t.push_back(Enum("AcquisitionMode", ac, kAcquisitionMode, true,

@@ -282,6 +282,9 @@ enum ExposureModeValue : int64_t { kExposureTimed = 0, kExposureTriggerWidth = 1
 // PFNC pixel format codes (GigE Vision values).
 inline constexpr uint32_t kMono8 = 0x01080001, kMono10 = 0x01100003, kMono12 = 0x01100005, kMono16 = 0x01100007,
                           kRGB8 = 0x02180014, kBGR8 = 0x02180015;  // BGR8: RGB8 with R and B swapped
+// 4:2:2, 8 bits, made from RGB8 (full-range BT.601; see ConvertWindow): Y Cb Y Cr, Y U Y V, U Y V Y.
+inline constexpr uint32_t kYCbCr422_8 = 0x0210003b, kYUV422_8 = 0x02100032, kYUV422_8_UYVY = 0x0210001f;
+inline bool Is422(uint32_t code) { return code == kYCbCr422_8 || code == kYUV422_8 || code == kYUV422_8_UYVY; }
 // Packed: PFNC Mono10p and Mono12p; GigE Vision 1.x Mono12Packed.
 inline constexpr uint32_t kMono10p = 0x010a0046, kMono12p = 0x010c0047, kMono12Packed = 0x010c0006;
 // Bayer<phase><bits>; bits 8, 10, 12 or 16 (10, 12 unpacked: one 16-bit word per sample).
@@ -305,11 +308,11 @@ uint32_t PackedCode(Cfa cfa, int bits, Packing packing);
 Packing PackingOf(uint32_t code);
 // Bits per pixel of a code (its bits 16..23), 0 when unknown.
 inline int PixelBits(uint32_t code) { return static_cast<int>((code >> 16) & 0xff); }
-// Significant bits per sample: 10 or 12 for the unpacked 10- and 12-bit formats, else PixelBits (per channel for RGB8, BGR8).
+// Significant bits per sample: 10 or 12 for the unpacked 10- and 12-bit formats, else PixelBits (per channel for RGB8, BGR8, 4:2:2).
 int SampleBits(uint32_t code);
-// Formats made from the ISP's RGB8: RGB8, BGR8, and Mono8 on a colour sensor (its luma).
+// Formats made from the ISP's RGB8: RGB8, BGR8, the 4:2:2 ones, and Mono8 on a colour sensor (its luma).
 inline bool FromIsp(uint32_t code, Cfa cfa) {
-  return code == kRGB8 || code == kBGR8 || (code == kMono8 && cfa != Cfa::kMono);
+  return code == kRGB8 || code == kBGR8 || Is422(code) || (code == kMono8 && cfa != Cfa::kMono);
 }
 // Bytes of a w x h frame: a packed frame is one bit stream, so its bits
 // need not end on a byte (GigeDevice refuses such windows).

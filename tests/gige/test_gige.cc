@@ -284,7 +284,7 @@ TEST(GigeRegisterTable, XmlLoadsInAravisAndMatchesTheTable) {
                        "BayerBG12", "BayerBG8", "BayerBG16", "BayerBG12p", "BayerBG12Packed",  //
                        "BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",  //
                        "BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed",  //
-                       "Mono8", "RGB8", "BGR8"}));
+                       "Mono8", "RGB8", "BGR8", "YCbCr422_8", "YUV422_8", "YUV422_8_UYVY"}));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerGB, 12), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_GB_12));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerRG, 8), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_RG_8));
   EXPECT_EQ(genicam::BayerCode(Cfa::kBayerBG, 16), static_cast<uint32_t>(ARV_PIXEL_FORMAT_BAYER_BG_16));
@@ -479,6 +479,16 @@ TEST(GigeWireFormat, ConvertsDnToEachFormat) {
   EXPECT_EQ(o3[2], 12);
   genicam::ConvertWindow(genicam::kBGR8, Cfa::kBayerRG, 12, nullptr, rgb, 2, 1, 1, 1, 1, o3);
   EXPECT_EQ(std::vector<uint8_t>(o3, o3 + 3), (std::vector<uint8_t>{12, 11, 10}));  // B, G, R
+  // 4:2:2 by hand (full-range BT.601, Cb and Cr of the even pixel): blue,
+  // red; (1, 123, 0) (Y exactly 72.5: 73), white. Blue's Cb 255.5 clamps to 255.
+  const uint8_t pair_rgb[4 * 3] = {0, 0, 255, 255, 0, 0, 1, 123, 0, 255, 255, 255};
+  uint8_t o4[8];
+  for (const uint32_t f : {genicam::kYCbCr422_8, genicam::kYUV422_8}) {
+    genicam::ConvertWindow(f, Cfa::kBayerRG, 12, nullptr, pair_rgb, 4, 0, 0, 4, 1, o4);
+    EXPECT_EQ(std::vector<uint8_t>(o4, o4 + 8), (std::vector<uint8_t>{29, 255, 76, 107, 73, 87, 255, 77}));  // Y Cb Y Cr
+  }
+  genicam::ConvertWindow(genicam::kYUV422_8_UYVY, Cfa::kBayerRG, 12, nullptr, pair_rgb, 4, 0, 0, 4, 1, o4);
+  EXPECT_EQ(std::vector<uint8_t>(o4, o4 + 8), (std::vector<uint8_t>{255, 29, 107, 76, 87, 73, 77, 255}));  // U Y V Y
   // Packed, by hand from the layouts (docs/gige.md): one row of 1x4 DN.
   using genicam::Packing;
   const uint16_t dn[4] = {0x123, 0x256, 0x3ff, 0x001};
@@ -2264,7 +2274,7 @@ TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
   std::vector<std::string> names(formats, formats + n);
   g_free(formats);
   EXPECT_EQ(names, (std::vector<std::string>{"BayerRG12", "BayerRG8", "BayerRG16", "BayerRG12p", "BayerRG12Packed",
-                                              "Mono8", "RGB8", "BGR8"}));
+                                              "Mono8", "RGB8", "BGR8", "YCbCr422_8", "YUV422_8", "YUV422_8_UYVY"}));
   // The fake camera's names keep working: ExposureTimeAbs is ExposureTime, GainRaw is Gain in 0.1 dB.
   SetFloat(c, "ExposureTimeAbs", 2500.0);
   EXPECT_DOUBLE_EQ(ReadFloat(c, "ExposureTime"), 2500.0);
@@ -5417,7 +5427,7 @@ TEST_F(GigeE2E, ReverseXAndYMirrorTheReadout) {
   const char** formats = arv_camera_dup_available_pixel_formats_as_strings(c.camera(), &n, nullptr);
   EXPECT_EQ(std::vector<std::string>(formats, formats + n),
             (std::vector<std::string>{"BayerGR12", "BayerGR8", "BayerGR16", "BayerGR12p", "BayerGR12Packed", "Mono8",
-                                      "RGB8", "BGR8"}));
+                                      "RGB8", "BGR8", "YCbCr422_8", "YUV422_8", "YUV422_8_UYVY"}));
   g_free(formats);
   GError* e = nullptr;
   arv_device_write_register(c.device(), reg::kPixelFormat, genicam::BayerCode(Cfa::kBayerRG, 12), &e);
