@@ -5511,6 +5511,110 @@ TEST_F(GigeE2E, Bgr8IsRgb8WithRedAndBlueSwapped) {
   }
 }
 
+// The 4:2:2 formats, 2 bytes a pixel, are RGB8 (the same frame) in
+// full-range BT.601 YCbCr, Cb and Cr those of each pair's even pixel:
+// YCbCr422_8 (PFNC 0x0210003B) and YUV422_8 (0x02100032) as Y Cb Y Cr,
+// YUV422_8_UYVY (0x0210001F) as Cb Y Cr Y. Each byte equals the test's own
+// double-precision conversion, rounded half up and clamped to 0..255: in the
+// whole frame, in a window off the corner under ReverseX, and for a test
+// pattern (grey: Cb = Cr = 128). A window of odd width is refused.
+TEST_F(GigeE2E, Yuv422FormatsAreRgb8InFullRangeBt601) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(SmallDevice()));
+  Client& c = *client_;
+  // Kr = 0.299, Kb = 0.114. The exact values are multiples of 1/1000, 1/1772
+  // or 1/1402; the 1e-9 lifts one at exactly k + 0.5 that rounding in double
+  // left a hair below.
+  const auto quantise = [](double v) { return static_cast<uint8_t>(std::clamp(std::floor(v + 0.5 + 1e-9), 0.0, 255.0)); };
+  const auto ycbcr = [&](const uint8_t* p, uint8_t out[3]) {
+    const double y = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+    out[0] = quantise(y);
+    out[1] = quantise(128 + (p[2] - y) / (2 * (1 - 0.114)));
+    out[2] = quantise(128 + (p[0] - y) / (2 * (1 - 0.299)));
+  };
+  struct Case {
+    const char* name;
+    uint32_t code;
+    bool uyvy;
+    const char* gst;  // Aravis's GStreamer caps for the code
+  };
+  // (Aravis 0.8.26 has no name and no caps for 0x0210003B.)
+  const Case cases[] = {{"YCbCr422_8", 0x0210003bu, false, nullptr},
+                        {"YUV422_8", ARV_PIXEL_FORMAT_YUV_422_YUYV_PACKED, false, "video/x-raw, format=(string)YUY2"},
+                        {"YUV422_8_UYVY", ARV_PIXEL_FORMAT_YUV_422_PACKED, true, "video/x-raw, format=(string)UYVY"}};
+  for (const Case& k : cases) EXPECT_STREQ(arv_pixel_format_to_gst_caps_string(k.code), k.gst) << k.name;
+  const auto check = [&](int w, int h, uint32_t index) {
+    Set(c, "PixelFormat", "RGB8");
+    const std::vector<uint8_t> rgb = GrabAt(c, "RGB8", index);
+    ASSERT_EQ(rgb.size(), static_cast<size_t>(w) * h * 3);
+    std::vector<uint8_t> yuyv(static_cast<size_t>(w) * h * 2), uyvy(yuyv.size());
+    for (size_t p = 0; p < static_cast<size_t>(w) * h; p += 2) {
+      uint8_t even[3], odd[3];
+      ycbcr(&rgb[3 * p], even);
+      ycbcr(&rgb[3 * p + 3], odd);
+      const uint8_t a[4] = {even[0], even[1], odd[0], even[2]}, b[4] = {even[1], even[0], even[2], odd[0]};
+      std::copy(a, a + 4, yuyv.begin() + static_cast<ptrdiff_t>(2 * p));
+      std::copy(b, b + 4, uyvy.begin() + static_cast<ptrdiff_t>(2 * p));
+    }
+    for (const Case& k : cases) {
+      SCOPED_TRACE(k.name);
+      uint32_t code = 0;
+      const std::vector<uint8_t> f = GrabAt(c, k.name, index, &code);
+      EXPECT_EQ(code, k.code) << "the leader's format";
+      EXPECT_STREQ(arv_camera_get_pixel_format_as_string(c.camera(), nullptr), k.name);
+      EXPECT_EQ(static_cast<uint32_t>(arv_camera_get_pixel_format(c.camera(), nullptr)), k.code);
+      EXPECT_EQ(ReadInt(c, "PayloadSize"), static_cast<int64_t>(w) * h * 2);
+      ASSERT_EQ(f.size(), static_cast<size_t>(w) * h * 2);
+      const std::vector<uint8_t>& want = k.uyvy ? uyvy : yuyv;
+      size_t bad = 0, first = 0;
+      for (size_t i = 0; i < f.size(); ++i)
+        if (f[i] != want[i] && bad++ == 0) first = i;
+      EXPECT_EQ(bad, 0u) << "first at byte " << first << ": " << int{f[first]} << ", want " << int{want[first]};
+    }
+  };
+  for (const bool reverse_x : {false, true}) {
+    SCOPED_TRACE(reverse_x ? "ReverseX, 60x44 at (2, 4)" : "whole sensor");
+    if (reverse_x) {
+      SetInt(c, "Width", 60);
+      SetInt(c, "OffsetX", 2);
+      SetInt(c, "Height", 44);
+      SetInt(c, "OffsetY", 4);
+      ASSERT_NO_FATAL_FAILURE(SetReverse(c, true, false));
+    }
+    ASSERT_NO_FATAL_FAILURE(check(reverse_x ? 60 : 64, reverse_x ? 44 : 48, 6));
+  }
+  // The frame has colour, so Cb and Cr (and their order) were tested.
+  const std::vector<uint8_t> f = GrabAt(c, "YCbCr422_8", 6);
+  size_t chroma_off = 0, cb_is_cr = 0;
+  for (size_t i = 0; i + 3 < f.size(); i += 4) {
+    chroma_off += f[i + 1] != 128 || f[i + 3] != 128;
+    cb_is_cr += f[i + 1] == f[i + 3];
+  }
+  EXPECT_GT(chroma_off, f.size() / 8);
+  EXPECT_LT(cb_is_cr, f.size() / 8);
+  {
+    SCOPED_TRACE("TestPattern GreyDiagonalRamp");
+    Set(c, "TestPattern", "GreyDiagonalRamp");
+    ASSERT_NO_FATAL_FAILURE(check(60, 44, 2));
+    const std::vector<uint8_t> grey = GrabAt(c, "YUV422_8", 2);
+    for (size_t i = 0; i + 3 < grey.size(); i += 4) {
+      ASSERT_EQ(grey[i + 1], 128) << i;
+      ASSERT_EQ(grey[i + 3], 128) << i;
+    }
+    Set(c, "TestPattern", "Off");
+  }
+  // Odd widths: Width and OffsetX step by 2 on a Bayer sensor, so every row
+  // holds whole pixel pairs; a client write of 61 is refused with its reason.
+  Set(c, "PixelFormat", "YCbCr422_8");
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 60);
+  testing::internal::CaptureStderr();
+  ASSERT_NO_FATAL_FAILURE(WriteRegRefused(*device_, reg::kWidth, Be32(61)));
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("refused Width = 61: off its increment 2"), std::string::npos) << err;
+  Settle();
+  EXPECT_EQ(ReadInt(c, "Width"), 60);
+}
+
 // DeviceTemperature (SFNC, DeviceTemperatureSelector Sensor) is the sensor's
 // configured temperature, sensor.temperature_c (which sets the dark
 // current): read-only, a write refused as read-only.
