@@ -2205,6 +2205,26 @@ class GigeE2E : public ::testing::Test {
     o.trigger = &trigger_;
     StartWith(o);
   }
+  // StartWith a device whose Line0 is a trigger bus in a fresh directory
+  // (bus_dir_); EndTriggerBus stops client and device and checks that the
+  // directory is left empty. Call through ASSERT_NO_FATAL_FAILURE.
+  void StartWithTriggerBus(const char* name) {
+    bus_dir_ = testing::TempDir() + name + "-" + std::to_string(getpid());
+    DeviceOptions o = SmallDevice();
+    o.trigger_line = "unix:" + bus_dir_;
+    StartWith(o);
+  }
+  void EndTriggerBus() {
+    client_.reset();
+    device_.reset();
+    EXPECT_EQ(rmdir(bus_dir_.c_str()), 0);
+  }
+  // The stream opened, the acquisition started and settled (call through ASSERT_NO_FATAL_FAILURE).
+  void OpenAndStart() {
+    ASSERT_TRUE(client_->OpenStream());
+    Start(*client_);
+    Settle();
+  }
   // TriggerMode On at FrameStart from `source`, on `activation` when given.
   void TriggerOn(const char* source, const char* activation = nullptr) {
     Client& c = *client_;
@@ -2255,6 +2275,7 @@ class GigeE2E : public ::testing::Test {
   std::unique_ptr<GigeDevice> device_;
   std::unique_ptr<Client> client_;
   ArvChunkParser* chunks_ = nullptr;  // StartWithChunks's
+  std::string bus_dir_;               // StartWithTriggerBus's
 };
 
 TEST_F(GigeE2E, ConnectsByAddressAndReadsFeatures) {
@@ -3300,24 +3321,13 @@ TEST_F(GigeE2E, TriggerWidthExposesForThePulsesWidth) {
 // times: a few microseconds); a BusOutput pulse exposes the time between its
 // two Sets, to well under a millisecond (read times: the reader's latency).
 TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
-  const std::string dir = testing::TempDir() + "camsim-width-bus-" + std::to_string(getpid());
-  DeviceOptions o = SmallDevice();
-  o.trigger_line = "unix:" + dir;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerBus("camsim-width-bus"));
   Client& c = *client_;
-  Set(c, "TriggerMode", "On");
-  Set(c, "TriggerSource", "Line0");
-  Set(c, "TriggerActivation", "RisingEdge");
+  TriggerOn("Line0", "RisingEdge");
   Set(c, "ExposureMode", "TriggerWidth");
-  GError* e = nullptr;
-  arv_camera_set_boolean(c.camera(), "ChunkModeActive", TRUE, &e);
-  ASSERT_EQ(e, nullptr);
-  ArvChunkParser* parser = arv_camera_create_chunk_parser(c.camera());
-  Settle();
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
-  const std::string socket_path = BusSocketIn(dir);
+  ASSERT_NO_FATAL_FAILURE(StartWithChunks());
+  ArvChunkParser* parser = chunks_;
+  const std::string socket_path = BusSocketIn(bus_dir_);
   const long long now_ns = hal::MonotonicNowNs();
   SendBusEdge(socket_path, true, 10, now_ns - 60000000LL);
   SendBusEdge(socket_path, false, 10, now_ns);
@@ -3325,7 +3335,7 @@ TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
   ASSERT_TRUE(f.ok) << "no frame for the stamped pulse";
   EXPECT_NEAR(f.values.at("ChunkExposureTime"), 60000.0, 200.0) << "µs: not the stamps' 60 ms";
   std::string error;
-  auto bus = hal::OpenBusOutput("unix:" + dir, &error);
+  auto bus = hal::OpenBusOutput("unix:" + bus_dir_, &error);
   ASSERT_NE(bus, nullptr) << error;
   const auto r0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(bus->Set(true, &error)) << error;
@@ -3340,10 +3350,7 @@ TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
   EXPECT_GE(f.values.at("ChunkExposureTime"), us(f0 - r1) - 50.0);
   EXPECT_LE(f.values.at("ChunkExposureTime"), us(f1 - r0) + 50.0);
   EXPECT_TRUE(c.Grab(300).empty()) << "more frames than pulses";
-  g_object_unref(parser);
-  client_.reset();
-  device_.reset();
-  EXPECT_EQ(rmdir(dir.c_str()), 0);
+  EndTriggerBus();
 }
 
 // A triggered frame's timestamp is its edge's time on the device's clock
@@ -3352,18 +3359,12 @@ TEST_F(GigeE2E, TriggerWidthOverTheBusTakesTheSendersEdgeTimes) {
 // in microseconds, read apart from the steady clock the edges are on, so a
 // user's review saw debounced frames 90-250 us late now and then.
 TEST_F(GigeE2E, TriggeredFramesAreStampedAtTheirEdgesToTheNanosecond) {
-  const std::string dir = testing::TempDir() + "camsim-stamp-bus-" + std::to_string(getpid());
-  DeviceOptions o = SmallDevice();
-  o.trigger_line = "unix:" + dir;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerBus("camsim-stamp-bus"));
   Client& c = *client_;
   TriggerOn("Line0", "RisingEdge");
   Set(c, "LineSelector", "Line0");
-  Settle();
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
-  const std::string socket_path = BusSocketIn(dir);
+  ASSERT_NO_FATAL_FAILURE(OpenAndStart());
+  const std::string socket_path = BusSocketIn(bus_dir_);
   constexpr long long kApart = 60123457, kHigh = 25000000;  // ns
   for (const double debounce_us : {0.0, 20000.0}) {
     SetFloat(c, "LineDebouncerTime", debounce_us);
@@ -3381,9 +3382,7 @@ TEST_F(GigeE2E, TriggeredFramesAreStampedAtTheirEdgesToTheNanosecond) {
     EXPECT_EQ(stamps[1] - stamps[0], static_cast<uint64_t>(kApart)) << "debounce " << debounce_us << " us";
     EXPECT_TRUE(c.Grab(300).empty()) << "more frames than pulses";
   }
-  client_.reset();
-  device_.reset();
-  EXPECT_EQ(rmdir(dir.c_str()), 0);
+  EndTriggerBus();
 }
 
 // Edges are taken in order even when a stamp falls back to its read time
@@ -3392,24 +3391,19 @@ TEST_F(GigeE2E, TriggeredFramesAreStampedAtTheirEdgesToTheNanosecond) {
 // stamped 1 s and 0.5 s ago, cannot move the line back before it; the
 // debounced trigger comes 20 ms after the read, not 480 ms before it.
 TEST_F(GigeE2E, AStaleEdgeStampDoesNotTakeTheLineBackInTime) {
-  const std::string dir = testing::TempDir() + "camsim-stale-bus-" + std::to_string(getpid());
-  DeviceOptions o = SmallDevice();
-  o.trigger_line = "unix:" + dir;
-  ASSERT_NO_FATAL_FAILURE(StartWith(o));
+  ASSERT_NO_FATAL_FAILURE(StartWithTriggerBus("camsim-stale-bus"));
   Client& c = *client_;
   TriggerOn("Line0", "RisingEdge");
   Set(c, "LineSelector", "Line0");
   SetFloat(c, "LineDebouncerTime", 20000.0);
   Settle();
-  ASSERT_TRUE(c.OpenStream());
-  Start(c);
-  Settle();
+  ASSERT_NO_FATAL_FAILURE(OpenAndStart());
   GError* e = nullptr;
   arv_camera_execute_command(c.camera(), "GevTimestampControlLatch", &e);
   ASSERT_EQ(e, nullptr);
   const int64_t before = arv_camera_get_integer(c.camera(), "GevTimestampValue", &e);
   ASSERT_EQ(e, nullptr);
-  const std::string socket_path = BusSocketIn(dir);
+  const std::string socket_path = BusSocketIn(bus_dir_);
   const long long now_ns = hal::MonotonicNowNs();
   SendBusEdge(socket_path, true, 30, now_ns - 11000000000LL);
   SendBusEdge(socket_path, false, 30, now_ns - 1000000000LL);
@@ -3417,9 +3411,7 @@ TEST_F(GigeE2E, AStaleEdgeStampDoesNotTakeTheLineBackInTime) {
   ASSERT_FALSE(c.Grab(3000).empty()) << "no frame for the last rising edge";
   EXPECT_GE(static_cast<int64_t>(c.last_timestamp_ns()), before + 20000000) << "stamped before the edges were read";
   EXPECT_TRUE(c.Grab(300).empty()) << "more frames than rising levels";
-  client_.reset();
-  device_.reset();
-  EXPECT_EQ(rmdir(dir.c_str()), 0);
+  EndTriggerBus();
 }
 
 // One mechanism for the XML and the device: for every feature and entry with
