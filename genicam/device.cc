@@ -359,6 +359,7 @@ bool LoadDeviceScenes(const DeviceOptions& o, host::RunConfig* rc, host::Origins
   for (const std::string& f : files) {
     io::SceneFrame s;
     if (!io::LoadSceneExr(f, "", &s, error)) return false;
+    for (const std::string& w : s.warnings) std::fprintf(stderr, "camsim-gige: warning: %s\n", w.c_str());
     if (!scenes->empty() && (s.width != scenes->front().width || s.height != scenes->front().height)) {
       *error = f + ": is " + std::to_string(s.width) + "x" + std::to_string(s.height) + " but the first input is " +
                std::to_string(scenes->front().width) + "x" + std::to_string(scenes->front().height);
@@ -643,6 +644,9 @@ bool GigeDevice::Init(const DeviceOptions& o, std::string* error) {
   host::RunConfig finished;
   if (!renderer_->Configure(base_config_, origins_, scenes_[0].width, scenes_[0].height, &finished, error))
     return false;
+  if (finished.environment_data)
+    for (const std::string& w : finished.environment_data->warnings)
+      std::fprintf(stderr, "camsim-gige: warning: flare.environment_map %s\n", w.c_str());
   const Pipeline& p = renderer_->pipeline();
   const PlanEntry* sensor = RunningSensor(p.plan());
   if (sensor == nullptr || sensor->out.channels != 1) {

@@ -817,6 +817,10 @@ int RunCommand(const RunOptions& o) {
           break;
         }
       }
+      // The flare environment map's replaced texels, once (it is loaded once).
+      if (rc.environment_data)
+        for (const std::string& w : rc.environment_data->warnings)
+          std::fprintf(stderr, "camsim: warning: flare.environment_map %s\n", w.c_str());
       first_w = scene.width;
       first_h = scene.height;
     } else if (scene.width != first_w || scene.height != first_h) {

@@ -19,6 +19,7 @@ bool LoadEnvironmentMap(const std::string& path, EnvironmentMap* out, std::strin
   m.width = w;
   m.height = h;
   m.stats = frame.radiance_stats;
+  m.warnings = std::move(frame.warnings);
   m.layout = frame.layout;
   const size_t n = static_cast<size_t>(w) * static_cast<size_t>(h);
   m.rgb.resize(3 * n);

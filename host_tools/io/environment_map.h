@@ -24,6 +24,7 @@ struct EnvironmentMap {
   int width = 0, height = 0;
   std::vector<float> rgb;     // R, G, B interleaved, row 0 = the zenith
   InputSanitizeStats stats;   // texel samples replaced while loading
+  std::vector<std::string> warnings;  // as SceneFrame::warnings: one line naming the file if any was
   std::string layout;         // as SceneFrame::layout
 };
 

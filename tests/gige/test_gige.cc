@@ -29,6 +29,7 @@
 
 #include "genicam/fake_camera_hooks.h"
 #include "tests/gige/gige_client.h"
+#include "tests/support/exr_fixture.h"
 
 namespace camsim::gigetest {
 namespace {
@@ -6047,6 +6048,44 @@ TEST(GigeRegisters, TheStartSaysWhichUserSetItLoaded) {
   EXPECT_EQ(ReadReg32(*d, reg::kWidth), 32u);
   d.reset();
   std::remove(o.user_set_file.c_str());
+}
+
+// A scene or a flare environment map whose samples the reader replaced
+// (NaN, inf, negative) is named on stderr at the start, as `camsim run`
+// names them; camsim-gige replaced them silently.
+TEST(GigeRegisters, ReplacedInputSamplesAreWarnedAboutAtTheStart) {
+  const std::string dir = testing::TempDir();
+  const std::string scene = dir + "camsim-dirty-scene-" + std::to_string(getpid()) + ".exr";
+  const std::string env = dir + "camsim-dirty-env-" + std::to_string(getpid()) + ".exr";
+  std::vector<float> grey(64 * 48, 0.5f);
+  std::vector<float> red = grey;
+  red[64 * 2 + 3] = std::nanf("");
+  test::WriteExrFixture(scene, test::Box(0, 0, 63, 47), test::Box(0, 0, 63, 47),
+                        {{"R", Imf::FLOAT, red}, {"G", Imf::FLOAT, grey}, {"B", Imf::FLOAT, grey}});
+  std::vector<float> sky(8 * 4, 1.0f), blue = sky;
+  blue[6] = -2.0f;
+  test::WriteExrFixture(env, test::Box(0, 0, 7, 3), test::Box(0, 0, 7, 3),
+                        {{"R", Imf::FLOAT, sky}, {"G", Imf::FLOAT, sky}, {"B", Imf::FLOAT, blue}});
+  DeviceOptions o = OfflineDevice();
+  o.pattern.clear();
+  o.inputs = {scene};
+  o.overrides.push_back("flare.enabled=true");
+  o.overrides.push_back("flare.environment_map=\"" + env + "\"");
+  testing::internal::CaptureStderr();
+  auto d = StartDevice(o);
+  const std::string log = testing::internal::GetCapturedStderr();
+  ASSERT_NE(d, nullptr) << log;
+  EXPECT_NE(log.find("camsim-gige: warning: '" + scene +
+                     "': 1 NaN colour sample replaced (first: channel R at x=3, y=2)\n"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("camsim-gige: warning: flare.environment_map '" + env +
+                     "': 1 negative colour sample replaced (first: channel B at x=6, y=0)\n"),
+            std::string::npos)
+      << log;
+  d.reset();
+  std::remove(scene.c_str());
+  std::remove(env.c_str());
 }
 
 // A user set file that is not what the device can load stops the start,

@@ -872,6 +872,26 @@ TEST(Cli, AFlareLeftOutReportsNoFlare) {
   EXPECT_EQ(Slurp(dir + "/r.json").find("\"flare_environment\""), std::string::npos) << Slurp(dir + "/r.json");
 }
 
+// A flare environment map whose texels were replaced (NaN, inf, negative)
+// is named on stderr once, as a scene frame is; it was only counted in the
+// report.
+TEST(Cli, AnEnvironmentMapsReplacedTexelsAreWarnedAbout) {
+  const std::string dir = TempDir("dirty_env");
+  const std::string env = dir + "/dirty_env.exr";
+  std::vector<float> r(8 * 4, 1.0f), g(8 * 4, 2.0f), b(8 * 4, 3.0f);
+  r[5] = std::nanf("");
+  b[7] = INFINITY;
+  camsim::test::WriteExrFixture(env, camsim::test::Box(0, 0, 7, 3), camsim::test::Box(0, 0, 7, 3),
+                                {{"R", Imf::FLOAT, r}, {"G", Imf::FLOAT, g}, {"B", Imf::FLOAT, b}});
+  const Result run = Camsim("run --input " + kScene + " --out " + dir + " --quiet --set flare.enabled=true" +
+                            " --set flare.environment_map=" + env);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const std::string line = "camsim: warning: flare.environment_map '" + env +
+                           "': 1 NaN, 1 +inf colour samples replaced (first: channel R at x=5, y=0)\n";
+  EXPECT_NE(run.err.find(line), std::string::npos) << run.err;
+  EXPECT_EQ(run.err.find(line), run.err.rfind(line)) << "said twice: " << run.err;
+}
+
 // tradeoff checks its input as `camsim run` does: a stage without its depth
 // plane is an error naming it (it used to read a plane that is not there).
 TEST(Cli, TradeoffRefusesAnInputWithoutTheDepthItNeeds) {

@@ -583,6 +583,9 @@ TEST(FlareEnvironment, HostKeysAndLoaderErrorsNameKeyAndFile) {
   EXPECT_EQ(map.stats.nan, 1u);
   EXPECT_EQ(map.stats.negative, 1u);
   EXPECT_EQ(map.stats.pos_inf, 1u);
+  ASSERT_EQ(map.warnings.size(), 1u);  // the line `camsim run` and camsim-gige print
+  EXPECT_EQ(map.warnings[0], "'" + dirty + "': 1 NaN, 1 +inf, 1 negative colour samples replaced (first: channel R "
+                             "at x=5, y=0)");
   EXPECT_EQ(map.rgb[5 * 3], 0.0f);
   EXPECT_EQ(map.rgb[6 * 3 + 1], 0.0f);
   EXPECT_EQ(map.rgb[7 * 3 + 2], 65504.0f);
