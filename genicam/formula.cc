@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -45,16 +46,28 @@ bool Formula::Parse(const std::string& text, const std::vector<std::string>& nam
     nodes_.push_back({op, value, a, b});
     return static_cast<int>(nodes_.size()) - 1;
   };
-  // Recursive descent, one level per precedence (formula.h): each level's
-  // operands one level down, left to right.
-  std::function<int()> or_level;
+  // Recursive descent, one level per precedence (formula.h), lowest first:
+  // each level's operands one level down, left to right. The operator at the
+  // cursor is read whole (the longest that matches), so "<>" is never "<".
+  static const std::vector<std::vector<std::pair<std::string, Op>>> kLevels = {
+      {{"||", Op::kOr}},
+      {{"&&", Op::kAnd}},
+      {{"=", Op::kEq}, {"<>", Op::kNe}},
+      {{"<", Op::kLt}, {">", Op::kGt}, {"<=", Op::kLe}, {">=", Op::kGe}}};
+  const auto operator_here = [&]() -> std::string {
+    p.Space();
+    for (const char* op : {"||", "&&", "<>", "<=", ">=", "==", "=", "<", ">"})
+      if (text.compare(p.at_, std::strlen(op), op) == 0) return op;
+    return "";
+  };
+  std::function<int(size_t)> level;
   const auto primary = [&]() -> int {
     p.Space();
     if (p.at_ >= text.size()) return p.Fail("expected a number, a variable or '(', found the end");
     const char c = text[p.at_];
     if (c == '(') {
       ++p.at_;
-      const int inner = or_level();
+      const int inner = level(0);
       if (inner < 0) return -1;
       if (!p.Take(")")) return p.Fail("expected ')'");
       return inner;
@@ -84,54 +97,18 @@ bool Formula::Parse(const std::string& text, const std::vector<std::string>& nam
     if (c == '!') return p.Fail(kNoNot);
     return p.Fail(std::string("expected a number, a variable or '(', found '") + c + "'");
   };
-  const auto relational = [&]() -> int {
-    int left = primary();
+  level = [&](size_t l) -> int {
+    if (l == kLevels.size()) return primary();
+    int left = level(l + 1);
     while (left >= 0) {
-      Op op;
-      // (Two-character operators first; "<>" is equality's level.)
-      p.Space();
-      if (text.compare(p.at_, 2, "<>") == 0) break;
-      if (p.Take("<=")) op = Op::kLe;
-      else if (p.Take(">=")) op = Op::kGe;
-      else if (p.Take("<")) op = Op::kLt;
-      else if (p.Take(">")) op = Op::kGt;
-      else break;
-      const int right = primary();
+      const std::string op = operator_here();
+      if (op == "==") return p.Fail("'==' is not GenICam: equal is '='");
+      const auto it = std::find_if(kLevels[l].begin(), kLevels[l].end(), [&](const auto& o) { return o.first == op; });
+      if (it == kLevels[l].end()) break;
+      p.at_ += op.size();
+      const int right = level(l + 1);
       if (right < 0) return -1;
-      left = add(op, 0, left, right);
-    }
-    return left;
-  };
-  const auto equality = [&]() -> int {
-    int left = relational();
-    while (left >= 0) {
-      Op op;
-      p.Space();
-      if (text.compare(p.at_, 2, "==") == 0) return p.Fail("'==' is not GenICam: equal is '='");
-      if (p.Take("=")) op = Op::kEq;
-      else if (p.Take("<>")) op = Op::kNe;
-      else break;
-      const int right = relational();
-      if (right < 0) return -1;
-      left = add(op, 0, left, right);
-    }
-    return left;
-  };
-  const auto and_level = [&]() -> int {
-    int left = equality();
-    while (left >= 0 && p.Take("&&")) {
-      const int right = equality();
-      if (right < 0) return -1;
-      left = add(Op::kAnd, 0, left, right);
-    }
-    return left;
-  };
-  or_level = [&]() -> int {
-    int left = and_level();
-    while (left >= 0 && p.Take("||")) {
-      const int right = and_level();
-      if (right < 0) return -1;
-      left = add(Op::kOr, 0, left, right);
+      left = add(it->second, 0, left, right);
     }
     return left;
   };
@@ -140,7 +117,7 @@ bool Formula::Parse(const std::string& text, const std::vector<std::string>& nam
     *error = "empty formula";
     return false;
   }
-  const int root = or_level();
+  const int root = level(0);
   p.Space();
   if (root >= 0 && p.at_ != text.size()) {
     if (text[p.at_] == ')') p.Fail("')' without its '('");
